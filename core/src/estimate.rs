@@ -1,0 +1,176 @@
+//! Across-run estimates of every coefficient: the mean and the fused value,
+//! each with its eq. 8 dispersion, assembled term by term from
+//! [`crate::fusion`]. This is also "fusion of given values": callers may pass
+//! per-run coefficients they identified elsewhere (the paper's Table 2).
+
+use serde::Serialize;
+
+use crate::fusion::{self, Dispersion};
+use crate::term::TermMap;
+use crate::{Error, Term};
+
+/// The arithmetic mean of each coefficient (eq. 1) and eq. 8 about it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MeanEstimate {
+    /// `x̄` per term.
+    pub coefficients: TermMap<f64>,
+    /// Eq. 8 about the mean, absolute.
+    pub dispersion: TermMap<f64>,
+    /// Eq. 8 about the mean divided by `|x̄|` (`null` when `x̄ = 0`).
+    pub relative_dispersion: TermMap<Option<f64>>,
+}
+
+/// One batch, shared by every term: its runs and per-term mean and deviation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct BatchSummary {
+    /// Run indices (0-based) in the batch.
+    pub runs: Vec<usize>,
+    /// Batch mean `x̄_p` per term.
+    pub mean: TermMap<f64>,
+    /// Batch sample standard deviation `s_p` per term.
+    pub std: TermMap<f64>,
+}
+
+/// The batch-estimation fusion of each coefficient and eq. 8 about it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FusedEstimate {
+    /// The batches.
+    pub batches: Vec<BatchSummary>,
+    /// Fused value `x⁺` per term.
+    pub coefficients: TermMap<f64>,
+    /// Fused standard error `1/sqrt(Σ w_p)` per term.
+    pub std_errors: TermMap<f64>,
+    /// Eq. 8 about the fused value, absolute.
+    pub dispersion: TermMap<f64>,
+    /// Eq. 8 about the fused value divided by `|x⁺|` (`null` when `x⁺ = 0`).
+    pub relative_dispersion: TermMap<Option<f64>>,
+}
+
+/// Both across-run estimates.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Estimates {
+    /// The traditional estimate (eq. 1).
+    pub mean: MeanEstimate,
+    /// The paper's batch-estimation fusion (eq. 4–7, general variance).
+    pub fused: FusedEstimate,
+}
+
+/// Mean and fused estimates of per-run values, keyed by term, over `batches`
+/// batches. Every term must have the same number of values (one per run).
+pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates, Error> {
+    let Some((_, first)) = values.0.first() else {
+        return Err(Error::NoValues);
+    };
+    let runs = first.len();
+    for (term, xs) in values.iter() {
+        if xs.len() != runs {
+            return Err(Error::ValueCount {
+                term,
+                expected: runs,
+                found: xs.len(),
+            });
+        }
+    }
+    let mut fusions = Vec::with_capacity(values.len());
+    for (term, xs) in values.iter() {
+        let f = fusion::fuse(xs, batches).map_err(|source| Error::Fusion { term, source })?;
+        fusions.push((term, xs.as_slice(), f));
+    }
+
+    let per_term = |g: &dyn Fn(&[f64], &fusion::Fusion) -> f64| -> TermMap<f64> {
+        TermMap(fusions.iter().map(|(t, xs, f)| (*t, g(xs, f))).collect())
+    };
+    let about = |k: &dyn Fn(&[f64], &fusion::Fusion) -> f64| -> Vec<(Term, Dispersion)> {
+        fusions
+            .iter()
+            .map(|(t, xs, f)| {
+                let d = fusion::dispersion(xs, k(xs, f)).expect("fusion needs two runs or more");
+                (*t, d)
+            })
+            .collect()
+    };
+    let split = |ds: Vec<(Term, Dispersion)>| {
+        (
+            TermMap(ds.iter().map(|(t, d)| (*t, d.absolute)).collect()),
+            TermMap(ds.iter().map(|(t, d)| (*t, d.relative)).collect()),
+        )
+    };
+
+    let (mean_abs, mean_rel) = split(about(&|xs, _| fusion::mean(xs)));
+    let (fused_abs, fused_rel) = split(about(&|_, f| f.value));
+    let batch_summaries = (0..batches)
+        .map(|p| BatchSummary {
+            runs: fusions[0].2.batches[p].runs.clone().collect(),
+            mean: per_term(&|_, f| f.batches[p].mean),
+            std: per_term(&|_, f| f.batches[p].std),
+        })
+        .collect();
+
+    Ok(Estimates {
+        mean: MeanEstimate {
+            coefficients: per_term(&|xs, _| fusion::mean(xs)),
+            dispersion: mean_abs,
+            relative_dispersion: mean_rel,
+        },
+        fused: FusedEstimate {
+            batches: batch_summaries,
+            coefficients: per_term(&|_, f| f.value),
+            std_errors: per_term(&|_, f| f.std_error),
+            dispersion: fused_abs,
+            relative_dispersion: fused_rel,
+        },
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::FusionError;
+
+    #[test]
+    fn unequal_value_counts_are_refused() {
+        let v = TermMap(vec![
+            (Term::K0, vec![1.0, 2.0, 3.0, 4.0]),
+            (Term::Ki, vec![1.0, 2.0, 3.0]),
+        ]);
+        assert_eq!(
+            estimate(&v, 1),
+            Err(Error::ValueCount {
+                term: Term::Ki,
+                expected: 4,
+                found: 3
+            })
+        );
+    }
+
+    #[test]
+    fn fusion_errors_name_the_term() {
+        let v = TermMap(vec![
+            (Term::K0, vec![1.0, 2.0, 3.0, 4.0]),
+            (Term::Kp, vec![1.0, 1.0, 3.0, 4.0]),
+        ]);
+        assert_eq!(
+            estimate(&v, 2),
+            Err(Error::Fusion {
+                term: Term::Kp,
+                source: FusionError::NoSpread {
+                    batch: 0,
+                    first: 0,
+                    last: 1
+                }
+            })
+        );
+    }
+
+    #[test]
+    fn fused_dispersion_is_never_below_the_mean_dispersion() {
+        let v = TermMap(vec![(Term::K0, vec![1.0, 1.5, 1.1, 4.0, 5.0, 4.2])]);
+        let e = estimate(&v, 2).unwrap();
+        let (m, f) = (
+            e.mean.dispersion.get(Term::K0).unwrap(),
+            e.fused.dispersion.get(Term::K0).unwrap(),
+        );
+        assert!(f > m, "{f} vs {m}");
+        assert_eq!(e.fused.batches[1].runs, vec![3, 4, 5]);
+    }
+}

@@ -1,0 +1,230 @@
+//! Statistics across repeated runs of one coefficient: the arithmetic mean
+//! (paper eq. 1), batch-estimation fusion (eq. 4–7) and dispersion (eq. 8).
+//!
+//! **Batches.** The `n` values are split into `k` contiguous batches in
+//! submission order, as equal as possible with the larger batches first
+//! (7 values in 2 batches: 4 + 3). Batch `p` has `n_p` values, mean `x̄_p` and
+//! sample standard deviation `s_p` (divisor `n_p − 1`, eq. 5).
+//!
+//! **Fusion.** The batch means are combined with the inverse variances of the
+//! *means* as weights:
+//!
+//! ```text
+//! w_p = n_p / s_p²,     x⁺ = Σ_p w_p·x̄_p / Σ_p w_p,     Var(x⁺) = 1 / Σ_p w_p
+//! ```
+//!
+//! For equal batch sizes this is the paper's eq. 7 exactly. The paper's closed
+//! form `Πσ_p² / Σσ_p²` for the fused variance equals `1/Σ(1/σ_p²)` only for
+//! `k = 2`; the general form above is used for every `k`. With `k = 1` the
+//! fused value is the mean and its standard error `s/√n`.
+//!
+//! **Dispersion (eq. 8).** For an estimate `K` over the per-run values `K_j`:
+//!
+//! ```text
+//! dispersion(K) = sqrt( Σ_j (K − K_j)² / (n − 1) ),    relative = dispersion / |K|
+//! ```
+//!
+//! The mean minimises `Σ(K − K_j)²`, so the dispersion about any other value —
+//! the fused one included — is at least the dispersion about the mean.
+
+use std::ops::Range;
+
+use serde::Serialize;
+
+use crate::FusionError;
+
+/// Arithmetic mean `x̄ = Σ x_j / n` (eq. 1); NaN for an empty slice.
+pub fn mean(values: &[f64]) -> f64 {
+    values.iter().sum::<f64>() / values.len() as f64
+}
+
+/// Sample standard deviation `sqrt(Σ (x_j − x̄)² / (n − 1))` (eq. 5);
+/// `None` for fewer than two values.
+pub fn sample_std(values: &[f64]) -> Option<f64> {
+    dispersion(values, mean(values)).map(|d| d.absolute)
+}
+
+/// Eq. 8 dispersion of the values about an estimate.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Dispersion {
+    /// `sqrt(Σ (K − K_j)² / (n − 1))`, in the coefficient's unit.
+    pub absolute: f64,
+    /// `absolute / |K|`; `None` when `K = 0`.
+    pub relative: Option<f64>,
+}
+
+/// Eq. 8 dispersion of `values` about `estimate`; `None` for fewer than two values.
+pub fn dispersion(values: &[f64], estimate: f64) -> Option<Dispersion> {
+    let n = values.len();
+    if n < 2 {
+        return None;
+    }
+    let ss: f64 = values.iter().map(|x| (estimate - x).powi(2)).sum();
+    let absolute = (ss / (n - 1) as f64).sqrt();
+    let relative = (estimate != 0.0).then(|| absolute / estimate.abs());
+    Some(Dispersion { absolute, relative })
+}
+
+/// The index ranges of `k` contiguous batches over `n` values, larger first.
+///
+/// Refuses `k = 0` and any split that leaves a batch with fewer than two
+/// values (naming the first such batch).
+pub fn batch_ranges(n: usize, k: usize) -> Result<Vec<Range<usize>>, FusionError> {
+    if k == 0 {
+        return Err(FusionError::NoBatches);
+    }
+    let (base, extra) = (n / k, n % k);
+    let mut start = 0;
+    let mut ranges = Vec::with_capacity(k);
+    for batch in 0..k {
+        let len = base + usize::from(batch < extra);
+        if len < 2 {
+            return Err(FusionError::TooFewRuns {
+                batch,
+                runs: len,
+                total: n,
+                batches: k,
+            });
+        }
+        ranges.push(start..start + len);
+        start += len;
+    }
+    Ok(ranges)
+}
+
+/// One batch of a fusion: which runs, their mean and standard deviation.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Batch {
+    /// The runs (value indices) in this batch.
+    pub runs: Range<usize>,
+    /// Batch mean `x̄_p` (eq. 4).
+    pub mean: f64,
+    /// Batch sample standard deviation `s_p` (eq. 5).
+    pub std: f64,
+}
+
+/// The batch-estimation fusion of one coefficient's per-run values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Fusion {
+    /// The batches, in order.
+    pub batches: Vec<Batch>,
+    /// Fused value `x⁺ = Σ w_p·x̄_p / Σ w_p`.
+    pub value: f64,
+    /// Fused standard error `1 / sqrt(Σ w_p)`.
+    pub std_error: f64,
+}
+
+/// Fuses `values` (one per run, in submission order) over `k` batches.
+pub fn fuse(values: &[f64], k: usize) -> Result<Fusion, FusionError> {
+    if let Some(run) = values.iter().position(|x| !x.is_finite()) {
+        return Err(FusionError::NonFinite { run });
+    }
+    let ranges = batch_ranges(values.len(), k)?;
+    let mut batches = Vec::with_capacity(k);
+    let (mut sum_w, mut sum_wx) = (0.0, 0.0);
+    for (batch, runs) in ranges.into_iter().enumerate() {
+        let xs = &values[runs.clone()];
+        let m = mean(xs);
+        let s = sample_std(xs).expect("batches hold at least two values");
+        if s == 0.0 || xs.iter().all(|x| *x == xs[0]) {
+            return Err(FusionError::NoSpread {
+                batch,
+                first: runs.start,
+                last: runs.end - 1,
+            });
+        }
+        let w = xs.len() as f64 / (s * s);
+        sum_w += w;
+        sum_wx += w * m;
+        batches.push(Batch {
+            runs,
+            mean: m,
+            std: s,
+        });
+    }
+    Ok(Fusion {
+        batches,
+        value: sum_wx / sum_w,
+        std_error: sum_w.sqrt().recip(),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn batches_are_contiguous_and_larger_first() {
+        assert_eq!(batch_ranges(7, 2).unwrap(), vec![0..4, 4..7]);
+        assert_eq!(batch_ranges(6, 2).unwrap(), vec![0..3, 3..6]);
+        assert_eq!(batch_ranges(8, 3).unwrap(), vec![0..3, 3..6, 6..8]);
+        assert_eq!(batch_ranges(2, 1).unwrap(), vec![0..2]);
+    }
+
+    #[test]
+    fn batches_of_one_and_zero_batches_are_refused() {
+        assert_eq!(batch_ranges(3, 0), Err(FusionError::NoBatches));
+        assert_eq!(
+            batch_ranges(5, 3),
+            Err(FusionError::TooFewRuns {
+                batch: 2,
+                runs: 1,
+                total: 5,
+                batches: 3
+            })
+        );
+        assert_eq!(
+            batch_ranges(1, 1),
+            Err(FusionError::TooFewRuns {
+                batch: 0,
+                runs: 1,
+                total: 1,
+                batches: 1
+            })
+        );
+    }
+
+    #[test]
+    fn identical_batch_is_refused_with_its_runs() {
+        assert_eq!(
+            fuse(&[1.0, 2.0, 3.0, 5.0, 5.0, 5.0], 2),
+            Err(FusionError::NoSpread {
+                batch: 1,
+                first: 3,
+                last: 5
+            })
+        );
+        assert_eq!(
+            fuse(&[1.0, f64::NAN, 3.0, 4.0], 2),
+            Err(FusionError::NonFinite { run: 1 })
+        );
+    }
+
+    #[test]
+    fn one_batch_is_the_mean_with_standard_error_of_the_mean() {
+        let xs = [1.0, 2.0, 4.0, 7.0];
+        let f = fuse(&xs, 1).unwrap();
+        assert_eq!(f.value, mean(&xs));
+        let s = sample_std(&xs).unwrap();
+        assert!((f.std_error - s / 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn weights_are_those_of_the_batch_means() {
+        // Batch 1: [1, 3] mean 2, s² 2, n 2 → w = 1; batch 2: [10, 11, 12]
+        // mean 11, s² 1, n 3 → w = 3. x⁺ = (2 + 33)/4, Var = 1/4.
+        let f = fuse(&[10.0, 11.0, 12.0, 1.0, 3.0], 2).unwrap();
+        assert_eq!(f.value, 35.0 / 4.0);
+        assert_eq!(f.std_error, 0.5);
+        assert_eq!(f.batches[0].runs, 0..3);
+    }
+
+    #[test]
+    fn dispersion_is_eq_8() {
+        let d = dispersion(&[1.0, 2.0, 3.0], 2.0).unwrap();
+        assert_eq!(d.absolute, 1.0);
+        assert_eq!(d.relative, Some(0.5));
+        assert_eq!(dispersion(&[1.0, -1.0], 0.0).unwrap().relative, None);
+        assert_eq!(dispersion(&[1.0], 1.0), None);
+    }
+}

@@ -1,0 +1,313 @@
+//! Per-run least-squares identification of the model coefficients.
+//!
+//! For a model with terms `t_1 … t_p` and positions `a_1 … a_m`, the design
+//! matrix is `A[r][j] = regressor_{t_j}(a_r)` and a run's position values are
+//! `y_r` (the mean of that position's samples). The coefficients solve
+//!
+//! ```text
+//! min_x ‖A·x − y‖²
+//! ```
+//!
+//! by the singular value decomposition `A = U·Σ·Vᵀ` (never the normal
+//! equations, whose condition number is the square of `A`'s):
+//!
+//! ```text
+//! x = V·Σ⁻¹·Uᵀ·y,     r = y − A·x,     dof = m − p
+//! σ̂² = rᵀr / dof,     Cov(x) = σ̂²·(AᵀA)⁻¹ = σ̂²·V·Σ⁻²·Vᵀ
+//! ```
+//!
+//! so the standard error of `x_j` is `σ̂·sqrt(Σ_k V[j][k]² / σ_k²)`, reported
+//! only when `dof > 0`. The design's 2-norm condition number is
+//! `σ_max / σ_min`.
+//!
+//! **Identifiability.** A singular value `σ_k ≤ RANK_TOLERANCE·σ_max` counts as
+//! zero; its right singular vector spans part of the null space
+//! `N = {x : A·x = 0}`. A term `t_j` cannot be separated from the others
+//! exactly when its unit vector has a component in `N`, i.e. when row `j` of a
+//! basis of `N` is non-zero — a basis-independent test. With fewer positions
+//! than terms the matrix is padded with zero rows, which leaves `N` unchanged.
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::Error;
+use crate::position::Gravity;
+use crate::term::{Model, TermMap};
+
+/// Singular values at or below this fraction of the largest count as zero:
+/// a design whose condition number exceeds `1e10` is refused as rank deficient.
+pub const RANK_TOLERANCE: f64 = 1e-10;
+
+/// A null-space basis row with a norm above this names its term as inseparable.
+const NULL_SPACE_PARTICIPATION: f64 = 1e-8;
+
+/// The identified coefficients of one run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Identification {
+    /// Least-squares coefficients, keyed by term in model order.
+    pub coefficients: TermMap<f64>,
+    /// Standard errors `σ̂·sqrt(diag (AᵀA)⁻¹)`; `None` when `dof = 0`.
+    pub std_errors: Option<TermMap<f64>>,
+    /// `y − A·x` per position, in the output's unit.
+    pub residuals: Vec<f64>,
+    /// `sqrt(rᵀr / m)`: root mean square of the residuals over the positions.
+    pub residual_rms: f64,
+    /// Degrees of freedom `m − p`.
+    pub dof: usize,
+}
+
+/// A checked, factorised design: positions × model terms, known to be of full
+/// column rank. Build it once per tumble and solve it for every run.
+#[derive(Clone, Debug)]
+pub struct Design {
+    model: Model,
+    matrix: DMatrix<f64>,
+    u: DMatrix<f64>,
+    sigma: DVector<f64>,
+    v: DMatrix<f64>,
+}
+
+impl Design {
+    /// Builds and factorises the design of `model` over `positions`.
+    ///
+    /// Refuses non-finite gravity components, an empty tumble and a design
+    /// whose columns are numerically dependent (naming the terms involved).
+    pub fn new(model: &Model, positions: &[Gravity]) -> Result<Self, Error> {
+        if positions.is_empty() {
+            return Err(Error::NoPositions);
+        }
+        for (position, a) in positions.iter().enumerate() {
+            if let Some(axis) = a.to_array().iter().position(|x| !x.is_finite()) {
+                return Err(Error::NonFiniteGravity { position, axis });
+            }
+        }
+        let (m, p) = (positions.len(), model.len());
+        let matrix = DMatrix::from_fn(m, p, |r, j| model.terms()[j].regressor(&positions[r]));
+        // Zero rows do not change the null space; they give the SVD a full V.
+        let padded = if m < p {
+            matrix.clone().resize_vertically(p, 0.0)
+        } else {
+            matrix.clone()
+        };
+        let svd = padded
+            .try_svd_unordered(true, true, f64::EPSILON, 10_000)
+            .ok_or_else(|| rank_deficient(model, m, 0, model.terms().to_vec()))?;
+        let (u, v_t, sigma) = match (svd.u, svd.v_t) {
+            (Some(u), Some(v_t)) => (u, v_t, svd.singular_values),
+            _ => unreachable!("both factors were requested"),
+        };
+        let v = v_t.transpose();
+        let sigma_max = sigma.max();
+        let zero = |s: f64| s <= RANK_TOLERANCE * sigma_max || sigma_max == 0.0;
+        let null: Vec<usize> = (0..sigma.len()).filter(|&k| zero(sigma[k])).collect();
+        if !null.is_empty() || m < p {
+            let terms = model
+                .terms()
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| {
+                    let share: f64 = null.iter().map(|&k| v[(*j, k)].powi(2)).sum();
+                    share.sqrt() > NULL_SPACE_PARTICIPATION
+                })
+                .map(|(_, t)| *t)
+                .collect();
+            return Err(rank_deficient(model, m, p - null.len(), terms));
+        }
+        Ok(Design {
+            model: model.clone(),
+            matrix,
+            u,
+            sigma,
+            v,
+        })
+    }
+
+    /// The model whose terms are the columns.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+
+    /// Number of positions (rows).
+    pub fn positions(&self) -> usize {
+        self.matrix.nrows()
+    }
+
+    /// The design matrix `A` (positions × terms).
+    pub fn matrix(&self) -> &DMatrix<f64> {
+        &self.matrix
+    }
+
+    /// The 2-norm condition number `σ_max / σ_min` of `A`.
+    pub fn condition_number(&self) -> f64 {
+        self.sigma.max() / self.sigma.min()
+    }
+
+    /// Solves the least-squares problem for position values `y` (one per row).
+    ///
+    /// # Panics
+    /// If `y.len()` differs from the number of positions: callers build `y`
+    /// from a validated run.
+    pub fn solve(&self, y: &[f64]) -> Identification {
+        let (m, p) = self.matrix.shape();
+        assert_eq!(y.len(), m, "one value per position");
+        let y = DVector::from_column_slice(y);
+        // x = V·Σ⁻¹·Uᵀ·y
+        let mut uty = self.u.tr_mul(&y);
+        uty.component_div_assign(&self.sigma);
+        let x = &self.v * uty;
+        let residuals = &y - &self.matrix * &x;
+        let rss = residuals.norm_squared();
+        let dof = m - p;
+        let terms = self.model.terms();
+        let std_errors = (dof > 0).then(|| {
+            let s2 = rss / dof as f64;
+            TermMap(
+                terms
+                    .iter()
+                    .enumerate()
+                    .map(|(j, t)| {
+                        let var: f64 = (0..p)
+                            .map(|k| (self.v[(j, k)] / self.sigma[k]).powi(2))
+                            .sum();
+                        (*t, (s2 * var).sqrt())
+                    })
+                    .collect(),
+            )
+        });
+        Identification {
+            coefficients: TermMap(terms.iter().copied().zip(x.iter().copied()).collect()),
+            std_errors,
+            residuals: residuals.iter().copied().collect(),
+            residual_rms: (rss / m as f64).sqrt(),
+            dof,
+        }
+    }
+}
+
+fn rank_deficient(model: &Model, positions: usize, rank: usize, terms: Vec<crate::Term>) -> Error {
+    Error::RankDeficient {
+        terms,
+        positions,
+        columns: model.len(),
+        rank,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Term::*;
+    use crate::position::Mount;
+
+    fn tumble(mount: Mount, n: u32) -> Vec<Gravity> {
+        (0..n)
+            .map(|k| mount.gravity(360.0 * f64::from(k) / f64::from(n)))
+            .collect()
+    }
+
+    fn refused(terms: &[crate::Term], positions: &[Gravity]) -> Vec<crate::Term> {
+        match Design::new(&Model::new(terms.to_vec()).unwrap(), positions) {
+            Err(Error::RankDeficient { terms, .. }) => terms,
+            other => panic!("expected a rank-deficiency error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn four_position_design_is_orthogonal_closed_form() {
+        let d = Design::new(&Model::pendulum(), &tumble(Mount::Pendulum, 4)).unwrap();
+        // Columns [1, a_i, a_p] over the tumble have norms 2, √2, √2.
+        assert!((d.condition_number() - 2f64.sqrt()).abs() < 1e-14);
+        let y = [0.3, 1.7, -0.5, -1.1];
+        let id = d.solve(&y);
+        let get = |t| *id.coefficients.get(t).unwrap();
+        assert!((get(K0) - (0.3 + 1.7 - 0.5 - 1.1) / 4.0).abs() < 1e-15);
+        assert!((get(Ki) - (-1.1 - 1.7) / 2.0).abs() < 1e-15);
+        assert!((get(Kp) - (0.3 + 0.5) / 2.0).abs() < 1e-15);
+        assert_eq!(id.dof, 1);
+        // One degree of freedom: the residual is ±e on every position, with
+        // e = (y0 + y180 − y90 − y270)/4, and RMS |e|.
+        let e: f64 = (0.3 - 0.5 - 1.7 + 1.1) / 4.0;
+        assert!((id.residual_rms - e.abs()).abs() < 1e-15);
+        let se = id.std_errors.unwrap();
+        // σ̂² = 4e²/1; var(k0) = σ̂²/4, var(ki) = var(kp) = σ̂²/2.
+        assert!((se.get(K0).unwrap() - e.abs()).abs() < 1e-15);
+        assert!((se.get(Ki).unwrap() - (2.0 * e * e).sqrt()).abs() < 1e-15);
+    }
+
+    /// Unit vectors spread over the sphere, exciting every regressor of eq. 2.
+    fn sphere(n: u32) -> Vec<Gravity> {
+        (0..n)
+            .map(|k| {
+                let z = 1.0 - 2.0 * (f64::from(k) + 0.5) / f64::from(n);
+                let (s, c) = (2.399_963_229_728_653 * f64::from(k)).sin_cos();
+                let r = (1.0 - z * z).sqrt();
+                Gravity::from([r * c, r * s, z])
+            })
+            .collect()
+    }
+
+    #[test]
+    fn unit_sphere_makes_k0_and_squares_inseparable() {
+        let full = [K0, Ki, Kp, Ko, Kio, Kop, Kpi, Kii, Kpp, Koo];
+        assert_eq!(refused(&full, &sphere(40)), vec![K0, Kii, Kpp, Koo]);
+        // Any three of the four are separable.
+        assert!(Design::new(&Model::new(full[..9].to_vec()).unwrap(), &sphere(40)).is_ok());
+        // On a two-mount schedule kop is never excited (a_o·a_p = 0) as well.
+        let mut schedule = tumble(Mount::Pendulum, 12);
+        schedule.extend(tumble(Mount::Gate, 12));
+        assert_eq!(refused(&full, &schedule), vec![K0, Kop, Kii, Kpp, Koo]);
+    }
+
+    #[test]
+    fn cubic_term_aliases_scale_factor_on_four_positions() {
+        let t = tumble(Mount::Pendulum, 4);
+        assert_eq!(refused(&[K0, Ki, Kp, Kiii], &t), vec![Ki, Kiii]);
+    }
+
+    #[test]
+    fn unexcited_axis_is_named() {
+        let t = tumble(Mount::Pendulum, 8);
+        assert_eq!(refused(&[K0, Ki, Ko], &t), vec![Ko]);
+    }
+
+    #[test]
+    fn fewer_positions_than_terms_is_refused_with_terms() {
+        let t = tumble(Mount::Pendulum, 4);
+        match Design::new(&Model::new(vec![K0, Ki, Kp, Kpi, Kii]).unwrap(), &t[..2]) {
+            Err(Error::RankDeficient {
+                terms,
+                positions,
+                columns,
+                rank,
+            }) => {
+                assert_eq!((positions, columns, rank), (2, 5, 2));
+                assert!(terms.len() >= 3, "{terms:?}");
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn non_finite_and_empty_positions_are_refused() {
+        let m = Model::pendulum();
+        assert_eq!(Design::new(&m, &[]).unwrap_err(), Error::NoPositions);
+        let bad = [Gravity::default(), Gravity::from([0.0, f64::NAN, 0.0])];
+        assert_eq!(
+            Design::new(&m, &bad).unwrap_err(),
+            Error::NonFiniteGravity {
+                position: 1,
+                axis: 1
+            }
+        );
+    }
+
+    #[test]
+    fn exactly_determined_design_has_no_standard_errors() {
+        let t = tumble(Mount::Pendulum, 4);
+        let d = Design::new(&Model::new(vec![K0, Ki, Kp, Kii]).unwrap(), &t).unwrap();
+        let id = d.solve(&[1.0, 2.0, 3.0, 5.0]);
+        assert_eq!(id.dof, 0);
+        assert!(id.std_errors.is_none());
+        assert!(id.residual_rms < 1e-14);
+    }
+}

@@ -1,0 +1,57 @@
+//! # accelcal-core
+//!
+//! The identification-and-fusion core of accelcal: pure functions over plain
+//! data (no I/O, no async), shared by the HTTP service, the command line and
+//! every test.
+//!
+//! The method is that of Pei & Wang, "Identification of Stationary Model for
+//! Accelerometer Based on Data Fusion" (2005):
+//!
+//! 1. [`TumbleTest`]: positions of a dividing-head tumble ([`Position`],
+//!    [`Mount`]), a [`Model`] of [`Term`]s, and repeated runs of samples;
+//! 2. per-run least-squares identification ([`identify::Design`]), with
+//!    standard errors, residuals, and refusal of unidentifiable designs that
+//!    names the inseparable terms;
+//! 3. across runs, the arithmetic mean and batch-estimation fusion with their
+//!    eq. 8 dispersions ([`estimate::estimate`], [`fusion`]);
+//! 4. normalised IEEE-style values ([`Normalized`]) and compensation of raw
+//!    outputs ([`Compensator`]).
+//!
+//! ```
+//! use accelcal_core::{Model, Mount, Position, Run, Term, TumbleTest};
+//!
+//! let positions = [0.0, 90.0, 180.0, 270.0]
+//!     .map(|deg| Position::from_angle(deg, Mount::Pendulum, None))
+//!     .to_vec();
+//! // U = 0.001 − 1.2·a_i + 0.006·a_p, four runs with a little noise.
+//! let runs = (0..4)
+//!     .map(|j| {
+//!         let e = |k: u32| 1e-6 * f64::from((j * 7 + k * 3) % 5);
+//!         Run { readings: vec![vec![0.007 + e(0)], vec![1.201 + e(1)], vec![-0.005 + e(2)], vec![-1.199 + e(3)]] }
+//!     })
+//!     .collect();
+//! let cal = TumbleTest::new(Model::pendulum(), positions, runs)?.calibrate(1)?;
+//! let ki = cal.fused.coefficients.get(Term::Ki).unwrap();
+//! assert!((ki + 1.2).abs() < 1e-5);
+//! # Ok::<(), accelcal_core::Error>(())
+//! ```
+
+mod error;
+
+pub mod compensate;
+pub mod derived;
+pub mod estimate;
+pub mod fusion;
+pub mod identify;
+pub mod position;
+pub mod term;
+pub mod tumble;
+
+pub use compensate::Compensator;
+pub use derived::Normalized;
+pub use error::{CompensateError, Error, FusionError};
+pub use estimate::{Estimates, estimate};
+pub use identify::{Design, Identification};
+pub use position::{Gravity, Mount, Position};
+pub use term::{Model, Term, TermMap, UnknownTerm};
+pub use tumble::{Calibration, Run, TumbleTest};

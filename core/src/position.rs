@@ -1,0 +1,182 @@
+//! Tumble positions: the specific force the sensor feels at each orientation.
+//!
+//! A position is given either by its gravity components `a = [a_i, a_p, a_o]`
+//! in g, or by a dividing-head angle θ in degrees and a mount:
+//!
+//! ```text
+//! pendulum mount (output axis on the rotation axis):    a = (−sin θ, cos θ, 0)
+//! gate mount     (pendulous axis on the rotation axis): a = (−sin θ, 0, cos θ)
+//! ```
+//!
+//! so the pendulum tumble 0°, 90°, 180°, 270° visits (0,1,0), (−1,0,0),
+//! (0,−1,0), (1,0,0). Sine and cosine are evaluated after reducing θ to the
+//! first quadrant, which makes multiples of 90° exact (true zeros, not
+//! `6e-17`) and keeps symmetric angles exactly symmetric.
+
+use serde::{Deserialize, Serialize};
+
+/// Specific-force components in g along the input, pendulous and output axes.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Gravity {
+    /// Along the input axis, `a_i`.
+    pub i: f64,
+    /// Along the pendulous axis, `a_p`.
+    pub p: f64,
+    /// Along the output axis, `a_o`.
+    pub o: f64,
+}
+
+impl Gravity {
+    /// The components as `[a_i, a_p, a_o]`.
+    pub fn to_array(self) -> [f64; 3] {
+        [self.i, self.p, self.o]
+    }
+
+    /// Euclidean norm `sqrt(a_i² + a_p² + a_o²)`, 1 in an ideal 1 g tumble.
+    pub fn norm(self) -> f64 {
+        (self.i * self.i + self.p * self.p + self.o * self.o).sqrt()
+    }
+}
+
+impl From<[f64; 3]> for Gravity {
+    fn from([i, p, o]: [f64; 3]) -> Self {
+        Gravity { i, p, o }
+    }
+}
+
+impl Serialize for Gravity {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        self.to_array().serialize(s)
+    }
+}
+
+impl<'de> Deserialize<'de> for Gravity {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        <[f64; 3]>::deserialize(d).map(Gravity::from)
+    }
+}
+
+/// How the sensor sits on the dividing head.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Mount {
+    /// Output axis along the rotation axis: `a = (−sin θ, cos θ, 0)`.
+    #[default]
+    Pendulum,
+    /// Pendulous axis along the rotation axis: `a = (−sin θ, 0, cos θ)`.
+    Gate,
+}
+
+impl Mount {
+    /// Gravity components at dividing-head angle `deg` (degrees).
+    pub fn gravity(self, deg: f64) -> Gravity {
+        let (s, c) = sin_cos_deg(deg);
+        match self {
+            Mount::Pendulum => Gravity {
+                i: -s,
+                p: c,
+                o: 0.0,
+            },
+            Mount::Gate => Gravity {
+                i: -s,
+                p: 0.0,
+                o: c,
+            },
+        }
+    }
+}
+
+/// `(sin θ, cos θ)` for θ in degrees, exact at multiples of 90°.
+///
+/// θ is reduced to `r ∈ [0°, 90°)` plus a quadrant `q`, then
+/// `(sin, cos)(θ) = rot_q(sin r, cos r)` with `rot` the quarter-turn table;
+/// for `r > 45°`, `(sin r, cos r) = (cos(90° − r), sin(90° − r))`.
+fn sin_cos_deg(deg: f64) -> (f64, f64) {
+    let turn = deg.rem_euclid(360.0);
+    let quadrant = (turn / 90.0).floor();
+    let rest = turn - 90.0 * quadrant;
+    // Mirror the upper half of the quadrant so that complementary angles use
+    // the same evaluations (sin 60° is computed as cos 30°).
+    let (s, c) = if rest > 45.0 {
+        let (c, s) = (90.0 - rest).to_radians().sin_cos();
+        (s, c)
+    } else {
+        rest.to_radians().sin_cos()
+    };
+    // `turn < 360` so `quadrant` is 0..=3, except that rem_euclid may round up
+    // to exactly 360 for tiny negative inputs, which is quadrant 4 ≡ 0.
+    match quadrant as u8 % 4 {
+        0 => (s, c),
+        1 => (c, -s),
+        2 => (-s, -c),
+        _ => (-c, s),
+    }
+}
+
+/// One orientation of a tumble: its specific force and an optional label.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Position {
+    /// Gravity components `[a_i, a_p, a_o]` in g.
+    pub a: Gravity,
+    /// Free-text label (e.g. `"PA down"`), echoed in results.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub label: Option<String>,
+}
+
+impl Position {
+    /// A position from explicit components `[a_i, a_p, a_o]` in g.
+    pub fn from_components(a: [f64; 3], label: Option<String>) -> Self {
+        Position { a: a.into(), label }
+    }
+
+    /// A position from a dividing-head angle (degrees) and mount.
+    pub fn from_angle(deg: f64, mount: Mount, label: Option<String>) -> Self {
+        Position {
+            a: mount.gravity(deg),
+            label,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn four_position_pendulum_tumble_is_exact() {
+        let got: Vec<[f64; 3]> = [0.0, 90.0, 180.0, 270.0]
+            .iter()
+            .map(|d| Mount::Pendulum.gravity(*d).to_array())
+            .collect();
+        // Compare bit patterns through == on f64 (−0.0 == 0.0 is fine here).
+        assert_eq!(
+            got,
+            [
+                [0.0, 1.0, 0.0],
+                [-1.0, 0.0, 0.0],
+                [0.0, -1.0, 0.0],
+                [1.0, 0.0, 0.0]
+            ]
+        );
+    }
+
+    #[test]
+    fn gate_mount_swaps_pendulous_for_output() {
+        assert_eq!(Mount::Gate.gravity(0.0).to_array(), [0.0, 0.0, 1.0]);
+        assert_eq!(Mount::Gate.gravity(-90.0).to_array(), [1.0, 0.0, 0.0]);
+        assert_eq!(Mount::Gate.gravity(450.0).to_array(), [-1.0, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn intermediate_angles_are_symmetric_and_unit() {
+        let a30 = Mount::Pendulum.gravity(30.0);
+        let a150 = Mount::Pendulum.gravity(150.0);
+        assert_eq!(a30.i, a150.i);
+        assert_eq!(a30.p, -a150.p);
+        assert!((a30.i + 0.5).abs() < 1e-15);
+        for k in 0..24 {
+            let g = Mount::Gate.gravity(15.0 * f64::from(k));
+            assert!((g.norm() - 1.0).abs() < 1e-15);
+        }
+    }
+}

@@ -1,0 +1,217 @@
+//! A tumble test — model, positions, repeated runs — and its calibration:
+//! per-run identification, then mean and fusion across runs.
+//!
+//! Run `j` gives, for each position `r`, one or more samples (e.g. clockwise
+//! and counter-clockwise); the position's value is their mean
+//! `y_jr = Σ_s u_jrs / n_jr`. Each run is identified on the same design
+//! ([`Design`]), and each coefficient's per-run values are then combined by
+//! [`estimate`](crate::estimate::estimate).
+
+use serde::Serialize;
+
+use crate::Error;
+use crate::derived::Normalized;
+use crate::estimate::{self, FusedEstimate, MeanEstimate};
+use crate::fusion::mean;
+use crate::identify::{Design, Identification};
+use crate::position::{Gravity, Position};
+use crate::term::{Model, TermMap};
+
+/// One run of the tumble: for each position, its samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Run {
+    /// `readings[r]` holds the samples at position `r`.
+    pub readings: Vec<Vec<f64>>,
+}
+
+/// A validated tumble test: its runs match its positions, every sample is
+/// finite and the design identifies every term of the model.
+#[derive(Clone, Debug)]
+pub struct TumbleTest {
+    positions: Vec<Position>,
+    runs: Vec<Run>,
+    design: Design,
+}
+
+impl TumbleTest {
+    /// Checks and factorises a tumble test.
+    ///
+    /// Refuses a test without runs, a run without one reading per position,
+    /// a position without samples, a non-finite sample, and an unidentifiable
+    /// design (see [`Design::new`]).
+    pub fn new(model: Model, positions: Vec<Position>, runs: Vec<Run>) -> Result<Self, Error> {
+        if runs.is_empty() {
+            return Err(Error::NoRuns);
+        }
+        for (run, r) in runs.iter().enumerate() {
+            if r.readings.len() != positions.len() {
+                return Err(Error::ReadingCount {
+                    run,
+                    expected: positions.len(),
+                    found: r.readings.len(),
+                });
+            }
+            for (position, samples) in r.readings.iter().enumerate() {
+                if samples.is_empty() {
+                    return Err(Error::NoSamples { run, position });
+                }
+                if let Some(sample) = samples.iter().position(|u| !u.is_finite()) {
+                    return Err(Error::NonFiniteSample {
+                        run,
+                        position,
+                        sample,
+                    });
+                }
+            }
+        }
+        let gravity: Vec<Gravity> = positions.iter().map(|p| p.a).collect();
+        let design = Design::new(&model, &gravity)?;
+        Ok(TumbleTest {
+            positions,
+            runs,
+            design,
+        })
+    }
+
+    /// The model.
+    pub fn model(&self) -> &Model {
+        self.design.model()
+    }
+
+    /// The positions.
+    pub fn positions(&self) -> &[Position] {
+        &self.positions
+    }
+
+    /// The runs.
+    pub fn runs(&self) -> &[Run] {
+        &self.runs
+    }
+
+    /// The factorised design.
+    pub fn design(&self) -> &Design {
+        &self.design
+    }
+
+    /// Identifies every run separately.
+    pub fn identify_runs(&self) -> Vec<Identification> {
+        self.runs
+            .iter()
+            .map(|run| {
+                let y: Vec<f64> = run.readings.iter().map(|s| mean(s)).collect();
+                self.design.solve(&y)
+            })
+            .collect()
+    }
+
+    /// Identifies every run, then estimates every coefficient across runs
+    /// with `batches` batches.
+    pub fn calibrate(&self, batches: usize) -> Result<Calibration, Error> {
+        let runs = self.identify_runs();
+        let values = TermMap(
+            self.model()
+                .terms()
+                .iter()
+                .map(|t| {
+                    let xs = runs
+                        .iter()
+                        .map(|r| *r.coefficients.get(*t).expect("model term"))
+                        .collect();
+                    (*t, xs)
+                })
+                .collect(),
+        );
+        let est = estimate::estimate(&values, batches)?;
+        Ok(Calibration {
+            condition_number: self.design.condition_number(),
+            normalized: Normalized::from_coefficients(&est.fused.coefficients),
+            runs,
+            mean: est.mean,
+            fused: est.fused,
+        })
+    }
+}
+
+/// The outcome of calibrating a tumble test.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Calibration {
+    /// 2-norm condition number of the design.
+    pub condition_number: f64,
+    /// Per-run identification, in submission order.
+    pub runs: Vec<Identification>,
+    /// Arithmetic mean across runs with eq. 8 dispersion.
+    pub mean: MeanEstimate,
+    /// Batch-estimation fusion across runs with eq. 8 dispersion.
+    pub fused: FusedEstimate,
+    /// Normalised values derived from the fused coefficients.
+    pub normalized: Normalized,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::position::Mount;
+
+    fn four() -> Vec<Position> {
+        [0.0, 90.0, 180.0, 270.0]
+            .iter()
+            .map(|d| Position::from_angle(*d, Mount::Pendulum, None))
+            .collect()
+    }
+
+    #[test]
+    fn shape_errors_point_at_run_position_and_sample() {
+        let ok = vec![vec![1.0]; 4];
+        let mk = |runs: Vec<Vec<Vec<f64>>>| {
+            TumbleTest::new(
+                Model::pendulum(),
+                four(),
+                runs.into_iter().map(|readings| Run { readings }).collect(),
+            )
+            .map(|_| ())
+        };
+        assert_eq!(mk(vec![]), Err(Error::NoRuns));
+        assert_eq!(
+            mk(vec![ok.clone(), vec![vec![1.0]; 3]]),
+            Err(Error::ReadingCount {
+                run: 1,
+                expected: 4,
+                found: 3
+            })
+        );
+        let mut empty = ok.clone();
+        empty[2] = vec![];
+        assert_eq!(
+            mk(vec![ok.clone(), empty]),
+            Err(Error::NoSamples {
+                run: 1,
+                position: 2
+            })
+        );
+        let mut nan = ok.clone();
+        nan[3] = vec![1.0, f64::INFINITY];
+        assert_eq!(
+            mk(vec![nan]),
+            Err(Error::NonFiniteSample {
+                run: 0,
+                position: 3,
+                sample: 1
+            })
+        );
+    }
+
+    #[test]
+    fn position_value_is_the_mean_of_its_samples() {
+        let t = TumbleTest::new(
+            Model::pendulum(),
+            four(),
+            vec![Run {
+                readings: vec![vec![1.0, 3.0], vec![5.0], vec![-1.0, -2.0, -3.0], vec![0.0]],
+            }],
+        )
+        .unwrap();
+        let id = &t.identify_runs()[0];
+        // kp = (U0 − U180)/2 = (2 − (−2))/2
+        assert!((id.coefficients.get(crate::Term::Kp).unwrap() - 2.0).abs() < 1e-15);
+    }
+}
