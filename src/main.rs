@@ -1,1 +1,7 @@
-fn main() {}
+//! The `accelcal` binary: see `accelcal --help`.
+
+use std::process::ExitCode;
+
+fn main() -> ExitCode {
+    accelcal::cli::main()
+}

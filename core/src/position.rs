@@ -71,17 +71,11 @@ impl Mount {
     /// Gravity components at dividing-head angle `deg` (degrees).
     pub fn gravity(self, deg: f64) -> Gravity {
         let (s, c) = sin_cos_deg(deg);
+        // `+ 0.0` turns −0.0 (e.g. −sin 0°) into 0.0; other values are unchanged.
+        let (s, c) = (-s + 0.0, c + 0.0);
         match self {
-            Mount::Pendulum => Gravity {
-                i: -s,
-                p: c,
-                o: 0.0,
-            },
-            Mount::Gate => Gravity {
-                i: -s,
-                p: 0.0,
-                o: c,
-            },
+            Mount::Pendulum => Gravity { i: s, p: c, o: 0.0 },
+            Mount::Gate => Gravity { i: s, p: 0.0, o: c },
         }
     }
 }
@@ -148,7 +142,6 @@ mod tests {
             .iter()
             .map(|d| Mount::Pendulum.gravity(*d).to_array())
             .collect();
-        // Compare bit patterns through == on f64 (−0.0 == 0.0 is fine here).
         assert_eq!(
             got,
             [
@@ -158,6 +151,17 @@ mod tests {
                 [1.0, 0.0, 0.0]
             ]
         );
+    }
+
+    #[test]
+    fn no_negative_zeros() {
+        for deg in [0.0, 90.0, 180.0, 270.0, -90.0, 360.0] {
+            for m in [Mount::Pendulum, Mount::Gate] {
+                for x in m.gravity(deg).to_array() {
+                    assert!(x != 0.0 || x.is_sign_positive(), "{m:?} {deg}: {x}");
+                }
+            }
+        }
     }
 
     #[test]

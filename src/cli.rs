@@ -1,0 +1,279 @@
+//! The `accelcal` command line: `serve`, `identify`, `submit`, `token create`.
+//!
+//! Every setting of `serve` is a flag with an environment fallback, so the same
+//! binary runs from a shell, a unit file or a container.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::Duration;
+
+use clap::{Args, Parser, Subcommand};
+
+use crate::auth::Role;
+use crate::http::Limits;
+use crate::http::extract::{Media, submission_value};
+use crate::http::problem::Problem;
+use crate::input::check::{Chars, check_str};
+use crate::startup::{Application, Config, shutdown_signal};
+use crate::submission::{MAX_ID_CHARS, MAX_LABEL_CHARS, ResultView, evaluate};
+use crate::telemetry::{self, LogFormat};
+use crate::timestamp::Timestamp;
+
+/// accelcal: accelerometer calibration by tumble-test identification and
+/// batch-estimation fusion.
+#[derive(Debug, Parser)]
+#[command(name = "accelcal", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Run the HTTP service (SQLite database by default).
+    Serve(ServeArgs),
+    /// Compute a submission file offline and print the result JSON.
+    ///
+    /// FILE is a JSON submission, or CSV when it ends in `.csv` (see README).
+    /// On bad input, prints the problem document the service would answer
+    /// and exits with status 1.
+    Identify {
+        /// The submission file.
+        file: PathBuf,
+    },
+    /// Upload a submission file to a running service, retrying safely.
+    ///
+    /// The upload carries an Idempotency-Key derived from the file's content,
+    /// so retries (automatic or by hand) never store it twice.
+    Submit(SubmitArgs),
+    /// Manage tokens directly in the database (for the first setup and
+    /// recovery; the API's /v1/tokens does the same online).
+    #[command(subcommand)]
+    Token(TokenCommand),
+}
+
+#[derive(Debug, Args)]
+struct ServeArgs {
+    /// Address to listen on.
+    #[arg(long, env = "ACCELCAL_LISTEN", default_value = "127.0.0.1:8080")]
+    listen: String,
+    /// Database: a SQLite file path (or sqlite://PATH).
+    #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
+    database: String,
+    /// An admin token (at least 16 characters) accepted besides stored tokens.
+    #[arg(long, env = "ACCELCAL_ADMIN_TOKEN", hide_env_values = true)]
+    admin_token: Option<String>,
+    /// Largest request body in bytes.
+    #[arg(long, env = "ACCELCAL_MAX_BODY_BYTES", default_value_t = 4 * 1024 * 1024)]
+    max_body_bytes: usize,
+    /// Requests handled at once; beyond it the service answers 503.
+    #[arg(long, env = "ACCELCAL_MAX_CONCURRENT", default_value_t = 256)]
+    max_concurrent: usize,
+    /// Open connections at most.
+    #[arg(long, env = "ACCELCAL_MAX_CONNECTIONS", default_value_t = 1024)]
+    max_connections: usize,
+    /// Seconds allowed to send a request's headers.
+    #[arg(long, env = "ACCELCAL_HEADER_TIMEOUT", default_value_t = 10)]
+    header_timeout: u64,
+    /// Seconds allowed to send a request's body.
+    #[arg(long, env = "ACCELCAL_BODY_TIMEOUT", default_value_t = 30)]
+    body_timeout: u64,
+    /// Seconds allowed for a whole request.
+    #[arg(long, env = "ACCELCAL_REQUEST_TIMEOUT", default_value_t = 60)]
+    request_timeout: u64,
+    /// Seconds in-flight requests get to finish at shutdown.
+    #[arg(long, env = "ACCELCAL_SHUTDOWN_GRACE", default_value_t = 30)]
+    shutdown_grace: u64,
+    /// Log format.
+    #[arg(long, env = "ACCELCAL_LOG_FORMAT", value_enum, default_value = "text")]
+    log_format: LogFormat,
+}
+
+#[derive(Debug, Args)]
+struct SubmitArgs {
+    /// The submission file (JSON, or CSV when it ends in `.csv`).
+    file: PathBuf,
+    /// Base URL of the service.
+    #[arg(long, env = "ACCELCAL_URL", default_value = "http://127.0.0.1:8080")]
+    url: String,
+    /// A station (or admin) token.
+    #[arg(long, env = "ACCELCAL_TOKEN", hide_env_values = true)]
+    token: String,
+    /// Attempts in all before giving up.
+    #[arg(long, default_value_t = 6)]
+    attempts: u32,
+}
+
+#[derive(Debug, Subcommand)]
+enum TokenCommand {
+    /// Create a token and print it (once) as JSON.
+    Create {
+        /// reader, station or admin.
+        #[arg(long)]
+        role: String,
+        /// Bind a station token to this station id.
+        #[arg(long)]
+        station: Option<String>,
+        /// A label to recognise the token by.
+        #[arg(long)]
+        label: Option<String>,
+        /// Database: a SQLite file path (or sqlite://PATH).
+        #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
+        database: String,
+    },
+}
+
+/// Parses the command line and runs it.
+pub fn main() -> ExitCode {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Identify { file } => identify(&file),
+        Command::Serve(args) => {
+            telemetry::init(args.log_format);
+            run_async(serve(args))
+        }
+        Command::Submit(args) => {
+            telemetry::init(LogFormat::Text);
+            run_async(submit(args))
+        }
+        Command::Token(TokenCommand::Create {
+            role,
+            station,
+            label,
+            database,
+        }) => run_async(create_token(role, station, label, database)),
+    }
+}
+
+fn run_async(f: impl std::future::Future<Output = anyhow::Result<ExitCode>>) -> ExitCode {
+    let runtime = match tokio::runtime::Runtime::new() {
+        Ok(rt) => rt,
+        Err(e) => {
+            eprintln!("accelcal: cannot start the runtime: {e}");
+            return ExitCode::from(2);
+        }
+    };
+    match runtime.block_on(f) {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("accelcal: {e:#}");
+            ExitCode::from(2)
+        }
+    }
+}
+
+async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
+    let config = Config {
+        listen: a.listen,
+        database: a.database,
+        admin_token: a.admin_token.filter(|t| !t.is_empty()),
+        limits: Limits {
+            max_body_bytes: a.max_body_bytes,
+            body_timeout: Duration::from_secs(a.body_timeout),
+            request_timeout: Duration::from_secs(a.request_timeout),
+            max_concurrent: a.max_concurrent.max(1),
+        },
+        header_timeout: Duration::from_secs(a.header_timeout),
+        max_connections: a.max_connections.max(1),
+        shutdown_grace: Duration::from_secs(a.shutdown_grace),
+    };
+    let app = Application::build(config).await?;
+    app.run_until_stopped(shutdown_signal()).await?;
+    Ok(ExitCode::SUCCESS)
+}
+
+fn media_of(path: &Path) -> (Media, &'static str) {
+    let csv = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
+    if csv {
+        (Media::Csv, "text/csv")
+    } else {
+        (Media::Json, "application/json")
+    }
+}
+
+fn identify(file: &Path) -> ExitCode {
+    let bytes = match std::fs::read(file) {
+        Ok(b) => b,
+        Err(e) => {
+            eprintln!("accelcal: cannot read {}: {e}", file.display());
+            return ExitCode::from(2);
+        }
+    };
+    let now = Timestamp::now();
+    let result = submission_value(media_of(file).0, &bytes)
+        .and_then(|v| evaluate(&v, now).map_err(Problem::validation));
+    match result {
+        Ok(e) => {
+            let view = ResultView::new(&e, None, e.submission.station_id.as_deref(), now);
+            println!(
+                "{}",
+                serde_json::to_string_pretty(&view).expect("results serialise")
+            );
+            ExitCode::SUCCESS
+        }
+        Err(p) => {
+            eprintln!("{}", String::from_utf8_lossy(&p.to_json(None)));
+            ExitCode::FAILURE
+        }
+    }
+}
+
+async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
+    let body = std::fs::read(&a.file)
+        .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", a.file.display()))?;
+    let upload = crate::client::Upload {
+        url: a.url,
+        token: a.token,
+        body,
+        content_type: media_of(&a.file).1,
+        attempts: a.attempts.max(1),
+        backoff: Duration::from_millis(500),
+    };
+    let answer = crate::client::submit(&upload).await?;
+    if answer.status.is_success() {
+        println!("{}", answer.body);
+        Ok(ExitCode::SUCCESS)
+    } else {
+        eprintln!("{}", answer.body);
+        Ok(ExitCode::FAILURE)
+    }
+}
+
+async fn create_token(
+    role: String,
+    station: Option<String>,
+    label: Option<String>,
+    database: String,
+) -> anyhow::Result<ExitCode> {
+    let role = Role::parse(&role)
+        .ok_or_else(|| anyhow::anyhow!("--role must be reader, station or admin"))?;
+    if let Some(s) = &station {
+        check_str(s, MAX_ID_CHARS, Chars::Identifier)
+            .map_err(|e| anyhow::anyhow!("--station {e}"))?;
+        anyhow::ensure!(
+            role == Role::Station,
+            "--station applies to station tokens only"
+        );
+    }
+    if let Some(l) = &label {
+        check_str(l, MAX_LABEL_CHARS, Chars::Line).map_err(|e| anyhow::anyhow!("--label {e}"))?;
+    }
+    let store = crate::store::open(&database)?;
+    let req = crate::http::tokens::TokenRequest {
+        role,
+        station_id: station,
+        label,
+    };
+    let (record, text) = crate::http::tokens::issue(store.as_ref(), req)
+        .await
+        .map_err(|p| anyhow::anyhow!("{}", p.detail))?;
+    store.close().await;
+    let out = serde_json::json!({
+        "id": record.id, "token": text, "role": record.role,
+        "station_id": record.station_id, "label": record.label, "created_at": record.created_at,
+    });
+    println!("{}", serde_json::to_string_pretty(&out)?);
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,216 @@
+//! Building and running the server: configuration, the accept loop with
+//! connection-level limits, and graceful shutdown.
+//!
+//! ```no_run
+//! # async fn run() -> anyhow::Result<()> {
+//! use accelcal::startup::{Application, Config};
+//! let app = Application::build(Config::for_tests("test.db", "a-long-admin-token-for-tests")).await?;
+//! println!("listening on port {}", app.port());
+//! app.run_until_stopped(std::future::pending()).await
+//! # }
+//! ```
+
+use std::future::Future;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::Context;
+use hyper::server::conn::http1;
+use hyper_util::rt::{TokioIo, TokioTimer};
+use hyper_util::server::graceful::GracefulShutdown;
+use hyper_util::service::TowerToHyperService;
+use tokio::net::TcpListener;
+use tokio::sync::Semaphore;
+
+use crate::auth::{self, Role};
+use crate::http::{self, AppState, Limits};
+use crate::store::{self, Store};
+
+/// Shortest accepted configured admin token.
+pub const MIN_ADMIN_TOKEN_CHARS: usize = 16;
+
+/// Everything `accelcal serve` needs.
+#[derive(Clone, Debug)]
+pub struct Config {
+    /// Address to bind (`127.0.0.1:0` picks a free port).
+    pub listen: String,
+    /// Database URL or path.
+    pub database: String,
+    /// A configured admin token, if any.
+    pub admin_token: Option<String>,
+    /// Request limits.
+    pub limits: Limits,
+    /// Time allowed to receive a request's headers.
+    pub header_timeout: Duration,
+    /// Open connections at most; further clients wait in the listen backlog.
+    pub max_connections: usize,
+    /// Time allowed for in-flight requests to finish at shutdown.
+    pub shutdown_grace: Duration,
+}
+
+impl Config {
+    /// A configuration for tests: a free loopback port and the given database.
+    pub fn for_tests(database: &str, admin_token: &str) -> Self {
+        Config {
+            listen: "127.0.0.1:0".into(),
+            database: database.into(),
+            admin_token: Some(admin_token.into()),
+            limits: Limits::default(),
+            header_timeout: Duration::from_secs(10),
+            max_connections: 1024,
+            shutdown_grace: Duration::from_secs(30),
+        }
+    }
+}
+
+/// A bound, ready-to-run server.
+pub struct Application {
+    listener: TcpListener,
+    state: AppState,
+    config: Config,
+}
+
+impl Application {
+    /// Opens and migrates the database, sets up the admin token and binds.
+    pub async fn build(config: Config) -> anyhow::Result<Self> {
+        let store = store::open(&config.database)
+            .with_context(|| format!("opening database {}", config.database))?;
+        let admin_token_hash = match &config.admin_token {
+            Some(t) if t.chars().count() < MIN_ADMIN_TOKEN_CHARS => {
+                anyhow::bail!(
+                    "the admin token must be at least {MIN_ADMIN_TOKEN_CHARS} characters long"
+                )
+            }
+            Some(t) => Some(auth::hash(t)),
+            None => None,
+        };
+        let state = AppState {
+            store,
+            admin_token_hash,
+            limits: config.limits,
+        };
+        if admin_token_hash.is_none() && !state.store.has_admin_token().await? {
+            let (record, text) = http::tokens::issue(
+                state.store.as_ref(),
+                http::tokens::TokenRequest {
+                    role: Role::Admin,
+                    station_id: None,
+                    label: Some("first admin (created at start)".into()),
+                },
+            )
+            .await
+            .map_err(|p| anyhow::anyhow!("creating the first admin token: {}", p.detail))?;
+            println!(
+                "accelcal: no admin token was configured or stored; created one (shown only now):"
+            );
+            println!("{text}");
+            tracing::warn!(token_id = %record.id, "created the first admin token");
+        }
+        let listener = TcpListener::bind(&config.listen)
+            .await
+            .with_context(|| format!("binding {}", config.listen))?;
+        Ok(Application {
+            listener,
+            state,
+            config,
+        })
+    }
+
+    /// The bound address.
+    pub fn local_addr(&self) -> SocketAddr {
+        self.listener.local_addr().expect("bound listener")
+    }
+
+    /// The bound port.
+    pub fn port(&self) -> u16 {
+        self.local_addr().port()
+    }
+
+    /// The storage the server uses.
+    pub fn store(&self) -> Arc<dyn Store> {
+        self.state.store.clone()
+    }
+
+    /// Serves until `shutdown` completes, then stops accepting, lets
+    /// in-flight requests finish (up to the grace period) and closes the
+    /// database.
+    pub async fn run_until_stopped(self, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
+        let Application {
+            listener,
+            state,
+            config,
+        } = self;
+        let store = state.store.clone();
+        let router = http::router(state);
+        let graceful = GracefulShutdown::new();
+        let connections = Arc::new(Semaphore::new(config.max_connections));
+        tracing::info!(address = %listener.local_addr()?, "accelcal listening");
+        tokio::pin!(shutdown);
+        loop {
+            let permit = tokio::select! {
+                p = connections.clone().acquire_owned() => p.expect("semaphore never closed"),
+                () = &mut shutdown => break,
+            };
+            let (stream, peer) = tokio::select! {
+                accepted = listener.accept() => match accepted {
+                    Ok(a) => a,
+                    Err(e) => {
+                        // Out of file descriptors and the like: back off, keep serving.
+                        tracing::warn!(error = %e, "accept failed");
+                        tokio::time::sleep(Duration::from_millis(50)).await;
+                        continue;
+                    }
+                },
+                () = &mut shutdown => break,
+            };
+            let service = TowerToHyperService::new(router.clone());
+            let mut builder = http1::Builder::new();
+            builder
+                .timer(TokioTimer::new())
+                .header_read_timeout(config.header_timeout)
+                .max_buf_size(64 * 1024);
+            let conn = builder.serve_connection(TokioIo::new(stream), service);
+            let conn = graceful.watch(conn);
+            tokio::spawn(async move {
+                if let Err(e) = conn.await {
+                    tracing::debug!(%peer, error = %e, "connection ended with an error");
+                }
+                drop(permit);
+            });
+        }
+        drop(listener);
+        tracing::info!("shutting down: no new connections; finishing in-flight requests");
+        if tokio::time::timeout(config.shutdown_grace, graceful.shutdown())
+            .await
+            .is_err()
+        {
+            tracing::warn!("in-flight requests did not finish within the grace period");
+        }
+        store.close().await;
+        tracing::info!("database closed; bye");
+        Ok(())
+    }
+}
+
+/// Completes on SIGTERM or Ctrl-C.
+pub async fn shutdown_signal() {
+    let ctrl_c = async {
+        let _ = tokio::signal::ctrl_c().await;
+    };
+    #[cfg(unix)]
+    let term = async {
+        match tokio::signal::unix::signal(tokio::signal::unix::SignalKind::terminate()) {
+            Ok(mut s) => {
+                s.recv().await;
+            }
+            Err(_) => std::future::pending::<()>().await,
+        }
+    };
+    #[cfg(not(unix))]
+    let term = std::future::pending::<()>();
+    tokio::select! {
+        () = ctrl_c => {},
+        () = term => {},
+    }
+}

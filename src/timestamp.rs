@@ -1,0 +1,102 @@
+//! UTC timestamps in one canonical RFC 3339 form.
+//!
+//! Every instant accelcal stores or returns is UTC with exactly six fractional
+//! digits, `2026-11-20T08:00:00.000000Z`: fixed width, so the text sorts in
+//! time order in any database, and lossless for microsecond clocks. Inputs may
+//! use any RFC 3339 offset and precision; they are converted to UTC and
+//! truncated to the microsecond.
+
+use std::fmt;
+
+use serde::{Serialize, Serializer};
+use time::format_description::well_known::Rfc3339;
+use time::macros::format_description;
+use time::{OffsetDateTime, UtcOffset};
+
+/// An instant, UTC, microsecond resolution.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Timestamp(OffsetDateTime);
+
+/// Why a timestamp string was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum TimestampError {
+    /// Not RFC 3339.
+    #[error("must be an RFC 3339 date-time such as 2026-11-20T08:00:00Z")]
+    Format,
+    /// Before 1970 or after 9999.
+    #[error("must lie between 1970 and 9999")]
+    Range,
+}
+
+impl Timestamp {
+    /// The current time.
+    pub fn now() -> Self {
+        Self::from_datetime(OffsetDateTime::now_utc())
+    }
+
+    fn from_datetime(t: OffsetDateTime) -> Self {
+        let t = t.to_offset(UtcOffset::UTC);
+        let micros = t.microsecond();
+        Timestamp(t.replace_microsecond(micros).expect("microsecond in range"))
+    }
+
+    /// Parses any RFC 3339 date-time.
+    pub fn parse(s: &str) -> Result<Self, TimestampError> {
+        let t = OffsetDateTime::parse(s, &Rfc3339).map_err(|_| TimestampError::Format)?;
+        let t = Self::from_datetime(t);
+        if !(1970..=9999).contains(&t.0.year()) {
+            return Err(TimestampError::Range);
+        }
+        Ok(t)
+    }
+
+    /// Seconds since the Unix epoch (for arithmetic such as lease expiry).
+    pub fn unix_seconds(&self) -> i64 {
+        self.0.unix_timestamp()
+    }
+
+    /// This instant moved by `seconds`.
+    pub fn plus_seconds(&self, seconds: i64) -> Self {
+        Timestamp(self.0 + time::Duration::seconds(seconds))
+    }
+}
+
+impl fmt::Display for Timestamp {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let format = format_description!(
+            "[year]-[month]-[day]T[hour]:[minute]:[second].[subsecond digits:6]Z"
+        );
+        let s = self.0.format(&format).map_err(|_| fmt::Error)?;
+        f.write_str(&s)
+    }
+}
+
+impl Serialize for Timestamp {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn canonical_form_is_utc_fixed_width() {
+        let t = Timestamp::parse("2026-11-20T09:30:00.1234567+01:30").unwrap();
+        assert_eq!(t.to_string(), "2026-11-20T08:00:00.123456Z");
+        assert_eq!(Timestamp::parse(&t.to_string()), Ok(t));
+        let z = Timestamp::parse("2026-11-20T08:00:00Z").unwrap();
+        assert_eq!(z.to_string(), "2026-11-20T08:00:00.000000Z");
+    }
+
+    #[test]
+    fn refusals() {
+        assert_eq!(Timestamp::parse("2026-11-20"), Err(TimestampError::Format));
+        assert_eq!(Timestamp::parse("yesterday"), Err(TimestampError::Format));
+        assert_eq!(
+            Timestamp::parse("1969-12-31T23:59:59Z"),
+            Err(TimestampError::Range)
+        );
+    }
+}

@@ -1,0 +1,240 @@
+//! Every error class answers a problem document naming what is wrong, and
+//! none of them stores anything.
+
+use accelcal::startup::Config;
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+use crate::helpers::*;
+
+async fn post_raw(
+    app: &TestApp,
+    path: &str,
+    content_type: Option<&str>,
+    body: &'static str,
+) -> reqwest::Response {
+    let mut req = app.client.post(app.url(path)).bearer_auth(ADMIN).body(body);
+    if let Some(ct) = content_type {
+        req = req.header("content-type", ct);
+    }
+    req.send().await.unwrap()
+}
+
+#[tokio::test]
+async fn malformed_and_mistyped_bodies() {
+    let app = TestApp::spawn().await;
+    let p = problem(
+        post_raw(
+            &app,
+            "/v1/calibrations",
+            Some("application/json"),
+            "{\"sensor_id\": ",
+        )
+        .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert!(p["detail"].as_str().unwrap().contains("line 1"), "{p}");
+    problem(
+        post_raw(&app, "/v1/calibrations", Some("text/plain"), "{}").await,
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    )
+    .await;
+    problem(
+        post_raw(&app, "/v1/calibrations", None, "{}").await,
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    )
+    .await;
+    problem(
+        post_raw(&app, "/v1/fuse", Some("text/csv"), "a,b").await,
+        StatusCode::UNSUPPORTED_MEDIA_TYPE,
+    )
+    .await;
+    let p = problem(
+        post_raw(
+            &app,
+            "/v1/calibrations",
+            Some("application/json"),
+            r#"{"sensor_id": "a", "sensor_id": "b"}"#,
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(
+        p["detail"].as_str().unwrap().contains("duplicate key"),
+        "{p}"
+    );
+}
+
+#[tokio::test]
+async fn validation_lists_every_field() {
+    let app = TestApp::spawn().await;
+    let mut body = paper();
+    body["batchs"] = json!(2);
+    body["mount"] = json!("upside-down");
+    body["runs"][4]["readings"][2] = json!([1.0, null]);
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/batchs", "/mount", "/runs/4/readings/2/1"]);
+    assert!(
+        p["errors"][0]["detail"]
+            .as_str()
+            .unwrap()
+            .contains("unknown field `batchs`")
+    );
+
+    let mut body = paper();
+    body["model"] = json!(["k0", "ki", "kp", "kii", "kpp"]);
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/model"]);
+    let detail = p["errors"][0]["detail"].as_str().unwrap();
+    assert!(detail.contains("k0, kii, kpp"), "{detail}");
+
+    let mut body = paper();
+    body["batches"] = json!(4);
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/batches"]);
+
+    let p = problem(
+        app.post("/v1/fuse", ADMIN, &json!({"values": {"k1": [1, 2]}}))
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/values/k1"]);
+
+    let csv = "run,angle_deg,output\n1,0,1.0\n1,90,oops\n";
+    let p = problem(
+        post_raw(&app, "/v1/calibrations", Some("text/csv"), csv).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(
+        p["errors"][0]["detail"]
+            .as_str()
+            .unwrap()
+            .starts_with("CSV line 3"),
+        "{p}"
+    );
+
+    let sensors: Value = app.get("/v1/sensors", ADMIN).await.json().await.unwrap();
+    assert_eq!(
+        sensors["items"],
+        json!([]),
+        "nothing may be stored after refusals"
+    );
+}
+
+#[tokio::test]
+async fn parameters_paths_and_methods() {
+    let app = TestApp::spawn().await;
+    for (query, parameter) in [
+        ("limit=0", "limit"),
+        ("limit=501", "limit"),
+        ("limit=x", "limit"),
+        ("after=%%%", "after"),
+        ("limt=5", "limt"),
+        ("limit=1&limit=2", "limit"),
+    ] {
+        let p = problem(
+            app.get(&format!("/v1/sensors?{query}"), ADMIN).await,
+            StatusCode::BAD_REQUEST,
+        )
+        .await;
+        assert_eq!(p["parameter"], parameter, "{query}: {p}");
+    }
+    let p = problem(
+        app.get("/v1/sensors/X/calibrations?from=yesterday", ADMIN)
+            .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "from");
+    problem(
+        app.get("/v1/calibrations/not-a-uuid", ADMIN).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    problem(
+        app.get(&format!("/v1/calibrations/{}", uuid::Uuid::now_v7()), ADMIN)
+            .await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    problem(
+        app.get("/v1/nothing-here", ADMIN).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    let res = app
+        .client
+        .put(app.url("/v1/sensors"))
+        .bearer_auth(ADMIN)
+        .send()
+        .await
+        .unwrap();
+    assert!(res.headers().contains_key("allow"));
+    problem(res, StatusCode::METHOD_NOT_ALLOWED).await;
+}
+
+#[tokio::test]
+async fn credentials() {
+    let app = TestApp::spawn().await;
+    let res = app.client.get(app.url("/v1/sensors")).send().await.unwrap();
+    assert_eq!(
+        res.headers()["www-authenticate"],
+        "Bearer realm=\"accelcal\""
+    );
+    problem(res, StatusCode::UNAUTHORIZED).await;
+    for bad in ["acc_nope", "test-admin-token-012345678", ""] {
+        problem(app.get("/v1/sensors", bad).await, StatusCode::UNAUTHORIZED).await;
+    }
+    let res = app
+        .client
+        .get(app.url("/v1/sensors"))
+        .header("authorization", format!("Basic {ADMIN}"))
+        .send()
+        .await
+        .unwrap();
+    problem(res, StatusCode::UNAUTHORIZED).await;
+    let reader = app.token("reader", None).await;
+    let p = problem(
+        app.post("/v1/calibrations", &reader, &paper()).await,
+        StatusCode::FORBIDDEN,
+    )
+    .await;
+    assert!(p["detail"].as_str().unwrap().contains("station"), "{p}");
+}
+
+#[tokio::test]
+async fn oversized_bodies_are_refused_before_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("a.db");
+    let mut config = Config::for_tests(db.to_str().unwrap(), ADMIN);
+    config.limits.max_body_bytes = 1024;
+    let app = TestApp::spawn_with(config, db).await;
+    let big = "x".repeat(4096);
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(ADMIN)
+        .header("content-type", "application/json")
+        .body(big)
+        .send()
+        .await
+        .unwrap();
+    let p = problem(res, StatusCode::PAYLOAD_TOO_LARGE).await;
+    assert!(p["detail"].as_str().unwrap().contains("1024"));
+}

@@ -1,0 +1,208 @@
+//! The test harness: a real server on a free port over a fresh database, and
+//! a client that speaks to it over HTTP.
+
+use std::path::PathBuf;
+
+use accelcal::startup::{Application, Config};
+use reqwest::{Client, Response, StatusCode};
+use serde_json::{Value, json};
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+
+/// The admin token every test server accepts.
+pub const ADMIN: &str = "test-admin-token-0123456789";
+
+/// The paper's six tests as a JSON submission.
+pub fn paper() -> Value {
+    serde_json::from_str(include_str!("../../examples/paper-table1.json")).unwrap()
+}
+
+/// The paper's Table 1 as CSV with metadata lines.
+pub fn paper_csv() -> String {
+    format!(
+        "# sensor_id: PAPER-CSV\n# model: k0 ki kp\n# batches: 2\n{}",
+        include_str!("../../core/tests/data/table1.csv")
+    )
+}
+
+/// A small valid submission for `sensor`, with `runs` noisy runs of the
+/// model U = k0 + ki·a_i + kp·a_p.
+pub fn submission(sensor: &str, performed_at: &str, runs: usize) -> Value {
+    let (k0, ki, kp) = (-8.4e-4, -1.216, 6.2e-3);
+    let runs: Vec<Value> = (0..runs)
+        .map(|j| {
+            let readings: Vec<Value> = [(0.0, 1.0), (-1.0, 0.0), (0.0, -1.0), (1.0, 0.0)]
+                .iter()
+                .enumerate()
+                .map(|(p, (ai, ap))| {
+                    let noise = 1e-6 * (j as f64 * 1.7 + p as f64 * 2.9).sin();
+                    let u = k0 + ki * ai + kp * ap + noise;
+                    json!([u, u + 1e-7])
+                })
+                .collect();
+            json!({ "readings": readings })
+        })
+        .collect();
+    json!({
+        "sensor_id": sensor,
+        "performed_at": performed_at,
+        "unit": "mA",
+        "positions": [{"angle_deg": 0}, {"angle_deg": 90}, {"angle_deg": 180}, {"angle_deg": 270}],
+        "runs": runs,
+        "batches": 2
+    })
+}
+
+/// A running server.
+pub struct TestApp {
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// The database file.
+    pub db: PathBuf,
+    /// A client.
+    pub client: Client,
+    stop: Option<oneshot::Sender<()>>,
+    task: Option<JoinHandle<anyhow::Result<()>>>,
+    _dir: Option<tempfile::TempDir>,
+}
+
+impl TestApp {
+    /// A server on a fresh database.
+    pub async fn spawn() -> TestApp {
+        let dir = tempfile::tempdir().unwrap();
+        let db = dir.path().join("accelcal.db");
+        let mut app = Self::spawn_on(db).await;
+        app._dir = Some(dir);
+        app
+    }
+
+    /// A server on the given database file.
+    pub async fn spawn_on(db: PathBuf) -> TestApp {
+        Self::spawn_with(Config::for_tests(db.to_str().unwrap(), ADMIN), db).await
+    }
+
+    /// A server with a custom configuration.
+    pub async fn spawn_with(config: Config, db: PathBuf) -> TestApp {
+        let app = Application::build(config).await.expect("server builds");
+        let base = format!("http://127.0.0.1:{}", app.port());
+        let (tx, rx) = oneshot::channel::<()>();
+        let task = tokio::spawn(app.run_until_stopped(async {
+            let _ = rx.await;
+        }));
+        TestApp {
+            base,
+            db,
+            client: Client::new(),
+            stop: Some(tx),
+            task: Some(task),
+            _dir: None,
+        }
+    }
+
+    /// Stops the server gracefully and waits for it; keeps the directory.
+    pub async fn stop(&mut self) {
+        if let Some(tx) = self.stop.take() {
+            let _ = tx.send(());
+        }
+        if let Some(task) = self.task.take() {
+            task.await.unwrap().unwrap();
+        }
+    }
+
+    /// Takes the temporary directory (so a restarted server can reuse it).
+    pub fn take_dir(&mut self) -> Option<tempfile::TempDir> {
+        self._dir.take()
+    }
+
+    /// `url` relative to the server.
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    /// GET with a token.
+    pub async fn get(&self, path: &str, token: &str) -> Response {
+        self.client
+            .get(self.url(path))
+            .bearer_auth(token)
+            .send()
+            .await
+            .unwrap()
+    }
+
+    /// POST JSON with a token.
+    pub async fn post(&self, path: &str, token: &str, body: &Value) -> Response {
+        self.client
+            .post(self.url(path))
+            .bearer_auth(token)
+            .json(body)
+            .send()
+            .await
+            .unwrap()
+    }
+
+    /// Submits and expects 201; returns the result.
+    pub async fn submit(&self, token: &str, body: &Value) -> Value {
+        let res = self.post("/v1/calibrations", token, body).await;
+        let status = res.status();
+        let text = res.text().await.unwrap();
+        assert_eq!(status, StatusCode::CREATED, "{text}");
+        serde_json::from_str(&text).unwrap()
+    }
+
+    /// Creates a token with `role` (and station) and returns its secret.
+    pub async fn token(&self, role: &str, station: Option<&str>) -> String {
+        let mut body = json!({ "role": role });
+        if let Some(s) = station {
+            body["station_id"] = json!(s);
+        }
+        let res = self.post("/v1/tokens", ADMIN, &body).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+        res.json::<Value>().await.unwrap()["token"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    }
+}
+
+impl Drop for TestApp {
+    fn drop(&mut self) {
+        if let Some(tx) = self.stop.take() {
+            let _ = tx.send(());
+        }
+    }
+}
+
+/// Reads a problem answer, checking its media type and shape; returns the body.
+pub async fn problem(res: Response, status: StatusCode) -> Value {
+    assert_eq!(res.status(), status);
+    let ct = res.headers()["content-type"].to_str().unwrap().to_owned();
+    assert_eq!(ct, "application/problem+json");
+    assert!(res.headers().contains_key("x-request-id"));
+    let body: Value = res.json().await.unwrap();
+    for key in ["type", "title", "status", "detail", "request_id"] {
+        assert!(body.get(key).is_some(), "problem without `{key}`: {body}");
+    }
+    assert_eq!(body["status"], status.as_u16());
+    body
+}
+
+/// The pointers of a 422's errors.
+pub fn pointers(problem: &Value) -> Vec<String> {
+    problem["errors"]
+        .as_array()
+        .map(|e| {
+            e.iter()
+                .map(|x| x["pointer"].as_str().unwrap().to_owned())
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
+/// Asserts `got` is within `tol` of `want`.
+#[track_caller]
+pub fn close(got: &Value, want: f64, tol: f64) {
+    let g = got
+        .as_f64()
+        .unwrap_or_else(|| panic!("not a number: {got}"));
+    assert!((g - want).abs() <= tol, "{g} vs {want} (±{tol})");
+}

@@ -1,0 +1,8 @@
+//! API tests over real HTTP against a server bound to a free port.
+
+mod access;
+mod endpoints;
+mod errors;
+mod helpers;
+mod paper;
+mod restart;

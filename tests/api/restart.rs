@@ -1,0 +1,23 @@
+//! Data survives a restart of the server on the same database.
+
+use reqwest::StatusCode;
+use serde_json::Value;
+
+use crate::helpers::*;
+
+#[tokio::test]
+async fn restart_keeps_calibrations_and_tokens() {
+    let mut app = TestApp::spawn().await;
+    let created = app.submit(ADMIN, &paper()).await;
+    let reader = app.token("reader", None).await;
+    let db = app.db.clone();
+    let dir = app.take_dir();
+    app.stop().await;
+
+    let again = TestApp::spawn_on(db).await;
+    let path = format!("/v1/calibrations/{}", created["id"].as_str().unwrap());
+    let res = again.get(&path, &reader).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.json::<Value>().await.unwrap(), created);
+    drop(dir);
+}
