@@ -23,9 +23,6 @@ pub enum TimestampError {
     /// Not RFC 3339.
     #[error("must be an RFC 3339 date-time such as 2026-11-20T08:00:00Z")]
     Format,
-    /// Before 1970 or after 9999.
-    #[error("must lie between 1970 and 9999")]
-    Range,
 }
 
 impl Timestamp {
@@ -40,14 +37,19 @@ impl Timestamp {
         Timestamp(t.replace_microsecond(micros).expect("microsecond in range"))
     }
 
-    /// Parses any RFC 3339 date-time.
+    /// Parses any RFC 3339 date-time whose UTC instant lies in years 0000–9999.
     pub fn parse(s: &str) -> Result<Self, TimestampError> {
         let t = OffsetDateTime::parse(s, &Rfc3339).map_err(|_| TimestampError::Format)?;
         let t = Self::from_datetime(t);
-        if !(1970..=9999).contains(&t.0.year()) {
-            return Err(TimestampError::Range);
+        if !(0..=9999).contains(&t.0.year()) {
+            return Err(TimestampError::Format);
         }
         Ok(t)
+    }
+
+    /// The calendar year (UTC).
+    pub fn year(&self) -> i32 {
+        self.0.year()
     }
 
     /// Seconds since the Unix epoch (for arithmetic such as lease expiry).
@@ -95,8 +97,14 @@ mod tests {
         assert_eq!(Timestamp::parse("2026-11-20"), Err(TimestampError::Format));
         assert_eq!(Timestamp::parse("yesterday"), Err(TimestampError::Format));
         assert_eq!(
-            Timestamp::parse("1969-12-31T23:59:59Z"),
-            Err(TimestampError::Range)
+            Timestamp::parse("0000-01-01T00:30:00+01:00"),
+            Err(TimestampError::Format)
+        );
+        assert_eq!(
+            Timestamp::parse("0000-01-01T00:00:00Z")
+                .unwrap()
+                .to_string(),
+            "0000-01-01T00:00:00.000000Z"
         );
     }
 }

@@ -9,7 +9,7 @@ use uuid::Uuid;
 
 use super::AppState;
 use super::extract::{Body, Params};
-use super::page::{self, Page};
+use super::page::Page;
 use super::problem::Problem;
 use crate::auth::{Principal, Role};
 use crate::input::check::{Chars, check_str, optional};
@@ -48,7 +48,14 @@ pub async fn list(
     principal.require(Role::Reader)?;
     let params = Params::parse(query.as_deref(), &["limit", "after"])?;
     let limit = params.limit()?;
-    let after = params.get("after").map(page::decode).transpose()?;
+    let after = params
+        .get("after")
+        .map(|a| {
+            check_str(a, MAX_ID_CHARS, Chars::Identifier)
+                .map(|()| a.to_owned())
+                .map_err(|e| Problem::bad_parameter("after", format!("is not a sensor id: it {e}")))
+        })
+        .transpose()?;
     let items = state.store.sensors(after, limit + 1).await?;
     Ok(Json(Page::from_overfetch(items, limit, |s| {
         s.sensor_id.clone()
@@ -73,7 +80,8 @@ fn time_param(params: &Params, name: &str) -> Result<Option<Timestamp>, Problem>
 }
 
 /// `GET /v1/sensors/{sensor_id}/calibrations`: newest `performed_at` first,
-/// optionally within `from`..=`to`, keyset-paginated.
+/// optionally within `from`..=`to` (an empty range gives an empty page),
+/// keyset-paginated by calibration id.
 pub async fn history(
     State(state): State<AppState>,
     principal: Principal,
@@ -84,25 +92,22 @@ pub async fn history(
     let params = Params::parse(query.as_deref(), &["from", "to", "limit", "after"])?;
     let limit = params.limit()?;
     let (from, to) = (time_param(&params, "from")?, time_param(&params, "to")?);
-    if let (Some(f), Some(t)) = (from, to)
-        && f > t
-    {
-        return Err(Problem::bad_parameter(
-            "from",
-            "must not be later than `to`",
-        ));
-    }
-    let before = match params.get("after") {
-        None => None,
-        Some(cursor) => {
-            let key = page::decode(cursor)?;
-            let bad = || Problem::bad_parameter("after", "is not a cursor returned by this API");
-            let (at, id) = key.split_once('|').ok_or_else(bad)?;
-            Timestamp::parse(at).map_err(|_| bad())?;
-            Some((at.to_owned(), Uuid::try_parse(id).map_err(|_| bad())?))
-        }
-    };
+    let before = params
+        .get("after")
+        .map(|a| {
+            Uuid::try_parse(a)
+                .map_err(|_| Problem::bad_parameter("after", "must be a calibration id (UUID)"))
+        })
+        .transpose()?;
     sensor(&state, &sensor_id).await?;
+    if let Some(id) = before {
+        let known = state.store.calibration_summary(id).await?;
+        if known.is_none_or(|c| c.sensor_id != sensor_id) {
+            return Err(Problem::not_found(format!(
+                "sensor `{sensor_id}` has no calibration `{id}` to continue after"
+            )));
+        }
+    }
     let q = HistoryQuery {
         from,
         to,
@@ -111,7 +116,7 @@ pub async fn history(
     };
     let items = state.store.history(sensor_id, q).await?;
     Ok(Json(Page::from_overfetch(items, limit, |c| {
-        format!("{}|{}", c.performed_at, c.id)
+        c.id.to_string()
     })))
 }
 

@@ -117,8 +117,9 @@ pub struct HistoryQuery {
     pub from: Option<Timestamp>,
     /// Only those performed at or before this instant.
     pub to: Option<Timestamp>,
-    /// Keyset cursor: strictly older than this `(performed_at, id)`.
-    pub before: Option<(String, Uuid)>,
+    /// Keyset cursor: only calibrations after this one in the list's order
+    /// (older `performed_at`, or equal and smaller id).
+    pub before: Option<Uuid>,
     /// Page size.
     pub limit: usize,
 }
@@ -142,13 +143,66 @@ pub struct TokenRecord {
     pub revoked_at: Option<String>,
 }
 
+/// An idempotency key as scoped and fingerprinted by the server.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct IdempotencyKey {
+    /// The principal (token id) that sent it.
+    pub principal: String,
+    /// The client's key.
+    pub key: String,
+    /// `SHA-256` of the request's media type and body.
+    pub request_hash: [u8; 32],
+}
+
+/// How long idempotency keys are kept, in seconds (at least 24 h promised).
+pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
+
+/// What claiming an idempotency key found.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Claim {
+    /// The key is new (or its previous holder's lease expired): go ahead.
+    Fresh,
+    /// The same request is being processed under this key right now.
+    InFlight,
+    /// The key was used with a different request.
+    Mismatch,
+    /// The same request already stored this calibration.
+    Done(Uuid),
+}
+
+/// What storing a calibration under an idempotency key did.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Stored {
+    /// The calibration was stored.
+    New,
+    /// A concurrent request with the same key stored this one first; nothing
+    /// new was stored.
+    Existing(Uuid),
+}
+
 /// The storage operations accelcal needs; one implementation per engine.
 #[async_trait]
 pub trait Store: Send + Sync + 'static {
     /// Checks that the database answers.
     async fn ping(&self) -> Result<(), StoreError>;
-    /// Stores a calibration and updates its sensor, atomically and durably.
-    async fn insert_calibration(&self, c: NewCalibration) -> Result<(), StoreError>;
+    /// Stores a calibration and updates its sensor, atomically and durably;
+    /// with a key, also records the key as done in the same transaction
+    /// (unless another request completed the key first).
+    async fn insert_calibration(
+        &self,
+        c: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError>;
+    /// Claims an idempotency key for a request, holding it until
+    /// `lease_until`; forgets keys older than the retention period.
+    async fn claim_key(
+        &self,
+        key: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError>;
+    /// Gives up a claimed key whose request stored nothing.
+    async fn release_key(&self, principal: String, key: String) -> Result<(), StoreError>;
     /// The result document of a calibration.
     async fn calibration_result(&self, id: Uuid) -> Result<Option<String>, StoreError>;
     /// The submitted body of a calibration.

@@ -23,14 +23,17 @@ use serde_json::value::RawValue;
 use uuid::Uuid;
 
 use super::{
-    CalibrationSummary, HistoryQuery, NewCalibration, SensorSummary, Store, StoreError,
-    StoredSubmission, TokenRecord,
+    CalibrationSummary, Claim, HistoryQuery, IDEMPOTENCY_RETENTION_SECONDS, IdempotencyKey,
+    NewCalibration, SensorSummary, Store, StoreError, Stored, StoredSubmission, TokenRecord,
 };
 use crate::auth::Role;
 use crate::timestamp::Timestamp;
 
 /// Embedded migrations, applied in order; `user_version` counts those applied.
-const MIGRATIONS: &[&str] = &[include_str!("migrations/sqlite/0001_init.sql")];
+const MIGRATIONS: &[&str] = &[
+    include_str!("migrations/sqlite/0001_init.sql"),
+    include_str!("migrations/sqlite/0002_idempotency.sql"),
+];
 
 /// How long a statement waits for a lock held by another connection.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
@@ -328,7 +331,11 @@ impl Store for SqliteStore {
         .await
     }
 
-    async fn insert_calibration(&self, n: NewCalibration) -> Result<(), StoreError> {
+    async fn insert_calibration(
+        &self,
+        n: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError> {
         self.run(move |c| {
             let tx = c
                 .transaction_with_behavior(TransactionBehavior::Immediate)
@@ -357,6 +364,30 @@ impl Store for SqliteStore {
                 ],
             )
             .map_err(map_err)?;
+            if let Some(k) = key {
+                // Record the key as done, unless a request with the same key
+                // (after our lease expired) completed it first.
+                let changed = tx
+                    .execute(
+                        "INSERT INTO idempotency_keys (principal, key, request_hash, calibration_id, created_at) \
+                         VALUES (?1, ?2, ?3, ?4, ?5) \
+                         ON CONFLICT (principal, key) DO UPDATE SET calibration_id = excluded.calibration_id, \
+                           locked_until = NULL WHERE idempotency_keys.calibration_id IS NULL",
+                        params![k.principal, k.key, k.request_hash.to_vec(), id, n.received_at.to_string()],
+                    )
+                    .map_err(map_err)?;
+                if changed == 0 {
+                    let existing: String = tx
+                        .query_row(
+                            "SELECT calibration_id FROM idempotency_keys WHERE principal = ?1 AND key = ?2",
+                            params![k.principal, k.key],
+                            |r| r.get(0),
+                        )
+                        .map_err(map_err)?;
+                    drop(tx);
+                    return Ok(Stored::Existing(uuid(&existing)?));
+                }
+            }
             tx.execute(
                 "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
                  latest_performed_at, latest_calibration_id) VALUES (?1, 1, ?2, ?2, ?3) \
@@ -370,7 +401,71 @@ impl Store for SqliteStore {
                 params![n.sensor_id, performed_at, id],
             )
             .map_err(map_err)?;
-            tx.commit().map_err(map_err)
+            tx.commit().map_err(map_err)?;
+            Ok(Stored::New)
+        })
+        .await
+    }
+
+    async fn claim_key(
+        &self,
+        k: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError> {
+        self.run(move |c| {
+            let tx = c
+                .transaction_with_behavior(TransactionBehavior::Immediate)
+                .map_err(map_err)?;
+            let horizon = now.plus_seconds(-IDEMPOTENCY_RETENTION_SECONDS).to_string();
+            tx.execute("DELETE FROM idempotency_keys WHERE created_at < ?1", [horizon])
+                .map_err(map_err)?;
+            let row: Option<(Vec<u8>, Option<String>, Option<String>)> = tx
+                .query_row(
+                    "SELECT request_hash, calibration_id, locked_until FROM idempotency_keys \
+                     WHERE principal = ?1 AND key = ?2",
+                    params![k.principal, k.key],
+                    |r| Ok((r.get(0)?, r.get(1)?, r.get(2)?)),
+                )
+                .optional()
+                .map_err(map_err)?;
+            let now_text = now.to_string();
+            let claim = match row {
+                Some((hash, _, _)) if hash != k.request_hash => Claim::Mismatch,
+                Some((_, Some(id), _)) => Claim::Done(uuid(&id)?),
+                Some((_, None, Some(until))) if until > now_text => Claim::InFlight,
+                Some(_) => {
+                    tx.execute(
+                        "UPDATE idempotency_keys SET locked_until = ?3 WHERE principal = ?1 AND key = ?2",
+                        params![k.principal, k.key, lease_until.to_string()],
+                    )
+                    .map_err(map_err)?;
+                    Claim::Fresh
+                }
+                None => {
+                    tx.execute(
+                        "INSERT INTO idempotency_keys (principal, key, request_hash, locked_until, created_at) \
+                         VALUES (?1, ?2, ?3, ?4, ?5)",
+                        params![k.principal, k.key, k.request_hash.to_vec(), lease_until.to_string(), now_text],
+                    )
+                    .map_err(map_err)?;
+                    Claim::Fresh
+                }
+            };
+            tx.commit().map_err(map_err)?;
+            Ok(claim)
+        })
+        .await
+    }
+
+    async fn release_key(&self, principal: String, key: String) -> Result<(), StoreError> {
+        self.run(move |c| {
+            c.execute(
+                "DELETE FROM idempotency_keys WHERE principal = ?1 AND key = ?2 AND calibration_id IS NULL",
+                params![principal, key],
+            )
+            .map_err(map_err)?;
+            Ok(())
         })
         .await
     }
@@ -466,16 +561,13 @@ impl Store for SqliteStore {
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError> {
         self.run(move |c| {
-            let (before_at, before_id) = match q.before {
-                Some((at, id)) => (Some(at), Some(id.to_string())),
-                None => (None, None),
-            };
             let mut stmt = c
                 .prepare_cached(&format!(
                     "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
                      AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-                     AND (?4 IS NULL OR (c.performed_at, c.id) < (?4, ?5)) \
-                     ORDER BY c.performed_at DESC, c.id DESC LIMIT ?6"
+                     AND (?4 IS NULL OR (c.performed_at, c.id) < \
+                          (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+                     ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
                 ))
                 .map_err(map_err)?;
             let rows = stmt
@@ -484,8 +576,7 @@ impl Store for SqliteStore {
                         sensor_id,
                         q.from.map(|t| t.to_string()),
                         q.to.map(|t| t.to_string()),
-                        before_at,
-                        before_id,
+                        q.before.map(|id| id.to_string()),
                         q.limit as i64
                     ],
                     |r| summary_row(r, 0),
