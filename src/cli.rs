@@ -50,6 +50,13 @@ enum Command {
     /// recovery; the API's /v1/tokens does the same online).
     #[command(subcommand)]
     Token(TokenCommand),
+    /// Probe a running service's /readyz; exit 0 when ready (for container
+    /// health checks, where no curl is installed).
+    Health {
+        /// Base URL of the service.
+        #[arg(long, env = "ACCELCAL_URL", default_value = "http://127.0.0.1:8080")]
+        url: String,
+    },
 }
 
 #[derive(Debug, Args)]
@@ -142,7 +149,29 @@ pub fn main() -> ExitCode {
             label,
             database,
         }) => run_async(create_token(role, station, label, database)),
+        Command::Health { url } => run_async(health(url)),
     }
+}
+
+async fn health(url: String) -> anyhow::Result<ExitCode> {
+    let client = reqwest::Client::builder()
+        .timeout(Duration::from_secs(5))
+        .build()?;
+    let res = client
+        .get(format!("{}/readyz", url.trim_end_matches('/')))
+        .send()
+        .await;
+    Ok(match res {
+        Ok(r) if r.status().is_success() => ExitCode::SUCCESS,
+        Ok(r) => {
+            eprintln!("accelcal: not ready: {}", r.status());
+            ExitCode::FAILURE
+        }
+        Err(e) => {
+            eprintln!("accelcal: no answer: {e}");
+            ExitCode::FAILURE
+        }
+    })
 }
 
 fn run_async(f: impl std::future::Future<Output = anyhow::Result<ExitCode>>) -> ExitCode {
