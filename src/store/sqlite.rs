@@ -97,6 +97,18 @@ impl SqliteStore {
             }),
         };
         let first = store.connect()?;
+        // One process owns a SQLite database, so no request of an earlier
+        // process can still be in flight: free the idempotency leases a
+        // crash left behind, so that retries proceed at once instead of
+        // waiting for the leases to expire.
+        first
+            .conn
+            .execute(
+                "UPDATE idempotency_keys SET locked_until = NULL \
+                 WHERE calibration_id IS NULL AND locked_until IS NOT NULL",
+                [],
+            )
+            .map_err(map_err)?;
         store.checkin(first);
         Ok(store)
     }

@@ -44,7 +44,8 @@ pub const MAX_READING: f64 = 1e9;
 pub const MAX_ANGLE_DEG: f64 = 3600.0;
 /// Accepted norm of explicit gravity components: a tumble in the 1 g field.
 pub const GRAVITY_NORM: std::ops::RangeInclusive<f64> = 0.9..=1.1;
-/// How far in the future `performed_at` may lie (clock skew), in seconds.
+/// How far in the future `performed_at` may lie (clock skew), in seconds;
+/// it may not lie before 1970 either.
 pub const MAX_FUTURE_SECONDS: i64 = 24 * 3600;
 
 const FIELDS: &[&str] = &[
@@ -313,6 +314,10 @@ pub fn check(body: &Value, now: Timestamp) -> Result<Submission, Vec<FieldError>
                     &p,
                     "lies more than a day in the future; check the station's clock",
                 );
+                None
+            }
+            Ok(t) if t.year() < 1970 => {
+                c.error(&p, "lies before 1970; check the station's clock");
                 None
             }
             Ok(t) => Some(t),

@@ -98,6 +98,8 @@ fn future_and_malformed_times_are_refused() {
     assert_eq!(pointers(&b), ["/performed_at"]);
     b["performed_at"] = json!("20 Nov 2026");
     assert_eq!(pointers(&b), ["/performed_at"]);
+    b["performed_at"] = json!("1969-12-31T23:59:59Z");
+    assert_eq!(pointers(&b), ["/performed_at"]);
     b["performed_at"] = json!("2026-11-22T12:00:00+02:00");
     assert!(pointers(&b).is_empty());
 }

@@ -1,5 +1,8 @@
 //! The test harness: a real server on a free port over a fresh database, and
-//! a client that speaks to it over HTTP.
+//! a client that speaks to it over HTTP. Shared by the `api` and
+//! `reliability` test binaries, each of which uses only part of it.
+
+#![allow(dead_code)]
 
 use std::path::PathBuf;
 

@@ -1,6 +1,5 @@
 //! API tests over real HTTP against a server bound to a free port.
 
-mod access;
 mod endpoints;
 mod errors;
 mod helpers;

@@ -1,0 +1,157 @@
+//! `Idempotency-Key`: at most one record per key, whatever the retries.
+
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+use crate::helpers::*;
+
+async fn post_with_key(app: &TestApp, token: &str, key: &str, body: &Value) -> reqwest::Response {
+    app.client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(token)
+        .header("idempotency-key", key)
+        .json(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+async fn count(app: &TestApp, sensor: &str) -> u64 {
+    let res = app.get(&format!("/v1/sensors/{sensor}"), ADMIN).await;
+    if res.status() == StatusCode::NOT_FOUND {
+        return 0;
+    }
+    res.json::<Value>().await.unwrap()["calibration_count"]
+        .as_u64()
+        .unwrap()
+}
+
+#[tokio::test]
+async fn same_key_same_body_replays_the_original() {
+    let app = TestApp::spawn().await;
+    let body = submission("I-1", "2026-01-01T00:00:00Z", 4);
+    let first = post_with_key(&app, ADMIN, "k-1", &body).await;
+    assert_eq!(first.status(), StatusCode::CREATED);
+    assert!(first.headers().get("idempotent-replayed").is_none());
+    let first: Value = first.json().await.unwrap();
+    for _ in 0..3 {
+        let again = post_with_key(&app, ADMIN, "k-1", &body).await;
+        assert_eq!(again.status(), StatusCode::CREATED);
+        assert_eq!(again.headers()["idempotent-replayed"], "true");
+        assert_eq!(
+            again.headers()["location"],
+            format!("/v1/calibrations/{}", first["id"].as_str().unwrap()).as_str()
+        );
+        assert_eq!(again.json::<Value>().await.unwrap(), first);
+    }
+    assert_eq!(count(&app, "I-1").await, 1);
+}
+
+#[tokio::test]
+async fn same_key_different_body_is_refused() {
+    let app = TestApp::spawn().await;
+    let body = submission("I-2", "2026-01-01T00:00:00Z", 4);
+    assert_eq!(
+        post_with_key(&app, ADMIN, "k-2", &body).await.status(),
+        StatusCode::CREATED
+    );
+    let other = submission("I-2", "2026-01-02T00:00:00Z", 4);
+    let p = problem(
+        post_with_key(&app, ADMIN, "k-2", &other).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(p["parameter"], "Idempotency-Key");
+    assert_eq!(count(&app, "I-2").await, 1);
+}
+
+#[tokio::test]
+async fn keys_are_scoped_to_the_token() {
+    let app = TestApp::spawn().await;
+    let a = app.token("station", None).await;
+    let b = app.token("station", None).await;
+    let body = submission("I-3", "2026-01-01T00:00:00Z", 4);
+    let ra: Value = post_with_key(&app, &a, "shared", &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let rb: Value = post_with_key(&app, &b, "shared", &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_ne!(ra["id"], rb["id"]);
+    assert_eq!(count(&app, "I-3").await, 2);
+}
+
+#[tokio::test]
+async fn a_refused_request_does_not_burn_its_key() {
+    let app = TestApp::spawn().await;
+    let mut bad = submission("I-4", "2026-01-01T00:00:00Z", 4);
+    bad["batchs"] = json!(2);
+    let res = post_with_key(&app, ADMIN, "k-4", &bad).await;
+    problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
+    // The key was released: the corrected body may use it.
+    let good = submission("I-4", "2026-01-01T00:00:00Z", 4);
+    assert_eq!(
+        post_with_key(&app, ADMIN, "k-4", &good).await.status(),
+        StatusCode::CREATED
+    );
+}
+
+#[tokio::test]
+async fn malformed_keys_are_refused() {
+    let app = TestApp::spawn().await;
+    let body = submission("I-5", "2026-01-01T00:00:00Z", 4);
+    for key in ["has space", &"x".repeat(256)] {
+        let p = problem(
+            post_with_key(&app, ADMIN, key, &body).await,
+            StatusCode::BAD_REQUEST,
+        )
+        .await;
+        assert_eq!(p["parameter"], "Idempotency-Key");
+    }
+    assert_eq!(count(&app, "I-5").await, 0);
+}
+
+/// Concurrent retries of one key: exactly one record, every answer either
+/// that record or "in flight" (409, retry).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn concurrent_retries_store_exactly_one_record() {
+    let app = std::sync::Arc::new(TestApp::spawn().await);
+    for round in 0..5 {
+        let key = format!("burst-{round}");
+        let body = submission(&format!("IC-{round}"), "2026-01-01T00:00:00Z", 6);
+        let tasks: Vec<_> = (0..16)
+            .map(|_| {
+                let (app, key, body) = (app.clone(), key.clone(), body.clone());
+                tokio::spawn(async move {
+                    loop {
+                        let res = post_with_key(&app, ADMIN, &key, &body).await;
+                        match res.status() {
+                            StatusCode::CONFLICT => {
+                                assert_eq!(res.headers()["retry-after"], "1");
+                                tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+                            }
+                            StatusCode::CREATED => {
+                                return res.json::<Value>().await.unwrap()["id"]
+                                    .as_str()
+                                    .unwrap()
+                                    .to_owned();
+                            }
+                            other => panic!("unexpected {other}: {}", res.text().await.unwrap()),
+                        }
+                    }
+                })
+            })
+            .collect();
+        let mut ids = Vec::new();
+        for t in tasks {
+            ids.push(t.await.unwrap());
+        }
+        ids.dedup();
+        assert_eq!(ids.len(), 1, "round {round}: {ids:?}");
+        assert_eq!(count(&app, &format!("IC-{round}")).await, 1);
+    }
+}

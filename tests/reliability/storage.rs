@@ -1,0 +1,76 @@
+//! A failing database is a retryable 503, and the service recovers by itself.
+
+use std::time::Duration;
+
+use reqwest::StatusCode;
+
+use crate::helpers::*;
+
+#[tokio::test]
+async fn a_missing_database_is_503_until_it_returns() {
+    let app = TestApp::spawn().await;
+    app.submit(ADMIN, &submission("D-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let aside = app.db.with_extension("aside");
+    std::fs::rename(&app.db, &aside).unwrap();
+
+    let res = app.get("/v1/sensors", ADMIN).await;
+    assert!(res.headers().contains_key("retry-after"));
+    problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+    let res = app
+        .post(
+            "/v1/calibrations",
+            ADMIN,
+            &submission("D-1", "2026-01-02T00:00:00Z", 4),
+        )
+        .await;
+    problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+    let res = app.client.get(app.url("/readyz")).send().await.unwrap();
+    problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+    assert!(
+        !app.db.exists(),
+        "a missing database must not be silently recreated"
+    );
+
+    std::fs::rename(&aside, &app.db).unwrap();
+    assert_eq!(
+        app.client
+            .get(app.url("/readyz"))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        StatusCode::OK
+    );
+    app.submit(ADMIN, &submission("D-1", "2026-01-02T00:00:00Z", 4))
+        .await;
+    let s: serde_json::Value = app
+        .get("/v1/sensors/D-1", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(s["calibration_count"], 2);
+}
+
+#[tokio::test]
+async fn a_locked_database_is_503_until_the_lock_is_released() {
+    let app = TestApp::spawn().await;
+    let locker = rusqlite::Connection::open(&app.db).unwrap();
+    locker.execute_batch("BEGIN EXCLUSIVE").unwrap();
+
+    let res = app
+        .post(
+            "/v1/calibrations",
+            ADMIN,
+            &submission("L-1", "2026-01-01T00:00:00Z", 4),
+        )
+        .await;
+    problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+
+    locker.execute_batch("COMMIT").unwrap();
+    drop(locker);
+    tokio::time::sleep(Duration::from_millis(50)).await;
+    app.submit(ADMIN, &submission("L-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+}

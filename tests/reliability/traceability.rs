@@ -1,0 +1,71 @@
+//! Request ids and security headers.
+
+use reqwest::StatusCode;
+use serde_json::Value;
+
+use crate::helpers::*;
+
+#[tokio::test]
+async fn a_client_request_id_is_kept_and_shown_in_problems() {
+    let app = TestApp::spawn().await;
+    let res = app
+        .client
+        .get(app.url("/v1/calibrations/nope"))
+        .bearer_auth(ADMIN)
+        .header("x-request-id", "station-7:upload-42")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.headers()["x-request-id"], "station-7:upload-42");
+    let p = problem(res, StatusCode::NOT_FOUND).await;
+    assert_eq!(p["request_id"], "station-7:upload-42");
+}
+
+#[tokio::test]
+async fn unusable_request_ids_are_replaced() {
+    let app = TestApp::spawn().await;
+    for bad in ["has space", &"x".repeat(200)] {
+        let res = app
+            .client
+            .get(app.url("/healthz"))
+            .header("x-request-id", bad)
+            .send()
+            .await
+            .unwrap();
+        let id = res.headers()["x-request-id"].to_str().unwrap().to_owned();
+        assert_ne!(id, bad);
+        assert!(uuid::Uuid::parse_str(&id).is_ok(), "{id}");
+    }
+    let res = app.client.get(app.url("/healthz")).send().await.unwrap();
+    assert!(uuid::Uuid::parse_str(res.headers()["x-request-id"].to_str().unwrap()).is_ok());
+}
+
+#[tokio::test]
+async fn responses_carry_security_headers() {
+    let app = TestApp::spawn().await;
+    for res in [
+        app.client.get(app.url("/healthz")).send().await.unwrap(),
+        app.get("/v1/sensors", ADMIN).await,
+        app.get("/v1/nothing", ADMIN).await,
+    ] {
+        let h = res.headers();
+        assert_eq!(h["x-content-type-options"], "nosniff");
+        assert_eq!(h["x-frame-options"], "DENY");
+        assert_eq!(h["referrer-policy"], "no-referrer");
+        assert!(
+            h["content-security-policy"]
+                .to_str()
+                .unwrap()
+                .contains("frame-ancestors 'none'")
+        );
+    }
+    let res = app
+        .post("/v1/tokens", ADMIN, &serde_json::json!({"role": "reader"}))
+        .await;
+    assert_eq!(
+        res.headers()["cache-control"],
+        "no-store",
+        "secrets must not be cached"
+    );
+    let _: Value = res.json().await.unwrap();
+}
