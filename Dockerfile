@@ -7,6 +7,7 @@ WORKDIR /src
 COPY Cargo.toml Cargo.lock ./
 COPY core ./core
 COPY src ./src
+COPY benches ./benches
 COPY openapi.yaml ./
 RUN cargo build --release --locked --bin accelcal \
     && mkdir -p /data

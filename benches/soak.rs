@@ -1,0 +1,477 @@
+//! Load and soak benchmark: the machine's bare-stack figure, then accelcal
+//! under a bounded soak of mixed traffic from a loopback load generator.
+//!
+//! ```text
+//! cargo bench --bench soak                      # 60 s soak (CI runs this)
+//! SOAK_SECONDS=20 SOAK_WORKERS=32 cargo bench --bench soak
+//! ```
+//!
+//! 1. **Bare stack**: a minimal axum handler returning a constant JSON body,
+//!    in this process, loaded by the same client for 5 s: the ceiling this
+//!    machine, runtime and client reach with no application work.
+//! 2. **accelcal `/healthz`** for 5 s: the same, through accelcal's middleware.
+//! 3. **Soak**: `SOAK_SECONDS` (default 60) of mixed traffic — submissions with
+//!    idempotency keys and their retries, coefficient and history reads,
+//!    compensation, identify, invalid bodies — plus clients that send bodies
+//!    too slowly (408) or declare them too large (413). The server's RSS is
+//!    sampled every second.
+//!
+//! Exits non-zero when any answer is not the one its request calls for, or
+//! when memory is not flat: the mean RSS of the last 10 s may exceed that of
+//! seconds 10–20 by at most 20 % + 8 MiB. Timing is reported, never judged.
+
+use std::collections::BTreeMap;
+use std::process::{Command, Stdio};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use serde_json::{Value, json};
+use tokio::io::{AsyncReadExt, AsyncWriteExt};
+
+const ADMIN: &str = "soak-admin-token-0123456789";
+
+#[derive(Default)]
+struct Stats {
+    latencies: BTreeMap<&'static str, Vec<u32>>,
+    errors: Vec<String>,
+}
+
+impl Stats {
+    fn record(&mut self, kind: &'static str, micros: u32) {
+        self.latencies.entry(kind).or_default().push(micros);
+    }
+}
+
+fn percentile(sorted: &[u32], p: f64) -> f64 {
+    if sorted.is_empty() {
+        return 0.0;
+    }
+    let k = ((sorted.len() - 1) as f64 * p).round() as usize;
+    f64::from(sorted[k]) / 1000.0
+}
+
+fn rss_kib(pid: u32) -> u64 {
+    std::fs::read_to_string(format!("/proc/{pid}/status"))
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmRSS:"))
+                .and_then(|l| l.split_whitespace().nth(1))
+                .and_then(|v| v.parse().ok())
+        })
+        .unwrap_or(0)
+}
+
+fn submission(sensor: &str, n: u64) -> Value {
+    let runs: Vec<Value> = (0..6u64)
+        .map(|j| {
+            let e = |p: u64| 1e-6 * (n as f64 * 0.37 + j as f64 * 1.3 + p as f64 * 2.1).sin();
+            json!({"readings": [[0.0062 + e(0), 0.0061 + e(0)], [1.216 + e(1), 1.2161 + e(1)],
+                                [-0.0062 + e(2), -0.0063 + e(2)], [-1.216 + e(3), -1.2159 + e(3)]]})
+        })
+        .collect();
+    json!({
+        "sensor_id": sensor,
+        "performed_at": format!("2025-{:02}-{:02}T00:00:00Z", 1 + n % 12, 1 + n % 28),
+        "unit": "mA",
+        "positions": [{"angle_deg": 0}, {"angle_deg": 90}, {"angle_deg": 180}, {"angle_deg": 270}],
+        "runs": runs,
+    })
+}
+
+/// Hits `url` with `workers` clients for `seconds`; returns requests/s and p50/p99 ms.
+async fn plain_load(url: String, workers: usize, seconds: u64) -> (f64, f64, f64) {
+    let client = reqwest::Client::new();
+    let stop = Arc::new(AtomicBool::new(false));
+    let all = Arc::new(Mutex::new(Vec::<u32>::new()));
+    let start = Instant::now();
+    let tasks: Vec<_> = (0..workers)
+        .map(|_| {
+            let (client, url, stop, all) = (client.clone(), url.clone(), stop.clone(), all.clone());
+            tokio::spawn(async move {
+                let mut mine = Vec::new();
+                while !stop.load(Ordering::Relaxed) {
+                    let t = Instant::now();
+                    let res = client.get(&url).send().await.expect("bare request");
+                    assert!(res.status().is_success());
+                    res.bytes().await.unwrap();
+                    mine.push(t.elapsed().as_micros() as u32);
+                }
+                all.lock().unwrap().extend(mine);
+            })
+        })
+        .collect();
+    tokio::time::sleep(Duration::from_secs(seconds)).await;
+    stop.store(true, Ordering::Relaxed);
+    for t in tasks {
+        t.await.unwrap();
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let mut l = std::mem::take(&mut *all.lock().unwrap());
+    l.sort_unstable();
+    (
+        l.len() as f64 / elapsed,
+        percentile(&l, 0.5),
+        percentile(&l, 0.99),
+    )
+}
+
+async fn bare_stack(workers: usize) -> (f64, f64, f64) {
+    let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
+    let addr = listener.local_addr().unwrap();
+    let app = axum::Router::new().route(
+        "/",
+        axum::routing::get(|| async { axum::Json(json!({"status": "ok"})) }),
+    );
+    let server = tokio::spawn(async move { axum::serve(listener, app).await.unwrap() });
+    let out = plain_load(format!("http://{addr}/"), workers, 5).await;
+    server.abort();
+    out
+}
+
+struct Soak {
+    base: String,
+    client: reqwest::Client,
+    stats: Arc<Mutex<Stats>>,
+    stop: Arc<AtomicBool>,
+}
+
+impl Soak {
+    async fn call(
+        &self,
+        kind: &'static str,
+        req: reqwest::RequestBuilder,
+        want: &[u16],
+    ) -> Option<Value> {
+        let t = Instant::now();
+        let res = req.bearer_auth(ADMIN).send().await;
+        let micros = t.elapsed().as_micros() as u32;
+        match res {
+            Ok(r) if want.contains(&r.status().as_u16()) => {
+                let body = r.bytes().await.ok()?;
+                self.stats.lock().unwrap().record(kind, micros);
+                serde_json::from_slice(&body).ok()
+            }
+            Ok(r) => {
+                let s = r.status();
+                let text = r.text().await.unwrap_or_default();
+                let text: String = text.chars().take(200).collect();
+                self.stats
+                    .lock()
+                    .unwrap()
+                    .errors
+                    .push(format!("{kind}: {s} {text}"));
+                None
+            }
+            Err(e) => {
+                self.stats
+                    .lock()
+                    .unwrap()
+                    .errors
+                    .push(format!("{kind}: {e}"));
+                None
+            }
+        }
+    }
+
+    async fn worker(self: Arc<Self>, w: u64) {
+        let mut n = w * 1_000_000;
+        let mut last: Option<(String, Value)> = None;
+        let sensor = format!("SOAK-{w}");
+        let url = |p: &str| format!("{}{p}", self.base);
+        while !self.stop.load(Ordering::Relaxed) {
+            n += 1;
+            match n % 20 {
+                0..=4 => {
+                    let body = submission(&sensor, n);
+                    let key = format!("soak-{n}");
+                    let req = self
+                        .client
+                        .post(url("/v1/calibrations"))
+                        .header("idempotency-key", &key)
+                        .json(&body);
+                    self.call("submit", req, &[201]).await;
+                    last = Some((key, body));
+                }
+                5 => {
+                    if let Some((key, body)) = &last {
+                        let req = self
+                            .client
+                            .post(url("/v1/calibrations"))
+                            .header("idempotency-key", key)
+                            .json(body);
+                        self.call("submit retry", req, &[201]).await;
+                    }
+                }
+                6..=9 => {
+                    let req = self
+                        .client
+                        .get(url(&format!("/v1/sensors/{sensor}/coefficients")));
+                    self.call("coefficients", req, &[200, 404]).await;
+                }
+                10 | 11 => {
+                    let req = self
+                        .client
+                        .get(url(&format!("/v1/sensors/{sensor}/calibrations?limit=20")));
+                    self.call("history", req, &[200, 404]).await;
+                }
+                12 => {
+                    let req = self.client.get(url("/v1/sensors?limit=100"));
+                    self.call("sensors", req, &[200]).await;
+                }
+                13 | 14 => {
+                    let outputs: Vec<f64> =
+                        (0..100).map(|k| -1.216 + 0.024 * f64::from(k)).collect();
+                    let req = self
+                        .client
+                        .post(url(&format!("/v1/sensors/{sensor}/compensate")))
+                        .json(&json!({"outputs": outputs}));
+                    self.call("compensate", req, &[200, 404]).await;
+                }
+                15 | 16 => {
+                    let req = self
+                        .client
+                        .post(url("/v1/identify"))
+                        .json(&submission(&sensor, n));
+                    self.call("identify", req, &[200]).await;
+                }
+                17 => {
+                    let mut bad = submission(&sensor, n);
+                    bad["batchs"] = json!(2);
+                    let req = self.client.post(url("/v1/calibrations")).json(&bad);
+                    self.call("invalid (422)", req, &[422]).await;
+                }
+                18 => {
+                    let req = self
+                        .client
+                        .post(url("/v1/fuse"))
+                        .json(&json!({"values": {"k0": [1.0, 1.1, 0.9, 1.05, 0.97, 1.02]}}));
+                    self.call("fuse", req, &[200]).await;
+                }
+                _ => {
+                    let req = self.client.get(url("/healthz"));
+                    self.call("healthz", req, &[200]).await;
+                }
+            }
+        }
+    }
+
+    /// Clients that misbehave: bodies declared too large, bodies trickled
+    /// too slowly. Each must get its 413 or 408 and its connection closed.
+    async fn hostile(self: Arc<Self>, slow: bool) {
+        let addr = self.base.trim_start_matches("http://").to_owned();
+        while !self.stop.load(Ordering::Relaxed) {
+            let t = Instant::now();
+            let Ok(mut s) = tokio::net::TcpStream::connect(&addr).await else {
+                self.stats
+                    .lock()
+                    .unwrap()
+                    .errors
+                    .push("hostile: connect failed".into());
+                continue;
+            };
+            let (len, kind, want) = if slow {
+                (2000, "slow body (408)", "HTTP/1.1 408")
+            } else {
+                (100_000_000, "oversized (413)", "HTTP/1.1 413")
+            };
+            let head = format!(
+                "POST /v1/calibrations HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {ADMIN}\r\n\
+                 Content-Type: application/json\r\nContent-Length: {len}\r\nConnection: close\r\n\r\n{{"
+            );
+            if s.write_all(head.as_bytes()).await.is_err() {
+                continue;
+            }
+            let mut answer = Vec::new();
+            if slow {
+                // One byte every 100 ms, until the server gives up on us.
+                loop {
+                    tokio::select! {
+                        r = s.read_to_end(&mut answer) => { let _ = r; break; }
+                        () = tokio::time::sleep(Duration::from_millis(100)) => {
+                            if s.write_all(b" ").await.is_err() { let _ = s.read_to_end(&mut answer).await; break; }
+                        }
+                    }
+                }
+            } else {
+                let _ =
+                    tokio::time::timeout(Duration::from_secs(10), s.read_to_end(&mut answer)).await;
+            }
+            let text = String::from_utf8_lossy(&answer);
+            {
+                let mut st = self.stats.lock().unwrap();
+                if text.starts_with(want) {
+                    st.record(kind, t.elapsed().as_micros() as u32);
+                } else {
+                    st.errors.push(format!(
+                        "{kind}: {}",
+                        text.lines().next().unwrap_or("no answer")
+                    ));
+                }
+            }
+            if !slow {
+                // A few oversized uploads a second, not a flood.
+                tokio::time::sleep(Duration::from_millis(50)).await;
+            }
+        }
+    }
+}
+
+fn main() {
+    let seconds: u64 = std::env::var("SOAK_SECONDS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(60)
+        .max(30);
+    let workers: usize = std::env::var("SOAK_WORKERS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(16);
+    let rt = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+
+    println!(
+        "soak: {workers} workers, {seconds} s, {} cores",
+        std::thread::available_parallelism().map_or(0, |n| n.get())
+    );
+    let (bare_rps, bare_p50, bare_p99) = rt.block_on(bare_stack(workers));
+    println!(
+        "bare stack (axum constant JSON):   {bare_rps:8.0} req/s  p50 {bare_p50:.2} ms  p99 {bare_p99:.2} ms"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args([
+            "serve",
+            "--listen",
+            "127.0.0.1:0",
+            "--log-format",
+            "json",
+            "--body-timeout",
+            "3",
+        ])
+        .arg("--database")
+        .arg(dir.path().join("soak.db"))
+        .env("ACCELCAL_ADMIN_TOKEN", ADMIN)
+        .env("RUST_LOG", "warn,accelcal::startup=info")
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("accelcal starts");
+    let pid = child.id();
+    let stderr = child.stderr.take().unwrap();
+    let (tx, rx) = std::sync::mpsc::channel();
+    let server_errors = Arc::new(Mutex::new(Vec::<String>::new()));
+    let sink = server_errors.clone();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        for line in std::io::BufReader::new(stderr)
+            .lines()
+            .map_while(Result::ok)
+        {
+            let v: Value = serde_json::from_str(&line).unwrap_or_default();
+            if v["message"] == "accelcal listening" {
+                let _ = tx.send(v["address"].as_str().unwrap_or_default().to_owned());
+            } else if v["level"] == "ERROR" || v["status"].as_u64().is_some_and(|s| s >= 500) {
+                sink.lock().unwrap().push(line);
+            }
+        }
+    });
+    let base = format!(
+        "http://{}",
+        rx.recv_timeout(Duration::from_secs(30))
+            .expect("accelcal listens")
+    );
+
+    let (h_rps, h_p50, h_p99) = rt.block_on(plain_load(format!("{base}/healthz"), workers, 5));
+    println!(
+        "accelcal GET /healthz:             {h_rps:8.0} req/s  p50 {h_p50:.2} ms  p99 {h_p99:.2} ms"
+    );
+
+    let soak = Arc::new(Soak {
+        base: base.clone(),
+        client: reqwest::Client::new(),
+        stats: Arc::new(Mutex::new(Stats::default())),
+        stop: Arc::new(AtomicBool::new(false)),
+    });
+    let mut rss = Vec::new();
+    let start = Instant::now();
+    rt.block_on(async {
+        let mut tasks: Vec<_> = (0..workers as u64)
+            .map(|w| tokio::spawn(soak.clone().worker(w)))
+            .collect();
+        tasks.push(tokio::spawn(soak.clone().hostile(true)));
+        tasks.push(tokio::spawn(soak.clone().hostile(true)));
+        tasks.push(tokio::spawn(soak.clone().hostile(false)));
+        for _ in 0..seconds {
+            tokio::time::sleep(Duration::from_secs(1)).await;
+            rss.push(rss_kib(pid));
+        }
+        soak.stop.store(true, Ordering::Relaxed);
+        for t in tasks {
+            t.await.unwrap();
+        }
+    });
+    let elapsed = start.elapsed().as_secs_f64();
+    let _ = Command::new("kill")
+        .args(["-TERM", &pid.to_string()])
+        .status();
+    let exit = child.wait().unwrap();
+
+    let mut stats = soak.stats.lock().unwrap();
+    let total: usize = stats.latencies.values().map(Vec::len).sum();
+    println!(
+        "soak: {total} answers in {elapsed:.1} s = {:.0} req/s",
+        total as f64 / elapsed
+    );
+    println!(
+        "  {:<22} {:>8} {:>10} {:>10}",
+        "kind", "count", "p50 ms", "p99 ms"
+    );
+    for (kind, l) in stats.latencies.iter_mut() {
+        l.sort_unstable();
+        println!(
+            "  {kind:<22} {:>8} {:>10.2} {:>10.2}",
+            l.len(),
+            percentile(l, 0.5),
+            percentile(l, 0.99)
+        );
+    }
+    let mean = |w: &[u64]| w.iter().sum::<u64>() as f64 / w.len().max(1) as f64 / 1024.0;
+    let early = mean(&rss[10..20]);
+    let late = mean(&rss[rss.len() - 10..]);
+    let max = *rss.iter().max().unwrap() as f64 / 1024.0;
+    println!(
+        "server RSS: s10–20 mean {early:.1} MiB, last 10 s mean {late:.1} MiB, max {max:.1} MiB"
+    );
+    println!("server exit on SIGTERM: {exit}");
+
+    let mut failed = false;
+    let server_errors = server_errors.lock().unwrap();
+    if !stats.errors.is_empty() || !server_errors.is_empty() {
+        failed = true;
+        println!(
+            "FAIL: {} unexpected answers, {} server errors",
+            stats.errors.len(),
+            server_errors.len()
+        );
+        for e in stats.errors.iter().chain(server_errors.iter()).take(20) {
+            println!("  {e}");
+        }
+    }
+    if late > early * 1.2 + 8.0 {
+        failed = true;
+        println!("FAIL: memory grew from {early:.1} MiB to {late:.1} MiB");
+    }
+    if !exit.success() {
+        failed = true;
+        println!("FAIL: the server did not exit cleanly");
+    }
+    if failed {
+        std::process::exit(1);
+    }
+    println!("soak: ok (no unexpected answer, memory flat)");
+}
