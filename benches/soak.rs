@@ -21,7 +21,6 @@
 //! seconds 10–20 by at most 20 % + 8 MiB. Timing is reported, never judged.
 
 use std::collections::BTreeMap;
-use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
@@ -29,7 +28,10 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-const ADMIN: &str = "soak-admin-token-0123456789";
+#[path = "../tests/process/server.rs"]
+mod server;
+
+use server::{ADMIN, Server};
 
 #[derive(Default)]
 struct Stats {
@@ -343,48 +345,13 @@ fn main() {
     );
 
     let dir = tempfile::tempdir().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-        .args([
-            "serve",
-            "--listen",
-            "127.0.0.1:0",
-            "--log-format",
-            "json",
-            "--body-timeout",
-            "3",
-        ])
-        .arg("--database")
-        .arg(dir.path().join("soak.db"))
-        .env("ACCELCAL_ADMIN_TOKEN", ADMIN)
-        .env("RUST_LOG", "warn,accelcal::startup=info")
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("accelcal starts");
-    let pid = child.id();
-    let stderr = child.stderr.take().unwrap();
-    let (tx, rx) = std::sync::mpsc::channel();
-    let server_errors = Arc::new(Mutex::new(Vec::<String>::new()));
-    let sink = server_errors.clone();
-    std::thread::spawn(move || {
-        use std::io::BufRead;
-        for line in std::io::BufReader::new(stderr)
-            .lines()
-            .map_while(Result::ok)
-        {
-            let v: Value = serde_json::from_str(&line).unwrap_or_default();
-            if v["message"] == "accelcal listening" {
-                let _ = tx.send(v["address"].as_str().unwrap_or_default().to_owned());
-            } else if v["level"] == "ERROR" || v["status"].as_u64().is_some_and(|s| s >= 500) {
-                sink.lock().unwrap().push(line);
-            }
-        }
-    });
-    let base = format!(
-        "http://{}",
-        rx.recv_timeout(Duration::from_secs(30))
-            .expect("accelcal listens")
+    let mut server = Server::start_with(
+        &dir.path().join("soak.db"),
+        &["--body-timeout", "3"],
+        "warn,accelcal::startup=info",
     );
+    let pid = server.child.id();
+    let base = server.base.clone();
 
     let (h_rps, h_p50, h_p99) = rt.block_on(plain_load(format!("{base}/healthz"), workers, 5));
     println!(
@@ -416,10 +383,19 @@ fn main() {
         }
     });
     let elapsed = start.elapsed().as_secs_f64();
-    let _ = Command::new("kill")
-        .args(["-TERM", &pid.to_string()])
-        .status();
-    let exit = child.wait().unwrap();
+    server.terminate();
+    let exit = server.child.wait().unwrap();
+    let server_errors: Vec<String> = server
+        .log
+        .lock()
+        .unwrap()
+        .iter()
+        .filter(|line| {
+            let v: Value = serde_json::from_str(line).unwrap_or_default();
+            v["level"] == "ERROR" || v["status"].as_u64().is_some_and(|s| s >= 500)
+        })
+        .cloned()
+        .collect();
 
     let mut stats = soak.stats.lock().unwrap();
     let total: usize = stats.latencies.values().map(Vec::len).sum();
@@ -450,7 +426,6 @@ fn main() {
     println!("server exit on SIGTERM: {exit}");
 
     let mut failed = false;
-    let server_errors = server_errors.lock().unwrap();
     if !stats.errors.is_empty() || !server_errors.is_empty() {
         failed = true;
         println!(

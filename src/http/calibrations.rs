@@ -228,6 +228,10 @@ pub(crate) fn created(id: Uuid, result: String) -> Response {
         .into_response()
 }
 
+fn unknown(id: Uuid) -> Problem {
+    Problem::not_found(format!("no calibration with id `{id}`"))
+}
+
 /// `GET /v1/calibrations/{id}`: the stored result document.
 pub async fn get(
     State(state): State<AppState>,
@@ -240,7 +244,7 @@ pub async fn get(
         .store
         .calibration_result(id)
         .await?
-        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+        .ok_or_else(|| unknown(id))?;
     Ok(([(header::CONTENT_TYPE, "application/json")], result).into_response())
 }
 
@@ -256,7 +260,7 @@ pub async fn submission(
         .store
         .submission(id)
         .await?
-        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+        .ok_or_else(|| unknown(id))?;
     let content_type = HeaderValue::from_str(&s.content_type)
         .unwrap_or(HeaderValue::from_static("application/octet-stream"));
     Ok(([(header::CONTENT_TYPE, content_type)], s.body).into_response())

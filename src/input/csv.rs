@@ -30,17 +30,13 @@
 use serde_json::{Map, Value, json};
 
 use super::FieldError;
+use crate::submission::FIELDS;
 
-const META: &[&str] = &[
-    "sensor_id",
-    "station_id",
-    "performed_at",
-    "unit",
-    "model",
-    "mount",
-    "batches",
-    "notes",
-];
+/// The submission fields a `# key: value` line may set: all but the two the
+/// rows themselves make up.
+fn is_metadata(key: &str) -> bool {
+    FIELDS.contains(&key) && !matches!(key, "positions" | "runs")
+}
 
 const COLUMNS: &[&str] = &[
     "run",
@@ -118,13 +114,15 @@ pub fn to_json(text: &str) -> Result<Value, Vec<FieldError>> {
         if let Some(comment) = trimmed.strip_prefix('#') {
             if let Some((key, value)) = comment.split_once(':') {
                 let (key, value) = (key.trim(), value.trim());
-                if !META.contains(&key) {
+                if !is_metadata(key) {
                     if key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') {
+                        let known: Vec<&str> =
+                            FIELDS.iter().copied().filter(|f| is_metadata(f)).collect();
                         errors.push(line_error(
                             line,
                             format!(
                                 "unknown field `{key}`; expected one of: {}",
-                                META.join(", ")
+                                known.join(", ")
                             ),
                         ));
                     }

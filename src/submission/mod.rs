@@ -48,7 +48,8 @@ pub const GRAVITY_NORM: std::ops::RangeInclusive<f64> = 0.9..=1.1;
 /// it may not lie before 1970 either.
 pub const MAX_FUTURE_SECONDS: i64 = 24 * 3600;
 
-const FIELDS: &[&str] = &[
+/// The members of a submission object.
+pub const FIELDS: &[&str] = &[
     "sensor_id",
     "station_id",
     "performed_at",

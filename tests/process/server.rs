@@ -1,4 +1,6 @@
-//! Starting and stopping the real binary.
+//! Starting and stopping the real binary (also used by `benches/soak.rs`).
+
+#![allow(dead_code)]
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -20,22 +22,22 @@ pub struct Server {
 }
 
 impl Server {
-    /// Starts the binary on `db` and waits until it listens.
+    /// Starts the binary on `db` (debug logging) and waits until it listens.
     pub fn start(db: &Path) -> Server {
+        Self::start_with(db, &[], "debug")
+    }
+
+    /// Starts the binary on `db` with extra `serve` flags and a `RUST_LOG`
+    /// filter, and waits until it listens.
+    pub fn start_with(db: &Path, flags: &[&str], rust_log: &str) -> Server {
         let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
-            .args([
-                "serve",
-                "--listen",
-                "127.0.0.1:0",
-                "--log-format",
-                "json",
-                "--shutdown-grace",
-                "10",
-            ])
+            .args(["serve", "--listen", "127.0.0.1:0", "--log-format", "json"])
+            .args(["--shutdown-grace", "10"])
+            .args(flags)
             .arg("--database")
             .arg(db)
             .env("ACCELCAL_ADMIN_TOKEN", ADMIN)
-            .env("RUST_LOG", "debug")
+            .env("RUST_LOG", rust_log)
             .stdout(Stdio::null())
             .stderr(Stdio::piped())
             .spawn()
