@@ -698,3 +698,48 @@ impl Store for SqliteStore {
         .await;
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rusqlite::ffi;
+
+    fn failure(code: i32) -> rusqlite::Error {
+        rusqlite::Error::SqliteFailure(ffi::Error::new(code), None)
+    }
+
+    #[test]
+    fn database_outages_are_unavailable_and_bugs_are_not() {
+        for code in [
+            ffi::SQLITE_BUSY,
+            ffi::SQLITE_LOCKED,
+            ffi::SQLITE_READONLY,
+            ffi::SQLITE_FULL,
+            ffi::SQLITE_IOERR,
+            ffi::SQLITE_CANTOPEN,
+            ffi::SQLITE_CORRUPT,
+        ] {
+            assert!(
+                matches!(map_err(failure(code)), StoreError::Unavailable(_)),
+                "code {code}"
+            );
+        }
+        assert!(matches!(
+            map_err(failure(ffi::SQLITE_CONSTRAINT)),
+            StoreError::Corrupt(_)
+        ));
+        let decode =
+            rusqlite::Error::InvalidColumnType(0, "id".into(), rusqlite::types::Type::Null);
+        assert!(matches!(map_err(decode), StoreError::Corrupt(_)));
+    }
+
+    #[test]
+    fn a_missing_file_is_not_recreated_after_the_first_open() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gone.db");
+        let store = SqliteStore::open(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert!(matches!(store.checkout(), Err(StoreError::Unavailable(_))));
+        assert!(!path.exists());
+    }
+}

@@ -155,3 +155,42 @@ async fn concurrent_retries_store_exactly_one_record() {
         assert_eq!(count(&app, &format!("IC-{round}")).await, 1);
     }
 }
+
+/// `accelcal submit`'s client rides out an outage: it retries the 503s and,
+/// thanks to the content-derived key, stores the upload once however many
+/// copies run.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn the_submit_client_retries_through_an_outage_without_duplicates() {
+    let app = TestApp::spawn().await;
+    let aside = app.db.with_extension("aside");
+    std::fs::rename(&app.db, &aside).unwrap();
+    let upload = accelcal::client::Upload {
+        url: app.base.clone(),
+        token: ADMIN.into(),
+        body: serde_json::to_vec(&submission("RETRY-1", "2026-01-01T00:00:00Z", 4)).unwrap(),
+        content_type: "application/json",
+        attempts: 30,
+        backoff: std::time::Duration::from_millis(50),
+    };
+    let uploads: Vec<_> = (0..3)
+        .map(|_| {
+            let u = upload.clone();
+            tokio::spawn(async move { accelcal::client::submit(&u).await.unwrap() })
+        })
+        .collect();
+    tokio::time::sleep(std::time::Duration::from_millis(400)).await;
+    std::fs::rename(&aside, &app.db).unwrap();
+    let mut ids = Vec::new();
+    for u in uploads {
+        let answer = u.await.unwrap();
+        assert_eq!(answer.status, StatusCode::CREATED, "{}", answer.body);
+        assert!(
+            answer.attempts > 1,
+            "the outage should have cost at least one retry"
+        );
+        ids.push(serde_json::from_str::<Value>(&answer.body).unwrap()["id"].clone());
+    }
+    ids.dedup();
+    assert_eq!(ids.len(), 1);
+    assert_eq!(count(&app, "RETRY-1").await, 1);
+}
