@@ -198,6 +198,20 @@ fn migrate(conn: &mut Connection) -> rusqlite::Result<()> {
     tx.commit()
 }
 
+/// Every row of a query, read by `row` (a cached statement).
+fn all_rows<T>(
+    c: &Connection,
+    sql: &str,
+    params: impl rusqlite::Params,
+    row: impl FnMut(&Row<'_>) -> rusqlite::Result<T>,
+) -> Result<Vec<T>, StoreError> {
+    let mut stmt = c.prepare_cached(sql).map_err(map_err)?;
+    stmt.query_map(params, row)
+        .map_err(map_err)?
+        .collect::<rusqlite::Result<Vec<_>>>()
+        .map_err(map_err)
+}
+
 fn raw(s: String) -> Result<Box<RawValue>, StoreError> {
     RawValue::from_string(s).map_err(|e| StoreError::Corrupt(e.to_string()))
 }
@@ -537,17 +551,12 @@ impl Store for SqliteStore {
         limit: usize,
     ) -> Result<Vec<SensorSummary>, StoreError> {
         self.run(move |c| {
-            let mut stmt = c
-                .prepare_cached(&sensor_query(
-                    "WHERE ?1 IS NULL OR s.sensor_id > ?1 ORDER BY s.sensor_id LIMIT ?2",
-                ))
-                .map_err(map_err)?;
-            let rows = stmt
-                .query_map(params![after, limit as i64], sensor_row)
-                .map_err(map_err)?
-                .collect::<rusqlite::Result<Vec<_>>>()
-                .map_err(map_err)?;
-            rows.into_iter().map(sensor_summary).collect()
+            let sql =
+                sensor_query("WHERE ?1 IS NULL OR s.sensor_id > ?1 ORDER BY s.sensor_id LIMIT ?2");
+            all_rows(c, &sql, params![after, limit as i64], sensor_row)?
+                .into_iter()
+                .map(sensor_summary)
+                .collect()
         })
         .await
     }
@@ -573,30 +582,24 @@ impl Store for SqliteStore {
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError> {
         self.run(move |c| {
-            let mut stmt = c
-                .prepare_cached(&format!(
-                    "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
-                     AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-                     AND (?4 IS NULL OR (c.performed_at, c.id) < \
-                          (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
-                     ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
-                ))
-                .map_err(map_err)?;
-            let rows = stmt
-                .query_map(
-                    params![
-                        sensor_id,
-                        q.from.map(|t| t.to_string()),
-                        q.to.map(|t| t.to_string()),
-                        q.before.map(|id| id.to_string()),
-                        q.limit as i64
-                    ],
-                    |r| summary_row(r, 0),
-                )
-                .map_err(map_err)?
-                .collect::<rusqlite::Result<Vec<_>>>()
-                .map_err(map_err)?;
-            rows.into_iter().map(summary).collect()
+            let sql = format!(
+                "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+                 AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+                 AND (?4 IS NULL OR (c.performed_at, c.id) < \
+                      (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+                 ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
+            );
+            let params = params![
+                sensor_id,
+                q.from.map(|t| t.to_string()),
+                q.to.map(|t| t.to_string()),
+                q.before.map(|id| id.to_string()),
+                q.limit as i64
+            ];
+            all_rows(c, &sql, params, |r| summary_row(r, 0))?
+                .into_iter()
+                .map(summary)
+                .collect()
         })
         .await
     }
@@ -640,15 +643,11 @@ impl Store for SqliteStore {
 
     async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
         self.run(|c| {
-            let mut stmt = c
-                .prepare_cached(&format!("SELECT {TOKEN_COLUMNS} FROM tokens ORDER BY id"))
-                .map_err(map_err)?;
-            let rows = stmt
-                .query_map([], token_row)
-                .map_err(map_err)?
-                .collect::<rusqlite::Result<Vec<_>>>()
-                .map_err(map_err)?;
-            rows.into_iter().map(token).collect()
+            let sql = format!("SELECT {TOKEN_COLUMNS} FROM tokens ORDER BY id");
+            all_rows(c, &sql, [], token_row)?
+                .into_iter()
+                .map(token)
+                .collect()
         })
         .await
     }
