@@ -144,6 +144,101 @@ mod tests {
         }
     }
 
+    /// `U = a + a²/2` has the roots 1 and −3 of `U = 1.5`; from the linear
+    /// start 1.5, Newton with the right derivative `1 + a` lands on 1.
+    #[test]
+    fn quadratic_model_inverts_to_the_root_near_the_linear_start() {
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kii, 0.5)]);
+        assert_eq!(c.input(1.5, 0.0, 0.0), Ok(1.0));
+        // U = 2a − 0.1·a² at a = 0.5: U = 0.975 exactly representable? no,
+        // but the root is: a = 10 − sqrt(100 − 10·U) = 0.5.
+        let c = comp(&[(Term::Ki, 2.0), (Term::Kii, -0.1)]);
+        let a = c.input(0.975, 0.0, 0.0).unwrap();
+        assert!((a - 0.5).abs() < 1e-15, "{a}");
+    }
+
+    /// The cross terms enter through `c0` and `c1` (module docs): with
+    /// a_p = 0.5, a_o = −0.25 the model is linear in a_i with
+    /// c0 = k0 + kp·a_p + ko·a_o + kop·a_o·a_p + kpp·a_p² + koo·a_o²
+    ///    = 0.1 + 0.1 − 0.1 − 0.1 + 0.4 + 0.2 = 0.6,
+    /// c1 = ki + kio·a_o + kpi·a_p = 2 + 0.4·(−0.25) + 0.6·0.5 = 2.2.
+    #[test]
+    fn cross_terms_enter_the_inversion_as_derived() {
+        let c = comp(&[
+            (Term::K0, 0.1),
+            (Term::Ki, 2.0),
+            (Term::Kp, 0.2),
+            (Term::Ko, 0.4),
+            (Term::Kio, 0.4),
+            (Term::Kop, 0.8),
+            (Term::Kpi, 0.6),
+            (Term::Kpp, 1.6),
+            (Term::Koo, 3.2),
+        ]);
+        // U = c0 + c1·a_i at a_i = 0.25: 0.6 + 0.55 = 1.15.
+        let a = c.input(1.15, 0.5, -0.25).unwrap();
+        assert!((a - 0.25).abs() < 1e-15, "{a}");
+        // With a second-order term too, Newton must use the same c1:
+        // U = 0.6 + 2.2·a + 0.5·a², a = 0.25 → U = 1.18125.
+        let mut k = c.k;
+        k[Term::Kii as usize] = 0.5;
+        let c = Compensator { k };
+        let a = c.input(1.18125, 0.5, -0.25).unwrap();
+        assert!((a - 0.25).abs() < 1e-15, "{a}");
+    }
+
+    /// For |a_i| ≫ 1 the stopping rule is relative (1e-14·|a|): rounding at
+    /// that magnitude never makes the step smaller than an absolute 1e-14.
+    #[test]
+    fn large_inputs_converge_by_the_relative_step() {
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kii, 1e-9)]);
+        // U = a + 1e-9·a² at a = 1e6: U = 1e6 + 1e3.
+        let a = c.input(1_001_000.0, 0.0, 0.0).unwrap();
+        assert!((a - 1e6).abs() < 1e-6, "{a}");
+    }
+
+    /// A third-order model without a second-order term is not linear.
+    #[test]
+    fn cubic_without_quadratic_term_is_solved_by_newton() {
+        // U = a + a³ at a = 0.5: U = 0.625.
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kiii, 1.0)]);
+        let a = c.input(0.625, 0.0, 0.0).unwrap();
+        assert!((a - 0.5).abs() < 1e-15, "{a}");
+    }
+
+    /// Newton needs the true derivative 1 + 2a + 3a²: `U = a + a² + a³ = 3`
+    /// has the single real root 1, and the linear start 3 lies where a wrong
+    /// sign in the derivative sends the iteration away from it.
+    #[test]
+    fn the_derivative_has_every_term() {
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kii, 1.0), (Term::Kiii, 1.0)]);
+        let a = c.input(3.0, 0.0, 0.0).unwrap();
+        assert!((a - 1.0).abs() < 1e-15, "{a}");
+    }
+
+    /// A root in the thousands, where rounding keeps the last steps near
+    /// 1e-12: the relative stopping rule (1e-14·|a|) ends the iteration; an
+    /// absolute one would not. Reference root by bisection in 40 digits:
+    /// 7640.1079254448585051848…
+    #[test]
+    fn a_large_root_converges_by_the_relative_step() {
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kii, 1e-3), (Term::Kiii, 1e-6)]);
+        let a = c.input(511_974.0, 0.0, 0.0).unwrap();
+        assert!((a - 7_640.107_925_444_858).abs() < 1e-11, "{a}");
+    }
+
+    /// A derivative that vanishes exactly at an iterate is reported as such.
+    #[test]
+    fn a_vanishing_derivative_during_newton_is_named() {
+        // U = a + a²: the linear start for U = −0.5 is a = −0.5, where
+        // dU/da = 1 + 2a = 0.
+        let c = comp(&[(Term::Ki, 1.0), (Term::Kii, 1.0)]);
+        assert_eq!(
+            c.input(-0.5, 0.0, 0.0),
+            Err(CompensateError::VanishingDerivative { a_i: -0.5 })
+        );
+    }
+
     #[test]
     fn refusals_are_typed() {
         assert_eq!(

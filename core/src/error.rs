@@ -94,6 +94,15 @@ pub enum Error {
         /// This coefficient's count.
         found: usize,
     },
+    /// A computed quantity of a coefficient is NaN or infinite: the input is
+    /// too extreme for double precision. Never stored or served.
+    #[error("coefficient `{term}`: the {quantity} is not a finite number; rescale the outputs")]
+    NonFiniteResult {
+        /// The coefficient concerned.
+        term: Term,
+        /// Which quantity (`coefficient`, `standard error`, `dispersion`, …).
+        quantity: &'static str,
+    },
     /// Batch-estimation fusion of one coefficient failed.
     #[error("coefficient `{term}`: {source}")]
     Fusion {
@@ -144,6 +153,10 @@ pub enum FusionError {
         /// Index of the value (the run).
         run: usize,
     },
+    /// The fused value or its standard error is not a finite number (values
+    /// so extreme that the weighted mean overflows).
+    #[error("the fused value or its standard error is not a representable number")]
+    NotRepresentable,
 }
 
 /// Why an output could not be compensated into an input acceleration.
@@ -184,5 +197,43 @@ impl fmt::Display for TermList<'_> {
             f.write_str(t.name())?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn refusals_name_their_terms_in_words() {
+        let e = Error::RankDeficient {
+            terms: vec![Term::K0, Term::Kii, Term::Kpp],
+            positions: 40,
+            columns: 10,
+            rank: 9,
+        };
+        assert_eq!(
+            e.to_string(),
+            "terms k0, kii, kpp cannot be separated by this tumble (40 positions, 10 terms, rank 9)"
+        );
+        let one = Error::RankDeficient {
+            terms: vec![Term::Ko],
+            positions: 8,
+            columns: 3,
+            rank: 2,
+        };
+        assert!(one.to_string().starts_with("terms ko cannot"), "{one}");
+        let nested = Error::Fusion {
+            term: Term::Kp,
+            source: FusionError::NoSpread {
+                batch: 1,
+                first: 3,
+                last: 5,
+            },
+        };
+        assert_eq!(
+            nested.to_string(),
+            "coefficient `kp`: batch 1 (runs 3–5) has identical values, so no weight can be given to it"
+        );
     }
 }

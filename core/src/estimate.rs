@@ -106,7 +106,7 @@ pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates,
         })
         .collect();
 
-    Ok(Estimates {
+    let estimates = Estimates {
         mean: MeanEstimate {
             coefficients: per_term(&|xs, _| fusion::mean(xs)),
             dispersion: mean_abs,
@@ -119,7 +119,25 @@ pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates,
             dispersion: fused_abs,
             relative_dispersion: fused_rel,
         },
-    })
+    };
+    finite(&estimates.mean.coefficients, "mean")?;
+    finite(&estimates.mean.dispersion, "dispersion about the mean")?;
+    finite(&estimates.fused.coefficients, "fused value")?;
+    finite(&estimates.fused.std_errors, "fused standard error")?;
+    finite(
+        &estimates.fused.dispersion,
+        "dispersion about the fused value",
+    )?;
+    Ok(estimates)
+}
+
+/// Refuses a map holding a non-finite number, naming the term and quantity:
+/// nothing accelcal stores or serves may be NaN or infinite.
+pub(crate) fn finite(values: &TermMap<f64>, quantity: &'static str) -> Result<(), Error> {
+    match values.iter().find(|(_, v)| !v.is_finite()) {
+        Some((term, _)) => Err(Error::NonFiniteResult { term, quantity }),
+        None => Ok(()),
+    }
 }
 
 #[cfg(test)]
@@ -158,6 +176,20 @@ mod tests {
                     first: 0,
                     last: 1
                 }
+            })
+        );
+    }
+
+    #[test]
+    fn non_finite_quantities_are_refused_with_their_term() {
+        let ok = TermMap(vec![(Term::K0, 1.0), (Term::Ki, 2.0)]);
+        assert_eq!(finite(&ok, "mean"), Ok(()));
+        let bad = TermMap(vec![(Term::K0, 1.0), (Term::Ki, f64::INFINITY)]);
+        assert_eq!(
+            finite(&bad, "mean"),
+            Err(Error::NonFiniteResult {
+                term: Term::Ki,
+                quantity: "mean"
             })
         );
     }

@@ -18,6 +18,20 @@
 //! `k = 2`; the general form above is used for every `k`. With `k = 1` the
 //! fused value is the mean and its standard error `s/√n`.
 //!
+//! **Scale-free arithmetic.** `1/s_p²` overflows for values near 1e-155 and
+//! squares of deviations underflow to zero below 1e-162, although every
+//! result is representable. So the weights are taken relative to the
+//! smallest standard deviation `s_min`,
+//!
+//! ```text
+//! w'_p = n_p·(s_min/s_p)² ∈ (0, n_p],    x⁺ = Σ w'_p·x̄_p / Σ w'_p,    SE = s_min / √Σ w'_p
+//! ```
+//!
+//! (the common factor `1/s_min²` cancels in `x⁺` and comes out of the root in
+//! the standard error), and every root of a sum of squares is computed as
+//! `m·√Σ(d/m)²` with `m = max |d|` ([`scaled_norm`]). Scaling all values by
+//! `c` then scales every result by `c` (or `|c|`) exactly as the formulas do.
+//!
 //! **Dispersion (eq. 8).** For an estimate `K` over the per-run values `K_j`:
 //!
 //! ```text
@@ -33,9 +47,16 @@ use serde::Serialize;
 
 use crate::FusionError;
 
-/// Arithmetic mean `x̄ = Σ x_j / n` (eq. 1); NaN for an empty slice.
+/// Arithmetic mean `x̄ = Σ x_j / n` (eq. 1); NaN for an empty slice. When
+/// the sum overflows (values near the largest double) it is `Σ (x_j / n)`.
 pub fn mean(values: &[f64]) -> f64 {
-    values.iter().sum::<f64>() / values.len() as f64
+    let n = values.len() as f64;
+    let sum = values.iter().sum::<f64>();
+    if sum.is_finite() {
+        sum / n
+    } else {
+        values.iter().map(|x| x / n).sum()
+    }
 }
 
 /// Sample standard deviation `sqrt(Σ (x_j − x̄)² / (n − 1))` (eq. 5);
@@ -44,12 +65,25 @@ pub fn sample_std(values: &[f64]) -> Option<f64> {
     dispersion(values, mean(values)).map(|d| d.absolute)
 }
 
+/// The Euclidean norm `sqrt(Σ d_j²)` computed as `m·sqrt(Σ (d_j/m)²)` with
+/// `m = max |d_j|`, so that it neither underflows for tiny `d` nor overflows
+/// for huge ones (the idea of LAPACK's `dnrm2`). 0 for an empty or all-zero
+/// input.
+pub fn scaled_norm(d: impl Iterator<Item = f64> + Clone) -> f64 {
+    let m = d.clone().fold(0.0_f64, |m, x| m.max(x.abs()));
+    if m == 0.0 || !m.is_finite() {
+        return m;
+    }
+    m * d.map(|x| (x / m).powi(2)).sum::<f64>().sqrt()
+}
+
 /// Eq. 8 dispersion of the values about an estimate.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Dispersion {
     /// `sqrt(Σ (K − K_j)² / (n − 1))`, in the coefficient's unit.
     pub absolute: f64,
-    /// `absolute / |K|`; `None` when `K = 0`.
+    /// `absolute / |K|`; `None` when `K = 0` or the ratio is not a finite
+    /// number (an estimate so close to zero that the ratio overflows).
     pub relative: Option<f64>,
 }
 
@@ -59,9 +93,9 @@ pub fn dispersion(values: &[f64], estimate: f64) -> Option<Dispersion> {
     if n < 2 {
         return None;
     }
-    let ss: f64 = values.iter().map(|x| (estimate - x).powi(2)).sum();
-    let absolute = (ss / (n - 1) as f64).sqrt();
-    let relative = (estimate != 0.0).then(|| absolute / estimate.abs());
+    let norm = scaled_norm(values.iter().map(|x| estimate - x));
+    let absolute = norm / ((n - 1) as f64).sqrt();
+    let relative = Some(absolute / estimate.abs()).filter(|r| estimate != 0.0 && r.is_finite());
     Some(Dispersion { absolute, relative })
 }
 
@@ -121,31 +155,40 @@ pub fn fuse(values: &[f64], k: usize) -> Result<Fusion, FusionError> {
     }
     let ranges = batch_ranges(values.len(), k)?;
     let mut batches = Vec::with_capacity(k);
-    let (mut sum_w, mut sum_wx) = (0.0, 0.0);
     for (batch, runs) in ranges.into_iter().enumerate() {
         let xs = &values[runs.clone()];
-        let m = mean(xs);
-        let s = sample_std(xs).expect("batches hold at least two values");
-        if s == 0.0 || xs.iter().all(|x| *x == xs[0]) {
+        // Zero exactly when every value is the same: the deviations are
+        // scaled, so distinct values never underflow to a zero spread.
+        let std = sample_std(xs).unwrap_or(0.0);
+        if std == 0.0 {
             return Err(FusionError::NoSpread {
                 batch,
                 first: runs.start,
                 last: runs.end - 1,
             });
         }
-        let w = xs.len() as f64 / (s * s);
-        sum_w += w;
-        sum_wx += w * m;
         batches.push(Batch {
             runs,
-            mean: m,
-            std: s,
+            mean: mean(xs),
+            std,
         });
+    }
+    // Weights relative to the smallest deviation: w'_p = n_p·(s_min/s_p)².
+    let s_min = batches.iter().map(|b| b.std).fold(f64::INFINITY, f64::min);
+    let (mut sum_w, mut sum_wx) = (0.0, 0.0);
+    for b in &batches {
+        let w = b.runs.len() as f64 * (s_min / b.std).powi(2);
+        sum_w += w;
+        sum_wx += w * b.mean;
+    }
+    let (value, std_error) = (sum_wx / sum_w, s_min / sum_w.sqrt());
+    if !(value.is_finite() && std_error.is_finite()) {
+        return Err(FusionError::NotRepresentable);
     }
     Ok(Fusion {
         batches,
-        value: sum_wx / sum_w,
-        std_error: sum_w.sqrt().recip(),
+        value,
+        std_error,
     })
 }
 
@@ -217,6 +260,24 @@ mod tests {
         assert_eq!(f.value, 35.0 / 4.0);
         assert_eq!(f.std_error, 0.5);
         assert_eq!(f.batches[0].runs, 0..3);
+    }
+
+    #[test]
+    fn a_relative_dispersion_too_large_to_represent_is_none() {
+        // |K| is the smallest subnormal: Σ(K − K_j)² ≈ 4, so the absolute
+        // dispersion is 2 and the ratio overflows.
+        let d = dispersion(&[0.0, 2.0], f64::from_bits(1)).unwrap();
+        assert!((d.absolute - 2.0).abs() < 1e-15);
+        assert_eq!(d.relative, None);
+    }
+
+    #[test]
+    fn means_near_the_largest_double_do_not_overflow() {
+        assert_eq!(mean(&[1.5e308, 1.7e308]), 1.6e308);
+        assert_eq!(mean(&[1.0, 2.0, 4.0]), 7.0 / 3.0);
+        // Batch means fine, but the weighted sum of them overflows.
+        let huge = [1.0e308, 1.01e308, 1.02e308, 1.1e308, 1.11e308, 1.12e308];
+        assert_eq!(fuse(&huge, 2), Err(FusionError::NotRepresentable));
     }
 
     #[test]

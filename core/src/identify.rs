@@ -18,7 +18,9 @@
 //!
 //! so the standard error of `x_j` is `σ̂·sqrt(Σ_k V[j][k]² / σ_k²)`, reported
 //! only when `dof > 0`. The design's 2-norm condition number is
-//! `σ_max / σ_min`.
+//! `σ_max / σ_min`. `‖r‖` is computed scaled ([`scaled_norm`]) so that
+//! outputs of any magnitude give their standard errors rather than zero
+//! (underflow) or infinity.
 //!
 //! **Identifiability.** A singular value `σ_k ≤ RANK_TOLERANCE·σ_max` counts as
 //! zero; its right singular vector spans part of the null space
@@ -31,6 +33,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use crate::Error;
+use crate::fusion::scaled_norm;
 use crate::position::Gravity;
 use crate::term::{Model, TermMap};
 
@@ -142,6 +145,31 @@ impl Design {
         self.sigma.max() / self.sigma.min()
     }
 
+    /// The pseudo-inverse `A⁺ = (AᵀA)⁻¹Aᵀ = V·Σ⁻¹·Uᵀ` (terms × positions):
+    /// row `t` gives coefficient `t` as a weighted sum of position values.
+    pub fn pseudo_inverse(&self) -> DMatrix<f64> {
+        let mut vs = self.v.clone();
+        for (k, s) in self.sigma.iter().enumerate() {
+            vs.column_mut(k).unscale_mut(*s);
+        }
+        vs * self.u.transpose()
+    }
+
+    /// The unit right singular vector of the smallest singular value: the
+    /// combination of coefficients the positions determine worst, one
+    /// component per term.
+    pub fn weakest_direction(&self) -> TermMap<f64> {
+        let k = self.sigma.imin();
+        TermMap(
+            self.model
+                .terms()
+                .iter()
+                .enumerate()
+                .map(|(j, t)| (*t, self.v[(j, k)]))
+                .collect(),
+        )
+    }
+
     /// Solves the least-squares problem for position values `y` (one per row).
     ///
     /// # Panics
@@ -156,11 +184,13 @@ impl Design {
         uty.component_div_assign(&self.sigma);
         let x = &self.v * uty;
         let residuals = &y - &self.matrix * &x;
-        let rss = residuals.norm_squared();
+        // ‖r‖ = sqrt(rᵀr), scaled against under- and overflow.
+        let norm = scaled_norm(residuals.iter().copied());
         let dof = m - p;
         let terms = self.model.terms();
         let std_errors = (dof > 0).then(|| {
-            let s2 = rss / dof as f64;
+            // σ̂ = ‖r‖ / √dof; SE_j = σ̂·sqrt(Σ_k (V_jk / σ_k)²).
+            let sigma_hat = norm / (dof as f64).sqrt();
             TermMap(
                 terms
                     .iter()
@@ -169,7 +199,7 @@ impl Design {
                         let var: f64 = (0..p)
                             .map(|k| (self.v[(j, k)] / self.sigma[k]).powi(2))
                             .sum();
-                        (*t, (s2 * var).sqrt())
+                        (*t, sigma_hat * var.sqrt())
                     })
                     .collect(),
             )
@@ -178,7 +208,7 @@ impl Design {
             coefficients: TermMap(terms.iter().copied().zip(x.iter().copied()).collect()),
             std_errors,
             residuals: residuals.iter().copied().collect(),
-            residual_rms: (rss / m as f64).sqrt(),
+            residual_rms: norm / (m as f64).sqrt(),
             dof,
         }
     }
@@ -299,6 +329,48 @@ mod tests {
                 axis: 1
             }
         );
+    }
+
+    /// Eight positions, three terms: dof = 5. The columns [1, −sin θ, cos θ]
+    /// over θ = 0°, 45°, … are orthogonal with norms² 8, 4, 4, so by hand
+    /// k0 = Σy/8, ki = −Σ y·sin θ / 4, kp = Σ y·cos θ / 4, σ̂² = rᵀr / 5,
+    /// SE(k0) = σ̂/√8 and SE(ki) = SE(kp) = σ̂/2.
+    #[test]
+    fn standard_errors_follow_the_closed_form_with_several_degrees_of_freedom() {
+        let positions = tumble(Mount::Pendulum, 8);
+        let d = Design::new(&Model::pendulum(), &positions).unwrap();
+        assert_eq!(d.positions(), 8);
+        let y = [0.31, 1.27, 1.69, 1.02, -0.48, -1.33, -1.61, -0.97];
+        let id = d.solve(&y);
+        let angles: Vec<f64> = (0..8).map(|k| (45.0 * f64::from(k)).to_radians()).collect();
+        let k0: f64 = y.iter().sum::<f64>() / 8.0;
+        let ki: f64 = -y.iter().zip(&angles).map(|(u, t)| u * t.sin()).sum::<f64>() / 4.0;
+        let kp: f64 = y.iter().zip(&angles).map(|(u, t)| u * t.cos()).sum::<f64>() / 4.0;
+        let rss: f64 = y
+            .iter()
+            .zip(&angles)
+            .map(|(u, t)| (u - (k0 - ki * t.sin() + kp * t.cos())).powi(2))
+            .sum();
+        let sigma = (rss / 5.0).sqrt();
+        let get = |m: &TermMap<f64>, t| *m.get(t).unwrap();
+        assert!((get(&id.coefficients, K0) - k0).abs() < 1e-14);
+        assert!((get(&id.coefficients, Ki) - ki).abs() < 1e-14);
+        assert!((get(&id.coefficients, Kp) - kp).abs() < 1e-14);
+        assert_eq!(id.dof, 5);
+        let se = id.std_errors.unwrap();
+        assert!((get(&se, K0) - sigma / 8f64.sqrt()).abs() < 1e-14 * sigma);
+        assert!((get(&se, Ki) - sigma / 2.0).abs() < 1e-14 * sigma);
+        assert!((get(&se, Kp) - sigma / 2.0).abs() < 1e-14 * sigma);
+        assert!((id.residual_rms - (rss / 8.0).sqrt()).abs() < 1e-14);
+    }
+
+    #[test]
+    fn the_design_keeps_its_model_and_positions() {
+        let model = Model::new(vec![K0, Ki, Kp, Kii]).unwrap();
+        let d = Design::new(&model, &tumble(Mount::Pendulum, 12)).unwrap();
+        assert_eq!(d.model(), &model);
+        assert_eq!(d.positions(), 12);
+        assert_eq!(d.matrix().shape(), (12, 4));
     }
 
     #[test]

@@ -15,7 +15,12 @@
 //! 3. across runs, the arithmetic mean and batch-estimation fusion with their
 //!    eq. 8 dispersions ([`estimate::estimate`], [`fusion`]);
 //! 4. normalised IEEE-style values ([`Normalized`]) and compensation of raw
-//!    outputs ([`Compensator`]).
+//!    outputs ([`Compensator`]);
+//! 5. the metrology a lab signs: the uncertainty budget of each fused
+//!    coefficient ([`uncertainty`]), conformity decisions against limits
+//!    ([`decision`]), as found and stability over a sensor's history
+//!    ([`history`]), temperature sensitivity ([`temperature`]) and quality
+//!    flags ([`quality`]).
 //!
 //! ```
 //! use accelcal_core::{Model, Mount, Position, Run, Term, TumbleTest};
@@ -39,19 +44,24 @@
 mod error;
 
 pub mod compensate;
+pub mod decision;
 pub mod derived;
 pub mod estimate;
 pub mod fusion;
+pub mod history;
 pub mod identify;
 pub mod position;
+pub mod quality;
+pub mod temperature;
 pub mod term;
 pub mod tumble;
+pub mod uncertainty;
 
 pub use compensate::Compensator;
 pub use derived::Normalized;
 pub use error::{CompensateError, Error, FusionError};
 pub use estimate::{Estimates, estimate};
 pub use identify::{Design, Identification};
-pub use position::{Gravity, Mount, Position};
+pub use position::{Gravity, Mount, Position, Rotation};
 pub use term::{Model, Term, TermMap, UnknownTerm};
 pub use tumble::{Calibration, Run, TumbleTest};

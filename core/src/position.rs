@@ -68,6 +68,24 @@ pub enum Mount {
 }
 
 impl Mount {
+    /// `da/dθ` per radian at dividing-head angle `deg` (degrees):
+    /// pendulum `(−cos θ, −sin θ, 0)`, gate `(−cos θ, 0, −sin θ)`.
+    pub fn derivative(self, deg: f64) -> Gravity {
+        let (s, c) = sin_cos_deg(deg);
+        match self {
+            Mount::Pendulum => Gravity {
+                i: -c,
+                p: -s,
+                o: 0.0,
+            },
+            Mount::Gate => Gravity {
+                i: -c,
+                p: 0.0,
+                o: -s,
+            },
+        }
+    }
+
     /// Gravity components at dividing-head angle `deg` (degrees).
     pub fn gravity(self, deg: f64) -> Gravity {
         let (s, c) = sin_cos_deg(deg);
@@ -107,11 +125,25 @@ fn sin_cos_deg(deg: f64) -> (f64, f64) {
     }
 }
 
-/// One orientation of a tumble: its specific force and an optional label.
+/// The dividing-head rotation a position was set by: what an indexing error
+/// of the stand moves (see [`crate::uncertainty`]).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Rotation {
+    /// The angle θ, in degrees.
+    pub angle_deg: f64,
+    /// The mount, whose axis θ turns about.
+    pub mount: Mount,
+}
+
+/// One orientation of a tumble: its specific force, the rotation that set it
+/// (when it was given by an angle) and an optional label.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Position {
     /// Gravity components `[a_i, a_p, a_o]` in g.
     pub a: Gravity,
+    /// The dividing-head rotation, when the position was given by an angle.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rotation: Option<Rotation>,
     /// Free-text label (e.g. `"PA down"`), echoed in results.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub label: Option<String>,
@@ -120,13 +152,21 @@ pub struct Position {
 impl Position {
     /// A position from explicit components `[a_i, a_p, a_o]` in g.
     pub fn from_components(a: [f64; 3], label: Option<String>) -> Self {
-        Position { a: a.into(), label }
+        Position {
+            a: a.into(),
+            rotation: None,
+            label,
+        }
     }
 
     /// A position from a dividing-head angle (degrees) and mount.
     pub fn from_angle(deg: f64, mount: Mount, label: Option<String>) -> Self {
         Position {
             a: mount.gravity(deg),
+            rotation: Some(Rotation {
+                angle_deg: deg,
+                mount,
+            }),
             label,
         }
     }
@@ -169,6 +209,52 @@ mod tests {
         assert_eq!(Mount::Gate.gravity(0.0).to_array(), [0.0, 0.0, 1.0]);
         assert_eq!(Mount::Gate.gravity(-90.0).to_array(), [1.0, 0.0, 0.0]);
         assert_eq!(Mount::Gate.gravity(450.0).to_array(), [-1.0, 0.0, 0.0]);
+    }
+
+    /// Every quadrant, against the standard library's sine and cosine.
+    #[test]
+    fn angles_in_every_quadrant_follow_the_mount_formulas() {
+        for deg in [
+            10.0, 30.0, 60.0, 100.0, 135.0, 210.0, 240.0, 300.0, 330.0, -30.0, 725.0,
+        ] {
+            let (s, c) = f64::to_radians(deg).sin_cos();
+            let p = Mount::Pendulum.gravity(deg);
+            let g = Mount::Gate.gravity(deg);
+            for (got, want) in [
+                (p.i, -s),
+                (p.p, c),
+                (p.o, 0.0),
+                (g.i, -s),
+                (g.p, 0.0),
+                (g.o, c),
+            ] {
+                assert!((got - want).abs() < 1e-15, "{deg}°: {got} vs {want}");
+            }
+        }
+    }
+
+    /// Up to 45° inside a quadrant the angle itself is evaluated, above it
+    /// the complement (so 45° exactly gives std's sin 45° and cos 45°, which
+    /// differ in the last bit).
+    #[test]
+    fn the_half_quadrant_rule_is_exact_at_45_degrees() {
+        let (s, c) = 45f64.to_radians().sin_cos();
+        assert_ne!(s, c, "sin 45° and cos 45° differ in the last bit");
+        let a = Mount::Pendulum.gravity(45.0);
+        assert_eq!((a.i, a.p), (-s, c));
+        let (s60, c60) = (30f64.to_radians().cos(), 30f64.to_radians().sin());
+        let b = Mount::Pendulum.gravity(60.0);
+        assert_eq!((b.i, b.p), (-s60, c60));
+    }
+
+    #[test]
+    fn norms_and_the_wire_form() {
+        assert_eq!(Gravity::from([1.0, 2.0, 2.0]).norm(), 3.0);
+        assert_eq!(Gravity::from([2.0, 3.0, 6.0]).norm(), 7.0);
+        let g: Gravity = serde_json::from_str("[0.6, -0.8, 0.0]").unwrap();
+        assert_eq!(g, Gravity::from([0.6, -0.8, 0.0]));
+        assert_eq!(serde_json::to_string(&g).unwrap(), "[0.6,-0.8,0.0]");
+        assert!(serde_json::from_str::<Gravity>("[1, 2]").is_err());
     }
 
     #[test]

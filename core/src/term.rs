@@ -82,6 +82,36 @@ impl Term {
         }
     }
 
+    /// The polynomial degree of the regressor in the specific force: 0 for
+    /// `k0`; 1 for `ki`, `kp`, `ko`; 2 for the cross terms and squares; 3 for
+    /// `kiii`. A regressor of degree `n` scales by `cⁿ` when `a` scales by `c`.
+    pub const fn degree(self) -> u32 {
+        match self {
+            Term::K0 => 0,
+            Term::Ki | Term::Kp | Term::Ko => 1,
+            Term::Kio | Term::Kop | Term::Kpi | Term::Kii | Term::Kpp | Term::Koo => 2,
+            Term::Kiii => 3,
+        }
+    }
+
+    /// The gradient `(∂/∂a_i, ∂/∂a_p, ∂/∂a_o)` of the regressor at `a`.
+    pub fn gradient(self, a: &Gravity) -> [f64; 3] {
+        let Gravity { i, p, o } = *a;
+        match self {
+            Term::K0 => [0.0, 0.0, 0.0],
+            Term::Ki => [1.0, 0.0, 0.0],
+            Term::Kp => [0.0, 1.0, 0.0],
+            Term::Ko => [0.0, 0.0, 1.0],
+            Term::Kio => [o, 0.0, i],
+            Term::Kop => [0.0, o, p],
+            Term::Kpi => [p, i, 0.0],
+            Term::Kii => [2.0 * i, 0.0, 0.0],
+            Term::Kpp => [0.0, 2.0 * p, 0.0],
+            Term::Koo => [0.0, 0.0, 2.0 * o],
+            Term::Kiii => [3.0 * i * i, 0.0, 0.0],
+        }
+    }
+
     /// The regressor of this term at specific force `a` (one entry of a design row).
     pub fn regressor(self, a: &Gravity) -> f64 {
         let Gravity { i, p, o } = *a;
@@ -226,6 +256,22 @@ impl<T> TermMap<T> {
     }
 }
 
+impl<T> std::ops::Index<Term> for TermMap<T> {
+    type Output = T;
+
+    /// The value for `term`.
+    ///
+    /// # Panics
+    /// When the map has no value for `term` (as `HashMap`'s index does);
+    /// [`TermMap::get`] is the fallible form.
+    fn index(&self, term: Term) -> &T {
+        match self.get(term) {
+            Some(v) => v,
+            None => panic!("no value for term `{term}`"),
+        }
+    }
+}
+
 impl<T: Serialize> Serialize for TermMap<T> {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.collect_map(self.0.iter().map(|(t, v)| (t.name(), v)))
@@ -286,6 +332,78 @@ mod tests {
             got,
             [1.0, 2.0, 3.0, 5.0, 10.0, 15.0, 6.0, 4.0, 9.0, 25.0, 8.0]
         );
+    }
+
+    #[test]
+    fn names_display_and_serialise() {
+        assert_eq!(Term::Kpi.to_string(), "kpi");
+        assert_eq!(format!("{}", Term::K0), "k0");
+        assert_eq!(serde_json::to_string(&Term::Kiii).unwrap(), "\"kiii\"");
+        assert_eq!(serde_json::from_str::<Term>("\"koo\"").unwrap(), Term::Koo);
+    }
+
+    #[test]
+    fn models_answer_for_their_terms() {
+        let m = Model::new(vec![Term::K0, Term::Kp, Term::Kiii]).unwrap();
+        assert_eq!((m.len(), m.is_empty()), (3, false));
+        assert_eq!(m.index_of(Term::Kp), Some(1));
+        assert_eq!(m.index_of(Term::Kiii), Some(2));
+        assert_eq!(m.index_of(Term::Ki), None);
+        let parsed: Model = serde_json::from_str(r#"["k0", "kp", "kiii"]"#).unwrap();
+        assert_eq!(parsed, m);
+        assert!(serde_json::from_str::<Model>("[]").is_err());
+        assert!(serde_json::from_str::<Model>(r#"["k0", "k0"]"#).is_err());
+        assert_eq!(serde_json::to_string(&m).unwrap(), r#"["k0","kp","kiii"]"#);
+    }
+
+    #[test]
+    fn term_maps_read_and_write_objects_in_order() {
+        let map: TermMap<f64> = serde_json::from_str(r#"{"kp": 2.5, "k0": 1.0}"#).unwrap();
+        assert_eq!((map.len(), map.is_empty()), (2, false));
+        assert_eq!(map.get(Term::Kp), Some(&2.5));
+        assert_eq!(map.get(Term::Ki), None);
+        assert_eq!(
+            serde_json::to_string(&map).unwrap(),
+            r#"{"kp":2.5,"k0":1.0}"#
+        );
+        assert!(TermMap::<f64>(vec![]).is_empty());
+        let dup = serde_json::from_str::<TermMap<f64>>(r#"{"k0": 1, "k0": 2}"#).unwrap_err();
+        assert!(dup.to_string().contains("duplicate term `k0`"), "{dup}");
+        let wrong = serde_json::from_str::<TermMap<f64>>("[1]").unwrap_err();
+        assert!(
+            wrong.to_string().contains("an object keyed by term name"),
+            "{wrong}"
+        );
+    }
+
+    /// Degrees and gradients against the regressors themselves: Euler's
+    /// relation `∇f·a = degree·f` for homogeneous polynomials, and central
+    /// differences.
+    #[test]
+    fn degrees_and_gradients_agree_with_the_regressors() {
+        let a = Gravity {
+            i: 0.3,
+            p: -0.7,
+            o: 0.2,
+        };
+        for t in Term::ALL {
+            let g = t.gradient(&a);
+            let euler = g[0] * a.i + g[1] * a.p + g[2] * a.o;
+            assert!(
+                (euler - f64::from(t.degree()) * t.regressor(&a)).abs() < 1e-15,
+                "{t}"
+            );
+            for axis in 0..3 {
+                let h = 1e-6;
+                let mut up = a.to_array();
+                let mut down = a.to_array();
+                up[axis] += h;
+                down[axis] -= h;
+                let numeric = (t.regressor(&Gravity::from(up)) - t.regressor(&Gravity::from(down)))
+                    / (2.0 * h);
+                assert!((numeric - g[axis]).abs() < 1e-9, "{t} axis {axis}");
+            }
+        }
     }
 
     #[test]

@@ -108,6 +108,12 @@ impl TumbleTest {
     /// with `batches` batches.
     pub fn calibrate(&self, batches: usize) -> Result<Calibration, Error> {
         let runs = self.identify_runs();
+        for run in &runs {
+            estimate::finite(&run.coefficients, "per-run coefficient")?;
+            if let Some(se) = &run.std_errors {
+                estimate::finite(se, "per-run standard error")?;
+            }
+        }
         let values = TermMap(
             self.model()
                 .terms()
@@ -198,6 +204,19 @@ mod tests {
                 sample: 1
             })
         );
+    }
+
+    #[test]
+    fn a_test_keeps_its_model_positions_and_runs() {
+        let model = Model::new(vec![crate::Term::K0, crate::Term::Kp]).unwrap();
+        let runs = vec![Run {
+            readings: vec![vec![1.0], vec![2.0], vec![3.0], vec![4.0]],
+        }];
+        let t = TumbleTest::new(model.clone(), four(), runs.clone()).unwrap();
+        assert_eq!(t.model(), &model);
+        assert_eq!(t.positions(), four().as_slice());
+        assert_eq!(t.runs(), runs.as_slice());
+        assert_eq!(t.design().positions(), 4);
     }
 
     #[test]

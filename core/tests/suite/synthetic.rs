@@ -106,11 +106,20 @@ fn combined_two_mount_schedule() {
 
 #[test]
 fn paper_model_on_every_schedule() {
+    let t = truth();
     for n in [4, 8, 12, 24] {
         let positions = tumble(Mount::Pendulum, n);
         let id = Design::new(&Model::pendulum(), &positions)
             .unwrap()
             .solve(&outputs(&[K0, Ki, Kp], &positions));
-        assert!((id.coefficients.get(Kp).unwrap() - 6.2e-3).abs() < 1e-12);
+        for term in [K0, Ki, Kp] {
+            let (got, want) = (id.coefficients.get(term).unwrap(), t.get(term).unwrap());
+            assert!(
+                (got - want).abs() < 1e-12,
+                "{n} positions, {term}: {got:e} vs {want:e}"
+            );
+        }
+        assert!(id.residual_rms < 1e-12);
+        assert_eq!(id.dof, n as usize - 3);
     }
 }
