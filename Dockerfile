@@ -9,6 +9,7 @@ COPY core ./core
 COPY src ./src
 COPY benches ./benches
 COPY openapi.yaml ./
+COPY examples ./examples
 RUN cargo build --release --locked --bin accelcal \
     && mkdir -p /data
 

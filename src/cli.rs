@@ -1,4 +1,5 @@
-//! The `accelcal` command line: `serve`, `identify`, `submit`, `token create`.
+//! The `accelcal` command line: `serve`, `identify`, `submit`, `token create`,
+//! `openapi`, `health`.
 //!
 //! Every setting of `serve` is a flag with an environment fallback, so the same
 //! binary runs from a shell, a unit file or a container.
@@ -9,15 +10,16 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 
-use crate::auth::Role;
-use crate::http::Limits;
-use crate::http::extract::{Media, submission_value};
-use crate::http::problem::Problem;
-use crate::input::check::{Chars, check_str};
-use crate::startup::{Application, Config, shutdown_signal};
-use crate::submission::{MAX_ID_CHARS, MAX_LABEL_CHARS, ResultView, evaluate};
+use crate::domain::auth::Role;
+use crate::domain::field::{FieldError, Invalid};
+use crate::domain::metrology::assess_calibration;
+use crate::domain::submission::{Media, ResultView, evaluate};
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::{TokenRequest, issue};
+use crate::startup::{
+    Application, Config, Limits, Problem, Web, openapi_document, shutdown_signal,
+};
 use crate::telemetry::{self, LogFormat};
-use crate::timestamp::Timestamp;
 
 /// accelcal: accelerometer calibration by tumble-test identification and
 /// batch-estimation fusion.
@@ -30,7 +32,7 @@ pub struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Run the HTTP service (SQLite database by default).
+    /// Run the HTTP service (SQLite by default; PostgreSQL for several replicas).
     Serve(ServeArgs),
     /// Compute a submission file offline and print the result JSON.
     ///
@@ -50,6 +52,24 @@ enum Command {
     /// recovery; the API's /v1/tokens does the same online).
     #[command(subcommand)]
     Token(TokenCommand),
+    /// Print the OpenAPI document (the committed openapi.yaml is this output).
+    Openapi,
+    /// Copy every calibration, sensor type, token and live idempotency key
+    /// from one database into another (SQLite to PostgreSQL when a
+    /// deployment outgrows one machine). Stop the service first.
+    Migrate {
+        /// The database to copy (`sqlite:accelcal.db`, a path, or
+        /// `postgres://…`).
+        #[arg(long)]
+        from: String,
+        /// The database to copy into (it must be empty, unless
+        /// --into-non-empty).
+        #[arg(long)]
+        to: String,
+        /// Add to a target that already holds data.
+        #[arg(long)]
+        into_non_empty: bool,
+    },
     /// Probe a running service's /readyz; exit 0 when ready (for container
     /// health checks, where no curl is installed).
     Health {
@@ -64,15 +84,19 @@ struct ServeArgs {
     /// Address to listen on.
     #[arg(long, env = "ACCELCAL_LISTEN", default_value = "127.0.0.1:8080")]
     listen: String,
-    /// Database: a SQLite file path (or sqlite://PATH).
+    /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
     #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
     database: String,
     /// An admin token (at least 16 characters) accepted besides stored tokens.
     #[arg(long, env = "ACCELCAL_ADMIN_TOKEN", hide_env_values = true)]
     admin_token: Option<String>,
-    /// Largest request body in bytes.
+    /// Largest request body in bytes (after decompression).
     #[arg(long, env = "ACCELCAL_MAX_BODY_BYTES", default_value_t = 4 * 1024 * 1024)]
     max_body_bytes: usize,
+    /// Bytes of request bodies received or worked on at once; beyond it new
+    /// bodies are answered 503 (bounds the memory requests can take).
+    #[arg(long, env = "ACCELCAL_BODY_BUDGET_BYTES", default_value_t = 64 * 1024 * 1024)]
+    body_budget_bytes: usize,
     /// Requests handled at once; beyond it the service answers 503.
     #[arg(long, env = "ACCELCAL_MAX_CONCURRENT", default_value_t = 256)]
     max_concurrent: usize,
@@ -88,6 +112,17 @@ struct ServeArgs {
     /// Seconds allowed for a whole request.
     #[arg(long, env = "ACCELCAL_REQUEST_TIMEOUT", default_value_t = 60)]
     request_timeout: u64,
+    /// The service's public base URL (https://cal.example.com): certificates
+    /// name themselves under it, and https marks session cookies Secure.
+    #[arg(long, env = "ACCELCAL_PUBLIC_URL")]
+    public_url: Option<String>,
+    /// Seconds a web-page session lasts after sign-in.
+    #[arg(long, env = "ACCELCAL_SESSION_TTL", default_value_t = 8 * 3600)]
+    session_ttl: u64,
+    /// Serve Prometheus metrics at /metrics on this address (own listener;
+    /// off by default).
+    #[arg(long, env = "ACCELCAL_METRICS_LISTEN")]
+    metrics_listen: Option<String>,
     /// Seconds in-flight requests get to finish at shutdown.
     #[arg(long, env = "ACCELCAL_SHUTDOWN_GRACE", default_value_t = 30)]
     shutdown_grace: u64,
@@ -124,7 +159,7 @@ enum TokenCommand {
         /// A label to recognise the token by.
         #[arg(long)]
         label: Option<String>,
-        /// Database: a SQLite file path (or sqlite://PATH).
+        /// Database: a SQLite file path (or sqlite://PATH), or postgres://… . or postgres://… .
         #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
         database: String,
     },
@@ -150,6 +185,15 @@ pub fn main() -> ExitCode {
             database,
         }) => run_async(create_token(role, station, label, database)),
         Command::Health { url } => run_async(health(url)),
+        Command::Migrate {
+            from,
+            to,
+            into_non_empty,
+        } => run_async(migrate(from, to, into_non_empty)),
+        Command::Openapi => {
+            print!("{}", openapi_document());
+            ExitCode::SUCCESS
+        }
     }
 }
 
@@ -198,17 +242,39 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
         admin_token: a.admin_token.filter(|t| !t.is_empty()),
         limits: Limits {
             max_body_bytes: a.max_body_bytes,
+            body_budget_bytes: a.body_budget_bytes.max(a.max_body_bytes),
             body_timeout: Duration::from_secs(a.body_timeout),
             request_timeout: Duration::from_secs(a.request_timeout),
             max_concurrent: a.max_concurrent.max(1),
+            ..Limits::default()
         },
         header_timeout: Duration::from_secs(a.header_timeout),
         max_connections: a.max_connections.max(1),
         shutdown_grace: Duration::from_secs(a.shutdown_grace),
+        web: Web {
+            public_url: a.public_url.filter(|u| !u.is_empty()),
+            session_ttl: Duration::from_secs(a.session_ttl.max(1)),
+        },
+        metrics_listen: a.metrics_listen.filter(|m| !m.is_empty()),
     };
     let app = Application::build(config).await?;
     app.run_until_stopped(shutdown_signal()).await?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// A token request's problems in the command line's terms (`--station …`).
+fn flags(invalid: &Invalid) -> String {
+    let flag = |e: &FieldError| match e.pointer.as_str() {
+        "/station_id" => "--station",
+        "/label" => "--label",
+        _ => "--role",
+    };
+    invalid
+        .errors
+        .iter()
+        .map(|e| format!("{} {}", flag(e), e.detail))
+        .collect::<Vec<_>>()
+        .join("; ")
 }
 
 fn media_of(path: &Path) -> (Media, &'static str) {
@@ -231,19 +297,35 @@ fn identify(file: &Path) -> ExitCode {
         }
     };
     let now = Timestamp::now();
-    let result = submission_value(media_of(file).0, &bytes)
-        .and_then(|v| evaluate(&v, now).map_err(Problem::validation));
-    match result {
+    match evaluate(media_of(file).0, &bytes, now) {
         Ok(e) => {
-            let view = ResultView::new(&e, None, e.submission.station_id.as_deref(), now);
-            println!(
-                "{}",
-                serde_json::to_string_pretty(&view).expect("results serialise")
-            );
-            ExitCode::SUCCESS
+            // Offline: no sensor type, no previous calibration.
+            let performed_at = e.submission.performed_at.unwrap_or(now);
+            let metrology = match assess_calibration(&e, performed_at, None, None) {
+                Ok(m) => m,
+                Err(invalid) => {
+                    let problem = Problem::from(invalid);
+                    eprintln!("{}", String::from_utf8_lossy(&problem.to_json(None)));
+                    return ExitCode::FAILURE;
+                }
+            };
+            let station = e.submission.station_id.as_deref();
+            let view = ResultView::new(&e, None, station, now, None, &metrology);
+            match serde_json::to_string_pretty(&view) {
+                Ok(text) => {
+                    println!("{text}");
+                    ExitCode::SUCCESS
+                }
+                Err(e) => {
+                    eprintln!("accelcal: {e}");
+                    ExitCode::from(2)
+                }
+            }
         }
-        Err(p) => {
-            eprintln!("{}", String::from_utf8_lossy(&p.to_json(None)));
+        Err(refused) => {
+            // The problem document the service would answer.
+            let problem = Problem::from(refused);
+            eprintln!("{}", String::from_utf8_lossy(&problem.to_json(None)));
             ExitCode::FAILURE
         }
     }
@@ -259,6 +341,14 @@ async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
         content_type: media_of(&a.file).1,
         attempts: a.attempts.max(1),
         backoff: Duration::from_millis(500),
+        on_retry: Some(std::sync::Arc::new(|r: &crate::client::Retry| {
+            eprintln!(
+                "accelcal: attempt {} failed ({}); retrying in {:.1} s",
+                r.attempt,
+                r.reason,
+                r.wait.as_secs_f64()
+            );
+        })),
     };
     let answer = crate::client::submit(&upload).await?;
     if answer.status.is_success() {
@@ -270,6 +360,35 @@ async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
     }
 }
 
+async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Result<ExitCode> {
+    use anyhow::Context;
+    let source = crate::store::open(&from)
+        .await
+        .with_context(|| format!("opening {from}"))?;
+    let target = crate::store::open(&to)
+        .await
+        .with_context(|| format!("opening {to}"))?;
+    let copied = crate::store::copy::copy(
+        source.as_ref(),
+        target.as_ref(),
+        into_non_empty,
+        Timestamp::now(),
+    )
+    .await;
+    source.close().await;
+    target.close().await;
+    match copied {
+        Ok(c) => {
+            println!("{}", serde_json::to_string_pretty(&c)?);
+            Ok(ExitCode::SUCCESS)
+        }
+        Err(e) => {
+            eprintln!("accelcal: {e}");
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
 async fn create_token(
     role: String,
     station: Option<String>,
@@ -278,31 +397,17 @@ async fn create_token(
 ) -> anyhow::Result<ExitCode> {
     let role = Role::parse(&role)
         .ok_or_else(|| anyhow::anyhow!("--role must be reader, station or admin"))?;
-    if let Some(s) = &station {
-        check_str(s, MAX_ID_CHARS, Chars::Identifier)
-            .map_err(|e| anyhow::anyhow!("--station {e}"))?;
-        anyhow::ensure!(
-            role == Role::Station,
-            "--station applies to station tokens only"
-        );
-    }
-    if let Some(l) = &label {
-        check_str(l, MAX_LABEL_CHARS, Chars::Line).map_err(|e| anyhow::anyhow!("--label {e}"))?;
-    }
-    let store = crate::store::open(&database)?;
-    let req = crate::http::tokens::TokenRequest {
+    let request = TokenRequest {
         role,
         station_id: station,
         label,
-    };
-    let (record, text) = crate::http::tokens::issue(store.as_ref(), req)
-        .await
-        .map_err(|p| anyhow::anyhow!("{}", p.detail))?;
+    }
+    .check()
+    .map_err(|invalid| anyhow::anyhow!("{}", flags(&invalid)))?;
+    let store = crate::store::open(&database).await?;
+    let (record, created) = issue(request, Timestamp::now())?;
+    store.insert_token(record).await?;
     store.close().await;
-    let out = serde_json::json!({
-        "id": record.id, "token": text, "role": record.role,
-        "station_id": record.station_id, "label": record.label, "created_at": record.created_at,
-    });
-    println!("{}", serde_json::to_string_pretty(&out)?);
+    println!("{}", serde_json::to_string_pretty(&created)?);
     Ok(ExitCode::SUCCESS)
 }

@@ -7,13 +7,29 @@
 //! (connection errors, 408, 409 in flight, 429, 502, 503, 504) are retried
 //! with exponential backoff, honouring `Retry-After`.
 
+use std::fmt;
+use std::sync::Arc;
 use std::time::Duration;
 
 use reqwest::StatusCode;
 use sha2::{Digest, Sha256};
 
-/// What to upload and where.
+/// One retry about to happen: which attempt failed, why, and the wait.
 #[derive(Clone, Debug)]
+pub struct Retry {
+    /// The attempt that failed (1 for the first).
+    pub attempt: u32,
+    /// The status answered, or the connection error.
+    pub reason: String,
+    /// How long the client waits before the next attempt.
+    pub wait: Duration,
+}
+
+/// Told of every retry (`accelcal submit` prints it).
+pub type OnRetry = Arc<dyn Fn(&Retry) + Send + Sync>;
+
+/// What to upload and where.
+#[derive(Clone)]
 pub struct Upload {
     /// Base URL of the service (`http://127.0.0.1:8080`).
     pub url: String,
@@ -27,6 +43,19 @@ pub struct Upload {
     pub attempts: u32,
     /// First backoff delay; doubles each retry.
     pub backoff: Duration,
+    /// Told of every retry, if set.
+    pub on_retry: Option<OnRetry>,
+}
+
+impl fmt::Debug for Upload {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.debug_struct("Upload")
+            .field("url", &self.url)
+            .field("bytes", &self.body.len())
+            .field("content_type", &self.content_type)
+            .field("attempts", &self.attempts)
+            .finish_non_exhaustive()
+    }
 }
 
 /// The server's final answer.
@@ -69,7 +98,7 @@ pub async fn submit(u: &Upload) -> anyhow::Result<Answer> {
             .body(u.body.clone())
             .send()
             .await;
-        let wait = match sent {
+        let (wait, reason) = match sent {
             Ok(res) if transient(res.status()) && attempt < u.attempts => {
                 let after = res
                     .headers()
@@ -77,7 +106,7 @@ pub async fn submit(u: &Upload) -> anyhow::Result<Answer> {
                     .and_then(|v| v.to_str().ok())
                     .and_then(|v| v.parse::<u64>().ok())
                     .map(|s| Duration::from_secs(s.min(60)));
-                after.unwrap_or(delay).max(delay)
+                (after.unwrap_or(delay).max(delay), res.status().to_string())
             }
             Ok(res) => {
                 let status = res.status();
@@ -88,16 +117,21 @@ pub async fn submit(u: &Upload) -> anyhow::Result<Answer> {
                     attempts: attempt,
                 });
             }
-            Err(e) if attempt < u.attempts => {
-                tracing::warn!(error = %e, attempt, "upload failed; retrying");
-                delay
-            }
+            Err(e) if attempt < u.attempts => (delay, format!("no answer: {e}")),
             Err(e) => {
                 return Err(anyhow::anyhow!(
                     "no answer from {url} after {attempt} attempts: {e}"
                 ));
             }
         };
+        tracing::warn!(attempt, %reason, wait_ms = wait.as_millis() as u64, "upload failed; retrying");
+        if let Some(tell) = &u.on_retry {
+            tell(&Retry {
+                attempt,
+                reason,
+                wait,
+            });
+        }
         tokio::time::sleep(wait).await;
         delay = (delay * 2).min(Duration::from_secs(30));
     }

@@ -5,19 +5,20 @@
 //! runs by batch estimation ([`accelcal_core`]), stores the raw submission and
 //! the results, and serves coefficients, history and compensation over HTTP.
 //!
-//! * [`startup::Application`] binds and runs the server;
-//! * [`http`] is the API (routes, middleware, problem documents);
-//! * [`submission`] and [`input`] turn request bodies into core types;
-//! * [`store`] keeps calibrations and tokens (SQLite);
-//! * [`cli`] is the `accelcal` command line.
+//! The layers, each importing only from those before it:
+//!
+//! * [`accelcal_core`]: the maths (pure, its own crate);
+//! * [`domain`]: submissions and their JSON and CSV formats, limits, tokens
+//!   and roles, request bodies — checked values, no I/O;
+//! * [`store`]: storage behind one trait (SQLite);
+//! * [`http`]: the API (routes, middleware, problem documents, OpenAPI);
+//! * [`startup`]: configuration, the accept loop, shutdown;
+//! * [`cli`] (with [`client`]): the `accelcal` command line.
 
-pub mod auth;
 pub mod cli;
 pub mod client;
+pub mod domain;
 pub mod http;
-pub mod input;
 pub mod startup;
 pub mod store;
-pub mod submission;
 pub mod telemetry;
-pub mod timestamp;

@@ -23,9 +23,17 @@ use hyper_util::service::TowerToHyperService;
 use tokio::net::TcpListener;
 use tokio::sync::Semaphore;
 
-use crate::auth::{self, Role};
-use crate::http::{self, AppState, Limits};
+pub use crate::http::openapi::document as openapi_document;
+pub use crate::http::problem::Problem;
+pub use crate::http::{Limits, Web};
+
+use crate::domain::auth::{self, Role};
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::{TokenRequest, issue};
+use crate::http::connection::ProblemIo;
+use crate::http::{self, AppState};
 use crate::store::{self, Store};
+use metrics_exporter_prometheus::PrometheusHandle;
 
 /// Shortest accepted configured admin token.
 pub const MIN_ADMIN_TOKEN_CHARS: usize = 16;
@@ -47,6 +55,10 @@ pub struct Config {
     pub max_connections: usize,
     /// Time allowed for in-flight requests to finish at shutdown.
     pub shutdown_grace: Duration,
+    /// Web pages and certificates.
+    pub web: Web,
+    /// Where to serve Prometheus metrics, if anywhere.
+    pub metrics_listen: Option<String>,
 }
 
 impl Config {
@@ -60,6 +72,8 @@ impl Config {
             header_timeout: Duration::from_secs(10),
             max_connections: 1024,
             shutdown_grace: Duration::from_secs(30),
+            web: Web::default(),
+            metrics_listen: None,
         }
     }
 }
@@ -67,6 +81,7 @@ impl Config {
 /// A bound, ready-to-run server.
 pub struct Application {
     listener: TcpListener,
+    metrics: Option<(TcpListener, PrometheusHandle)>,
     state: AppState,
     config: Config,
 }
@@ -75,6 +90,7 @@ impl Application {
     /// Opens and migrates the database, sets up the admin token and binds.
     pub async fn build(config: Config) -> anyhow::Result<Self> {
         let store = store::open(&config.database)
+            .await
             .with_context(|| format!("opening database {}", config.database))?;
         let admin_token_hash = match &config.admin_token {
             Some(t) if t.chars().count() < MIN_ADMIN_TOKEN_CHARS => {
@@ -85,33 +101,45 @@ impl Application {
             Some(t) => Some(auth::hash(t)),
             None => None,
         };
-        let state = AppState {
-            store,
-            admin_token_hash,
-            limits: config.limits,
+        if let Some(url) = &config.web.public_url
+            && !(url.starts_with("http://") || url.starts_with("https://"))
+        {
+            anyhow::bail!("the public URL must start with http:// or https:// (got {url})");
+        }
+        let mut state = AppState::new(store, admin_token_hash, config.limits);
+        state.web = Arc::new(config.web.clone());
+        let metrics = match &config.metrics_listen {
+            Some(addr) => {
+                let handle =
+                    http::metrics::recorder().context("installing the metrics recorder")?;
+                let listener = TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("binding the metrics listener {addr}"))?;
+                Some((listener, handle))
+            }
+            None => None,
         };
         if admin_token_hash.is_none() && !state.store.has_admin_token().await? {
-            let (record, text) = http::tokens::issue(
-                state.store.as_ref(),
-                http::tokens::TokenRequest {
-                    role: Role::Admin,
-                    station_id: None,
-                    label: Some("first admin (created at start)".into()),
-                },
-            )
-            .await
-            .map_err(|p| anyhow::anyhow!("creating the first admin token: {}", p.detail))?;
+            let request = TokenRequest {
+                role: Role::Admin,
+                station_id: None,
+                label: Some("first admin (created at start)".into()),
+            };
+            let (record, created) =
+                issue(request, Timestamp::now()).context("creating the first admin token")?;
+            state.store.insert_token(record).await?;
             println!(
                 "accelcal: no admin token was configured or stored; created one (shown only now):"
             );
-            println!("{text}");
-            tracing::warn!(token_id = %record.id, "created the first admin token");
+            println!("{}", created.token);
+            tracing::warn!(token_id = %created.id, "created the first admin token");
         }
         let listener = TcpListener::bind(&config.listen)
             .await
             .with_context(|| format!("binding {}", config.listen))?;
         Ok(Application {
             listener,
+            metrics,
             state,
             config,
         })
@@ -127,9 +155,19 @@ impl Application {
         self.local_addr().port()
     }
 
+    /// The bound address of the metrics listener, if there is one.
+    pub fn metrics_addr(&self) -> Option<SocketAddr> {
+        self.metrics.as_ref().and_then(|(l, _)| l.local_addr().ok())
+    }
+
     /// The storage the server uses.
     pub fn store(&self) -> Arc<dyn Store> {
         self.state.store.clone()
+    }
+
+    /// The admission budgets (for tests and probes that watch saturation).
+    pub fn admission(&self) -> http::stack::Admission {
+        self.state.admission.clone()
     }
 
     /// Serves until `shutdown` completes, then stops accepting, lets
@@ -138,9 +176,14 @@ impl Application {
     pub async fn run_until_stopped(self, shutdown: impl Future<Output = ()>) -> anyhow::Result<()> {
         let Application {
             listener,
+            metrics,
             state,
             config,
         } = self;
+        let metrics_task = metrics.map(|(listener, handle)| {
+            tracing::info!(address = %listener.local_addr().map_or_else(|_| "?".into(), |a| a.to_string()), "metrics listening");
+            tokio::spawn(serve_metrics(listener, handle))
+        });
         let store = state.store.clone();
         let router = http::router(state);
         let graceful = GracefulShutdown::new();
@@ -170,7 +213,7 @@ impl Application {
                 .timer(TokioTimer::new())
                 .header_read_timeout(config.header_timeout)
                 .max_buf_size(64 * 1024);
-            let conn = builder.serve_connection(TokioIo::new(stream), service);
+            let conn = builder.serve_connection(TokioIo::new(ProblemIo::new(stream)), service);
             let conn = graceful.watch(conn);
             tokio::spawn(async move {
                 if let Err(e) = conn.await {
@@ -187,9 +230,43 @@ impl Application {
         {
             tracing::warn!("in-flight requests did not finish within the grace period");
         }
+        if let Some(task) = metrics_task {
+            task.abort();
+        }
         store.close().await;
         tracing::info!("database closed; bye");
         Ok(())
+    }
+}
+
+/// Serves `GET /metrics` (the Prometheus text format) and nothing else, and
+/// keeps the recorder's histograms drained.
+async fn serve_metrics(listener: TcpListener, handle: PrometheusHandle) {
+    let upkeep = handle.clone();
+    tokio::spawn(async move {
+        let mut tick = tokio::time::interval(Duration::from_secs(5));
+        loop {
+            tick.tick().await;
+            upkeep.run_upkeep();
+        }
+    });
+    let app = axum::Router::new().route(
+        "/metrics",
+        axum::routing::get(move || {
+            let h = handle.clone();
+            async move {
+                (
+                    [(
+                        axum::http::header::CONTENT_TYPE,
+                        "text/plain; version=0.0.4; charset=utf-8",
+                    )],
+                    h.render(),
+                )
+            }
+        }),
+    );
+    if let Err(e) = axum::serve(listener, app).await {
+        tracing::error!(error = %e, "the metrics listener stopped");
     }
 }
 

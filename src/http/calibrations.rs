@@ -5,61 +5,19 @@ use std::sync::Arc;
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, HeaderName, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
 use sha2::{Digest, Sha256};
 use uuid::Uuid;
 
-use super::extract::{Body, Media};
-use super::problem::Problem;
-use super::{AppState, evaluate, path_id};
-use crate::auth::{Principal, Role};
-use crate::store::{Claim, IdempotencyKey, NewCalibration, Store, Stored};
-use crate::submission::{Evaluated, ResultView};
-use crate::timestamp::Timestamp;
-
-/// The station recorded on a submission: a bound token's station, which the
-/// body may repeat but not contradict; otherwise the body's `station_id`.
-fn station(principal: &Principal, claimed: Option<&str>) -> Result<Option<String>, Problem> {
-    match (&principal.station_id, claimed) {
-        (Some(bound), Some(claimed)) if bound != claimed => Err(Problem::forbidden(format!(
-            "this token is bound to station `{bound}` and cannot submit as `{claimed}`"
-        ))),
-        (Some(bound), _) => Ok(Some(bound.clone())),
-        (None, claimed) => Ok(claimed.map(str::to_owned)),
-    }
-}
-
-fn record(
-    e: &Evaluated,
-    id: Uuid,
-    station_id: Option<String>,
-    received_at: Timestamp,
-    body: &Body,
-    principal: &Principal,
-) -> NewCalibration {
-    let view = ResultView::new(e, Some(id), station_id.as_deref(), received_at);
-    let fused = &e.calibration.fused;
-    NewCalibration {
-        id,
-        sensor_id: e.submission.sensor_id.clone(),
-        performed_at: view.performed_at,
-        received_at,
-        unit: e.submission.unit.clone(),
-        model: json(e.submission.test.model()),
-        runs: e.calibration.runs.len(),
-        coefficients: json(&fused.coefficients),
-        std_errors: json(&fused.std_errors),
-        result: json(&view),
-        submission: body.bytes.to_vec(),
-        content_type: body.content_type.clone(),
-        submitted_by: principal.id.clone(),
-        station_id,
-    }
-}
-
-/// Compact JSON text of a result part (every number in a result is finite).
-fn json<T: serde::Serialize + ?Sized>(v: &T) -> String {
-    serde_json::to_string(v).expect("results serialise")
-}
+use super::auth::require;
+use super::body::Body;
+use super::evaluation::assess;
+use super::problem::{Kind, Problem};
+use super::{AppState, path_id};
+use crate::domain::auth::{Principal, Role};
+use crate::domain::submission::Media;
+use crate::domain::timestamp::Timestamp;
+use crate::store::{Claim, IdempotencyKey, Store, StoreError, Stored};
 
 /// The `Idempotency-Key` request header.
 pub static IDEMPOTENCY_KEY: HeaderName = HeaderName::from_static("idempotency-key");
@@ -101,6 +59,7 @@ fn idempotency_key(
         principal: principal.id.clone(),
         key: key.to_owned(),
         request_hash: hash.finalize().into(),
+        holder: Uuid::now_v7(),
     }))
 }
 
@@ -124,18 +83,57 @@ impl Drop for KeyGuard {
         {
             let store = self.store.clone();
             rt.spawn(async move {
-                if let Err(e) = store.release_key(k.principal, k.key).await {
-                    tracing::warn!(error = %e, "could not release an idempotency key; its lease will expire");
+                if let Err(e) = store.release_key(k).await {
+                    tracing::warn!(error = %e.chain(), "could not release an idempotency key; its lease will expire");
                 }
             });
         }
     }
 }
 
+/// How long a key's lease outlasts its request's deadline: time for the
+/// request's last write to land. A lease that expires anyway (a crashed
+/// replica's) is taken over; the key's completion is guarded in the store,
+/// so even then one key stores one calibration.
+const LEASE_MARGIN_SECONDS: i64 = 5;
+
+/// Claims the request's key; answers a retry or a conflict at once.
+async fn claim(
+    state: &AppState,
+    key: &IdempotencyKey,
+) -> Result<Result<KeyGuard, Response>, Problem> {
+    let now = Timestamp::now();
+    let lease =
+        now.plus_seconds(state.limits.request_timeout.as_secs() as i64 + LEASE_MARGIN_SECONDS);
+    Ok(
+        match state.store.claim_key(key.clone(), now, lease).await? {
+            Claim::Fresh => Ok(KeyGuard {
+                store: state.store.clone(),
+                key: Some(key.clone()),
+            }),
+            Claim::Done(id) => Err(replay(state, id).await?),
+            Claim::InFlight => {
+                return Err(Problem::new(
+                    Kind::InFlight,
+                    "a request with this Idempotency-Key is still being processed; retry shortly",
+                )
+                .retry_after(1));
+            }
+            Claim::Mismatch => {
+                return Err(Problem::new(
+                    Kind::IdempotencyKeyReused,
+                    "this Idempotency-Key was already used with a different request body",
+                )
+                .naming("Idempotency-Key"));
+            }
+        },
+    )
+}
+
 /// Answers a retry with the calibration its key already stored.
 async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
     let result = state.store.calibration_result(id).await?.ok_or_else(|| {
-        crate::store::StoreError::Corrupt(format!("idempotency key names missing calibration {id}"))
+        StoreError::corrupt("idempotency key", format!("names missing calibration {id}"))
     })?;
     let mut res = created(id, result);
     res.headers_mut().insert(
@@ -147,64 +145,74 @@ async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
 
 /// `POST /v1/calibrations`: check, identify, fuse, store durably, answer 201;
 /// with an `Idempotency-Key`, at most once per key.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations",
+    tag = "calibrations",
+    operation_id = "submitCalibration",
+    description = include_str!("docs/submit.md"),
+    params(super::openapi::IdempotencyKeyHeader),
+    request_body(content(
+        (super::openapi::SubmissionSchema = "application/json"),
+        (String = "text/csv"),
+    )),
+    responses(
+        (status = 201, description = "Stored (or, for a retried Idempotency-Key, stored before).",
+            body = super::openapi::StoredCalibrationSchema,
+            headers(
+                ("Location" = String, description = "The calibration's URL."),
+                ("Idempotent-Replayed" = String, description = "`true` when this answer replays an earlier request with the same key."),
+            ),
+            links(
+                ("GetCalibration" = (operation_id = "getCalibration", parameters(("id" = "$response.body#/id")))),
+                ("GetSubmission" = (operation_id = "getSubmission", parameters(("id" = "$response.body#/id")))),
+                ("GetSensor" = (operation_id = "getSensor", parameters(("sensor_id" = "$response.body#/sensor_id")))),
+            )),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 408, response = super::openapi::ProblemResponse),
+        (status = 409, response = super::openapi::ProblemResponse),
+        (status = 413, response = super::openapi::TooLarge),
+        (status = 415, response = super::openapi::UnsupportedMediaType),
+        (status = 422, response = super::openapi::Invalid),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn submit(
     State(state): State<AppState>,
     principal: Principal,
     headers: HeaderMap,
     body: Body,
 ) -> Result<Response, Problem> {
-    principal.require(Role::Station)?;
+    require(&principal, Role::Station)?;
     let key = idempotency_key(&headers, &principal, &body)?;
     let guard = match &key {
         None => None,
-        Some(k) => {
-            let now = Timestamp::now();
-            let lease = now.plus_seconds(state.limits.request_timeout.as_secs() as i64 + 30);
-            match state.store.claim_key(k.clone(), now, lease).await? {
-                Claim::Fresh => Some(KeyGuard {
-                    store: state.store.clone(),
-                    key: Some(k.clone()),
-                }),
-                Claim::Done(id) => return replay(&state, id).await,
-                Claim::InFlight => {
-                    return Err(Problem {
-                        retry_after: Some(1),
-                        ..Problem::new(
-                            StatusCode::CONFLICT,
-                            "in-flight",
-                            "Request in progress",
-                            "a request with this Idempotency-Key is still being processed; retry shortly",
-                        )
-                    });
-                }
-                Claim::Mismatch => {
-                    return Err(Problem {
-                        parameter: Some("Idempotency-Key".into()),
-                        ..Problem::new(
-                            StatusCode::UNPROCESSABLE_ENTITY,
-                            "idempotency-key-reused",
-                            "Idempotency-Key reused",
-                            "this Idempotency-Key was already used with a different request body",
-                        )
-                    });
-                }
-            }
-        }
+        Some(k) => match claim(&state, k).await? {
+            Ok(guard) => Some(guard),
+            Err(answered) => return Ok(answered),
+        },
     };
-    let value = body.submission()?;
     let received_at = Timestamp::now();
-    let evaluated = evaluate(value, received_at).await?;
-    let station_id = station(&principal, evaluated.submission.station_id.as_deref())?;
     let id = Uuid::now_v7();
-    let rec = record(&evaluated, id, station_id, received_at, &body, &principal);
-    let result = rec.result.clone();
+    let assessed = assess(&state, &principal, body, received_at, Some(id)).await?;
+    let (sensor_id, result) = (assessed.sensor_id, assessed.result);
+    let Some(rec) = assessed.record else {
+        return Err(Problem::internal());
+    };
+    let verdict = rec.verdict;
     let stored = state.store.insert_calibration(rec, key).await?;
     if let Some(g) = guard {
         g.done();
     }
     match stored {
         Stored::New => {
-            tracing::info!(calibration_id = %id, sensor_id = %evaluated.submission.sensor_id, "calibration stored");
+            tracing::info!(calibration_id = %id, sensor_id = %sensor_id, "calibration stored");
+            if let Some(v) = verdict {
+                metrics::counter!("accelcal_verdicts_total", "verdict" => v.as_str()).increment(1);
+            }
             Ok(created(id, result))
         }
         Stored::Existing(first) => replay(&state, first).await,
@@ -212,8 +220,9 @@ pub async fn submit(
 }
 
 /// A 201 answer for a stored calibration.
-pub(crate) fn created(id: Uuid, result: String) -> Response {
-    let location = HeaderValue::from_str(&format!("/v1/calibrations/{id}")).expect("ASCII");
+pub(crate) fn created(id: Uuid, result: Bytes) -> Response {
+    let location = HeaderValue::from_str(&format!("/v1/calibrations/{id}"))
+        .unwrap_or(HeaderValue::from_static("/v1/calibrations"));
     (
         StatusCode::CREATED,
         [
@@ -232,13 +241,27 @@ fn unknown(id: Uuid) -> Problem {
     Problem::not_found(format!("no calibration with id `{id}`"))
 }
 
-/// `GET /v1/calibrations/{id}`: the stored result document.
+/// `GET /v1/calibrations/{id}`: the stored result document, as stored.
+#[utoipa::path(
+    get,
+    path = "/v1/calibrations/{id}",
+    tag = "calibrations",
+    operation_id = "getCalibration",
+    params(super::openapi::CalibrationIdPath),
+    responses(
+        (status = 200, description = "The result, as answered when it was submitted.", body = super::openapi::StoredCalibrationSchema),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn get(
     State(state): State<AppState>,
     principal: Principal,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    principal.require(Role::Reader)?;
+    require(&principal, Role::Reader)?;
     let id = path_id(&id, "calibration")?;
     let result = state
         .store
@@ -249,12 +272,27 @@ pub async fn get(
 }
 
 /// `GET /v1/calibrations/{id}/submission`: the body as submitted, byte for byte.
+#[utoipa::path(
+    get,
+    path = "/v1/calibrations/{id}/submission",
+    tag = "calibrations",
+    operation_id = "getSubmission",
+    params(super::openapi::CalibrationIdPath),
+    responses(
+        (status = 200, description = "The body as submitted (decompressed, if it was sent gzip-encoded).",
+            content((serde_json::Value = "application/json"), (String = "text/csv"))),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn submission(
     State(state): State<AppState>,
     principal: Principal,
     Path(id): Path<String>,
 ) -> Result<Response, Problem> {
-    principal.require(Role::Reader)?;
+    require(&principal, Role::Reader)?;
     let id = path_id(&id, "calibration")?;
     let s = state
         .store
@@ -264,4 +302,33 @@ pub async fn submission(
     let content_type = HeaderValue::from_str(&s.content_type)
         .unwrap_or(HeaderValue::from_static("application/octet-stream"));
     Ok(([(header::CONTENT_TYPE, content_type)], s.body).into_response())
+}
+
+/// `GET /v1/calibrations/{id}/certificate`: the printable certificate.
+#[utoipa::path(
+    get,
+    path = "/v1/calibrations/{id}/certificate",
+    tag = "calibrations",
+    operation_id = "getCertificate",
+    summary = "The calibration certificate: an HTML document that prints on A4.",
+    params(super::openapi::CalibrationIdPath),
+    responses(
+        (status = 200, description = "The certificate: sensor, type, station and stand, times, method, \
+            fused coefficients with expanded uncertainty, decision, as found, due date, the SHA-256 of \
+            the stored submission, the accelcal version and its own URL.",
+            content((String = "text/html"))),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
+pub async fn certificate(
+    State(state): State<AppState>,
+    principal: Principal,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Reader)?;
+    super::ui::certificate::respond(&state, &headers, &id).await
 }

@@ -1,47 +1,82 @@
 //! The HTTP API: state, router and the middleware stack.
 //!
-//! Routes are grouped by resource in the submodules; cross-cutting concerns
-//! live in [`middleware`]; every error is a [`problem::Problem`].
+//! Routes are grouped by resource in the submodules; the layers are in
+//! [`stack`]; every error is a [`problem::Problem`]. A new endpoint is a
+//! handler in the resource's module, one `.route` line in [`router`] and one
+//! line in [`openapi`]'s list of paths.
 
+pub mod auth;
+pub mod body;
 pub mod calibrations;
+pub mod coefficients;
 pub mod compute;
-pub mod extract;
+pub mod connection;
+pub mod evaluation;
 pub mod health;
-pub mod middleware;
+pub mod metrics;
+pub mod openapi;
 pub mod page;
 pub mod problem;
+pub mod query;
+pub mod sensor_types;
 pub mod sensors;
+pub mod stability;
+pub mod stack;
 pub mod tokens;
+pub mod ui;
 
 use std::sync::Arc;
 use std::time::Duration;
 
 use axum::Router;
+use axum::error_handling::HandleErrorLayer;
+use axum::http::{HeaderName, HeaderValue, StatusCode};
 use axum::routing::{delete, get, post};
 use tokio::sync::Semaphore;
+use tower::ServiceBuilder;
+use tower::limit::GlobalConcurrencyLimitLayer;
+use tower::load_shed::LoadShedLayer;
+use tower_http::catch_panic::CatchPanicLayer;
+use tower_http::decompression::RequestDecompressionLayer;
+use tower_http::limit::RequestBodyLimitLayer;
+use tower_http::map_request_body::MapRequestBodyLayer;
+use tower_http::request_id::{PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::set_header::SetResponseHeaderLayer;
+use tower_http::timeout::TimeoutLayer;
+use tower_http::trace::TraceLayer;
 
+use self::problem::Problem;
+use self::stack::Admission;
 use crate::store::Store;
 
 /// Bounds on what one request may take.
 #[derive(Clone, Copy, Debug)]
 pub struct Limits {
-    /// Largest request body, in bytes.
+    /// Largest request body, in bytes (after decompression).
     pub max_body_bytes: usize,
+    /// Bytes of request bodies being received or worked on at once; beyond
+    /// it new bodies are answered 503.
+    pub body_budget_bytes: usize,
     /// Time allowed to receive a body.
     pub body_timeout: Duration,
     /// Time allowed for a whole request.
     pub request_timeout: Duration,
-    /// Requests handled at once; more are answered 503.
+    /// Requests worked on at once (bodies received); more are answered 503.
     pub max_concurrent: usize,
+    /// Submissions parsed and calibrated at once on the blocking pool
+    /// (default: the number of CPUs); more wait their turn.
+    pub compute_threads: usize,
 }
 
 impl Default for Limits {
     fn default() -> Self {
         Limits {
             max_body_bytes: 4 * 1024 * 1024,
+            body_budget_bytes: 64 * 1024 * 1024,
             body_timeout: Duration::from_secs(30),
             request_timeout: Duration::from_secs(60),
             max_concurrent: 256,
+            compute_threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
         }
     }
 }
@@ -55,65 +90,186 @@ pub struct AppState {
     pub admin_token_hash: Option<[u8; 32]>,
     /// Request bounds.
     pub limits: Limits,
+    /// The admission budgets (bodies in flight, work slots).
+    pub admission: Admission,
+    /// Permits for CPU-heavy work on the blocking pool.
+    pub compute: Arc<Semaphore>,
+    /// How the web pages and certificates present themselves.
+    pub web: Arc<Web>,
+}
+
+/// Settings of the web pages and certificates.
+#[derive(Clone, Debug)]
+pub struct Web {
+    /// The service's public base URL (`https://cal.example.com`), used for
+    /// certificates' own URLs and to mark cookies `Secure`; without one,
+    /// URLs are built from the request's `Host`.
+    pub public_url: Option<String>,
+    /// How long a web session lasts after sign-in.
+    pub session_ttl: Duration,
+}
+
+impl Default for Web {
+    fn default() -> Self {
+        Web {
+            public_url: None,
+            session_ttl: Duration::from_secs(8 * 3600),
+        }
+    }
+}
+
+impl AppState {
+    /// State over `store` with `limits`.
+    pub fn new(store: Arc<dyn Store>, admin_token_hash: Option<[u8; 32]>, limits: Limits) -> Self {
+        AppState {
+            store,
+            admin_token_hash,
+            admission: Admission::new(limits.body_budget_bytes, limits.max_concurrent),
+            compute: Arc::new(Semaphore::new(limits.compute_threads.max(1))),
+            web: Arc::new(Web::default()),
+            limits,
+        }
+    }
+
+    /// Runs CPU-heavy work (parsing, calibrating a submission) on the
+    /// blocking pool, at most `compute_threads` at once, so that the async
+    /// workers stay free for health probes and reads.
+    pub async fn compute<T: Send + 'static>(
+        &self,
+        work: impl FnOnce() -> T + Send + 'static,
+    ) -> Result<T, Problem> {
+        let _permit = self
+            .compute
+            .clone()
+            .acquire_owned()
+            .await
+            .map_err(|_| Problem::internal())?;
+        tokio::task::spawn_blocking(work).await.map_err(|e| {
+            tracing::error!(error = %e, "a computation failed");
+            Problem::internal()
+        })
+    }
 }
 
 /// The whole application: routes, state and middleware.
 pub fn router(state: AppState) -> Router {
-    let semaphore = Arc::new(Semaphore::new(state.limits.max_concurrent));
+    let limits = state.limits;
     let v1 = Router::new()
         .route("/calibrations", post(calibrations::submit))
         .route("/calibrations/{id}", get(calibrations::get))
+        .route(
+            "/calibrations/{id}/certificate",
+            get(calibrations::certificate),
+        )
         .route(
             "/calibrations/{id}/submission",
             get(calibrations::submission),
         )
         .route("/sensors", get(sensors::list))
-        .route("/sensors/{sensor_id}", get(sensors::get))
+        .route(
+            "/sensors/{sensor_id}",
+            get(sensors::get).put(sensors::update),
+        )
         .route("/sensors/{sensor_id}/calibrations", get(sensors::history))
         .route(
             "/sensors/{sensor_id}/coefficients",
-            get(sensors::coefficients),
+            get(coefficients::coefficients),
         )
-        .route("/sensors/{sensor_id}/compensate", post(sensors::compensate))
+        .route(
+            "/sensors/{sensor_id}/compensate",
+            post(coefficients::compensate),
+        )
+        .route("/sensors/{sensor_id}/stability", get(stability::report))
+        .route("/sensor-types", get(sensor_types::list))
+        .route(
+            "/sensor-types/{type_id}",
+            get(sensor_types::get).put(sensor_types::put),
+        )
         .route("/identify", post(compute::identify))
         .route("/fuse", post(compute::fuse))
         .route("/tokens", post(tokens::create).get(tokens::list))
         .route("/tokens/{id}", delete(tokens::revoke));
-    Router::new()
+    let mut app = Router::new()
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
         .route("/openapi.yaml", get(health::openapi))
-        .nest("/v1", v1)
+        .route(
+            "/",
+            get(|| async { axum::response::Redirect::to("/ui/sensors") }),
+        )
+        .route(
+            "/ui/",
+            get(|| async { axum::response::Redirect::to("/ui/sensors") }),
+        )
+        .nest("/v1", admitted(v1, &state))
+        .nest("/ui", admitted(ui::router(), &state))
         .fallback(health::not_found)
-        .layer(axum::middleware::from_fn_with_state(
-            state.clone(),
-            middleware::deadline,
+        .layer(TimeoutLayer::with_status_code(
+            StatusCode::SERVICE_UNAVAILABLE,
+            limits.request_timeout,
         ))
-        .layer(axum::middleware::from_fn_with_state(
-            semaphore,
-            middleware::shed_load,
-        ))
-        .layer(axum::middleware::from_fn(middleware::outer))
-        .with_state(state)
+        .layer(CatchPanicLayer::custom(stack::panic_response));
+    for (name, value) in stack::SECURITY_HEADERS {
+        app = app.layer(SetResponseHeaderLayer::if_not_present(
+            HeaderName::from_static(name),
+            HeaderValue::from_static(value),
+        ));
+    }
+    app.layer(axum::middleware::from_fn_with_state(
+        state.clone(),
+        stack::finalize,
+    ))
+    .layer(axum::middleware::from_fn(metrics::observe))
+    .layer(
+        TraceLayer::new_for_http()
+            .make_span_with(stack::request_span)
+            .on_request(())
+            .on_response(stack::log_response)
+            .on_failure(()),
+    )
+    .layer(PropagateRequestIdLayer::new(stack::X_REQUEST_ID.clone()))
+    .layer(SetRequestIdLayer::new(
+        stack::X_REQUEST_ID.clone(),
+        stack::UuidV7,
+    ))
+    .layer(axum::middleware::map_request(stack::sanitize_request_id))
+    .with_state(state)
 }
 
-/// Checks, identifies and fuses a submission on the blocking pool (the
-/// numerics of a large submission take milliseconds).
-pub(crate) async fn evaluate(
-    body: serde_json::Value,
-    now: crate::timestamp::Timestamp,
-) -> Result<crate::submission::Evaluated, problem::Problem> {
-    tokio::task::spawn_blocking(move || crate::submission::evaluate(&body, now))
-        .await
-        .map_err(|e| {
-            tracing::error!(error = %e, "evaluation task failed");
-            problem::Problem::internal()
-        })?
-        .map_err(problem::Problem::validation)
+/// `routes` behind admission: transfer codings checked, the body size
+/// limited, gzip bodies decompressed, the body received whole within its
+/// deadline and budget, then a work slot or 503 (see [`stack`]).
+fn admitted(routes: Router<AppState>, state: &AppState) -> Router<AppState> {
+    let limits = state.limits;
+    routes.layer(
+        ServiceBuilder::new()
+            .layer(axum::middleware::map_request(stack::reject_codings))
+            .layer(RequestBodyLimitLayer::new(limits.max_body_bytes))
+            .layer(
+                RequestDecompressionLayer::new()
+                    .no_deflate()
+                    .no_br()
+                    .no_zstd(),
+            )
+            .layer(MapRequestBodyLayer::new(axum::body::Body::new))
+            .layer(axum::middleware::from_fn_with_state(
+                state.clone(),
+                stack::admit,
+            ))
+            .layer(HandleErrorLayer::new(stack::overloaded))
+            .layer(LoadShedLayer::new())
+            .layer(GlobalConcurrencyLimitLayer::with_semaphore(
+                state.admission.work.clone(),
+            )),
+    )
 }
 
 /// The id in a path, or 404 when it is not one of ours.
-pub(crate) fn path_id(raw: &str, what: &str) -> Result<uuid::Uuid, problem::Problem> {
-    uuid::Uuid::try_parse(raw)
-        .map_err(|_| problem::Problem::not_found(format!("no {what} with id `{raw}`")))
+pub(crate) fn path_id(raw: &str, what: &str) -> Result<uuid::Uuid, Problem> {
+    uuid::Uuid::try_parse(raw).map_err(|_| {
+        Problem::not_found(format!(
+            "no {what} with id `{}`",
+            crate::domain::text::echo(raw)
+        ))
+    })
 }

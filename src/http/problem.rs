@@ -1,7 +1,7 @@
 //! RFC 9457 problem details: the one error shape of every 4xx and 5xx.
 //!
 //! ```json
-//! {"type": "urn:accelcal:problem:validation", "title": "Invalid submission",
+//! {"type": "urn:accelcal:problem:validation", "title": "Invalid request content",
 //!  "status": 422, "detail": "2 problems in the request body",
 //!  "errors": [{"pointer": "/runs/2/readings/1", "detail": "must not be empty"}],
 //!  "request_id": "…"}
@@ -9,192 +9,317 @@
 //!
 //! Handlers return [`Problem`]; the response carries a copy in its extensions
 //! so that the outermost middleware can add the `request_id`
-//! (see [`super::middleware::finalize_problems`]).
+//! (see [`super::stack::finalize`]). Validation lists at most a hundred
+//! field errors and counts the rest in `errors_omitted`; whatever a problem
+//! repeats of the client's input is cut short and has any pasted token's
+//! secret redacted ([`crate::domain::text::echo`]).
 
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
+use utoipa::ToSchema;
 
-use crate::input::FieldError;
+use crate::domain::field::{FieldError, Invalid};
+use crate::domain::submission::Refused;
+use crate::domain::text::echo;
+use crate::domain::typed::BodyError;
 use crate::store::StoreError;
 
 /// The media type of problem documents.
 pub const PROBLEM_JSON: &str = "application/problem+json";
 
+/// The kinds of problem accelcal answers: each a `type`
+/// (`urn:accelcal:problem:<name>`), a title and a usual status.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// 400: not JSON, a malformed query parameter or header, an unreadable body.
+    Malformed,
+    /// 422: well-formed, but fields are wrong or the test cannot be calibrated.
+    Validation,
+    /// 401: no valid token.
+    Unauthorized,
+    /// 403: the token's role or station does not allow this.
+    Forbidden,
+    /// 404: no such resource.
+    NotFound,
+    /// 405: the resource does not support the method.
+    MethodNotAllowed,
+    /// 408: the body was not received in time.
+    Timeout,
+    /// 409: a request with the same Idempotency-Key is still being processed.
+    InFlight,
+    /// 413: the body is too large.
+    TooLarge,
+    /// 415: a Content-Type or Content-Encoding accelcal does not read.
+    UnsupportedMediaType,
+    /// 422: an Idempotency-Key reused with a different body.
+    IdempotencyKeyReused,
+    /// 501: a transfer coding accelcal does not implement.
+    NotImplemented,
+    /// 503: the database is unavailable or the server is at capacity.
+    Unavailable,
+    /// 500: a fault of accelcal's own.
+    Internal,
+}
+
+impl Kind {
+    /// Every kind, for documentation.
+    pub const ALL: [Kind; 14] = [
+        Kind::Malformed,
+        Kind::Validation,
+        Kind::Unauthorized,
+        Kind::Forbidden,
+        Kind::NotFound,
+        Kind::MethodNotAllowed,
+        Kind::Timeout,
+        Kind::InFlight,
+        Kind::TooLarge,
+        Kind::UnsupportedMediaType,
+        Kind::IdempotencyKeyReused,
+        Kind::NotImplemented,
+        Kind::Unavailable,
+        Kind::Internal,
+    ];
+
+    /// The name in the problem's `type`.
+    pub const fn name(self) -> &'static str {
+        match self {
+            Kind::Malformed => "malformed",
+            Kind::Validation => "validation",
+            Kind::Unauthorized => "unauthorized",
+            Kind::Forbidden => "forbidden",
+            Kind::NotFound => "not-found",
+            Kind::MethodNotAllowed => "method-not-allowed",
+            Kind::Timeout => "timeout",
+            Kind::InFlight => "in-flight",
+            Kind::TooLarge => "too-large",
+            Kind::UnsupportedMediaType => "unsupported-media-type",
+            Kind::IdempotencyKeyReused => "idempotency-key-reused",
+            Kind::NotImplemented => "not-implemented",
+            Kind::Unavailable => "unavailable",
+            Kind::Internal => "internal",
+        }
+    }
+
+    /// The problem type's title.
+    pub const fn title(self) -> &'static str {
+        match self {
+            Kind::Malformed => "Malformed request",
+            Kind::Validation => "Invalid request content",
+            Kind::Unauthorized => "Authentication required",
+            Kind::Forbidden => "Not allowed",
+            Kind::NotFound => "Not found",
+            Kind::MethodNotAllowed => "Method not allowed",
+            Kind::Timeout => "Request timeout",
+            Kind::InFlight => "Request in progress",
+            Kind::TooLarge => "Request body too large",
+            Kind::UnsupportedMediaType => "Unsupported media type",
+            Kind::IdempotencyKeyReused => "Idempotency-Key reused",
+            Kind::NotImplemented => "Not implemented",
+            Kind::Unavailable => "Service unavailable",
+            Kind::Internal => "Internal error",
+        }
+    }
+
+    /// The status it is answered with.
+    pub const fn status(self) -> StatusCode {
+        match self {
+            Kind::Malformed => StatusCode::BAD_REQUEST,
+            Kind::Validation | Kind::IdempotencyKeyReused => StatusCode::UNPROCESSABLE_ENTITY,
+            Kind::Unauthorized => StatusCode::UNAUTHORIZED,
+            Kind::Forbidden => StatusCode::FORBIDDEN,
+            Kind::NotFound => StatusCode::NOT_FOUND,
+            Kind::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
+            Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
+            Kind::InFlight => StatusCode::CONFLICT,
+            Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+            Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            Kind::NotImplemented => StatusCode::NOT_IMPLEMENTED,
+            Kind::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
+            Kind::Internal => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+}
+
 /// A problem document with its HTTP status and headers.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Problem {
-    /// HTTP status.
+    /// HTTP status (usually the kind's).
     pub status: StatusCode,
-    /// Short name of the problem type (`validation`, `unauthorized`, …).
-    pub kind: &'static str,
-    /// Human title of the problem type.
-    pub title: &'static str,
+    /// The problem type.
+    pub kind: Kind,
     /// What happened in this occurrence.
     pub detail: String,
-    /// Field-level problems, for validation failures.
-    pub errors: Vec<FieldError>,
-    /// The query or path parameter at fault, for malformed parameters.
-    pub parameter: Option<String>,
     /// `Retry-After` seconds, for retryable problems.
     pub retry_after: Option<u32>,
+    /// Field errors and the parameter at fault, when there are any.
+    pub fields: Option<Box<Fields>>,
 }
 
-#[derive(Serialize)]
-struct Body<'a> {
+/// The parts of a problem only some problems have.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Fields {
+    /// Field-level problems, for validation failures (at most a hundred).
+    pub errors: Vec<FieldError>,
+    /// Field-level problems found beyond those listed.
+    pub errors_omitted: usize,
+    /// The query parameter or header at fault, for malformed parameters.
+    pub parameter: Option<String>,
+}
+
+/// The problem document on the wire.
+#[derive(Serialize, ToSchema)]
+#[schema(as = Problem)]
+pub struct ProblemBody<'a> {
+    /// `urn:accelcal:problem:<kind>`: the problem type.
     #[serde(rename = "type")]
-    kind: String,
-    title: &'a str,
-    status: u16,
-    detail: &'a str,
+    #[schema(example = "urn:accelcal:problem:validation")]
+    pub kind: String,
+    /// The problem type's title.
+    pub title: &'a str,
+    /// The HTTP status.
+    #[schema(minimum = 400, maximum = 599)]
+    pub status: u16,
+    /// What happened in this occurrence.
+    pub detail: &'a str,
+    /// For 422: what is wrong where, as RFC 6901 pointers into the body.
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
-    errors: &'a [FieldError],
+    pub errors: &'a [FieldError],
+    /// For 422: how many more problems were found than are listed.
+    #[serde(skip_serializing_if = "is_zero")]
+    #[schema(minimum = 1)]
+    pub errors_omitted: usize,
+    /// For 400: the query parameter or header at fault.
     #[serde(skip_serializing_if = "Option::is_none")]
-    parameter: Option<&'a str>,
+    pub parameter: Option<&'a str>,
+    /// The request's id (also in the `x-request-id` header and the log).
     #[serde(skip_serializing_if = "Option::is_none")]
-    request_id: Option<&'a str>,
+    pub request_id: Option<&'a str>,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 impl Problem {
-    /// A problem of the given status, kind and title.
-    pub fn new(
-        status: StatusCode,
-        kind: &'static str,
-        title: &'static str,
-        detail: impl Into<String>,
-    ) -> Self {
+    /// A problem of `kind`, answered with the kind's status.
+    pub fn new(kind: Kind, detail: impl Into<String>) -> Self {
         Problem {
-            status,
+            status: kind.status(),
             kind,
-            title,
             detail: detail.into(),
-            errors: Vec::new(),
-            parameter: None,
             retry_after: None,
+            fields: None,
         }
     }
 
-    /// 400: the request is not well-formed (syntax, query, path).
-    pub fn bad_request(detail: impl Into<String>) -> Self {
-        Self::new(
-            StatusCode::BAD_REQUEST,
-            "malformed",
-            "Malformed request",
-            detail,
-        )
+    /// The same problem answered with another status (framework errors).
+    pub fn with_status(self, status: StatusCode) -> Self {
+        Problem { status, ..self }
     }
 
-    /// 400 naming a query or path parameter.
-    pub fn bad_parameter(name: &str, detail: impl std::fmt::Display) -> Self {
+    /// The same problem with `Retry-After`.
+    pub fn retry_after(self, seconds: u32) -> Self {
         Problem {
-            parameter: Some(name.to_owned()),
-            ..Self::bad_request(format!("parameter `{name}` {detail}"))
+            retry_after: Some(seconds),
+            ..self
         }
+    }
+
+    /// The same problem naming the parameter or header at fault.
+    pub fn naming(mut self, parameter: &str) -> Self {
+        self.fields.get_or_insert_with(Default::default).parameter = Some(echo(parameter));
+        self
+    }
+
+    /// 400: the request is not well-formed (syntax, query, header).
+    pub fn bad_request(detail: impl Into<String>) -> Self {
+        Self::new(Kind::Malformed, detail)
+    }
+
+    /// 400 naming a query parameter or header (its name cut short if long).
+    pub fn bad_parameter(name: &str, detail: impl std::fmt::Display) -> Self {
+        Self::bad_request(format!("parameter `{}` {detail}", echo(name))).naming(name)
     }
 
     /// 422: well-formed, but the listed fields are wrong.
-    pub fn validation(errors: Vec<FieldError>) -> Self {
-        let detail = match errors.as_slice() {
-            [one] if one.pointer.is_empty() => one.detail.clone(),
-            [one] => format!("{}: {}", one.pointer, one.detail),
-            many => format!("{} problems in the request body", many.len()),
-        };
+    pub fn validation(invalid: Invalid) -> Self {
+        let detail = invalid.to_string();
         Problem {
-            errors,
-            ..Self::new(
-                StatusCode::UNPROCESSABLE_ENTITY,
-                "validation",
-                "Invalid request content",
-                detail,
-            )
+            fields: Some(Box::new(Fields {
+                errors: invalid.errors,
+                errors_omitted: invalid.omitted,
+                parameter: None,
+            })),
+            ..Self::new(Kind::Validation, detail)
         }
     }
 
     /// 401: no valid credentials.
     pub fn unauthorized(detail: impl Into<String>) -> Self {
-        Self::new(
-            StatusCode::UNAUTHORIZED,
-            "unauthorized",
-            "Authentication required",
-            detail,
-        )
+        Self::new(Kind::Unauthorized, detail)
     }
 
     /// 403: valid credentials without the right.
     pub fn forbidden(detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::FORBIDDEN, "forbidden", "Not allowed", detail)
+        Self::new(Kind::Forbidden, detail)
     }
 
     /// 404.
     pub fn not_found(detail: impl Into<String>) -> Self {
-        Self::new(StatusCode::NOT_FOUND, "not-found", "Not found", detail)
+        Self::new(Kind::NotFound, detail)
     }
 
     /// 413.
     pub fn too_large(limit: usize) -> Self {
         Self::new(
-            StatusCode::PAYLOAD_TOO_LARGE,
-            "too-large",
-            "Request body too large",
+            Kind::TooLarge,
             format!("the body exceeds the limit of {limit} bytes"),
         )
     }
 
     /// 415.
     pub fn unsupported_media(detail: impl Into<String>) -> Self {
-        Self::new(
-            StatusCode::UNSUPPORTED_MEDIA_TYPE,
-            "unsupported-media-type",
-            "Unsupported media type",
-            detail,
-        )
+        Self::new(Kind::UnsupportedMediaType, detail)
     }
 
     /// 408: the client was too slow sending its request.
     pub fn request_timeout(detail: impl Into<String>) -> Self {
-        Self::new(
-            StatusCode::REQUEST_TIMEOUT,
-            "timeout",
-            "Request timeout",
-            detail,
-        )
+        Self::new(Kind::Timeout, detail)
+    }
+
+    /// 501: a request feature accelcal does not implement.
+    pub fn not_implemented(detail: impl Into<String>) -> Self {
+        Self::new(Kind::NotImplemented, detail)
     }
 
     /// 503 with `Retry-After`.
     pub fn unavailable(detail: impl Into<String>, retry_after: u32) -> Self {
-        Problem {
-            retry_after: Some(retry_after),
-            ..Self::new(
-                StatusCode::SERVICE_UNAVAILABLE,
-                "unavailable",
-                "Service unavailable",
-                detail,
-            )
-        }
+        Self::new(Kind::Unavailable, detail).retry_after(retry_after)
     }
 
     /// 500: a fault of accelcal's own; the detail stays in the log.
     pub fn internal() -> Self {
         Self::new(
-            StatusCode::INTERNAL_SERVER_ERROR,
-            "internal",
-            "Internal error",
+            Kind::Internal,
             "an internal error occurred; it has been logged with this request's id",
         )
     }
 
     /// The problem as a JSON document, with an optional request id.
     pub fn to_json(&self, request_id: Option<&str>) -> Vec<u8> {
-        serde_json::to_vec(&Body {
-            kind: format!("urn:accelcal:problem:{}", self.kind),
-            title: self.title,
+        let fields = self.fields.as_deref();
+        serde_json::to_vec(&ProblemBody {
+            kind: format!("urn:accelcal:problem:{}", self.kind.name()),
+            title: self.kind.title(),
             status: self.status.as_u16(),
             detail: &self.detail,
-            errors: &self.errors,
-            parameter: self.parameter.as_deref(),
+            errors: fields.map_or(&[], |f| f.errors.as_slice()),
+            errors_omitted: fields.map_or(0, |f| f.errors_omitted),
+            parameter: fields.and_then(|f| f.parameter.as_deref()),
             request_id,
         })
-        .expect("problem serialises")
+        .unwrap_or_default()
     }
 
     /// The response for this problem, with the request id in its body.
@@ -226,20 +351,65 @@ impl IntoResponse for Problem {
 impl From<StoreError> for Problem {
     fn from(e: StoreError) -> Self {
         match e {
-            StoreError::Unavailable(why) => {
-                tracing::warn!(error = %why, "storage unavailable");
+            StoreError::Unavailable(_) => {
+                tracing::warn!(error = %e.chain(), "storage unavailable");
                 Problem::unavailable("the database is unavailable; retry shortly", 2)
             }
-            StoreError::Corrupt(why) => {
-                tracing::error!(error = %why, "stored data failed to decode");
+            _ => {
+                tracing::error!(error = %e.chain(), "storage fault");
                 Problem::internal()
             }
         }
     }
 }
 
-impl From<Vec<FieldError>> for Problem {
-    fn from(errors: Vec<FieldError>) -> Self {
-        Problem::validation(errors)
+impl From<Invalid> for Problem {
+    fn from(invalid: Invalid) -> Self {
+        Problem::validation(invalid)
+    }
+}
+
+impl From<BodyError> for Problem {
+    fn from(e: BodyError) -> Self {
+        match e {
+            BodyError::Syntax(m) => {
+                Problem::bad_request(format!("the body is not valid JSON: {m}"))
+            }
+            BodyError::Invalid(i) => Problem::validation(i),
+        }
+    }
+}
+
+impl From<Refused> for Problem {
+    fn from(e: Refused) -> Self {
+        match e {
+            Refused::Unreadable(u) => Problem::bad_request(u.to_string()),
+            Refused::Invalid(i) => Problem::validation(i),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_kind_is_documented_in_the_readme() {
+        let readme = include_str!("../../README.md");
+        for kind in Kind::ALL {
+            let row = format!("| `{}` | {} |", kind.name(), kind.status().as_u16());
+            assert!(readme.contains(&row), "README's problem table lacks {row}");
+        }
+    }
+
+    #[test]
+    fn problems_are_small_and_carry_their_fields() {
+        assert!(std::mem::size_of::<Problem>() <= 64);
+        let p = Problem::bad_parameter(&"q".repeat(500), "is not known here");
+        let doc: serde_json::Value = serde_json::from_slice(&p.to_json(Some("id-1"))).unwrap();
+        assert_eq!(doc["type"], "urn:accelcal:problem:malformed");
+        assert!(doc["parameter"].as_str().unwrap().chars().count() <= 65);
+        assert_eq!(doc["request_id"], "id-1");
+        assert!(doc.get("errors").is_none());
     }
 }

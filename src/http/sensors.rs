@@ -1,101 +1,230 @@
-//! Sensors: listing, history, coefficients for control systems, compensation.
+//! Sensors: listing (by status), one sensor, assigning its type, history.
 
-use accelcal_core::{Compensator, TermMap};
 use axum::Json;
-use axum::extract::{Path, RawQuery, State};
-use serde::Serialize;
-use serde_json::value::RawValue;
+use axum::extract::{Path, State};
+use serde::Deserialize;
+use utoipa::{IntoParams, ToSchema};
 use uuid::Uuid;
 
 use super::AppState;
-use super::extract::{Body, Params};
+use super::auth::require;
+use super::body::Body;
 use super::page::Page;
 use super::problem::Problem;
-use crate::auth::{Principal, Role};
-use crate::input::check::{Chars, check_str, optional};
-use crate::input::{Checker, FieldError, Ptr};
-use crate::store::{CalibrationSummary, HistoryQuery, SensorSummary};
-use crate::submission::{MAX_ID_CHARS, MAX_READING};
-use crate::timestamp::Timestamp;
-
-/// Most outputs compensated in one request.
-pub const MAX_OUTPUTS: usize = 10_000;
-/// Largest magnitude of a known `a_p` or `a_o`, in g.
-pub const MAX_CROSS_G: f64 = 100.0;
+use super::query::{Params, instant, limit};
+use crate::domain::auth::{Principal, Role};
+use crate::domain::limits::MAX_ID_CHARS;
+use crate::domain::status::Status;
+use crate::domain::text::{Chars, check_str, echo};
+use crate::domain::timestamp::Timestamp;
+use crate::store::{CalibrationSummary, HistoryQuery, SensorQuery, SensorSummary};
 
 fn unknown_sensor(sensor_id: &str) -> Problem {
-    Problem::not_found(format!("no sensor `{sensor_id}` has been calibrated"))
+    Problem::not_found(format!(
+        "no sensor `{}` has been calibrated",
+        echo(sensor_id)
+    ))
 }
 
-/// Looks a sensor up; ids that cannot be valid are simply not found.
-async fn sensor(state: &AppState, sensor_id: &str) -> Result<SensorSummary, Problem> {
+/// Looks a sensor up (its status as of now); ids that cannot be valid are
+/// simply not found.
+pub(crate) async fn sensor(state: &AppState, sensor_id: &str) -> Result<SensorSummary, Problem> {
     if check_str(sensor_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
         return Err(unknown_sensor(sensor_id));
     }
     state
         .store
-        .sensor(sensor_id.to_owned())
+        .sensor(sensor_id.to_owned(), Timestamp::now())
         .await?
         .ok_or_else(|| unknown_sensor(sensor_id))
 }
 
+/// The query of `GET /v1/sensors`.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct SensorListQuery {
+    /// Page size.
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 500, default = 50)]
+    limit: Option<String>,
+    /// The `next` cursor of the previous page (the last sensor id it held).
+    #[param(value_type = Option<crate::domain::schema::Identifier>)]
+    after: Option<String>,
+    /// Only sensors of this status: `failed`, `overdue`, `due_soon`, `ok`
+    /// or `unknown`.
+    #[param(value_type = Option<Status>)]
+    status: Option<String>,
+    /// Only sensors whose id contains this text (ASCII case-insensitive;
+    /// 1–64 characters of `[A-Za-z0-9._:-]`).
+    #[param(value_type = Option<String>, min_length = 1, max_length = 64, pattern = "^[A-Za-z0-9._:-]{1,64}$")]
+    search: Option<String>,
+}
+
+impl SensorListQuery {
+    /// The store query of one page (one more than `limit`, to know whether
+    /// another page follows), and the page size.
+    pub(crate) fn store_query(self) -> Result<(SensorQuery, usize), Problem> {
+        let limit = limit(self.limit.as_deref())?;
+        let after = self
+            .after
+            .map(|a| {
+                check_str(&a, MAX_ID_CHARS, Chars::Identifier)
+                    .map(|()| a)
+                    .map_err(|e| {
+                        Problem::bad_parameter("after", format!("is not a sensor id: it {e}"))
+                    })
+            })
+            .transpose()?;
+        let status = self
+            .status
+            .map(|s| {
+                Status::parse(&s).ok_or_else(|| {
+                    Problem::bad_parameter(
+                        "status",
+                        "must be one of failed, overdue, due_soon, ok, unknown",
+                    )
+                })
+            })
+            .transpose()?;
+        let search = self
+            .search
+            .map(|s| {
+                let plain = (1..=MAX_ID_CHARS).contains(&s.chars().count())
+                    && s.chars()
+                        .all(|c| c.is_ascii_alphanumeric() || matches!(c, '.' | '_' | ':' | '-'));
+                if plain {
+                    Ok(s)
+                } else {
+                    Err(Problem::bad_parameter(
+                        "search",
+                        format!("must be 1–{MAX_ID_CHARS} characters of A–Z, a–z, 0–9, `.`, `_`, `:`, `-`"),
+                    ))
+                }
+            })
+            .transpose()?;
+        Ok((
+            SensorQuery {
+                after,
+                status,
+                search,
+                now: Timestamp::now(),
+                limit: limit + 1,
+            },
+            limit,
+        ))
+    }
+}
+
 /// `GET /v1/sensors`: sensors in id order, keyset-paginated.
+#[utoipa::path(
+    get,
+    path = "/v1/sensors",
+    tag = "sensors",
+    operation_id = "listSensors",
+    summary = "Sensors in id order with calibration count and latest fused coefficients.",
+    params(SensorListQuery),
+    responses(
+        (status = 200, description = "One page.", body = super::openapi::SensorPageSchema),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn list(
     State(state): State<AppState>,
     principal: Principal,
-    RawQuery(query): RawQuery,
+    Params(q): Params<SensorListQuery>,
 ) -> Result<Json<Page<SensorSummary>>, Problem> {
-    principal.require(Role::Reader)?;
-    let params = Params::parse(query.as_deref(), &["limit", "after"])?;
-    let limit = params.limit()?;
-    let after = params
-        .get("after")
-        .map(|a| {
-            check_str(a, MAX_ID_CHARS, Chars::Identifier)
-                .map(|()| a.to_owned())
-                .map_err(|e| Problem::bad_parameter("after", format!("is not a sensor id: it {e}")))
-        })
-        .transpose()?;
-    let items = state.store.sensors(after, limit + 1).await?;
+    require(&principal, Role::Reader)?;
+    let (query, limit) = q.store_query()?;
+    let items = state.store.sensors(query).await?;
     Ok(Json(Page::from_overfetch(items, limit, |s| {
         s.sensor_id.clone()
     })))
 }
 
 /// `GET /v1/sensors/{sensor_id}`.
+#[utoipa::path(
+    get,
+    path = "/v1/sensors/{sensor_id}",
+    tag = "sensors",
+    operation_id = "getSensor",
+    summary = "One sensor.",
+    params(super::openapi::SensorIdPath),
+    responses(
+        (status = 200, description = "The sensor.", body = SensorSummary),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn get(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
 ) -> Result<Json<SensorSummary>, Problem> {
-    principal.require(Role::Reader)?;
+    require(&principal, Role::Reader)?;
     Ok(Json(sensor(&state, &sensor_id).await?))
 }
 
-fn time_param(params: &Params, name: &str) -> Result<Option<Timestamp>, Problem> {
-    params
-        .get(name)
-        .map(|s| Timestamp::parse(s).map_err(|e| Problem::bad_parameter(name, e)))
-        .transpose()
+/// The query of `GET /v1/sensors/{sensor_id}/calibrations`.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct HistoryParams {
+    /// Only calibrations performed at or after this instant (RFC 3339).
+    #[param(value_type = Option<String>, format = DateTime)]
+    from: Option<String>,
+    /// Only calibrations performed at or before this instant (RFC 3339);
+    /// `from` after `to` gives an empty page.
+    #[param(value_type = Option<String>, format = DateTime)]
+    to: Option<String>,
+    /// Page size.
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 500, default = 50)]
+    limit: Option<String>,
+    /// The `next` cursor of the previous page (the last calibration id it
+    /// held); 404 when it is not a calibration of this sensor.
+    #[param(value_type = Option<String>, format = Uuid)]
+    after: Option<String>,
 }
 
 /// `GET /v1/sensors/{sensor_id}/calibrations`: newest `performed_at` first,
 /// optionally within `from`..=`to` (an empty range gives an empty page),
 /// keyset-paginated by calibration id.
+#[utoipa::path(
+    get,
+    path = "/v1/sensors/{sensor_id}/calibrations",
+    tag = "sensors",
+    operation_id = "listSensorCalibrations",
+    summary = "A sensor's calibrations, newest performed_at first.",
+    params(super::openapi::SensorIdPath, HistoryParams),
+    responses(
+        (status = 200, description = "One page.", body = super::openapi::CalibrationPageSchema),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
 pub async fn history(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
-    RawQuery(query): RawQuery,
+    Params(q): Params<HistoryParams>,
 ) -> Result<Json<Page<CalibrationSummary>>, Problem> {
-    principal.require(Role::Reader)?;
-    let params = Params::parse(query.as_deref(), &["from", "to", "limit", "after"])?;
-    let limit = params.limit()?;
-    let (from, to) = (time_param(&params, "from")?, time_param(&params, "to")?);
-    let before = params
-        .get("after")
+    require(&principal, Role::Reader)?;
+    let limit = limit(q.limit.as_deref())?;
+    let (from, to) = (
+        instant("from", q.from.as_deref())?,
+        instant("to", q.to.as_deref())?,
+    );
+    let before = q
+        .after
         .map(|a| {
-            Uuid::try_parse(a)
+            Uuid::try_parse(&a)
                 .map_err(|_| Problem::bad_parameter("after", "must be a calibration id (UUID)"))
         })
         .transpose()?;
@@ -120,149 +249,62 @@ pub async fn history(
     })))
 }
 
-/// What a control system loads: the fused coefficients of one calibration.
-#[derive(Debug, Serialize)]
-pub struct Coefficients {
-    sensor_id: String,
-    calibration_id: Uuid,
-    performed_at: String,
-    unit: String,
-    model: Box<RawValue>,
-    coefficients: Box<RawValue>,
-    std_errors: Box<RawValue>,
+/// The body of `PUT /v1/sensors/{sensor_id}`.
+#[derive(Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct SensorUpdate {
+    /// The sensor type to assign (it must exist); it applies to the
+    /// sensor's next calibrations, never to stored ones.
+    #[schema(value_type = crate::domain::schema::Identifier)]
+    sensor_type: String,
 }
 
-impl From<CalibrationSummary> for Coefficients {
-    fn from(c: CalibrationSummary) -> Self {
-        Coefficients {
-            sensor_id: c.sensor_id,
-            calibration_id: c.id,
-            performed_at: c.performed_at,
-            unit: c.unit,
-            model: c.model,
-            coefficients: c.coefficients,
-            std_errors: c.std_errors,
-        }
-    }
-}
-
-/// `GET /v1/sensors/{sensor_id}/coefficients`: the latest calibration's fused values.
-pub async fn coefficients(
-    State(state): State<AppState>,
-    principal: Principal,
-    Path(sensor_id): Path<String>,
-) -> Result<Json<Coefficients>, Problem> {
-    principal.require(Role::Reader)?;
-    Ok(Json(sensor(&state, &sensor_id).await?.latest.into()))
-}
-
-/// The answer of a compensation.
-#[derive(Debug, Serialize)]
-pub struct Compensated {
-    sensor_id: String,
-    calibration_id: Uuid,
-    unit: String,
-    a_i: Vec<f64>,
-}
-
-/// `POST /v1/sensors/{sensor_id}/compensate`: input accelerations (g) from
-/// raw outputs, with the latest calibration or the one named.
-pub async fn compensate(
+/// `PUT /v1/sensors/{sensor_id}` (admin): assigns a sensor type.
+#[utoipa::path(
+    put,
+    path = "/v1/sensors/{sensor_id}",
+    tag = "sensors",
+    operation_id = "updateSensor",
+    summary = "Assign a sensor type (admin); it applies to the next calibrations.",
+    params(super::openapi::SensorIdPath),
+    request_body(content((SensorUpdate = "application/json"))),
+    responses(
+        (status = 200, description = "The sensor.", body = SensorSummary),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 415, response = super::openapi::UnsupportedMediaType),
+        (status = 422, response = super::openapi::Invalid),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
+pub async fn update(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
     body: Body,
-) -> Result<Json<Compensated>, Problem> {
-    principal.require(Role::Reader)?;
-    let value = body.json()?;
-    let root = Ptr::root();
-    let mut c = Checker::new();
-    let Some(map) = c.object(&value, &root, &["outputs", "a_p", "a_o", "calibration_id"]) else {
-        return Err(c.finish().unwrap_err().into());
-    };
-    let numbers =
-        |c: &mut Checker, key: &str, bound: f64, len: Option<usize>| -> Option<Vec<f64>> {
-            let v = optional(map, key)?;
-            let p = root.key(key);
-            let items = c.array(v, &p, 1, MAX_OUTPUTS)?;
-            if let Some(n) = len.filter(|n| *n != items.len()) {
-                c.error(
-                    &p,
-                    format!("must hold one value per output ({n}), not {}", items.len()),
-                );
-                return None;
-            }
-            let xs: Vec<f64> = items
-                .iter()
-                .enumerate()
-                .filter_map(|(k, x)| c.number(x, &p.index(k), bound))
-                .collect();
-            (xs.len() == items.len()).then_some(xs)
-        };
-    if optional(map, "outputs").is_none() {
-        c.error(&root.key("outputs"), "is required");
+) -> Result<Json<SensorSummary>, Problem> {
+    require(&principal, Role::Admin)?;
+    let update: SensorUpdate = body.json()?;
+    sensor(&state, &sensor_id).await?;
+    let type_id = update.sensor_type;
+    if check_str(&type_id, MAX_ID_CHARS, Chars::Identifier).is_err()
+        || state.store.sensor_type(type_id.clone()).await?.is_none()
+    {
+        return Err(Problem::validation(crate::domain::field::Invalid::one(
+            "/sensor_type",
+            format!("no sensor type `{}`", echo(&type_id)),
+        )));
     }
-    let outputs = numbers(&mut c, "outputs", MAX_READING, None);
-    let n = outputs.as_ref().map(Vec::len);
-    let a_p = numbers(&mut c, "a_p", MAX_CROSS_G, n);
-    let a_o = numbers(&mut c, "a_o", MAX_CROSS_G, n);
-    let calibration_id = optional(map, "calibration_id").and_then(|v| {
-        let p = root.key("calibration_id");
-        match v.as_str().map(Uuid::try_parse) {
-            Some(Ok(id)) => Some(id),
-            _ => {
-                c.error(&p, "must be a calibration id (UUID)");
-                None
-            }
-        }
-    });
-    c.finish()?;
-    let outputs = outputs.expect("checked");
-
-    let summary = match calibration_id {
-        None => sensor(&state, &sensor_id).await?.latest,
-        Some(id) => state
-            .store
-            .calibration_summary(id)
-            .await?
-            .filter(|s| s.sensor_id == sensor_id)
-            .ok_or_else(|| {
-                Problem::not_found(format!("sensor `{sensor_id}` has no calibration `{id}`"))
-            })?,
-    };
-    let coefficients: TermMap<f64> =
-        serde_json::from_str(summary.coefficients.get()).map_err(|e| {
-            crate::store::StoreError::Corrupt(format!("coefficients of {}: {e}", summary.id))
-        })?;
-    let comp = Compensator::new(&coefficients).map_err(|e| {
-        Problem::validation(vec![FieldError {
-            pointer: root.key("calibration_id").to_string(),
-            detail: format!("calibration {} cannot be used: {e}", summary.id),
-        }])
-    })?;
-    let mut errors = Vec::new();
-    let a_i: Vec<f64> = outputs
-        .iter()
-        .enumerate()
-        .map(|(k, u)| {
-            let ap = a_p.as_ref().map_or(0.0, |v| v[k]);
-            let ao = a_o.as_ref().map_or(0.0, |v| v[k]);
-            comp.input(*u, ap, ao).unwrap_or_else(|e| {
-                errors.push(FieldError {
-                    pointer: root.key("outputs").index(k).to_string(),
-                    detail: e.to_string(),
-                });
-                f64::NAN
-            })
-        })
-        .collect();
-    if !errors.is_empty() {
-        return Err(Problem::validation(errors));
+    if !state
+        .store
+        .assign_sensor_type(sensor_id.clone(), type_id.clone())
+        .await?
+    {
+        return Err(unknown_sensor(&sensor_id));
     }
-    Ok(Json(Compensated {
-        sensor_id,
-        calibration_id: summary.id,
-        unit: summary.unit,
-        a_i,
-    }))
+    tracing::info!(sensor_id = %sensor_id, sensor_type = %type_id, by = %principal.id, "sensor type assigned");
+    Ok(Json(sensor(&state, &sensor_id).await?))
 }

@@ -1,184 +1,35 @@
-//! Storage of calibrations and tokens behind one engine-agnostic trait.
+//! Storage of calibrations, sensors, tokens and idempotency keys behind one
+//! engine-agnostic trait.
 //!
 //! Handlers see only [`Store`]; each engine (SQLite today, see
 //! [`sqlite::SqliteStore`]) implements it and runs the shared conformance
 //! tests in `tests/store.rs`. Failures of the database itself — locked, gone,
 //! read-only, full — are [`StoreError::Unavailable`], which the HTTP layer
-//! answers with a retryable 503.
+//! answers with a retryable 503. A new engine goes in a folder of its own
+//! beside `sqlite/`, with its migrations, one file per concern, and one line
+//! in [`open`].
 
+pub mod copy;
+mod error;
+pub mod postgres;
+mod records;
 pub mod sqlite;
 
+use std::sync::Arc;
+
 use async_trait::async_trait;
-use serde::Serialize;
-use serde_json::value::RawValue;
 use uuid::Uuid;
 
-use crate::auth::Role;
-use crate::timestamp::Timestamp;
+pub use error::{BoxError, StoreError};
+pub use records::*;
 
-/// Why a storage operation failed.
-#[derive(Debug, thiserror::Error)]
-pub enum StoreError {
-    /// The database cannot be used right now (busy, locked, missing,
-    /// read-only, full, I/O error). Retryable.
-    #[error("database unavailable: {0}")]
-    Unavailable(String),
-    /// Stored data does not decode: a bug or tampering, not retryable.
-    #[error("stored data is inconsistent: {0}")]
-    Corrupt(String),
-}
-
-/// Everything stored for one calibration, written in one transaction.
-#[derive(Debug, Clone)]
-pub struct NewCalibration {
-    /// UUIDv7.
-    pub id: Uuid,
-    /// The sensor.
-    pub sensor_id: String,
-    /// The submitting station, if known.
-    pub station_id: Option<String>,
-    /// When the test was performed.
-    pub performed_at: Timestamp,
-    /// When accelcal received it.
-    pub received_at: Timestamp,
-    /// Output unit.
-    pub unit: String,
-    /// The model, as a JSON array.
-    pub model: String,
-    /// Number of runs.
-    pub runs: usize,
-    /// Fused coefficients, a JSON object.
-    pub coefficients: String,
-    /// Fused standard errors, a JSON object.
-    pub std_errors: String,
-    /// The whole result document (what `GET /v1/calibrations/{id}` returns).
-    pub result: String,
-    /// The submitted body, byte for byte.
-    pub submission: Vec<u8>,
-    /// The submitted body's media type.
-    pub content_type: String,
-    /// The principal that submitted it.
-    pub submitted_by: String,
-}
-
-/// A submitted body as stored.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct StoredSubmission {
-    /// Media type it was sent with.
-    pub content_type: String,
-    /// The bytes.
-    pub body: Vec<u8>,
-}
-
-/// A calibration without its per-run detail: what lists and control systems need.
-#[derive(Debug, Clone, Serialize)]
-pub struct CalibrationSummary {
-    /// Calibration id.
-    pub id: Uuid,
-    /// The sensor.
-    pub sensor_id: String,
-    /// The submitting station, if known.
-    pub station_id: Option<String>,
-    /// When the test was performed (canonical UTC).
-    pub performed_at: String,
-    /// When accelcal received it (canonical UTC).
-    pub received_at: String,
-    /// Output unit.
-    pub unit: String,
-    /// Model terms.
-    pub model: Box<RawValue>,
-    /// Number of runs.
-    pub runs: usize,
-    /// Fused coefficients.
-    pub coefficients: Box<RawValue>,
-    /// Fused standard errors.
-    pub std_errors: Box<RawValue>,
-}
-
-/// A sensor with its calibration count and latest calibration.
-#[derive(Debug, Clone, Serialize)]
-pub struct SensorSummary {
-    /// The sensor.
-    pub sensor_id: String,
-    /// Number of stored calibrations.
-    pub calibration_count: u64,
-    /// Earliest `performed_at`.
-    pub first_performed_at: String,
-    /// Latest `performed_at`.
-    pub latest_performed_at: String,
-    /// The calibration with the latest `performed_at` (ties: the later id).
-    pub latest: CalibrationSummary,
-}
-
-/// Which calibrations of a sensor to list, newest first.
-#[derive(Debug, Clone, Default)]
-pub struct HistoryQuery {
-    /// Only those performed at or after this instant.
-    pub from: Option<Timestamp>,
-    /// Only those performed at or before this instant.
-    pub to: Option<Timestamp>,
-    /// Keyset cursor: only calibrations after this one in the list's order
-    /// (older `performed_at`, or equal and smaller id).
-    pub before: Option<Uuid>,
-    /// Page size.
-    pub limit: usize,
-}
-
-/// A stored token (never its secret).
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct TokenRecord {
-    /// Token id.
-    pub id: Uuid,
-    /// `SHA-256(secret)`.
-    pub secret_hash: Vec<u8>,
-    /// Role.
-    pub role: Role,
-    /// Bound station.
-    pub station_id: Option<String>,
-    /// Free-text label.
-    pub label: Option<String>,
-    /// Creation time (canonical UTC).
-    pub created_at: String,
-    /// Revocation time, if revoked.
-    pub revoked_at: Option<String>,
-}
-
-/// An idempotency key as scoped and fingerprinted by the server.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct IdempotencyKey {
-    /// The principal (token id) that sent it.
-    pub principal: String,
-    /// The client's key.
-    pub key: String,
-    /// `SHA-256` of the request's media type and body.
-    pub request_hash: [u8; 32],
-}
+use crate::domain::sensor_types::SensorType;
+use crate::domain::session::SessionRecord;
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::TokenRecord;
 
 /// How long idempotency keys are kept, in seconds (at least 24 h promised).
 pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
-
-/// What claiming an idempotency key found.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Claim {
-    /// The key is new (or its previous holder's lease expired): go ahead.
-    Fresh,
-    /// The same request is being processed under this key right now.
-    InFlight,
-    /// The key was used with a different request.
-    Mismatch,
-    /// The same request already stored this calibration.
-    Done(Uuid),
-}
-
-/// What storing a calibration under an idempotency key did.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub enum Stored {
-    /// The calibration was stored.
-    New,
-    /// A concurrent request with the same key stored this one first; nothing
-    /// new was stored.
-    Existing(Uuid),
-}
 
 /// The storage operations accelcal needs; one implementation per engine.
 #[async_trait]
@@ -187,7 +38,8 @@ pub trait Store: Send + Sync + 'static {
     async fn ping(&self) -> Result<(), StoreError>;
     /// Stores a calibration and updates its sensor, atomically and durably;
     /// with a key, also records the key as done in the same transaction
-    /// (unless another request completed the key first).
+    /// (unless another request completed the key first). Refuses a record
+    /// holding a non-finite number ([`NewCalibration::check`]).
     async fn insert_calibration(
         &self,
         c: NewCalibration,
@@ -201,29 +53,58 @@ pub trait Store: Send + Sync + 'static {
         now: Timestamp,
         lease_until: Timestamp,
     ) -> Result<Claim, StoreError>;
-    /// Gives up a claimed key whose request stored nothing.
-    async fn release_key(&self, principal: String, key: String) -> Result<(), StoreError>;
-    /// The result document of a calibration.
-    async fn calibration_result(&self, id: Uuid) -> Result<Option<String>, StoreError>;
+    /// Gives up a claimed key whose request stored nothing — unless another
+    /// request has since taken the lease over (`key.holder` no longer holds it).
+    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError>;
+    /// The result document of a calibration (JSON, as answered when stored).
+    async fn calibration_result(&self, id: Uuid) -> Result<Option<bytes::Bytes>, StoreError>;
     /// The submitted body of a calibration.
     async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError>;
     /// The summary of a calibration.
     async fn calibration_summary(&self, id: Uuid)
     -> Result<Option<CalibrationSummary>, StoreError>;
-    /// Sensors in `sensor_id` order, strictly after `after`.
-    async fn sensors(
+    /// Sensors in `sensor_id` order, strictly after `after`, of a status.
+    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError>;
+    /// One sensor, its status computed at `now`.
+    async fn sensor(
         &self,
-        after: Option<String>,
-        limit: usize,
-    ) -> Result<Vec<SensorSummary>, StoreError>;
-    /// One sensor.
-    async fn sensor(&self, sensor_id: String) -> Result<Option<SensorSummary>, StoreError>;
+        sensor_id: String,
+        now: Timestamp,
+    ) -> Result<Option<SensorSummary>, StoreError>;
     /// A sensor's calibrations, newest `performed_at` first.
     async fn history(
         &self,
         sensor_id: String,
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError>;
+    /// A sensor's calibrations performed within `from..=to`, oldest first
+    /// (ties by id): the series of its stability.
+    async fn series(
+        &self,
+        sensor_id: String,
+        from: Option<Timestamp>,
+        to: Option<Timestamp>,
+    ) -> Result<Vec<CalibrationSummary>, StoreError>;
+    /// The sensor's calibration with the latest `performed_at` strictly
+    /// before `before` (ties: the larger id).
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError>;
+    /// Creates or replaces a sensor type; true when it was created.
+    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError>;
+    /// One sensor type.
+    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
+    /// Every sensor type, in id order.
+    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError>;
+    /// Assigns an existing type to an existing sensor; false when there is
+    /// no such sensor.
+    async fn assign_sensor_type(
+        &self,
+        sensor_id: String,
+        type_id: String,
+    ) -> Result<bool, StoreError>;
     /// Stores a new token.
     async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError>;
     /// One token by id.
@@ -234,21 +115,63 @@ pub trait Store: Send + Sync + 'static {
     async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError>;
     /// Whether an unrevoked admin token exists.
     async fn has_admin_token(&self) -> Result<bool, StoreError>;
+    /// Opens a web session, forgetting every session expired by its
+    /// `created_at`.
+    async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError>;
+    /// One session by the hash of its id (expired or not: the caller judges).
+    async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError>;
+    /// Ends a session; false when there was none.
+    async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError>;
+    /// Whether the database holds no calibration, token or sensor type.
+    async fn is_empty(&self) -> Result<bool, StoreError>;
+    /// Whole calibrations in id order, after `after` (for `accelcal migrate`).
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError>;
+    /// Completed idempotency keys created at or after `since`.
+    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError>;
+    /// Stores a completed idempotency key (its calibration stored first).
+    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError>;
     /// Flushes and closes (at shutdown).
     async fn close(&self);
 }
 
-/// Opens the database named by a URL: `sqlite://PATH`, `sqlite:PATH` or a
-/// plain file path (SQLite).
-pub fn open(url: &str) -> Result<std::sync::Arc<dyn Store>, StoreError> {
+/// Records one storage operation's latency in
+/// `accelcal_storage_operation_duration_seconds{operation, outcome}`, the
+/// outcome being `ok`, `unavailable` (the database), `constraint`, `corrupt`
+/// or `refused`. Every engine calls it.
+pub fn observe<T>(
+    operation: &'static str,
+    started: std::time::Instant,
+    out: &Result<T, StoreError>,
+) {
+    let outcome = match out {
+        Ok(_) => "ok",
+        Err(StoreError::Unavailable(_)) => "unavailable",
+        Err(StoreError::Constraint(_)) => "constraint",
+        Err(StoreError::Corrupt { .. }) => "corrupt",
+        Err(StoreError::Refused(_)) => "refused",
+    };
+    metrics::histogram!(
+        "accelcal_storage_operation_duration_seconds",
+        "operation" => operation,
+        "outcome" => outcome
+    )
+    .record(started.elapsed().as_secs_f64());
+}
+
+/// Opens the database named by a URL — `postgres://…` or `postgresql://…`
+/// (PostgreSQL), `sqlite://PATH`, `sqlite:PATH` or a plain file path
+/// (SQLite) — and brings its schema up to date.
+pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
     if url.starts_with("postgres://") || url.starts_with("postgresql://") {
-        return Err(StoreError::Unavailable(
-            "PostgreSQL is not supported by this build; use a SQLite path".into(),
-        ));
+        return Ok(Arc::new(postgres::PostgresStore::open(url).await?));
     }
     let path = url
         .strip_prefix("sqlite://")
         .or_else(|| url.strip_prefix("sqlite:"))
         .unwrap_or(url);
-    Ok(std::sync::Arc::new(sqlite::SqliteStore::open(path)?))
+    Ok(Arc::new(sqlite::SqliteStore::open(path)?))
 }

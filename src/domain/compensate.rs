@@ -1,0 +1,114 @@
+//! `POST /v1/sensors/{sensor_id}/compensate`: input accelerations from raw
+//! outputs, inverting a stored calibration's model.
+
+use accelcal_core::{Compensator, TermMap};
+use serde::{Deserialize, Serialize};
+use uuid::Uuid;
+
+use super::field::{Errors, Invalid, Loc};
+use super::limits::{MAX_CROSS_G, MAX_OUTPUTS, MAX_READING};
+
+/// The body of a compensation request.
+#[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct CompensateRequest {
+    /// Raw outputs, in the calibration's unit (1 to 10 000, each of
+    /// magnitude at most 1e9).
+    #[schema(schema_with = crate::domain::schema::outputs)]
+    pub outputs: Vec<f64>,
+    /// Known `a_p` (g), one per output; default 0.
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::cross_axis)]
+    pub a_p: Option<Vec<f64>>,
+    /// Known `a_o` (g), one per output; default 0.
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::cross_axis)]
+    pub a_o: Option<Vec<f64>>,
+    /// Use this calibration of the sensor instead of the latest.
+    #[serde(default)]
+    pub calibration_id: Option<Uuid>,
+}
+
+/// The answer of a compensation.
+#[derive(Debug, Clone, Serialize, utoipa::ToSchema)]
+#[schema(as = CompensateResult)]
+pub struct Compensated {
+    /// The sensor.
+    pub sensor_id: String,
+    /// The calibration whose model was inverted.
+    pub calibration_id: Uuid,
+    /// The outputs' unit.
+    pub unit: String,
+    /// One input acceleration (g) per output.
+    pub a_i: Vec<f64>,
+}
+
+impl CompensateRequest {
+    /// Checks sizes and ranges; every problem is reported.
+    pub fn check(self) -> Result<CompensateRequest, Invalid> {
+        let root = Loc::Root;
+        let mut errors = Errors::default();
+        let n = self.outputs.len();
+        let mut numbers = |key: &'static str, xs: &[f64], bound: f64, len: Option<usize>| {
+            let at = root.key(key);
+            if !(1..=MAX_OUTPUTS).contains(&xs.len()) {
+                errors.add(
+                    at,
+                    format!("must hold 1 to {MAX_OUTPUTS} values, not {}", xs.len()),
+                );
+                return;
+            }
+            if let Some(n) = len.filter(|n| *n != xs.len()) {
+                errors.add(
+                    at,
+                    format!("must hold one value per output ({n}), not {}", xs.len()),
+                );
+                return;
+            }
+            for (k, x) in xs.iter().enumerate() {
+                if x.abs() > bound {
+                    errors.add(
+                        at.index(k),
+                        format!("must be of magnitude at most {bound:e}"),
+                    );
+                }
+            }
+        };
+        numbers("outputs", &self.outputs, MAX_READING, None);
+        if let Some(v) = &self.a_p {
+            numbers("a_p", v, MAX_CROSS_G, Some(n));
+        }
+        if let Some(v) = &self.a_o {
+            numbers("a_o", v, MAX_CROSS_G, Some(n));
+        }
+        errors.finish(|| self)
+    }
+
+    /// The input acceleration for every output, with `coefficients` (a
+    /// stored calibration's fused values, `id` naming it in messages).
+    pub fn compensate(&self, coefficients: &TermMap<f64>, id: Uuid) -> Result<Vec<f64>, Invalid> {
+        let root = Loc::Root;
+        let comp = Compensator::new(coefficients).map_err(|e| {
+            Invalid::one(
+                root.key("calibration_id"),
+                format!("calibration {id} cannot be used: {e}"),
+            )
+        })?;
+        let mut errors = Errors::default();
+        let outputs_at = root.key("outputs");
+        let a_i = self
+            .outputs
+            .iter()
+            .enumerate()
+            .map(|(k, u)| {
+                let ap = self.a_p.as_ref().map_or(0.0, |v| v[k]);
+                let ao = self.a_o.as_ref().map_or(0.0, |v| v[k]);
+                comp.input(*u, ap, ao).unwrap_or_else(|e| {
+                    errors.add(outputs_at.index(k), e.to_string());
+                    0.0
+                })
+            })
+            .collect();
+        errors.finish(|| a_i)
+    }
+}

@@ -1,0 +1,55 @@
+//! The limits the API promises (see README "Limits" and `openapi.yaml`, which
+//! is generated from these constants).
+
+use std::ops::RangeInclusive;
+
+/// Longest identifier (`sensor_id`, `station_id`, `sensor_type`), in characters.
+pub const MAX_ID_CHARS: usize = 64;
+/// Longest `unit`.
+pub const MAX_UNIT_CHARS: usize = 32;
+/// Longest position or token label.
+pub const MAX_LABEL_CHARS: usize = 64;
+/// Longest `notes`.
+pub const MAX_NOTES_CHARS: usize = 4096;
+/// Most positions in one tumble.
+pub const MAX_POSITIONS: usize = 360;
+/// Most runs in one submission.
+pub const MAX_RUNS: usize = 1000;
+/// Most samples at one position of one run.
+pub const MAX_SAMPLES: usize = 1000;
+/// Most samples in one submission, over all runs and positions.
+pub const MAX_TOTAL_SAMPLES: usize = 200_000;
+/// Most fusion batches.
+pub const MAX_BATCHES: u64 = 100;
+/// Fusion batches when a request names none (the paper's two batches).
+pub const DEFAULT_BATCHES: u64 = 2;
+/// Largest magnitude of a reading (and of a value given to `/v1/fuse`), in
+/// the output's unit.
+pub const MAX_READING: f64 = 1e9;
+/// Largest magnitude of a dividing-head angle, in degrees.
+pub const MAX_ANGLE_DEG: f64 = 3600.0;
+/// Largest magnitude of one explicit gravity component, in g.
+pub const MAX_GRAVITY_COMPONENT: f64 = 10.0;
+/// Accepted norm of explicit gravity components: a tumble in the 1 g field.
+pub const GRAVITY_NORM: RangeInclusive<f64> = 0.9..=1.1;
+/// How far in the future `performed_at` may lie (clock skew), in seconds;
+/// it may not lie before 1970 either.
+pub const MAX_FUTURE_SECONDS: i64 = 24 * 3600;
+/// Largest indexing error a stand may declare (1σ), in arcseconds.
+pub const MAX_ANGLE_STD_ARCSEC: f64 = 3600.0;
+/// Largest relative uncertainty of gravity a stand may declare.
+pub const MAX_GRAVITY_REL_STD: f64 = 0.1;
+/// Run temperatures accepted, in °C.
+pub const TEMPERATURE_C: RangeInclusive<f64> = -100.0..=200.0;
+/// Most outputs compensated in one request.
+pub const MAX_OUTPUTS: usize = 10_000;
+/// Largest magnitude of a known `a_p` or `a_o` given to compensation, in g.
+pub const MAX_CROSS_G: f64 = 100.0;
+/// Field errors listed in one answer; the rest are counted, not listed.
+pub const MAX_LISTED_ERRORS: usize = 100;
+/// Characters of client input an error message may echo.
+pub const MAX_ECHO_CHARS: usize = 64;
+/// Default page size of lists.
+pub const DEFAULT_PAGE: usize = 50;
+/// Largest page size of lists.
+pub const MAX_PAGE: usize = 500;

@@ -1,0 +1,121 @@
+//! The metrology of one calibration, assembled from the core's pieces with
+//! what the store knows: the sensor type in force and the previous
+//! calibration. Pure: the caller looks those up.
+
+use accelcal_core::TermMap;
+use accelcal_core::decision::{Decision, decide};
+use accelcal_core::history::{PositionError, as_found};
+use accelcal_core::quality::{Quality, assess};
+use accelcal_core::temperature::{Sensitivity, sensitivity};
+use accelcal_core::uncertainty::{ARCSEC, Stand, Uncertainty, budget};
+use serde::Serialize;
+use uuid::Uuid;
+
+use super::field::{Invalid, Loc};
+use super::sensor_types::{DEFAULT_COVERAGE_FACTOR, SensorType};
+use super::submission::Evaluated;
+use super::timestamp::Timestamp;
+
+/// The sensor's previous calibration, as far as as-found needs it.
+#[derive(Debug, Clone)]
+pub struct Previous {
+    /// Its id.
+    pub id: Uuid,
+    /// Its output unit.
+    pub unit: String,
+    /// Its fused coefficients.
+    pub coefficients: TermMap<f64>,
+}
+
+/// How far the sensor had drifted since its previous calibration.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct AsFoundView {
+    /// The previous calibration (the latest earlier `performed_at`).
+    pub previous_calibration_id: Uuid,
+    /// Per position, in position order.
+    pub positions: Vec<PositionError>,
+    /// The largest `|error_g|`.
+    pub max_abs_error_g: f64,
+}
+
+/// What a lab signs beside the coefficients.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Metrology {
+    /// The uncertainty budget of every fused coefficient.
+    pub uncertainty: Uncertainty,
+    /// The decision against the sensor type's limits; none when untyped.
+    pub decision: Option<Decision>,
+    /// As found against the previous calibration, when there is one in the
+    /// same unit with a scale factor.
+    pub as_found: Option<AsFoundView>,
+    /// When the sensor is due again (typed sensors).
+    pub due_at: Option<Timestamp>,
+    /// Temperature sensitivity, when the runs were made at two or more
+    /// temperatures.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<TermMap<Sensitivity>>,
+    /// Warnings that never change a number.
+    pub quality: Quality,
+}
+
+/// The metrology of `e`, performed at `performed_at`, for the sensor type in
+/// force and the previous calibration.
+pub fn assess_calibration(
+    e: &Evaluated,
+    performed_at: Timestamp,
+    sensor_type: Option<&SensorType>,
+    previous: Option<&Previous>,
+) -> Result<Metrology, Invalid> {
+    let s = &e.submission;
+    let cal = &e.calibration;
+    let stand = s.stand.as_ref().map_or(Stand::default(), |st| Stand {
+        angle_std_rad: st.angle_std_arcsec * ARCSEC,
+        gravity_rel_std: st.gravity_rel_std,
+    });
+    let coverage = sensor_type.map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor);
+    let uncertainty = budget(
+        &s.test,
+        &cal.fused.coefficients,
+        &cal.fused.std_errors,
+        stand,
+        coverage,
+    )
+    .map_err(|err| Invalid::one(Loc::Root.key("stand"), err.to_string()))?;
+    let decision = sensor_type
+        .map(|t| {
+            decide(t.decision_rule, &t.limits, &cal.fused.coefficients, &uncertainty.expanded()).map_err(
+                |term| {
+                    Invalid::one(
+                        Loc::Root.key("model"),
+                        format!(
+                            "sensor type `{}` sets limits on `{term}`, which this model does not identify; \
+                             add `{term}` to the model",
+                            t.type_id
+                        ),
+                    )
+                },
+            )
+        })
+        .transpose()?;
+    let as_found = previous.filter(|p| p.unit == s.unit).and_then(|p| {
+        as_found(&s.test, &p.coefficients).map(|a| AsFoundView {
+            previous_calibration_id: p.id,
+            positions: a.positions,
+            max_abs_error_g: a.max_abs_error_g,
+        })
+    });
+    let due_at =
+        sensor_type.map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
+    let temperature = s
+        .temperatures_c
+        .as_ref()
+        .and_then(|t| sensitivity(&cal.runs, t));
+    Ok(Metrology {
+        uncertainty,
+        decision,
+        as_found,
+        due_at,
+        temperature,
+        quality: assess(s.test.design(), cal),
+    })
+}

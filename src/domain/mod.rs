@@ -1,0 +1,25 @@
+//! The domain: what a submission, a token and a request body are, and the
+//! rules they obey — independent of HTTP and of storage.
+//!
+//! Everything here is synchronous and free of I/O. It turns untrusted bytes
+//! (JSON, CSV, header values) into checked values, reporting every fault with
+//! the RFC 6901 pointer of the offending value ([`field`]), and holds the
+//! limits the API promises ([`limits`]). The layers above — storage, the
+//! HTTP API, the command line — import from here; nothing here imports
+//! from them.
+
+pub mod auth;
+pub mod compensate;
+pub mod field;
+pub mod fuse;
+pub mod limits;
+pub mod metrology;
+pub mod schema;
+pub mod sensor_types;
+pub mod session;
+pub mod status;
+pub mod submission;
+pub mod text;
+pub mod timestamp;
+pub mod tokens;
+pub mod typed;

@@ -1,0 +1,300 @@
+//! From a [`Draft`] to a [`Submission`]: defaults, the checks that relate
+//! fields to each other (positions and mount, readings and positions, the
+//! time against the clock), and the core's own refusals mapped to the field
+//! they concern.
+
+use accelcal_core::{
+    Error as CoreError, FusionError, Model, Mount, Position, Rotation, Run, TumbleTest,
+};
+
+use super::draft::{Draft, PositionDraft, Slot};
+use super::{PositionIn, StandIn, Submission};
+use crate::domain::field::{Errors, Invalid, Loc};
+use crate::domain::limits::{DEFAULT_BATCHES, MAX_FUTURE_SECONDS};
+use crate::domain::timestamp::Timestamp;
+
+/// Which optional fields a submission gave: where a core refusal points.
+#[derive(Debug, Clone, Copy)]
+pub struct Hints {
+    model_given: bool,
+    batches_given: bool,
+}
+
+impl Hints {
+    /// The pointer of the field a core refusal concerns.
+    pub fn pointer_of(&self, e: &CoreError) -> String {
+        let root = Loc::Root;
+        let runs = root.key("runs");
+        match e {
+            CoreError::RankDeficient { .. } if self.model_given => root.key("model").to_string(),
+            CoreError::RankDeficient { .. } | CoreError::NoPositions => {
+                root.key("positions").to_string()
+            }
+            CoreError::NonFiniteGravity { position, .. } => {
+                root.key("positions").index(*position).to_string()
+            }
+            CoreError::Fusion {
+                source: FusionError::TooFewRuns { .. },
+                ..
+            } if self.batches_given => root.key("batches").to_string(),
+            CoreError::ReadingCount { run, .. } => runs.index(*run).key("readings").to_string(),
+            CoreError::NoSamples { run, position } => runs
+                .index(*run)
+                .key("readings")
+                .index(*position)
+                .to_string(),
+            CoreError::NonFiniteSample {
+                run,
+                position,
+                sample,
+            } => runs
+                .index(*run)
+                .key("readings")
+                .index(*position)
+                .index(*sample)
+                .to_string(),
+            _ => runs.to_string(),
+        }
+    }
+
+    /// What to say about a core refusal: the refusal and what to do.
+    pub fn detail_of(&self, e: &CoreError) -> String {
+        match e {
+            CoreError::RankDeficient { terms, .. } => {
+                let names: Vec<&str> = terms.iter().map(|t| t.name()).collect();
+                format!(
+                    "{e}: drop one of {} from the model or add positions that excite them",
+                    names.join(", ")
+                )
+            }
+            CoreError::Fusion {
+                source: FusionError::TooFewRuns { batches, .. },
+                ..
+            } => format!(
+                "{e}: submit at least {} runs or ask for fewer batches",
+                2 * batches
+            ),
+            CoreError::Fusion { .. } => {
+                format!("{e}; batch estimation needs runs whose coefficients differ")
+            }
+            other => other.to_string(),
+        }
+    }
+}
+
+/// Resolves one position with the mount; `None` when wrong (recorded).
+fn position(
+    p: PositionDraft,
+    mount: Mount,
+    errors: &mut Errors,
+    at: Loc<'_>,
+) -> Option<PositionIn> {
+    let a = match (p.angle_deg, p.a) {
+        (None, None) => {
+            errors.add(
+                at,
+                "needs `angle_deg` (with the mount) or `a` (gravity components in g)",
+            );
+            return None;
+        }
+        (Some(deg), None) => mount.gravity(deg),
+        (None, Some(a)) => a,
+        (Some(deg), Some(a)) => {
+            let from_angle = mount.gravity(deg);
+            let off = a
+                .to_array()
+                .iter()
+                .zip(from_angle.to_array())
+                .map(|(x, y)| (x - y).abs())
+                .fold(0.0, f64::max);
+            if off > 1e-3 {
+                let name = serde_json::to_value(mount).ok();
+                errors.add(
+                    at.key("a"),
+                    format!(
+                        "disagrees with angle_deg {deg} on the {} mount, which gives {:?}",
+                        name.as_ref().and_then(|v| v.as_str()).unwrap_or("given"),
+                        from_angle.to_array()
+                    ),
+                );
+                return None;
+            }
+            a
+        }
+    };
+    Some(PositionIn {
+        angle_deg: p.angle_deg,
+        a,
+        label: p.label,
+    })
+}
+
+/// Checks a draft against itself and the clock, and builds the core test.
+/// Every problem is reported (the first hundred listed).
+pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invalid> {
+    let Draft {
+        sensor_id,
+        station_id,
+        performed_at,
+        unit,
+        model,
+        mount,
+        positions,
+        runs,
+        batches,
+        notes,
+        sensor_type,
+        stand,
+        mut errors,
+        not_an_object,
+    } = draft;
+    if not_an_object {
+        return Err(errors.into_invalid());
+    }
+    let root = Loc::Root;
+    let hints = Hints {
+        model_given: model.given(),
+        batches_given: batches.given(),
+    };
+    for (name, given) in [
+        ("sensor_id", sensor_id.given()),
+        ("positions", positions.given()),
+        ("runs", runs.given()),
+    ] {
+        if !given {
+            errors.add(root.key(name), "is required");
+        }
+    }
+    let performed_at = match performed_at {
+        Slot::Value(t) if t > now.plus_seconds(MAX_FUTURE_SECONDS) => {
+            errors.add(
+                root.key("performed_at"),
+                "lies more than a day in the future; check the station's clock",
+            );
+            None
+        }
+        Slot::Value(t) if t.year() < 1970 => {
+            errors.add(
+                root.key("performed_at"),
+                "lies before 1970; check the station's clock",
+            );
+            None
+        }
+        Slot::Value(t) => Some(t),
+        _ => None,
+    };
+    let mount = match mount {
+        Slot::Value(m) => Some(m),
+        Slot::Absent => Some(Mount::default()),
+        Slot::Invalid => None,
+    };
+    let positions_at = root.key("positions");
+    let n_positions = match &positions {
+        Slot::Value(p) => Some(p.len()),
+        _ => None,
+    };
+    let resolved: Option<Vec<Option<PositionIn>>> = match (positions, mount) {
+        (Slot::Value(ps), Some(mount)) => Some(
+            ps.into_iter()
+                .enumerate()
+                .map(|(i, p)| {
+                    p.and_then(|p| position(p, mount, &mut errors, positions_at.index(i)))
+                })
+                .collect(),
+        ),
+        _ => None,
+    };
+    let runs_at = root.key("runs");
+    let mut temperatures: Vec<Option<f64>> = Vec::new();
+    let runs: Option<Vec<Run>> =
+        match runs {
+            Slot::Value(rs) => {
+                let mut out = Vec::with_capacity(rs.len());
+                for (j, r) in rs.into_iter().enumerate() {
+                    let Some(r) = r else { continue };
+                    temperatures.push(r.temperature_c);
+                    match n_positions {
+                    Some(n) if n != r.readings.len() => errors.add(
+                        runs_at.index(j).key("readings"),
+                        format!(
+                            "must hold one array of samples per position: {n} positions, {} given",
+                            r.readings.len()
+                        ),
+                    ),
+                    _ => out.push(Run { readings: r.readings }),
+                }
+                }
+                Some(out)
+            }
+            _ => None,
+        };
+    // Temperatures: every run or none.
+    let temperatures_c = if temperatures.iter().all(Option::is_none) {
+        None
+    } else if let Some(j) = temperatures.iter().position(Option::is_none) {
+        errors.add(
+            runs_at.index(j).key("temperature_c"),
+            "is missing: give `temperature_c` for every run or for none",
+        );
+        None
+    } else {
+        Some(temperatures.into_iter().flatten().collect())
+    };
+    if !errors.is_empty() {
+        return Err(errors.into_invalid());
+    }
+    // A clean draft has every required field and every element.
+    let (Slot::Value(sensor_id), Some(positions), Some(runs), Some(mount)) = (
+        sensor_id,
+        resolved.and_then(|p| p.into_iter().collect::<Option<Vec<_>>>()),
+        runs,
+        mount,
+    ) else {
+        return Err(Invalid::one("", "the submission is incomplete"));
+    };
+    let model = match model {
+        Slot::Value(terms) => {
+            Model::new(terms).map_err(|e| Invalid::one(root.key("model"), e.to_string()))?
+        }
+        _ => Model::default(),
+    };
+    let core_positions = positions
+        .iter()
+        .map(|p| Position {
+            a: p.a,
+            rotation: p.angle_deg.map(|angle_deg| Rotation { angle_deg, mount }),
+            label: p.label.clone(),
+        })
+        .collect();
+    let test = TumbleTest::new(model, core_positions, runs)
+        .map_err(|e| Invalid::one(hints.pointer_of(&e), hints.detail_of(&e)))?;
+    let value = |s: Slot<String>| match s {
+        Slot::Value(v) => Some(v),
+        _ => None,
+    };
+    let submission = Submission {
+        sensor_id,
+        station_id: value(station_id),
+        performed_at,
+        unit: value(unit).unwrap_or_else(|| "output".to_owned()),
+        mount,
+        positions,
+        batches: match batches {
+            Slot::Value(b) => b,
+            _ => DEFAULT_BATCHES,
+        } as usize,
+        notes: value(notes),
+        sensor_type: value(sensor_type),
+        stand: match stand {
+            Slot::Value(s) => Some(StandIn {
+                id: s.id,
+                angle_std_arcsec: s.angle_std_arcsec.unwrap_or(0.0),
+                gravity_rel_std: s.gravity_rel_std.unwrap_or(0.0),
+            }),
+            _ => None,
+        },
+        temperatures_c,
+        test,
+    };
+    Ok((submission, hints))
+}

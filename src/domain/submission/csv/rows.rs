@@ -1,0 +1,358 @@
+//! The header and rows after it: every line is one sample, read with the
+//! `csv` crate; positions and runs are indexed by hash as they first appear,
+//! and the limits are checked while reading.
+
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
+
+use super::super::draft::{Draft, PositionDraft, RunDraft, Slot};
+use super::super::json::{gravity, temperature};
+use super::super::node::Scalar;
+use super::{COLUMNS, at_line};
+use crate::domain::field::{Errors, Loc};
+use crate::domain::limits::*;
+use crate::domain::text::{Chars, check_str, echo};
+
+/// The header's column indices.
+struct Header {
+    run: usize,
+    output: usize,
+    angle: Option<usize>,
+    components: Option<[usize; 3]>,
+    label: Option<usize>,
+    temperature: Option<usize>,
+    len: usize,
+}
+
+fn header(cols: &[String], line: usize, errors: &mut Errors) -> Option<Header> {
+    let find = |c: &str| cols.iter().position(|x| x == c);
+    let mut ok = true;
+    let mut fail = |errors: &mut Errors, why: String| {
+        at_line(errors, line, why);
+        ok = false;
+    };
+    for (k, c) in cols.iter().enumerate() {
+        if !COLUMNS.contains(&c.as_str()) {
+            fail(
+                errors,
+                format!(
+                    "unknown column `{}`; expected: {}",
+                    echo(c),
+                    COLUMNS.join(", ")
+                ),
+            );
+        } else if cols[..k].contains(c) {
+            fail(errors, format!("column `{c}` appears twice"));
+        }
+    }
+    let output = find("output");
+    if output.is_none() {
+        fail(errors, "the header needs an `output` column".into());
+    }
+    let run = find("run").or_else(|| find("test"));
+    if run.is_none() {
+        fail(errors, "the header needs a `run` column".into());
+    }
+    let explicit = [find("a_i"), find("a_p"), find("a_o")];
+    let given = explicit.iter().flatten().count();
+    if given != 0 && given != 3 {
+        fail(errors, "give all of `a_i`, `a_p`, `a_o` or none".into());
+    }
+    let angle = find("angle_deg");
+    if angle.is_none() && given == 0 {
+        fail(
+            errors,
+            "the header needs `angle_deg` or `a_i`, `a_p`, `a_o` columns".into(),
+        );
+    }
+    Some(Header {
+        run: run?,
+        output: output?,
+        angle,
+        components: match explicit {
+            [Some(i), Some(p), Some(o)] => Some([i, p, o]),
+            _ => None,
+        },
+        label: find("label"),
+        temperature: find("temperature_c"),
+        len: cols.len(),
+    })
+    .filter(|_| ok)
+}
+
+/// A finite number of magnitude at most `bound` from a cell.
+fn number(cell: &str, column: &str, bound: f64) -> Result<f64, String> {
+    match cell.parse::<f64>() {
+        Ok(x) if x.is_finite() && x.abs() <= bound => Ok(x),
+        _ => Err(format!(
+            "`{column}` must be a finite number of magnitude at most {bound:e}"
+        )),
+    }
+}
+
+/// One sample as read: run, position and value.
+struct Sample {
+    run: u32,
+    position: u32,
+    value: f64,
+}
+
+/// Reads the header and rows (from the header line on) into `draft`.
+pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
+    let mut reader = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(text.as_bytes());
+    let line_of =
+        |r: &csv::StringRecord| header_line - 1 + r.position().map_or(1, |p| p.line() as usize);
+    let mut records = reader.records();
+    let head = match records.next() {
+        Some(Ok(r)) => r,
+        _ => {
+            at_line(
+                &mut draft.errors,
+                header_line,
+                "the header line cannot be read",
+            );
+            return;
+        }
+    };
+    let cols: Vec<String> = head.iter().map(str::to_ascii_lowercase).collect();
+    let Some(h) = header(&cols, header_line, &mut draft.errors) else {
+        return;
+    };
+
+    let mut positions: Vec<PositionDraft> = Vec::new();
+    let mut position_index: HashMap<String, u32> = HashMap::new();
+    let mut run_names: Vec<String> = Vec::new();
+    let mut run_temperatures: Vec<Option<f64>> = Vec::new();
+    let mut run_index: HashMap<String, u32> = HashMap::new();
+    let mut cell_counts: HashMap<(u32, u32), usize> = HashMap::new();
+    let mut samples: Vec<Sample> = Vec::new();
+    for record in records {
+        let record = match record {
+            Ok(r) => r,
+            Err(e) => {
+                let line = e
+                    .position()
+                    .map_or(0, |p| header_line - 1 + p.line() as usize);
+                at_line(&mut draft.errors, line, "the row cannot be read as CSV");
+                continue;
+            }
+        };
+        let line = line_of(&record);
+        if record.len() == 1 && record[0].is_empty() {
+            continue;
+        }
+        if record.len() != h.len {
+            at_line(
+                &mut draft.errors,
+                line,
+                format!("has {} fields, the header {}", record.len(), h.len),
+            );
+            continue;
+        }
+        let run = &record[h.run];
+        if run.is_empty() {
+            at_line(&mut draft.errors, line, "the run is empty");
+            continue;
+        }
+        let value = match number(&record[h.output], "output", MAX_READING) {
+            Ok(x) => x,
+            Err(why) => {
+                at_line(&mut draft.errors, line, why);
+                continue;
+            }
+        };
+        let mut p = PositionDraft::default();
+        let mut key = String::new();
+        if let Some(k) = h.angle {
+            match number(&record[k], "angle_deg", MAX_ANGLE_DEG) {
+                Ok(deg) => {
+                    key += &format!("{deg}|");
+                    p.angle_deg = Some(deg);
+                }
+                Err(why) => {
+                    at_line(&mut draft.errors, line, why);
+                    continue;
+                }
+            }
+        }
+        if let Some(cols) = h.components {
+            let a: Result<Vec<f64>, String> = cols
+                .iter()
+                .zip(["a_i", "a_p", "a_o"])
+                .map(|(k, name)| number(&record[*k], name, MAX_GRAVITY_COMPONENT))
+                .collect();
+            match a.and_then(|a| gravity([a[0], a[1], a[2]])) {
+                Ok(g) => {
+                    key += &format!("{:?}|", g.to_array());
+                    p.a = Some(g);
+                }
+                Err(why) => {
+                    at_line(&mut draft.errors, line, why);
+                    continue;
+                }
+            }
+        }
+        if let Some(k) = h.label.filter(|k| !record[*k].is_empty()) {
+            if let Err(why) = check_str(&record[k], MAX_LABEL_CHARS, Chars::Text) {
+                at_line(&mut draft.errors, line, format!("`label` {why}"));
+                continue;
+            }
+            key += &record[k];
+            p.label = Some(record[k].to_owned());
+        }
+        let position = match position_index.entry(key) {
+            Entry::Occupied(e) => *e.get(),
+            Entry::Vacant(e) => {
+                if positions.len() == MAX_POSITIONS {
+                    at_line(
+                        &mut draft.errors,
+                        line,
+                        format!("a position beyond the {MAX_POSITIONS} accepted"),
+                    );
+                    return;
+                }
+                positions.push(p);
+                *e.insert(positions.len() as u32 - 1)
+            }
+        };
+        let run = match run_index.get(run) {
+            Some(r) => *r,
+            None => {
+                if run_names.len() == MAX_RUNS {
+                    at_line(
+                        &mut draft.errors,
+                        line,
+                        format!("a run beyond the {MAX_RUNS} accepted"),
+                    );
+                    return;
+                }
+                run_names.push(run.to_owned());
+                run_temperatures.push(None);
+                run_index.insert(run.to_owned(), run_names.len() as u32 - 1);
+                run_names.len() as u32 - 1
+            }
+        };
+        if let Some(k) = h.temperature {
+            let cell = &record[k];
+            let t = if cell.is_empty() {
+                None
+            } else {
+                match temperature(&Scalar::Num(cell.parse().unwrap_or(f64::NAN), None)) {
+                    Ok(t) => Some(t),
+                    Err(why) => {
+                        at_line(&mut draft.errors, line, format!("`temperature_c` {why}"));
+                        continue;
+                    }
+                }
+            };
+            let slot = &mut run_temperatures[run as usize];
+            if samples.iter().any(|s: &Sample| s.run == run) && *slot != t {
+                at_line(
+                    &mut draft.errors,
+                    line,
+                    format!(
+                        "`temperature_c` differs within run `{}`",
+                        echo(&run_names[run as usize])
+                    ),
+                );
+                continue;
+            }
+            *slot = t;
+        }
+        let count = cell_counts.entry((run, position)).or_default();
+        *count += 1;
+        if *count > MAX_SAMPLES {
+            at_line(
+                &mut draft.errors,
+                line,
+                format!(
+                    "more than {MAX_SAMPLES} samples of run `{}` at one position",
+                    echo(&run_names[run as usize])
+                ),
+            );
+            return;
+        }
+        if samples.len() == MAX_TOTAL_SAMPLES {
+            at_line(
+                &mut draft.errors,
+                line,
+                format!("more than {MAX_TOTAL_SAMPLES} samples in all"),
+            );
+            return;
+        }
+        samples.push(Sample {
+            run,
+            position,
+            value,
+        });
+    }
+    if !draft.errors.is_empty() {
+        return;
+    }
+    if samples.is_empty() {
+        at_line(
+            &mut draft.errors,
+            header_line,
+            "no samples after the header",
+        );
+        return;
+    }
+    // Every run needs a sample at every position: with more cells than the
+    // samples allowed in all, some must be empty — say so without building them.
+    let cells = run_names.len() * positions.len();
+    if cells > MAX_TOTAL_SAMPLES {
+        draft.errors.add(Loc::Root, format!(
+            "CSV: {} runs × {} positions need a sample in each of {cells} cells; only {} were given",
+            run_names.len(), positions.len(), samples.len()
+        ));
+        return;
+    }
+    let mut runs: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); positions.len()]; run_names.len()];
+    for s in samples {
+        runs[s.run as usize][s.position as usize].push(s.value);
+    }
+    for (name, readings) in run_names.iter().zip(&runs) {
+        for (p, cell) in readings.iter().enumerate() {
+            if cell.is_empty() {
+                draft.errors.add(
+                    Loc::Root,
+                    format!(
+                        "CSV: run `{}` has no samples at position {p} ({})",
+                        echo(name),
+                        describe(&positions[p])
+                    ),
+                );
+            }
+        }
+    }
+    draft.positions = Slot::Value(positions.into_iter().map(Some).collect());
+    draft.runs = Slot::Value(
+        runs.into_iter()
+            .zip(run_temperatures)
+            .map(|(readings, temperature_c)| {
+                Some(RunDraft {
+                    readings,
+                    temperature_c,
+                })
+            })
+            .collect(),
+    );
+}
+
+fn describe(position: &PositionDraft) -> String {
+    let mut parts = Vec::new();
+    if let Some(a) = position.angle_deg {
+        parts.push(format!("angle_deg {a}"));
+    }
+    if let Some(a) = position.a {
+        parts.push(format!("a {:?}", a.to_array()));
+    }
+    if let Some(l) = &position.label {
+        parts.push(format!("label {}", echo(l)));
+    }
+    parts.join(", ")
+}

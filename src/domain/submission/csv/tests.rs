@@ -1,0 +1,176 @@
+//! Unit tests of the CSV layout.
+
+use super::*;
+use crate::domain::limits::MAX_LISTED_ERRORS;
+
+fn errors(text: &str) -> Vec<String> {
+    let d = read(text.as_bytes()).unwrap();
+    d.errors
+        .into_invalid()
+        .errors
+        .into_iter()
+        .map(|e| e.detail)
+        .collect()
+}
+
+fn paper(prefix: &str) -> String {
+    format!(
+        "{prefix}{}",
+        include_str!("../../../../core/tests/data/table1.csv")
+    )
+}
+
+#[test]
+fn paper_table_reads_like_the_json_example() {
+    let d = read(paper("# sensor_id: PAPER-2005\n# model: k0, ki, kp\n# batches: 2\n").as_bytes())
+        .unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.sensor_id, Slot::Value("PAPER-2005".into()));
+    assert_eq!(d.model, Slot::Value(vec![Term::K0, Term::Ki, Term::Kp]));
+    assert_eq!(d.batches, Slot::Value(2));
+    let Slot::Value(positions) = &d.positions else {
+        panic!()
+    };
+    assert_eq!(positions.len(), 4);
+    assert_eq!(positions[1].as_ref().unwrap().angle_deg, Some(90.0));
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    assert_eq!(runs.len(), 6);
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings[0],
+        vec![0.005341914, 0.005679272]
+    );
+}
+
+#[test]
+fn quoted_commas_quotes_and_newlines_round_trip() {
+    let text = "run,angle_deg,label,output\r\n1,0,\"up, \"\"north\"\"\nside\",1.5\r\n";
+    let d = read(text.as_bytes()).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(p) = &d.positions else {
+        panic!()
+    };
+    assert_eq!(
+        p[0].as_ref().unwrap().label.as_deref(),
+        Some("up, \"north\"\nside")
+    );
+}
+
+#[test]
+fn after_the_header_every_line_is_data() {
+    // A label and a run starting with `#` are values, not comments.
+    let text = "run,angle_deg,label,output\n#1,0,#1 PA up,1\n#1,90,x,2\n";
+    let d = read(text.as_bytes()).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(p) = &d.positions else {
+        panic!()
+    };
+    assert_eq!(p[0].as_ref().unwrap().label.as_deref(), Some("#1 PA up"));
+    let Slot::Value(r) = &d.runs else { panic!() };
+    assert_eq!(r.len(), 1);
+}
+
+#[test]
+fn spreadsheet_exports_are_accepted() {
+    let bom = "\u{feff}# sensor_id: X\rrun,angle_deg,output\r1,0,1\r1,90,2\r";
+    let d = read(bom.as_bytes()).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.sensor_id, Slot::Value("X".into()));
+    let Slot::Value(p) = &d.positions else {
+        panic!()
+    };
+    assert_eq!(p.len(), 2);
+}
+
+#[test]
+fn errors_name_lines_and_fields() {
+    let e = errors("run,angle,output\n");
+    assert!(
+        e[0].starts_with("CSV line 1: unknown column `angle`"),
+        "{e:?}"
+    );
+    let e = errors("run,angle_deg,output\n1,0,1.0\n1,90,NaN\n1,180\n");
+    assert_eq!(e.len(), 2, "{e:?}");
+    assert!(e[0].starts_with("CSV line 3"), "{e:?}");
+    assert!(e[1].starts_with("CSV line 4"), "{e:?}");
+    let e = errors("run,angle_deg,output\n1,0,1\n1,90,2\n2,0,1\n");
+    assert!(
+        e[0].contains("run `2` has no samples at position 1"),
+        "{e:?}"
+    );
+    let e = errors("# sensor: x\n");
+    assert!(e[0].contains("unknown field `sensor`"), "{e:?}");
+    let e = errors("# Station ID: x\nrun,angle_deg,output\n1,0,1\n");
+    assert!(
+        e[0].contains("CSV line 1: unknown field `Station ID`"),
+        "{e:?}"
+    );
+    assert!(!errors("").is_empty());
+    let d =
+        read(b"# batches: many\n# notes just a comment\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/batches");
+}
+
+#[test]
+fn limits_are_checked_while_reading() {
+    // Every row a new run and a new angle: stops at the position limit
+    // after reading no more than it, with one error.
+    let mut text = String::from("run,angle_deg,output\n");
+    for k in 0..5000 {
+        text += &format!("r{k},{}.5,1\n", k % 3000);
+    }
+    let e = errors(&text);
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert!(e[0].contains("beyond the 360 accepted"), "{e:?}");
+    // Many runs, few positions, cells missing: the list is capped.
+    let mut text = String::from("run,angle_deg,output\n");
+    for k in 0..300 {
+        text += &format!("r{k},{},1\n", k % 300);
+    }
+    let d = read(text.as_bytes()).unwrap();
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), MAX_LISTED_ERRORS);
+    assert!(inv.omitted > 80_000, "{}", inv.omitted);
+}
+
+#[test]
+fn temperatures_and_the_stand_come_from_columns_and_metadata() {
+    let text = "# sensor_type: NAV\n# stand_id: DH-1\n# stand_angle_std_arcsec: 3.5\n# stand_gravity_rel_std: 1e-5\n\
+                run,angle_deg,temperature_c,output\n1,0,20,1\n1,90,20,2\n2,0,30,1.1\n2,90,30,2.1\n";
+    let d = read(text.as_bytes()).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.sensor_type, Slot::Value("NAV".into()));
+    let Slot::Value(stand) = &d.stand else {
+        panic!()
+    };
+    assert_eq!(
+        (
+            stand.id.as_deref(),
+            stand.angle_std_arcsec,
+            stand.gravity_rel_std
+        ),
+        (Some("DH-1"), Some(3.5), Some(1e-5))
+    );
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    let temps: Vec<Option<f64>> = runs
+        .iter()
+        .map(|r| r.as_ref().unwrap().temperature_c)
+        .collect();
+    assert_eq!(temps, [Some(20.0), Some(30.0)]);
+    let e = errors("run,angle_deg,temperature_c,output\n1,0,20,1\n1,90,21,2\n");
+    assert!(
+        e[0].contains("CSV line 3: `temperature_c` differs within run `1`"),
+        "{e:?}"
+    );
+    let e = errors("run,angle_deg,temperature_c,output\n1,0,900,1\n");
+    assert!(
+        e[0].contains("`temperature_c` must be a temperature"),
+        "{e:?}"
+    );
+    let d = read(b"# stand_angle_std_arcsec: lots\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    assert_eq!(
+        d.errors.into_invalid().errors[0].pointer,
+        "/stand_angle_std_arcsec"
+    );
+}

@@ -1,0 +1,312 @@
+//! The JSON submission read straight into a [`Draft`]: numbers go into
+//! `Vec<f64>` as they are parsed, values of the wrong kind are recorded with
+//! their pointer and skipped, and every count is checked while reading, so
+//! that memory stays proportional to what the limits allow rather than to
+//! what a client sends.
+
+use accelcal_core::{Gravity, Mount, Term};
+use serde::de::{DeserializeSeed, IgnoredAny, MapAccess, SeqAccess};
+
+mod positions;
+mod runs;
+
+use self::positions::Positions;
+use self::runs::Runs;
+use super::FIELDS;
+use super::draft::{Draft, Slot, StandDraft};
+use super::node::{Any, Node, Scalar, Seed, elements, keep};
+use crate::domain::field::{Errors, Loc};
+use crate::domain::limits::*;
+use crate::domain::text::{Chars, echo};
+use crate::domain::timestamp::Timestamp;
+
+/// Reads a JSON submission; `Err` only for a syntax error (not JSON), with
+/// the parser's message.
+pub fn read(bytes: &[u8]) -> Result<Draft, String> {
+    let mut de = serde_json::Deserializer::from_slice(bytes);
+    let mut draft = Draft::default();
+    Seed(Top { draft: &mut draft })
+        .deserialize(&mut de)
+        .and_then(|()| de.end())
+        .map_err(|e| e.to_string())?;
+    Ok(draft)
+}
+
+/// The top-level object.
+struct Top<'a> {
+    draft: &'a mut Draft,
+}
+
+impl<'de> Node<'de> for Top<'_> {
+    type Out = ();
+
+    fn scalar(self, value: Scalar) {
+        self.draft.not_an_object = true;
+        self.draft.errors.add(
+            Loc::Root,
+            format!("must be an object, not {}", value.kind()),
+        );
+    }
+
+    fn map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let d = self.draft;
+        let root = Loc::Root;
+        let mut seen = [false; FIELDS.len()];
+        while let Some(key) = map.next_key::<String>()? {
+            let at = root.key(&key);
+            let Some(field) = FIELDS.iter().position(|f| *f == key) else {
+                d.errors.add(
+                    at,
+                    format!(
+                        "unknown field `{}`; expected one of: {}",
+                        echo(&key),
+                        FIELDS.join(", ")
+                    ),
+                );
+                map.next_value::<IgnoredAny>()?;
+                continue;
+            };
+            if std::mem::replace(&mut seen[field], true) {
+                d.errors
+                    .add(at, format!("duplicate key `{key}`: given more than once"));
+                map.next_value::<IgnoredAny>()?;
+                continue;
+            }
+            let value = |v: Scalar| (v != Scalar::Null).then_some(v);
+            let errors = &mut d.errors;
+            match key.as_str() {
+                "positions" => d.positions = map.next_value_seed(Seed(Positions { errors, at }))?,
+                "runs" => d.runs = map.next_value_seed(Seed(Runs { errors, at }))?,
+                "model" => d.model = map.next_value_seed(Seed(ModelNode { errors, at }))?,
+                "stand" => d.stand = map.next_value_seed(Seed(StandNode { errors, at }))?,
+                name => {
+                    let Some(v) = value(map.next_value_seed(Seed(Any))?) else {
+                        continue;
+                    };
+                    match name {
+                        "sensor_id" => {
+                            d.sensor_id =
+                                slot(errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
+                        }
+                        "station_id" => {
+                            d.station_id =
+                                slot(errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
+                        }
+                        "unit" => d.unit = slot(errors, at, v.string(MAX_UNIT_CHARS, Chars::Line)),
+                        "notes" => {
+                            d.notes = slot(errors, at, v.string(MAX_NOTES_CHARS, Chars::Text))
+                        }
+                        "batches" => d.batches = slot(errors, at, v.integer(1, MAX_BATCHES)),
+                        "mount" => d.mount = slot(errors, at, mount(v)),
+                        "performed_at" => d.performed_at = slot(errors, at, performed_at(v)),
+                        "sensor_type" => {
+                            d.sensor_type =
+                                slot(errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
+                        }
+                        other => unreachable_field(other),
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Every name in [`FIELDS`] has a branch above; this documents it.
+fn unreachable_field(name: &str) {
+    debug_assert!(false, "field `{name}` is listed but not read");
+}
+
+fn slot<T>(errors: &mut Errors, at: Loc<'_>, read: Result<T, String>) -> Slot<T> {
+    Slot::from_read(keep(errors, at, read))
+}
+
+/// `"pendulum"` or `"gate"`.
+pub fn mount(v: Scalar) -> Result<Mount, String> {
+    match v {
+        Scalar::Str(s) if s == "pendulum" => Ok(Mount::Pendulum),
+        Scalar::Str(s) if s == "gate" => Ok(Mount::Gate),
+        _ => Err("must be \"pendulum\" or \"gate\"".into()),
+    }
+}
+
+/// An RFC 3339 date-time.
+pub fn performed_at(v: Scalar) -> Result<Timestamp, String> {
+    let s = v.string(64, Chars::Line)?;
+    Timestamp::parse(&s).map_err(|e| e.to_string())
+}
+
+/// A term name that is not already in `terms`.
+pub fn term(v: Scalar, terms: &[Term]) -> Result<Term, String> {
+    let Scalar::Str(name) = v else {
+        return Err("must be a term name such as \"k0\"".into());
+    };
+    match name.parse::<Term>() {
+        Ok(t) if terms.contains(&t) => Err(format!("term `{t}` is listed twice")),
+        Ok(t) => Ok(t),
+        Err(_) => Err(format!(
+            "unknown term `{}`; expected one of k0, ki, kp, ko, kio, kop, kpi, kii, kpp, koo, kiii",
+            echo(&name)
+        )),
+    }
+}
+
+/// A run temperature, °C.
+pub fn temperature(v: &Scalar) -> Result<f64, String> {
+    let t = v.number(f64::MAX)?;
+    if TEMPERATURE_C.contains(&t) {
+        Ok(t)
+    } else {
+        Err(format!(
+            "must be a temperature from {} to {} °C",
+            TEMPERATURE_C.start(),
+            TEMPERATURE_C.end()
+        ))
+    }
+}
+
+/// `stand.angle_std_arcsec`.
+pub fn angle_std(v: &Scalar) -> Result<f64, String> {
+    bounded(v, MAX_ANGLE_STD_ARCSEC)
+}
+
+/// `stand.gravity_rel_std`.
+pub fn gravity_std(v: &Scalar) -> Result<f64, String> {
+    bounded(v, MAX_GRAVITY_REL_STD)
+}
+
+/// A number from 0 to `max`.
+fn bounded(v: &Scalar, max: f64) -> Result<f64, String> {
+    match v.number(max) {
+        Ok(x) if x >= 0.0 => Ok(x),
+        _ => Err(format!("must be a number from 0 to {max}")),
+    }
+}
+
+/// `stand`: an object of `id`, `angle_std_arcsec`, `gravity_rel_std`.
+struct StandNode<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+}
+
+impl<'de> Node<'de> for StandNode<'_> {
+    type Out = Slot<StandDraft>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        if v == Scalar::Null {
+            return Slot::Absent;
+        }
+        self.errors
+            .add(self.at, format!("must be an object, not {}", v.kind()));
+        Slot::Invalid
+    }
+    fn map<A: MapAccess<'de>>(self, mut map: A) -> Result<Self::Out, A::Error> {
+        const KEYS: [&str; 3] = ["id", "angle_std_arcsec", "gravity_rel_std"];
+        let mut stand = StandDraft::default();
+        let mut ok = true;
+        let mut seen = [false; 3];
+        while let Some(key) = map.next_key::<String>()? {
+            let at = self.at.key(&key);
+            let Some(k) = KEYS.iter().position(|x| *x == key) else {
+                self.errors.add(
+                    at,
+                    format!(
+                        "unknown field `{}`; expected one of: {}",
+                        echo(&key),
+                        KEYS.join(", ")
+                    ),
+                );
+                map.next_value::<IgnoredAny>()?;
+                ok = false;
+                continue;
+            };
+            let v = map.next_value_seed(Seed(Any))?;
+            if std::mem::replace(&mut seen[k], true) {
+                self.errors
+                    .add(at, format!("duplicate key `{key}`: given more than once"));
+                ok = false;
+                continue;
+            }
+            if v == Scalar::Null {
+                continue;
+            }
+            let read = match k {
+                0 => keep(self.errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
+                    .map(|id| stand.id = Some(id)),
+                1 => keep(self.errors, at, angle_std(&v)).map(|x| stand.angle_std_arcsec = Some(x)),
+                _ => {
+                    keep(self.errors, at, gravity_std(&v)).map(|x| stand.gravity_rel_std = Some(x))
+                }
+            };
+            ok &= read.is_some();
+        }
+        Ok(if ok {
+            Slot::Value(stand)
+        } else {
+            Slot::Invalid
+        })
+    }
+}
+
+/// Gravity components `[a_i, a_p, a_o]` in g, with a norm near 1 g.
+pub fn gravity(a: [f64; 3]) -> Result<Gravity, String> {
+    let g = Gravity::from(a);
+    if GRAVITY_NORM.contains(&g.norm()) {
+        Ok(g)
+    } else {
+        Err(format!(
+            "gravity components [a_i, a_p, a_o] must have a norm near 1 g ({}–{}), not {:.6}",
+            GRAVITY_NORM.start(),
+            GRAVITY_NORM.end(),
+            g.norm()
+        ))
+    }
+}
+
+struct ModelNode<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+}
+
+impl<'de> Node<'de> for ModelNode<'_> {
+    type Out = Slot<Vec<Term>>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        if v == Scalar::Null {
+            return Slot::Absent;
+        }
+        self.errors
+            .add(self.at, format!("must be an array, not {}", v.kind()));
+        Slot::Invalid
+    }
+    fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
+        let mut terms: Vec<Term> = Vec::new();
+        let mut ok = true;
+        let at = self.at;
+        let read = elements(
+            seq,
+            self.errors,
+            at,
+            (1, Term::ALL.len()),
+            |errors, k, seq| {
+                let Some(v) = seq.next_element_seed(Seed(Any))? else {
+                    return Ok(None);
+                };
+                match term(v, &terms) {
+                    Ok(t) => terms.push(t),
+                    Err(why) => {
+                        errors.add(at.index(k), why);
+                        ok = false;
+                    }
+                }
+                Ok(Some(Some(())))
+            },
+        )?;
+        Ok(if read.is_some() && ok {
+            Slot::Value(terms)
+        } else {
+            Slot::Invalid
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests;

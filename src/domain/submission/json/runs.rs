@@ -1,0 +1,195 @@
+//! `runs`: objects of `readings`, each an array of samples per position,
+//! numbers read straight into `Vec<f64>` with the counts checked as they
+//! grow.
+
+use serde::de::{IgnoredAny, MapAccess, SeqAccess};
+
+use super::super::node::{Any, Node, Scalar, Seed, elements, keep};
+use super::temperature;
+use crate::domain::field::{Errors, Loc};
+use crate::domain::limits::*;
+use crate::domain::text::echo;
+
+use super::super::draft::{RunDraft, Slot};
+
+pub(super) struct Runs<'a> {
+    pub(super) errors: &'a mut Errors,
+    pub(super) at: Loc<'a>,
+}
+
+impl<'de> Node<'de> for Runs<'_> {
+    type Out = Slot<Vec<Option<RunDraft>>>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        if v == Scalar::Null {
+            return Slot::Absent;
+        }
+        self.errors
+            .add(self.at, format!("must be an array, not {}", v.kind()));
+        Slot::Invalid
+    }
+    fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
+        let at = self.at;
+        let mut total = 0usize;
+        let read = elements(seq, self.errors, at, (1, MAX_RUNS), |errors, j, seq| {
+            let here = at.index(j);
+            let node = RunNode {
+                errors,
+                at: here,
+                total: &mut total,
+            };
+            Ok(seq.next_element_seed(Seed(node))?.map(Some))
+        })?;
+        if total > MAX_TOTAL_SAMPLES {
+            self.errors.add(
+                at,
+                format!("holds {total} samples in all; at most {MAX_TOTAL_SAMPLES} are accepted"),
+            );
+            return Ok(Slot::Invalid);
+        }
+        Ok(Slot::from_read(read))
+    }
+}
+
+struct RunNode<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+    /// Samples counted so far over all runs; beyond the limit none is kept.
+    total: &'a mut usize,
+}
+
+impl<'de> Node<'de> for RunNode<'_> {
+    type Out = Option<RunDraft>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        self.errors
+            .add(self.at, format!("must be an object, not {}", v.kind()));
+        None
+    }
+    fn map<A: MapAccess<'de>>(self, mut map: A) -> Result<Self::Out, A::Error> {
+        const KEYS: [&str; 2] = ["readings", "temperature_c"];
+        let mut readings = None;
+        let mut temperature_c = None;
+        let mut seen = [false; 2];
+        let mut ok = true;
+        while let Some(key) = map.next_key::<String>()? {
+            let at = self.at.key(&key);
+            let Some(k) = KEYS.iter().position(|x| *x == key) else {
+                self.errors.add(
+                    at,
+                    format!(
+                        "unknown field `{}`; expected one of: {}",
+                        echo(&key),
+                        KEYS.join(", ")
+                    ),
+                );
+                map.next_value::<IgnoredAny>()?;
+                ok = false;
+                continue;
+            };
+            if std::mem::replace(&mut seen[k], true) {
+                self.errors
+                    .add(at, format!("duplicate key `{key}`: given more than once"));
+                map.next_value::<IgnoredAny>()?;
+                ok = false;
+            } else if k == 0 {
+                let node = Readings {
+                    errors: &mut *self.errors,
+                    at,
+                    total: &mut *self.total,
+                };
+                readings = Some(map.next_value_seed(Seed(node))?);
+            } else {
+                let v = map.next_value_seed(Seed(Any))?;
+                if v != Scalar::Null {
+                    match keep(self.errors, at, temperature(&v)) {
+                        Some(t) => temperature_c = Some(t),
+                        None => ok = false,
+                    }
+                }
+            }
+        }
+        match readings {
+            None => {
+                self.errors.add(self.at.key("readings"), "is required");
+                Ok(None)
+            }
+            Some(Some(readings)) if ok => Ok(Some(RunDraft {
+                readings,
+                temperature_c,
+            })),
+            Some(_) => Ok(None),
+        }
+    }
+}
+
+/// `readings`: per position, an array of samples.
+struct Readings<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+    total: &'a mut usize,
+}
+
+impl<'de> Node<'de> for Readings<'_> {
+    type Out = Option<Vec<Vec<f64>>>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        let why = match v {
+            Scalar::Null => "is required".to_owned(),
+            v => format!("must be an array, not {}", v.kind()),
+        };
+        self.errors.add(self.at, why);
+        None
+    }
+    fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
+        let at = self.at;
+        let total = self.total;
+        let mut ok = true;
+        let read = elements(
+            seq,
+            self.errors,
+            at,
+            (1, MAX_POSITIONS),
+            |errors, i, seq| {
+                let node = Samples {
+                    errors,
+                    at: at.index(i),
+                    total: &mut *total,
+                };
+                let got = seq.next_element_seed(Seed(node))?;
+                ok &= !matches!(got, Some(None));
+                Ok(got.map(|s| s.map(Some).unwrap_or(None)))
+            },
+        )?;
+        Ok(read.filter(|_| ok))
+    }
+}
+
+/// The samples of one position in one run.
+struct Samples<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+    total: &'a mut usize,
+}
+
+impl<'de> Node<'de> for Samples<'_> {
+    type Out = Option<Vec<f64>>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        self.errors
+            .add(self.at, format!("must be an array, not {}", v.kind()));
+        None
+    }
+    fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
+        let at = self.at;
+        let total = self.total;
+        let mut ok = true;
+        let read = elements(seq, self.errors, at, (1, MAX_SAMPLES), |errors, s, seq| {
+            let Some(v) = seq.next_element_seed(Seed(Any))? else {
+                return Ok(None);
+            };
+            *total += 1;
+            let x = keep(errors, at.index(s), v.number(MAX_READING));
+            ok &= x.is_some();
+            // Beyond the total limit nothing more is kept (it is refused).
+            Ok(Some(x.filter(|_| *total <= MAX_TOTAL_SAMPLES)))
+        })?;
+        Ok(read.filter(|_| ok))
+    }
+}

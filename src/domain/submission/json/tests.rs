@@ -1,0 +1,77 @@
+//! Unit tests of the JSON reader.
+
+use super::*;
+
+fn pointers(body: &str) -> Vec<String> {
+    let d = read(body.as_bytes()).unwrap();
+    d.errors
+        .into_invalid()
+        .errors
+        .into_iter()
+        .map(|e| e.pointer)
+        .collect()
+}
+
+#[test]
+fn reads_every_field() {
+    let d = read(include_bytes!("../../../../examples/paper-table1.json")).unwrap();
+    assert!(d.errors.is_empty());
+    assert_eq!(d.sensor_id, Slot::Value("PAPER-2005".into()));
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    assert_eq!(runs.len(), 6);
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings[0],
+        vec![0.005341914, 0.005679272]
+    );
+}
+
+#[test]
+fn kinds_counts_and_duplicates_are_reported_in_document_order() {
+    assert_eq!(pointers("[]"), [""]);
+    assert_eq!(
+        pointers(
+            r#"{"sensor_id": 5, "x": {"deep": [[[]]]}, "sensor_id": "a", "runs": [{"readings": [[1, "2", null]]}, 7]}"#
+        ),
+        [
+            "/sensor_id",
+            "/x",
+            "/sensor_id",
+            "/runs/0/readings/0/1",
+            "/runs/0/readings/0/2",
+            "/runs/1"
+        ]
+    );
+    assert_eq!(
+        pointers(
+            r#"{"positions": [{"angle_deg": 0, "angle_deg": 1}, {"a": [1, 0]}, {"a": [0, 0, 0]}]}"#
+        ),
+        ["/positions/0/angle_deg", "/positions/1/a", "/positions/2/a"]
+    );
+    assert_eq!(
+        pointers(r#"{"model": ["k0", "K1", "k0"], "batches": 2.0}"#),
+        ["/model/1", "/model/2", "/batches"]
+    );
+}
+
+#[test]
+fn counts_are_checked_while_reading_and_nothing_beyond_is_kept() {
+    let samples = vec!["1"; MAX_SAMPLES + 5].join(",");
+    let d = read(format!(r#"{{"runs": [{{"readings": [[{samples}]]}}]}}"#).as_bytes()).unwrap();
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors[0].pointer, "/runs/0/readings/0");
+    assert!(
+        inv.errors[0]
+            .detail
+            .contains("at most 1000 elements, not 1005"),
+        "{inv:?}"
+    );
+}
+
+#[test]
+fn syntax_errors_abort_with_the_parsers_message() {
+    assert!(read(b"{\"sensor_id\": ").is_err());
+    assert!(read(b"{} x").is_err());
+    assert!(read(br#"{"runs": [{"readings": [[1e400]]}]}"#).is_err());
+    let e = read(b"{\"a\": tru}").unwrap_err();
+    assert!(e.contains("line 1 column"), "where it breaks is said: {e}");
+}

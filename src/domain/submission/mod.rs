@@ -1,0 +1,166 @@
+//! Tumble-test submissions: a body (JSON or CSV) read into a [`Draft`],
+//! checked field by field into a [`Submission`] holding the core's
+//! [`TumbleTest`], and calibrated.
+//!
+//! This is the one place where the wire format meets the core ("parse, don't
+//! validate"): [`evaluate`] either returns a calibrated [`Evaluated`] or every
+//! problem it found (the first hundred listed), each with the JSON pointer of
+//! the offending value.
+
+mod check;
+pub mod csv;
+mod draft;
+pub mod json;
+mod node;
+mod result;
+
+pub use check::check;
+pub use draft::{Draft, PositionDraft, RunDraft, Slot, StandDraft};
+pub use result::{PositionOut, ResultView};
+
+use accelcal_core::{Calibration, Gravity, Mount, TumbleTest};
+
+use super::field::Invalid;
+use super::timestamp::Timestamp;
+
+/// The members of a submission object.
+pub const FIELDS: &[&str] = &[
+    "sensor_id",
+    "station_id",
+    "performed_at",
+    "unit",
+    "model",
+    "mount",
+    "positions",
+    "runs",
+    "batches",
+    "notes",
+    "sensor_type",
+    "stand",
+];
+
+/// The media types a submission may come in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Media {
+    /// `application/json`.
+    Json,
+    /// `text/csv`.
+    Csv,
+}
+
+impl Media {
+    /// The media type's name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Media::Json => "application/json",
+            Media::Csv => "text/csv",
+        }
+    }
+}
+
+/// Why a body could not be read at all (answered 400, not 422).
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Unreadable {
+    /// Not JSON.
+    #[error("the body is not valid JSON: {0}")]
+    Json(String),
+    /// Not UTF-8.
+    #[error("the CSV body is not UTF-8: {0}")]
+    Utf8(String),
+}
+
+/// Why a submission was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum Refused {
+    /// The body could not be read (400).
+    #[error(transparent)]
+    Unreadable(#[from] Unreadable),
+    /// The body was read, and is wrong or cannot be calibrated (422).
+    #[error("{0}")]
+    Invalid(#[from] Invalid),
+}
+
+/// Reads a body of either media type.
+pub fn read(media: Media, bytes: &[u8]) -> Result<Draft, Unreadable> {
+    match media {
+        Media::Json => json::read(bytes).map_err(Unreadable::Json),
+        Media::Csv => csv::read(bytes).map_err(|e| Unreadable::Utf8(e.to_string())),
+    }
+}
+
+/// A position as submitted and resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PositionIn {
+    /// The dividing-head angle, when given.
+    pub angle_deg: Option<f64>,
+    /// The resolved gravity components.
+    pub a: Gravity,
+    /// The label, when given.
+    pub label: Option<String>,
+}
+
+/// A checked submission.
+#[derive(Clone, Debug)]
+pub struct Submission {
+    /// The sensor calibrated.
+    pub sensor_id: String,
+    /// The station named in the body, if any (the token may bind another).
+    pub station_id: Option<String>,
+    /// When the test was performed, if given.
+    pub performed_at: Option<Timestamp>,
+    /// Unit of the outputs.
+    pub unit: String,
+    /// Mount used for angles.
+    pub mount: Mount,
+    /// Positions, resolved.
+    pub positions: Vec<PositionIn>,
+    /// Number of fusion batches.
+    pub batches: usize,
+    /// Free text.
+    pub notes: Option<String>,
+    /// The sensor type named in the body, if any.
+    pub sensor_type: Option<String>,
+    /// The tumble stand, if the body describes it.
+    pub stand: Option<StandIn>,
+    /// Each run's temperature (°C), when the runs give them (all or none).
+    pub temperatures_c: Option<Vec<f64>>,
+    /// The tumble test handed to the core.
+    pub test: TumbleTest,
+}
+
+/// The tumble stand of a submission: its systematic uncertainties (1σ).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, utoipa::ToSchema)]
+pub struct StandIn {
+    /// The stand's id, if given.
+    pub id: Option<String>,
+    /// Indexing (angle) error of the dividing head, arcseconds (default 0).
+    pub angle_std_arcsec: f64,
+    /// Relative uncertainty of the local gravity magnitude (default 0).
+    pub gravity_rel_std: f64,
+}
+
+/// A submission with its calibration.
+#[derive(Clone, Debug)]
+pub struct Evaluated {
+    /// The checked submission.
+    pub submission: Submission,
+    /// Per-run and fused results.
+    pub calibration: Calibration,
+}
+
+/// Reads, checks, identifies and fuses a submission body.
+pub fn evaluate(media: Media, bytes: &[u8], now: Timestamp) -> Result<Evaluated, Refused> {
+    let draft = read(media, bytes)?;
+    let (submission, hints) = check(draft, now)?;
+    let calibration = submission
+        .test
+        .calibrate(submission.batches)
+        .map_err(|e| Invalid::one(hints.pointer_of(&e), hints.detail_of(&e)))?;
+    Ok(Evaluated {
+        submission,
+        calibration,
+    })
+}
+
+#[cfg(test)]
+mod tests;

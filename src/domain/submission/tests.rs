@@ -1,0 +1,154 @@
+//! Unit tests of submission checking: every refusal names its field.
+
+use accelcal_core::Term;
+use serde_json::{Value, json};
+
+use super::*;
+
+fn paper() -> Value {
+    serde_json::from_str(include_str!("../../../examples/paper-table1.json")).unwrap()
+}
+
+fn now() -> Timestamp {
+    Timestamp::parse("2026-11-22T00:00:00Z").unwrap()
+}
+
+fn run(body: &Value) -> Result<Evaluated, Refused> {
+    evaluate(Media::Json, &serde_json::to_vec(body).unwrap(), now())
+}
+
+fn pointers(body: &Value) -> Vec<String> {
+    match run(body) {
+        Ok(_) => vec![],
+        Err(Refused::Invalid(i)) => i.errors.into_iter().map(|e| e.pointer).collect(),
+        Err(other) => panic!("{other:?}"),
+    }
+}
+
+#[test]
+fn paper_submission_calibrates() {
+    let e = run(&paper()).unwrap();
+    assert_eq!(e.calibration.runs.len(), 6);
+    let alpha = e.calibration.fused.coefficients.get(Term::Kp).unwrap();
+    assert!((alpha - 0.006_273_844_8).abs() < 1e-9, "{alpha}");
+}
+
+#[test]
+fn every_problem_is_reported_with_its_pointer_in_document_order() {
+    let mut b = paper();
+    b["batchs"] = json!(2);
+    b["sensor_id"] = json!("bad id");
+    b["unit"] = json!("");
+    b["model"] = json!(["k0", "K1", "k0"]);
+    b["runs"][2]["readings"][1] = json!([]);
+    b["runs"][3]["readings"][0][1] = json!("1.2");
+    b["positions"][1] = json!({"a": [0, 0, 0]});
+    // serde_json's map keeps keys sorted: batches, batchs, model, notes?,
+    // performed_at, positions, runs, sensor_id, unit.
+    assert_eq!(
+        pointers(&b),
+        [
+            "/batchs",
+            "/model/1",
+            "/model/2",
+            "/positions/1/a",
+            "/runs/2/readings/1",
+            "/runs/3/readings/0/1",
+            "/sensor_id",
+            "/unit",
+        ]
+    );
+}
+
+#[test]
+fn required_fields_and_shapes() {
+    assert_eq!(pointers(&json!({})), ["/sensor_id", "/positions", "/runs"]);
+    assert_eq!(pointers(&json!([])), [""]);
+    let mut b = paper();
+    b["runs"][1]["readings"] = json!([[1.0], [2.0], [3.0]]);
+    assert_eq!(pointers(&b), ["/runs/1/readings"]);
+    let mut b = paper();
+    b["positions"][0] = json!({"label": "no angle"});
+    assert_eq!(pointers(&b), ["/positions/0"]);
+    let mut b = paper();
+    b["positions"][0] = json!({"angle_deg": 0, "a": [1, 0, 0]});
+    assert_eq!(pointers(&b), ["/positions/0/a"]);
+}
+
+#[test]
+fn unidentifiable_model_names_its_terms() {
+    let mut b = paper();
+    b["model"] = json!(["k0", "ki", "kp", "kiii"]);
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert_eq!(i.errors[0].pointer, "/model");
+    assert!(
+        i.errors[0].detail.contains("ki, kiii"),
+        "{}",
+        i.errors[0].detail
+    );
+}
+
+#[test]
+fn fusion_refusals_point_at_batches() {
+    let mut b = paper();
+    b["batches"] = json!(4);
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert_eq!(i.errors[0].pointer, "/batches");
+    assert!(
+        i.errors[0].detail.contains("batch 2"),
+        "{}",
+        i.errors[0].detail
+    );
+    b["batches"] = json!(0);
+    assert_eq!(pointers(&b), ["/batches"]);
+}
+
+#[test]
+fn future_and_malformed_times_are_refused() {
+    let mut b = paper();
+    b["performed_at"] = json!("2026-11-24T00:00:00Z");
+    assert_eq!(pointers(&b), ["/performed_at"]);
+    b["performed_at"] = json!("20 Nov 2026");
+    assert_eq!(pointers(&b), ["/performed_at"]);
+    b["performed_at"] = json!("1969-12-31T23:59:59Z");
+    assert_eq!(pointers(&b), ["/performed_at"]);
+    b["performed_at"] = json!("2026-11-22T12:00:00+02:00");
+    assert!(pointers(&b).is_empty());
+}
+
+#[test]
+fn a_million_wrong_samples_give_a_hundred_errors_and_a_count() {
+    // 360 positions × 3 runs × 1000 `""` samples (the attack of finding 3).
+    let positions: Vec<Value> = (0..360).map(|k| json!({"angle_deg": k})).collect();
+    let samples = format!("[{}]", vec!["\"\""; 1000].join(","));
+    let readings = format!("[{}]", vec![samples.as_str(); 360].join(","));
+    let runs = format!(
+        "[{}]",
+        vec![format!("{{\"readings\": {readings}}}"); 3].join(",")
+    );
+    let body = format!(
+        "{{\"sensor_id\": \"A\", \"positions\": {}, \"runs\": {runs}}}",
+        serde_json::to_string(&positions).unwrap()
+    );
+    let Err(Refused::Invalid(i)) = evaluate(Media::Json, body.as_bytes(), now()) else {
+        panic!()
+    };
+    assert_eq!(i.errors.len(), 100);
+    // Every sample is wrong, and so is their total (beyond 200 000).
+    assert_eq!(i.count(), 360 * 3 * 1000 + 1);
+}
+
+#[test]
+fn csv_and_json_forms_calibrate_alike() {
+    let csv = format!(
+        "# sensor_id: PAPER-2005\n# model: k0 ki kp\n# batches: 2\n{}",
+        include_str!("../../../core/tests/data/table1.csv")
+    );
+    let from_csv = evaluate(Media::Csv, csv.as_bytes(), now()).unwrap();
+    let from_json = run(&paper()).unwrap();
+    assert_eq!(from_csv.calibration.fused, from_json.calibration.fused);
+}

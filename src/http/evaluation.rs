@@ -1,0 +1,140 @@
+//! A submission evaluated for an answer: checked, identified and fused on
+//! the compute pool, then assessed with what the store knows of its sensor
+//! (the sensor type in force, the previous calibration), and its result
+//! document rendered once. Shared by `POST /v1/calibrations` (which stores
+//! it) and `POST /v1/identify` (which does not).
+
+use bytes::Bytes;
+use uuid::Uuid;
+
+use super::AppState;
+use super::auth::station;
+use super::body::Body;
+use super::problem::Problem;
+use crate::domain::auth::Principal;
+use crate::domain::field::{Invalid, Loc};
+use crate::domain::metrology::{Previous, assess_calibration};
+use crate::domain::sensor_types::SensorType;
+use crate::domain::submission::{Evaluated, ResultView, evaluate};
+use crate::domain::text::echo;
+use crate::domain::timestamp::Timestamp;
+use crate::store::NewCalibration;
+
+/// A submission ready to be answered (and stored).
+pub struct Assessed {
+    /// The sensor.
+    pub sensor_id: String,
+    /// The result document, rendered once.
+    pub result: Bytes,
+    /// What to store, when the caller asked for a stored calibration.
+    pub record: Option<NewCalibration>,
+}
+
+/// The sensor type in force: the one the submission names (which must
+/// exist), else the sensor's.
+async fn sensor_type(
+    state: &AppState,
+    e: &Evaluated,
+    now: Timestamp,
+) -> Result<Option<SensorType>, Problem> {
+    let s = &e.submission;
+    if let Some(named) = &s.sensor_type {
+        return match state.store.sensor_type(named.clone()).await? {
+            Some(t) => Ok(Some(t)),
+            None => Err(Problem::validation(Invalid::one(
+                Loc::Root.key("sensor_type"),
+                format!(
+                    "no sensor type `{}`; create it first with PUT /v1/sensor-types/{}",
+                    echo(named),
+                    echo(named)
+                ),
+            ))),
+        };
+    }
+    let Some(sensor) = state.store.sensor(s.sensor_id.clone(), now).await? else {
+        return Ok(None);
+    };
+    match sensor.sensor_type {
+        Some(t) => Ok(state.store.sensor_type(t).await?),
+        None => Ok(None),
+    }
+}
+
+/// Evaluates a body for `principal`; with `id`, also builds the record to
+/// store under that id.
+pub async fn assess(
+    state: &AppState,
+    principal: &Principal,
+    body: Body,
+    received_at: Timestamp,
+    id: Option<Uuid>,
+) -> Result<Assessed, Problem> {
+    let (bytes, content_type) = (body.bytes.clone(), body.content_type.clone());
+    let who = principal.clone();
+    let (evaluated, station_id) = state
+        .compute(move || -> Result<(Evaluated, Option<String>), Problem> {
+            let e = evaluate(body.media, &body.bytes, received_at)?;
+            let station_id = station(&who, e.submission.station_id.as_deref())?;
+            Ok((e, station_id))
+        })
+        .await??;
+    let sensor_type = sensor_type(state, &evaluated, received_at).await?;
+    let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
+    let previous = state
+        .store
+        .previous_calibration(evaluated.submission.sensor_id.clone(), performed_at)
+        .await?
+        .map(|c| Previous {
+            id: c.id,
+            unit: c.unit,
+            coefficients: c.coefficients,
+        });
+    let submitted_by = principal.id.clone();
+    state
+        .compute(move || -> Result<Assessed, Problem> {
+            let e = &evaluated;
+            let type_id = sensor_type.as_ref().map(|t| t.type_id.as_str());
+            let metrology =
+                assess_calibration(e, performed_at, sensor_type.as_ref(), previous.as_ref())?;
+            let view = ResultView::new(
+                e,
+                id,
+                station_id.as_deref(),
+                received_at,
+                type_id,
+                &metrology,
+            );
+            let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
+                tracing::error!(error = %err, "a result did not serialise");
+                Problem::internal()
+            })?);
+            let fused = &e.calibration.fused;
+            let record = id.map(|id| NewCalibration {
+                id,
+                sensor_id: e.submission.sensor_id.clone(),
+                performed_at,
+                received_at,
+                unit: e.submission.unit.clone(),
+                model: e.submission.test.model().clone(),
+                runs: e.calibration.runs.len(),
+                coefficients: fused.coefficients.clone(),
+                std_errors: fused.std_errors.clone(),
+                result: result.clone(),
+                submission: bytes,
+                content_type,
+                submitted_by,
+                station_id: station_id.clone(),
+                sensor_type: type_id.map(str::to_owned),
+                assigns_type: e.submission.sensor_type.is_some(),
+                verdict: metrology.decision.as_ref().map(|d| d.verdict),
+                due_at: metrology.due_at,
+                expanded: Some(metrology.uncertainty.expanded()),
+            });
+            Ok(Assessed {
+                sensor_id: e.submission.sensor_id.clone(),
+                result,
+                record,
+            })
+        })
+        .await?
+}

@@ -1,0 +1,150 @@
+//! Prometheus metrics: what the service records, and the recorder that
+//! renders it for `--metrics-listen` (its own listener, off by default).
+//!
+//! | metric | type | labels |
+//! |---|---|---|
+//! | `accelcal_http_requests_total` | counter | `method`, `route` (template), `status` |
+//! | `accelcal_http_request_duration_seconds` | histogram | `method`, `route`, `status` |
+//! | `accelcal_http_requests_in_flight` | gauge | |
+//! | `accelcal_submissions_total` | counter | `outcome` (`stored`, `replayed`, `refused`), `reason` (the problem type, or `none`) |
+//! | `accelcal_verdicts_total` | counter | `verdict` (of stored calibrations of typed sensors) |
+//! | `accelcal_storage_operation_duration_seconds` | histogram | `operation`, `outcome` |
+//! | `accelcal_build_info` | gauge (1) | `version` |
+//!
+//! Routes are templates (`/v1/sensors/{sensor_id}`), never raw paths, and
+//! requests no route matched count as `unmatched`: the label sets stay
+//! bounded whatever clients send.
+
+use std::sync::OnceLock;
+use std::time::Instant;
+
+use axum::extract::{MatchedPath, Request};
+use axum::http::Method;
+use axum::middleware::Next;
+use axum::response::Response;
+use metrics_exporter_prometheus::{Matcher, PrometheusBuilder, PrometheusHandle};
+
+/// The problem type of an error answer, left by [`super::stack::finalize`]
+/// for the metrics.
+#[derive(Clone, Copy, Debug)]
+pub struct ProblemName(pub &'static str);
+
+/// Latency buckets, in seconds: 0.5 ms to 10 s.
+const BUCKETS: &[f64] = &[
+    0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0,
+];
+
+static HANDLE: OnceLock<PrometheusHandle> = OnceLock::new();
+
+/// The process's Prometheus recorder, installed on first use (the `metrics`
+/// facade has one global recorder per process).
+pub fn recorder() -> anyhow::Result<PrometheusHandle> {
+    if let Some(h) = HANDLE.get() {
+        return Ok(h.clone());
+    }
+    let handle = PrometheusBuilder::new()
+        .set_buckets_for_metric(Matcher::Suffix("_duration_seconds".into()), BUCKETS)?
+        .install_recorder()?;
+    let handle = HANDLE.get_or_init(|| handle).clone();
+    metrics::gauge!("accelcal_build_info", "version" => env!("CARGO_PKG_VERSION")).set(1.0);
+    describe();
+    Ok(handle)
+}
+
+fn describe() {
+    use metrics::{Unit, describe_counter, describe_gauge, describe_histogram};
+    describe_counter!(
+        "accelcal_http_requests_total",
+        "HTTP requests answered, by route template and status."
+    );
+    describe_histogram!(
+        "accelcal_http_request_duration_seconds",
+        Unit::Seconds,
+        "Time from the request's arrival to its answer's headers, by route template and status."
+    );
+    describe_gauge!(
+        "accelcal_http_requests_in_flight",
+        "HTTP requests being answered now."
+    );
+    describe_counter!(
+        "accelcal_submissions_total",
+        "Calibration submissions: stored, replayed (idempotent retry) or refused (by problem type)."
+    );
+    describe_counter!(
+        "accelcal_verdicts_total",
+        "Verdicts of stored calibrations of typed sensors."
+    );
+    describe_histogram!(
+        "accelcal_storage_operation_duration_seconds",
+        Unit::Seconds,
+        "Latency of storage operations, by operation and outcome."
+    );
+    describe_gauge!("accelcal_build_info", "Always 1; the version is a label.");
+}
+
+/// Counts `n` requests in flight for as long as it lives.
+struct InFlight;
+
+impl InFlight {
+    fn new() -> Self {
+        metrics::gauge!("accelcal_http_requests_in_flight").increment(1.0);
+        InFlight
+    }
+}
+
+impl Drop for InFlight {
+    fn drop(&mut self) {
+        metrics::gauge!("accelcal_http_requests_in_flight").decrement(1.0);
+    }
+}
+
+/// Records every request: count and latency by method, route template and
+/// status; submissions by outcome.
+pub async fn observe(req: Request, next: Next) -> Response {
+    let _in_flight = InFlight::new();
+    let started = Instant::now();
+    let method = req.method().clone();
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or_else(|| "unmatched".to_owned(), |p| p.as_str().to_owned());
+    let res = next.run(req).await;
+    let status = res.status();
+    let labels = [
+        ("method", method_label(&method)),
+        ("route", route.clone()),
+        ("status", status.as_u16().to_string()),
+    ];
+    metrics::counter!("accelcal_http_requests_total", &labels).increment(1);
+    metrics::histogram!("accelcal_http_request_duration_seconds", &labels)
+        .record(started.elapsed().as_secs_f64());
+    if method == Method::POST && route == "/v1/calibrations" {
+        let (outcome, reason) = if status.is_success() {
+            let replayed = res.headers().contains_key("idempotent-replayed");
+            (if replayed { "replayed" } else { "stored" }, "none")
+        } else {
+            let reason = res
+                .extensions()
+                .get::<ProblemName>()
+                .map_or("unknown", |p| p.0);
+            ("refused", reason)
+        };
+        metrics::counter!("accelcal_submissions_total", "outcome" => outcome, "reason" => reason)
+            .increment(1);
+    }
+    res
+}
+
+/// The method as a label: the standard ones by name, anything else `other`.
+fn method_label(m: &Method) -> String {
+    match *m {
+        Method::GET
+        | Method::POST
+        | Method::PUT
+        | Method::DELETE
+        | Method::HEAD
+        | Method::OPTIONS
+        | Method::PATCH => m.as_str().to_owned(),
+        _ => "other".to_owned(),
+    }
+}

@@ -1,0 +1,144 @@
+//! The OpenAPI 3.1 contract, generated from the handlers' `#[utoipa::path]`
+//! annotations and the request and response types, printed by
+//! `accelcal openapi`, committed as `openapi.yaml` (a test fails when the
+//! two differ) and served at `GET /openapi.yaml`.
+//!
+//! The result document's parts are types of the pure core, which carries no
+//! schema derives; their schemas are built here by hand, from the same
+//! constants the validation uses. schemathesis checks every answer of the
+//! running server against them.
+
+mod responses;
+mod schemas;
+
+use std::sync::LazyLock;
+
+use serde_json::{Value, json};
+use utoipa::openapi::security::{HttpAuthScheme, HttpBuilder, SecurityScheme};
+use utoipa::{Modify, OpenApi};
+
+pub use self::responses::*;
+pub use self::schemas::*;
+use super::{
+    calibrations, coefficients, compute, health, sensor_types, sensors, stability, tokens,
+};
+use crate::domain::schema::{
+    CoefficientMap, GravitySchema, Identifier, ModelSchema, NullableCoefficientMap, TermSchema,
+};
+
+/// The document, generated once.
+pub static OPENAPI: LazyLock<String> = LazyLock::new(document);
+
+/// Bearer authentication for every operation but the probes.
+struct Bearer;
+
+impl Modify for Bearer {
+    fn modify(&self, doc: &mut utoipa::openapi::OpenApi) {
+        let scheme = HttpBuilder::new()
+            .scheme(HttpAuthScheme::Bearer)
+            .description(Some("A token from `POST /v1/tokens`, `accelcal token create` or `ACCELCAL_ADMIN_TOKEN`."))
+            .build();
+        doc.components
+            .get_or_insert_with(Default::default)
+            .add_security_scheme("bearer", SecurityScheme::Http(scheme));
+    }
+}
+
+/// The document's source: every path and component.
+#[derive(OpenApi)]
+#[openapi(
+    info(
+        title = "accelcal",
+        description = include_str!("../docs/api.md"),
+        license(name = "MIT OR Apache-2.0", identifier = "MIT OR Apache-2.0"),
+    ),
+    servers((url = "http://127.0.0.1:8080")),
+    security(("bearer" = [])),
+    tags((name = "calibrations"), (name = "sensors"), (name = "sensor-types"), (name = "compute"), (name = "tokens"), (name = "health")),
+    paths(
+        health::healthz, health::readyz, health::openapi,
+        calibrations::submit, calibrations::get, calibrations::submission, calibrations::certificate,
+        sensors::list, sensors::get, sensors::update, sensors::history,
+        coefficients::coefficients, coefficients::compensate, stability::report,
+        sensor_types::put, sensor_types::list, sensor_types::get,
+        compute::identify, compute::fuse,
+        tokens::create, tokens::list, tokens::revoke,
+    ),
+    components(
+        schemas(
+            TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
+            MountSchema, PositionInSchema, RunInSchema, SubmissionSchema, RunResultSchema,
+            MeanEstimateSchema, BatchSchema, FusedEstimateSchema, EstimatesSchema, NormalizedSchema,
+            PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, SensorPageSchema,
+            CalibrationPageSchema, super::problem::ProblemBody, crate::domain::field::FieldError,
+            TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
+            SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
+            crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,
+        ),
+        responses(
+            ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
+            UnsupportedMediaType, Invalid, Unavailable,
+        ),
+    ),
+    modifiers(&Bearer),
+)]
+pub struct ApiDoc;
+
+/// The document as YAML, deterministic (keys sorted), with the version of
+/// this build and the JSON Schema conditional utoipa has no builder for:
+/// only a station token may be bound to a station.
+pub fn document() -> String {
+    let mut doc = ApiDoc::openapi();
+    doc.info.version = env!("CARGO_PKG_VERSION").to_owned();
+    // serde_norway's mappings keep insertion order: the document reads in
+    // the order of the OpenAPI structs, maps (paths, schemas) sorted.
+    let mut value = serde_norway::to_value(&doc).unwrap_or_default();
+    let conditional = |v: Value| serde_norway::to_value(v).unwrap_or_default();
+    if let Some(map) = value
+        .get_mut("components")
+        .and_then(|c| c.get_mut("schemas"))
+        .and_then(|s| s.get_mut("TokenRequest"))
+        .and_then(|t| t.as_mapping_mut())
+    {
+        map.insert(
+            "if".into(),
+            conditional(json!({"properties": {"role": {"enum": ["reader", "admin"]}}})),
+        );
+        map.insert(
+            "then".into(),
+            conditional(json!({"properties": {"station_id": {"type": "null"}}})),
+        );
+    }
+    fix_links(&mut value);
+    serde_norway::to_string(&value).unwrap_or_default()
+}
+
+/// utoipa 5 writes a link's `operationId` as `operation_id` (and the like);
+/// the specification's names are camel case.
+fn fix_links(value: &mut serde_norway::Value) {
+    use serde_norway::Value as Y;
+    match value {
+        Y::Mapping(map) => {
+            if let Some(Y::Mapping(links)) = map.get_mut("links") {
+                for (_, link) in links.iter_mut() {
+                    if let Y::Mapping(fields) = link {
+                        for (from, to) in [
+                            ("operation_id", "operationId"),
+                            ("operation_ref", "operationRef"),
+                            ("request_body", "requestBody"),
+                        ] {
+                            if let Some(v) = fields.remove(from) {
+                                fields.insert(to.into(), v);
+                            }
+                        }
+                    }
+                }
+            }
+            for (_, v) in map.iter_mut() {
+                fix_links(v);
+            }
+        }
+        Y::Sequence(items) => items.iter_mut().for_each(fix_links),
+        _ => {}
+    }
+}

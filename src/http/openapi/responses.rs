@@ -1,0 +1,101 @@
+//! Reusable problem answers and parameters.
+
+use utoipa::openapi::path::{Parameter, ParameterBuilder, ParameterIn};
+use utoipa::openapi::response::{Response, ResponseBuilder};
+use utoipa::openapi::schema::{Schema, Type};
+use utoipa::openapi::{ContentBuilder, HeaderBuilder, KnownFormat, RefOr, SchemaFormat};
+use utoipa::{IntoParams, ToResponse};
+
+use super::schemas::reference;
+use crate::domain::schema::of_type;
+
+/// Implements `ToResponse` for a reusable problem answer.
+macro_rules! problem_response {
+    ($name:ident, $description:literal $(, $header:literal => $kind:expr)*) => {
+        #[doc = $description]
+        pub struct $name;
+        impl<'r> ToResponse<'r> for $name {
+            fn response() -> (&'r str, RefOr<Response>) {
+                let content = ContentBuilder::new().schema(Some(reference("Problem"))).build();
+                let response = ResponseBuilder::new()
+                    .description($description)
+                    .content(crate::http::problem::PROBLEM_JSON, content)
+                    $(.header($header, HeaderBuilder::new().schema(of_type($kind)).build()))*
+                    .build();
+                (stringify!($name).trim_end_matches("Response"), response.into())
+            }
+        }
+    };
+}
+
+problem_response!(ProblemResponse, "A problem document.");
+problem_response!(BadRequest, "Malformed JSON, query, header or path.");
+problem_response!(Unauthorized, "No valid token.", "WWW-Authenticate" => Type::String);
+problem_response!(
+    Forbidden,
+    "The token's role (or station) does not allow this."
+);
+problem_response!(NotFound, "No such resource.");
+problem_response!(TooLarge, "The body exceeds the size limit.");
+problem_response!(
+    UnsupportedMediaType,
+    "Wrong Content-Type or Content-Encoding."
+);
+problem_response!(
+    Invalid,
+    "Well-formed but invalid or unidentifiable; `errors` lists the problems (the first 100)."
+);
+problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
+
+/// The `Idempotency-Key` header.
+pub struct IdempotencyKeyHeader;
+
+impl IntoParams for IdempotencyKeyHeader {
+    fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
+        vec![
+            ParameterBuilder::new()
+                .name("Idempotency-Key")
+                .parameter_in(ParameterIn::Header)
+                .description(Some(
+                    "A client-chosen key (1–255 visible ASCII characters) making retries safe.",
+                ))
+                .schema(Some(
+                    of_type(Type::String)
+                        .min_length(Some(1))
+                        .max_length(Some(255))
+                        .pattern(Some(r"^[\x21-\x7E]+$")),
+                ))
+                .build(),
+        ]
+    }
+}
+
+fn path_param(name: &str, schema: impl Into<RefOr<Schema>>) -> Parameter {
+    ParameterBuilder::new()
+        .name(name)
+        .parameter_in(ParameterIn::Path)
+        .required(utoipa::openapi::Required::True)
+        .schema(Some(schema))
+        .build()
+}
+
+/// The `{id}` of a calibration.
+pub struct CalibrationIdPath;
+
+impl IntoParams for CalibrationIdPath {
+    fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
+        vec![path_param(
+            "id",
+            of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::Uuid))),
+        )]
+    }
+}
+
+/// The `{sensor_id}` of a sensor.
+pub struct SensorIdPath;
+
+impl IntoParams for SensorIdPath {
+    fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
+        vec![path_param("sensor_id", reference("Identifier"))]
+    }
+}

@@ -1,0 +1,425 @@
+//! Schemas of the wire shapes whose Rust types live in the pure core or are
+//! read by hand (the submission), built from the limits the checks use.
+
+use serde_json::Value;
+use utoipa::openapi::schema::{
+    AdditionalProperties, AllOfBuilder, AnyOfBuilder, ArrayBuilder, ObjectBuilder, Schema,
+    SchemaType, Type,
+};
+use utoipa::openapi::{KnownFormat, Ref, RefOr, SchemaFormat};
+use utoipa::{PartialSchema, ToSchema};
+
+use crate::domain::limits::*;
+use crate::domain::schema::{line, marker_schema, nullable, of_type, text};
+
+pub(super) fn reference(name: &str) -> RefOr<Schema> {
+    RefOr::Ref(Ref::from_schema_name(name))
+}
+
+fn array(items: impl Into<RefOr<Schema>>) -> ArrayBuilder {
+    let items: RefOr<Schema> = items.into();
+    ArrayBuilder::new().items(items)
+}
+
+fn number(bound: f64) -> ObjectBuilder {
+    of_type(Type::Number)
+        .minimum(Some(-bound))
+        .maximum(Some(bound))
+}
+
+fn closed(o: ObjectBuilder) -> ObjectBuilder {
+    o.schema_type(SchemaType::new(Type::Object))
+        .additional_properties(Some(AdditionalProperties::<Schema>::FreeForm(false)))
+}
+
+marker_schema!(
+    /// A position by angle or by gravity components.
+    PositionInSchema => RefOr::T(Schema::AllOf(AllOfBuilder::new()
+        .description(Some(
+            "A position by dividing-head angle (with the mount) or by explicit gravity \
+             components (norm 0.9–1.1 g); with both, they must agree.",
+        ))
+        .item(closed(ObjectBuilder::new())
+            .property("angle_deg", number(MAX_ANGLE_DEG))
+            .property("a", array(number(MAX_GRAVITY_COMPONENT)).min_items(Some(3)).max_items(Some(3)))
+            .property("label", nullable(text(MAX_LABEL_CHARS).into())))
+        .item(Schema::AnyOf(AnyOfBuilder::new()
+            .item(ObjectBuilder::new().required("angle_deg"))
+            .item(ObjectBuilder::new().required("a")).build()))
+        .build()))
+);
+
+marker_schema!(
+    /// One run's samples.
+    RunInSchema => closed(ObjectBuilder::new())
+        .property("temperature_c", ObjectBuilder::new()
+            .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+            .description(Some("The run's temperature, °C; give it for every run or none."))
+            .minimum(Some(*TEMPERATURE_C.start()))
+            .maximum(Some(*TEMPERATURE_C.end())))
+        .property(
+            "readings",
+            array(array(number(MAX_READING)).min_items(Some(1)).max_items(Some(MAX_SAMPLES)))
+                .description(Some("One array of samples per position, in position order."))
+                .min_items(Some(1))
+                .max_items(Some(MAX_POSITIONS)),
+        )
+        .required("readings")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// A tumble-test submission.
+    SubmissionSchema => closed(ObjectBuilder::new())
+        .property("sensor_id", reference("Identifier"))
+        .property("station_id", nullable(reference("Identifier")))
+        .property("performed_at", ObjectBuilder::new()
+            .schema_type(SchemaType::from_iter([Type::String, Type::Null]))
+            .format(Some(SchemaFormat::KnownFormat(KnownFormat::DateTime)))
+            .description(Some("RFC 3339; default the time received; from 1970 to a day ahead.")))
+        .property("unit", nullable(line(MAX_UNIT_CHARS).description(Some("Unit of the outputs (default \"output\").")).into()))
+        .property("model", nullable(reference("Model")))
+        .property("mount", nullable(reference("Mount")))
+        .property("positions", array(reference("PositionIn")).min_items(Some(1)).max_items(Some(MAX_POSITIONS)))
+        .property("runs", array(reference("RunIn")).min_items(Some(1)).max_items(Some(MAX_RUNS)))
+        .property("batches", ObjectBuilder::new()
+            .schema_type(SchemaType::from_iter([Type::Integer, Type::Null]))
+            .description(Some("Fusion batches (default 2); each needs at least two runs."))
+            .minimum(Some(1.0))
+            .maximum(Some(MAX_BATCHES as f64)))
+        .property("notes", nullable(text(MAX_NOTES_CHARS).into()))
+        .property("sensor_type", nullable(reference("Identifier")))
+        .property("stand", nullable(closed(ObjectBuilder::new())
+            .description(Some("The tumble stand's systematic uncertainties (1σ); each defaults to 0."))
+            .property("id", nullable(reference("Identifier")))
+            .property("angle_std_arcsec", ObjectBuilder::new()
+                .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+                .minimum(Some(0.0)).maximum(Some(MAX_ANGLE_STD_ARCSEC)))
+            .property("gravity_rel_std", ObjectBuilder::new()
+                .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+                .minimum(Some(0.0)).maximum(Some(MAX_GRAVITY_REL_STD)))
+            .build().into()))
+        .required("sensor_id")
+        .required("positions")
+        .required("runs")
+        .examples([serde_json::from_str::<Value>(include_str!("../../../examples/paper-4-runs.json")).unwrap_or(Value::Null)])
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The mount.
+    MountSchema => of_type(Type::String)
+        .enum_values(Some(["pendulum", "gate"]))
+        .description(Some("pendulum: a = (−sin θ, cos θ, 0); gate: a = (−sin θ, 0, cos θ)."))
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// One run's identification.
+    RunResultSchema => ObjectBuilder::new()
+        .property("coefficients", reference("CoefficientMap"))
+        .property("std_errors", nullable(reference("CoefficientMap")))
+        .property("residuals", array(of_type(Type::Number)))
+        .property("residual_rms", of_type(Type::Number).minimum(Some(0.0)))
+        .property("dof", of_type(Type::Integer).minimum(Some(0.0)))
+        .required("coefficients").required("std_errors").required("residuals")
+        .required("residual_rms").required("dof")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The arithmetic mean across runs, with eq. 8 about it.
+    MeanEstimateSchema => ObjectBuilder::new()
+        .property("coefficients", reference("CoefficientMap"))
+        .property("dispersion", reference("CoefficientMap"))
+        .property("relative_dispersion", reference("NullableCoefficientMap"))
+        .required("coefficients").required("dispersion").required("relative_dispersion")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// One fusion batch.
+    BatchSchema => ObjectBuilder::new()
+        .property("runs", array(of_type(Type::Integer).minimum(Some(0.0))))
+        .property("mean", reference("CoefficientMap"))
+        .property("std", reference("CoefficientMap"))
+        .required("runs").required("mean").required("std")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The batch-estimation fusion, with eq. 8 about it.
+    FusedEstimateSchema => ObjectBuilder::new()
+        .property("batches", array(reference("Batch")))
+        .property("coefficients", reference("CoefficientMap"))
+        .property("std_errors", reference("CoefficientMap"))
+        .property("dispersion", reference("CoefficientMap"))
+        .property("relative_dispersion", reference("NullableCoefficientMap"))
+        .required("batches").required("coefficients").required("std_errors")
+        .required("dispersion").required("relative_dispersion")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// Mean and fused estimates.
+    EstimatesSchema => ObjectBuilder::new()
+        .property("mean", reference("MeanEstimate"))
+        .property("fused", reference("FusedEstimate"))
+        .required("mean").required("fused")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// Input-referred values from the fused coefficients.
+    NormalizedSchema => ObjectBuilder::new()
+        .description(Some("Input-referred values from the fused coefficients, where the terms exist."))
+        .property("bias_g", of_type(Type::Number))
+        .property("misalignment_p_rad", of_type(Type::Number))
+        .property("misalignment_o_rad", of_type(Type::Number))
+        .property("second_order_g_per_g2", of_type(Type::Number))
+        .property("third_order_g_per_g3", of_type(Type::Number))
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// A resolved position in a result.
+    PositionOutSchema => ObjectBuilder::new()
+        .property("a", reference("Gravity"))
+        .property("angle_deg", of_type(Type::Number))
+        .property("label", of_type(Type::String))
+        .required("a")
+        .build()
+        .into()
+);
+
+fn date_time() -> ObjectBuilder {
+    of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::DateTime)))
+}
+
+fn string_or_null() -> ObjectBuilder {
+    ObjectBuilder::new().schema_type(SchemaType::from_iter([Type::String, Type::Null]))
+}
+
+fn nullable_number() -> ObjectBuilder {
+    ObjectBuilder::new().schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+}
+
+fn per_term(item: &str) -> ObjectBuilder {
+    of_type(Type::Object)
+        .property_names(Some(crate::domain::schema::TermSchema::schema()))
+        .additional_properties(Some(AdditionalProperties::RefOr(reference(item))))
+}
+
+marker_schema!(
+    /// One coefficient's uncertainty budget.
+    TermBudgetSchema => ObjectBuilder::new()
+        .description(Some("In the coefficient's unit; combined = √(statistical² + indexing² + gravity²), expanded = k × combined."))
+        .property("statistical", of_type(Type::Number).minimum(Some(0.0)))
+        .property("indexing", of_type(Type::Number).minimum(Some(0.0)))
+        .property("gravity", of_type(Type::Number).minimum(Some(0.0)))
+        .property("combined", of_type(Type::Number).minimum(Some(0.0)))
+        .property("expanded", of_type(Type::Number).minimum(Some(0.0)))
+        .required("statistical").required("indexing").required("gravity")
+        .required("combined").required("expanded")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The uncertainty budget of every fused coefficient.
+    UncertaintySchema => ObjectBuilder::new()
+        .property("coverage_factor", of_type(Type::Number).exclusive_minimum(Some(0.0)))
+        .property("terms", per_term("TermBudget"))
+        .required("coverage_factor").required("terms")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// One coefficient's judgement.
+    TermDecisionSchema => ObjectBuilder::new()
+        .property("value", of_type(Type::Number))
+        .property("min", nullable_number())
+        .property("max", nullable_number())
+        .property("expanded", of_type(Type::Number).minimum(Some(0.0)))
+        .property("verdict", reference("Verdict"))
+        .required("value").required("min").required("max").required("expanded").required("verdict")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The decision against the sensor type's limits.
+    DecisionSchema => ObjectBuilder::new()
+        .property("rule", reference("Rule"))
+        .property("verdict", reference("Verdict"))
+        .property("terms", per_term("TermDecision"))
+        .required("rule").required("verdict").required("terms")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// As found: the previous coefficients' error at each position.
+    AsFoundSchema => ObjectBuilder::new()
+        .property("previous_calibration_id", of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::Uuid))))
+        .property("positions", array(ObjectBuilder::new()
+            .property("error_output", of_type(Type::Number))
+            .property("error_g", of_type(Type::Number))
+            .required("error_output").required("error_g")))
+        .property("max_abs_error_g", of_type(Type::Number).minimum(Some(0.0)))
+        .required("previous_calibration_id").required("positions").required("max_abs_error_g")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// One coefficient's temperature sensitivity.
+    SensitivitySchema => ObjectBuilder::new()
+        .property("per_kelvin", of_type(Type::Number))
+        .property("std_error", nullable_number())
+        .property("reference_c", of_type(Type::Number))
+        .property("value_at_reference", of_type(Type::Number))
+        .required("per_kelvin").required("std_error").required("reference_c").required("value_at_reference")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// Warnings that never change a number.
+    QualitySchema => ObjectBuilder::new()
+        .property("condition_number", of_type(Type::Number).minimum(Some(1.0)))
+        .property("warnings", array(ObjectBuilder::new()
+            .description(Some("`ill_conditioned` (condition_number, terms) or `noisy_run` (run, residual_rms, median_residual_rms)."))
+            .property("kind", of_type(Type::String).enum_values(Some(["ill_conditioned", "noisy_run"])))
+            .property("condition_number", of_type(Type::Number))
+            .property("terms", array(reference("Term")))
+            .property("run", of_type(Type::Integer).minimum(Some(0.0)))
+            .property("residual_rms", of_type(Type::Number))
+            .property("median_residual_rms", of_type(Type::Number))
+            .required("kind")))
+        .required("condition_number").required("warnings")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// The tumble stand of a submission.
+    StandOutSchema => ObjectBuilder::new()
+        .property("id", string_or_null())
+        .property("angle_std_arcsec", of_type(Type::Number).minimum(Some(0.0)))
+        .property("gravity_rel_std", of_type(Type::Number).minimum(Some(0.0)))
+        .required("id").required("angle_std_arcsec").required("gravity_rel_std")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// One coefficient's stability over a sensor's history.
+    TermStabilitySchema => ObjectBuilder::new()
+        .property("mean", of_type(Type::Number))
+        .property("std", nullable_number())
+        .property("min", of_type(Type::Number))
+        .property("max", of_type(Type::Number))
+        .property("drift_per_year", nullable_number())
+        .property("drift_std_error", nullable_number())
+        .property("drift_t", nullable_number())
+        .property("control", ObjectBuilder::new()
+            .property("centre", of_type(Type::Number))
+            .property("moving_range_mean", nullable_number())
+            .property("lower", nullable_number())
+            .property("upper", nullable_number())
+            .property("out_of_control", array(of_type(Type::String)))
+            .required("centre").required("moving_range_mean").required("lower")
+            .required("upper").required("out_of_control"))
+        .property("latest_change", nullable_number())
+        .property("latest_change_expanded", nullable_number())
+        .property("latest_change_significant", ObjectBuilder::new().schema_type(SchemaType::from_iter([Type::Boolean, Type::Null])))
+        .required("mean").required("std").required("min").required("max")
+        .required("drift_per_year").required("drift_std_error").required("drift_t")
+        .required("control").required("latest_change").required("latest_change_expanded")
+        .required("latest_change_significant")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// A calibration result.
+    CalibrationResultSchema => ObjectBuilder::new()
+        .property("id", of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::Uuid))))
+        .property("sensor_id", reference("Identifier"))
+        .property("station_id", string_or_null())
+        .property("performed_at", date_time())
+        .property("received_at", date_time())
+        .property("unit", of_type(Type::String))
+        .property("model", reference("Model"))
+        .property("mount", reference("Mount"))
+        .property("batches", of_type(Type::Integer).minimum(Some(1.0)))
+        .property("notes", string_or_null())
+        .property("positions", array(reference("PositionOut")))
+        .property("condition_number", of_type(Type::Number).minimum(Some(1.0)))
+        .property("runs", array(reference("RunResult")))
+        .property("mean", reference("MeanEstimate"))
+        .property("fused", reference("FusedEstimate"))
+        .property("normalized", reference("Normalized"))
+        .property("sensor_type", string_or_null().description(Some("The sensor type in force (named in the submission, or the sensor's).")))
+        .property("stand", nullable(reference("StandOut")))
+        .property("temperatures_c", array(of_type(Type::Number)).description(Some("The runs' temperatures, when given.")))
+        .property("uncertainty", reference("Uncertainty"))
+        .property("decision", nullable(reference("Decision")))
+        .property("as_found", nullable(reference("AsFound")))
+        .property("due_at", string_or_null().format(Some(SchemaFormat::KnownFormat(KnownFormat::DateTime))))
+        .property("temperature", per_term("Sensitivity").description(Some("Present when the runs were made at two or more temperatures.")))
+        .property("quality", reference("Quality"))
+        .required("sensor_type").required("stand").required("uncertainty").required("decision")
+        .required("as_found").required("due_at").required("quality")
+        .required("sensor_id").required("station_id").required("performed_at")
+        .required("received_at").required("unit").required("model").required("mount")
+        .required("batches").required("notes").required("positions")
+        .required("condition_number").required("runs").required("mean").required("fused")
+        .required("normalized")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// A stored calibration: a result with its id.
+    StoredCalibrationSchema => RefOr::T(Schema::AllOf(AllOfBuilder::new()
+        .item(reference("CalibrationResult"))
+        .item(ObjectBuilder::new().required("id"))
+        .build()))
+);
+
+fn page(item: &str) -> RefOr<Schema> {
+    ObjectBuilder::new()
+        .property("items", array(reference(item)))
+        .property(
+            "next",
+            string_or_null().description(Some(
+                "Cursor for the next page (`after=`), or null on the last page.",
+            )),
+        )
+        .required("items")
+        .required("next")
+        .build()
+        .into()
+}
+
+marker_schema!(
+    /// One page of sensors.
+    SensorPageSchema => page("SensorSummary")
+);
+
+marker_schema!(
+    /// One page of a sensor's calibrations.
+    CalibrationPageSchema => page("CalibrationSummary")
+);

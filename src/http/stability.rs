@@ -1,0 +1,142 @@
+//! `GET /v1/sensors/{sensor_id}/stability`: a sensor's coefficients over its
+//! history — spread, drift, control chart and the latest change (definitions
+//! in `accelcal_core::history`).
+
+use accelcal_core::TermMap;
+use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, stability};
+use axum::Json;
+use axum::extract::{Path, State};
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use super::AppState;
+use super::auth::require;
+use super::problem::Problem;
+use super::query::{Params, instant};
+use super::sensors::sensor;
+use crate::domain::auth::{Principal, Role};
+use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
+use crate::domain::timestamp::Timestamp;
+use crate::store::{CalibrationSummary, SensorSummary};
+
+/// The query of the stability report.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct StabilityParams {
+    /// Only calibrations performed at or after this instant (RFC 3339).
+    #[param(value_type = Option<String>, format = DateTime)]
+    from: Option<String>,
+    /// Only calibrations performed at or before this instant (RFC 3339).
+    #[param(value_type = Option<String>, format = DateTime)]
+    to: Option<String>,
+}
+
+/// A sensor's stability over a window of its history.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Stability {
+    /// The sensor.
+    pub sensor_id: String,
+    /// Calibrations in the window.
+    pub calibrations: usize,
+    /// The first one's `performed_at`.
+    pub first_performed_at: Option<Timestamp>,
+    /// The last one's `performed_at`.
+    pub last_performed_at: Option<Timestamp>,
+    /// The coverage factor of `latest_change_expanded` (the sensor type's, else 2).
+    pub coverage_factor: f64,
+    /// Per term present in every calibration of the window.
+    #[schema(value_type = std::collections::BTreeMap<String, super::openapi::TermStabilitySchema>)]
+    pub terms: TermMap<TermStability>,
+}
+
+/// A sensor, its calibrations in a window (oldest first) and their stability.
+pub struct Report {
+    /// The sensor now.
+    pub sensor: SensorSummary,
+    /// Its calibrations performed within the window, oldest first.
+    pub series: Vec<CalibrationSummary>,
+    /// Their stability.
+    pub stability: Stability,
+}
+
+/// The stability of `sensor_id`'s calibrations performed within
+/// `from..=to` (404 for an unknown sensor).
+pub async fn report_of(
+    state: &AppState,
+    sensor_id: &str,
+    from: Option<Timestamp>,
+    to: Option<Timestamp>,
+) -> Result<Report, Problem> {
+    let summary = sensor(state, sensor_id).await?;
+    let coverage_factor = match &summary.sensor_type {
+        Some(t) => state
+            .store
+            .sensor_type(t.clone())
+            .await?
+            .map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor),
+        None => DEFAULT_COVERAGE_FACTOR,
+    };
+    let series = state.store.series(sensor_id.to_owned(), from, to).await?;
+    let points: Vec<Point> = series
+        .iter()
+        .map(|c| Point {
+            id: c.id.to_string(),
+            t_years: years(c.performed_at),
+            values: c.coefficients.clone(),
+            std_errors: c.std_errors.clone(),
+        })
+        .collect();
+    let stability = Stability {
+        sensor_id: sensor_id.to_owned(),
+        calibrations: series.len(),
+        first_performed_at: series.first().map(|c| c.performed_at),
+        last_performed_at: series.last().map(|c| c.performed_at),
+        coverage_factor,
+        terms: stability(&points, coverage_factor),
+    };
+    Ok(Report {
+        sensor: summary,
+        series,
+        stability,
+    })
+}
+
+/// An instant in years of 365.25 days since the Unix epoch (the abscissa of
+/// the drift fit).
+pub fn years(t: Timestamp) -> f64 {
+    t.unix_micros() as f64 / 1e6 / SECONDS_PER_YEAR
+}
+
+/// `GET /v1/sensors/{sensor_id}/stability`.
+#[utoipa::path(
+    get,
+    path = "/v1/sensors/{sensor_id}/stability",
+    tag = "sensors",
+    operation_id = "getStability",
+    summary = "Spread, drift and control chart of a sensor's fused coefficients over its history.",
+    params(super::openapi::SensorIdPath, StabilityParams),
+    responses(
+        (status = 200, description = "The report.", body = Stability),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 401, response = super::openapi::Unauthorized),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 503, response = super::openapi::Unavailable),
+        (status = "default", response = super::openapi::ProblemResponse),
+    )
+)]
+pub async fn report(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(sensor_id): Path<String>,
+    Params(q): Params<StabilityParams>,
+) -> Result<Json<Stability>, Problem> {
+    require(&principal, Role::Reader)?;
+    let (from, to) = (
+        instant("from", q.from.as_deref())?,
+        instant("to", q.to.as_deref())?,
+    );
+    Ok(Json(
+        report_of(&state, &sensor_id, from, to).await?.stability,
+    ))
+}

@@ -1,0 +1,336 @@
+//! The middleware stack, outermost first:
+//!
+//! 1. request ids (tower-http `SetRequestId`/`PropagateRequestId`; a
+//!    client's own id is kept when it is short, plain and not a token);
+//! 2. one log line per request (tower-http `Trace`);
+//! 3. [`finalize`]: every error becomes a problem document carrying the
+//!    request id;
+//! 4. security headers (tower-http `SetResponseHeader`);
+//! 5. a panic becomes a 500 problem (tower-http `CatchPanic`);
+//! 6. the whole-request deadline (tower-http `Timeout`, 503);
+//!
+//! and, for `/v1` only (health probes are exempt):
+//!
+//! 7. [`reject_codings`]: transfer codings other than chunked are 501;
+//! 8. the size limit on the bytes as sent (tower-http `RequestBodyLimit`,
+//!    413 from `Content-Length` before reading);
+//! 9. gzip request bodies decompressed (tower-http `RequestDecompression`;
+//!    other encodings 415);
+//! 10. [`admit`]: the body is received whole — within its own deadline, the
+//!     size limit applied after decompression, and a budget of bytes being
+//!     received at once — before the request competes for a slot;
+//! 11. load shedding over a global concurrency limit (tower), 503 at once.
+
+use std::sync::Arc;
+use std::time::Duration;
+
+use axum::body::Body;
+use axum::extract::{MatchedPath, Request, State};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::middleware::Next;
+use axum::response::{IntoResponse, Response};
+use http_body_util::{BodyExt, LengthLimitError, Limited};
+use tokio::sync::Semaphore;
+use tower_http::request_id::{MakeRequestId, RequestId};
+
+use super::AppState;
+use super::problem::{Kind, PROBLEM_JSON, Problem};
+use crate::domain::auth;
+use crate::domain::text::echo;
+
+/// The request id header, accepted from clients and always returned.
+pub static X_REQUEST_ID: axum::http::HeaderName =
+    axum::http::HeaderName::from_static("x-request-id");
+
+/// New request ids: UUIDv7 (time-ordered).
+#[derive(Clone, Copy, Default)]
+pub struct UuidV7;
+
+impl MakeRequestId for UuidV7 {
+    fn make_request_id<B>(&mut self, _: &axum::http::Request<B>) -> Option<RequestId> {
+        HeaderValue::from_str(&uuid::Uuid::now_v7().to_string())
+            .ok()
+            .map(RequestId::new)
+    }
+}
+
+/// Drops a client's `x-request-id` unless it is 1–128 characters of
+/// `[A-Za-z0-9._:-]` and does not hold a token: it goes into every log line.
+pub async fn sanitize_request_id(mut req: Request) -> Request {
+    let usable = req
+        .headers()
+        .get(&X_REQUEST_ID)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|s| {
+            (1..=128).contains(&s.len())
+                && s.chars()
+                    .all(|c| c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.' | ':'))
+                && !auth::holds_token(s)
+        });
+    if !usable {
+        req.headers_mut().remove(&X_REQUEST_ID);
+    }
+    req
+}
+
+/// The span of one request: its id, method, route template and path (cut
+/// short, any pasted token redacted).
+pub fn request_span(req: &Request) -> tracing::Span {
+    let id = req
+        .headers()
+        .get(&X_REQUEST_ID)
+        .and_then(|v| v.to_str().ok())
+        .unwrap_or("-");
+    let route = req
+        .extensions()
+        .get::<MatchedPath>()
+        .map_or("-", MatchedPath::as_str);
+    tracing::info_span!(
+        "request",
+        request_id = %id,
+        method = %req.method(),
+        route = %route,
+        path = %echo(req.uri().path()),
+    )
+}
+
+/// The request's log line: status and latency, a warning for 5xx.
+pub fn log_response(res: &Response, latency: Duration, _: &tracing::Span) {
+    let status = res.status().as_u16();
+    let ms = latency.as_secs_f64() * 1e3;
+    if res.status().is_server_error() {
+        tracing::warn!(status, latency_ms = ms, "request");
+    } else {
+        tracing::info!(status, latency_ms = ms, "request");
+    }
+}
+
+/// The security headers of every answer (each kept when a handler set its own).
+pub const SECURITY_HEADERS: [(&str, &str); 6] = [
+    ("x-content-type-options", "nosniff"),
+    ("x-frame-options", "DENY"),
+    ("referrer-policy", "no-referrer"),
+    (
+        "content-security-policy",
+        "default-src 'none'; frame-ancestors 'none'",
+    ),
+    ("cross-origin-resource-policy", "same-origin"),
+    ("cache-control", "no-store"),
+];
+
+/// Gives every error response a problem body with the request id: handler
+/// problems are re-rendered with it, and bare errors from the framework and
+/// the layers below (unknown route, wrong method, size limit, unsupported
+/// encoding, the request deadline, a panic) become problems with fixed
+/// texts — never a library's own message.
+pub async fn finalize(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    let request_id = req
+        .headers()
+        .get(&X_REQUEST_ID)
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_owned);
+    let encoding = req
+        .headers()
+        .get(header::CONTENT_ENCODING)
+        .and_then(|v| v.to_str().ok())
+        .map(echo);
+    let mut res = next.run(req).await;
+    let id = request_id.as_deref();
+    if let Some(problem) = res.extensions_mut().remove::<Problem>() {
+        return rebuild(res, &problem, id);
+    }
+    let status = res.status();
+    let content_type = res.headers().get(header::CONTENT_TYPE);
+    let is_problem =
+        content_type.is_some_and(|v| v.as_bytes().starts_with(PROBLEM_JSON.as_bytes()));
+    // The pages answer their errors as pages (`ui::UiError`).
+    let is_page = content_type.is_some_and(|v| v.as_bytes().starts_with(b"text/html"));
+    if !(status.is_client_error() || status.is_server_error()) || is_problem || is_page {
+        return res;
+    }
+    let limits = &state.limits;
+    let problem = match status {
+        StatusCode::NOT_FOUND => Problem::not_found("no such resource; see /openapi.yaml"),
+        StatusCode::METHOD_NOT_ALLOWED => Problem::new(
+            Kind::MethodNotAllowed,
+            "this resource does not support the method; see the Allow header",
+        ),
+        StatusCode::PAYLOAD_TOO_LARGE => Problem::too_large(limits.max_body_bytes),
+        StatusCode::UNSUPPORTED_MEDIA_TYPE => Problem::unsupported_media(format!(
+            "Content-Encoding `{}` is not accepted; send gzip or no encoding",
+            encoding.unwrap_or_default()
+        )),
+        StatusCode::SERVICE_UNAVAILABLE => Problem::unavailable(
+            format!(
+                "the request was not completed within {} s; retry",
+                limits.request_timeout.as_secs()
+            ),
+            2,
+        ),
+        s if s.is_server_error() => {
+            tracing::error!(status = s.as_u16(), "framework error");
+            Problem::internal()
+        }
+        s => Problem::bad_request(s.canonical_reason().unwrap_or("bad request")).with_status(s),
+    };
+    rebuild(res, &problem, id)
+}
+
+fn rebuild(res: Response, problem: &Problem, request_id: Option<&str>) -> Response {
+    let (mut parts, _) = res.into_parts();
+    let fresh = problem.response(request_id);
+    parts.status = fresh.status();
+    parts
+        .extensions
+        .insert(super::metrics::ProblemName(problem.kind.name()));
+    parts.headers.remove(header::CONTENT_LENGTH);
+    for (name, value) in fresh.headers() {
+        parts.headers.insert(name.clone(), value.clone());
+    }
+    Response::from_parts(parts, fresh.into_body())
+}
+
+/// A panic in a handler: logged, answered with an opaque 500 problem.
+pub fn panic_response(_: Box<dyn std::any::Any + Send + 'static>) -> Response<String> {
+    tracing::error!("a handler panicked");
+    let body = String::from_utf8(Problem::internal().to_json(None)).unwrap_or_default();
+    let mut res = Response::new(body);
+    *res.status_mut() = StatusCode::INTERNAL_SERVER_ERROR;
+    res.headers_mut()
+        .insert(header::CONTENT_TYPE, HeaderValue::from_static(PROBLEM_JSON));
+    res
+}
+
+/// 501 for a transfer coding other than `chunked` (`gzip, chunked` and the
+/// like): the body would otherwise reach the handler still encoded.
+pub async fn reject_codings(req: Request) -> Result<Request, Problem> {
+    for value in req.headers().get_all(header::TRANSFER_ENCODING) {
+        let text = value.to_str().unwrap_or("?");
+        for coding in text.split(',').map(str::trim) {
+            if !coding.eq_ignore_ascii_case("chunked") {
+                return Err(Problem::not_implemented(format!(
+                    "Transfer-Encoding `{}` is not supported; send the body plain or chunked \
+                     (Content-Encoding: gzip compresses it)",
+                    echo(coding)
+                )));
+            }
+        }
+    }
+    Ok(req)
+}
+
+/// The budgets of admission: bytes of bodies in flight, and requests being
+/// worked on. `/readyz` fails while either is exhausted.
+#[derive(Clone, Debug)]
+pub struct Admission {
+    /// KiB of request bodies being received or worked on.
+    pub bodies: Arc<Semaphore>,
+    /// The body budget in KiB (the semaphore's size).
+    pub body_budget_kib: usize,
+    /// Slots for requests being worked on (the concurrency limit).
+    pub work: Arc<Semaphore>,
+}
+
+impl Admission {
+    /// Budgets for `body_budget_bytes` of bodies and `max_concurrent` requests.
+    pub fn new(body_budget_bytes: usize, max_concurrent: usize) -> Self {
+        let kib = body_budget_bytes.div_ceil(1024).max(1);
+        Admission {
+            bodies: Arc::new(Semaphore::new(kib)),
+            body_budget_kib: kib,
+            work: Arc::new(Semaphore::new(max_concurrent.max(1))),
+        }
+    }
+
+    /// Why the server cannot take more work right now, if it cannot.
+    pub fn saturated(&self) -> Option<&'static str> {
+        if self.work.available_permits() == 0 {
+            Some("every request slot is taken")
+        } else if self.bodies.available_permits() == 0 {
+            Some("the budget of request bodies in flight is spent")
+        } else {
+            None
+        }
+    }
+}
+
+/// Receives a request's body whole before the request competes for a work
+/// slot, so a client trickling its body holds only its own connection and
+/// its share of the body budget, never a slot that a ready request needs.
+///
+/// The body's size (declared, or the limit when unknown) is taken from the
+/// budget of bytes in flight before reading, and given back when the answer
+/// is done; when the budget is spent the answer is 503 at once. The body must
+/// arrive within the body deadline (408) and, once decompressed, within the
+/// size limit (413).
+pub async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+    use http_body::Body as _;
+    let limits = state.limits;
+    // The size as known now: after decompression only an upper bound is.
+    let hint = req.body().size_hint();
+    if hint.exact() == Some(0) {
+        return next.run(req).await;
+    }
+    let weight = hint
+        .exact()
+        .map_or(limits.max_body_bytes, |n| n as usize)
+        .min(limits.max_body_bytes)
+        .div_ceil(1024)
+        .clamp(1, state.admission.body_budget_kib);
+    let Ok(_budget) = state
+        .admission
+        .bodies
+        .clone()
+        .try_acquire_many_owned(weight as u32)
+    else {
+        return Problem::unavailable(
+            "the server is receiving as many request bodies as it holds at once; retry shortly",
+            1,
+        )
+        .into_response();
+    };
+    tracing::debug!(budget_kib = weight, "receiving a request body");
+    let (parts, body) = req.into_parts();
+    let read = Limited::new(body, limits.max_body_bytes).collect();
+    let bytes = match tokio::time::timeout(limits.body_timeout, read).await {
+        Err(_) => {
+            return Problem::request_timeout(format!(
+                "the body was not received within {} s",
+                limits.body_timeout.as_secs()
+            ))
+            .into_response();
+        }
+        Ok(Ok(collected)) => collected.to_bytes(),
+        Ok(Err(e)) if too_large(e.as_ref()) => {
+            return Problem::too_large(limits.max_body_bytes).into_response();
+        }
+        Ok(Err(e)) => {
+            tracing::debug!(error = %e, "a body could not be read");
+            return Problem::bad_request(
+                "the body could not be read: a malformed chunked encoding or gzip stream, \
+                 or the connection closed early",
+            )
+            .into_response();
+        }
+    };
+    next.run(Request::from_parts(parts, Body::from(bytes)))
+        .await
+}
+
+/// Whether a body error is (or wraps) the size limit's: the limit applies
+/// both to the bytes as sent and, inside, to the decompressed bytes.
+fn too_large(e: &(dyn std::error::Error + 'static)) -> bool {
+    let mut current = Some(e);
+    while let Some(err) = current {
+        if err.is::<LengthLimitError>() {
+            return true;
+        }
+        current = err.source();
+    }
+    false
+}
+
+/// The answer when every work slot is taken: 503 at once, not a queue.
+pub async fn overloaded(_: tower::BoxError) -> Problem {
+    Problem::unavailable("the server is at its concurrency limit; retry shortly", 1)
+}

@@ -1,0 +1,411 @@
+//! `GET /ui/calibrations/{id}`: one calibration as a lab reads it — the
+//! paper's tables (per run; mean and fused with eq. 8 dispersion and
+//! standard errors, as its Table 2), residuals per run and position (chart
+//! and table), the uncertainty budget, the decision, as found, temperature
+//! and quality flags when present, and links to the submission and the
+//! certificate. `GET /ui/calibrations/{id}/submission` downloads the stored
+//! body, byte for byte.
+
+use axum::extract::{Path, State};
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use maud::{Markup, html};
+
+use super::format::{instant, num, opt, unc};
+use super::plot::{self, Chart, Point, Series, XAxis};
+use super::result::{ResultDoc, WarningDoc};
+use super::session::Viewer;
+use super::{Html, UiError, badge, layout};
+use crate::domain::timestamp::Timestamp;
+use crate::http::problem::Problem;
+use crate::http::{AppState, path_id};
+
+/// Reads a stored result document (404 for an unknown id).
+pub async fn load(state: &AppState, raw_id: &str) -> Result<ResultDoc, Problem> {
+    let id = path_id(raw_id, "calibration")?;
+    let bytes = state
+        .store
+        .calibration_result(id)
+        .await?
+        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    serde_json::from_slice(&bytes).map_err(|e| {
+        tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
+        Problem::internal()
+    })
+}
+
+/// A stored instant, as the pages print it.
+pub fn when(text: &str) -> String {
+    Timestamp::parse(text).map_or_else(|_| text.to_owned(), |t| instant(&t))
+}
+
+fn terms(d: &ResultDoc) -> Vec<accelcal_core::Term> {
+    d.fused.coefficients.iter().map(|(t, _)| t).collect()
+}
+
+fn runs_table(d: &ResultDoc) -> Markup {
+    let terms = terms(d);
+    let v = |m: &accelcal_core::TermMap<f64>, t| m.get(t).copied();
+    html! {
+        div.table-wrap tabindex="0" role="region" aria-label="Coefficients per run, mean and fused" {
+            table #estimates {
+                caption { "Per run and fused (as the paper's Table 2); coefficients in " (d.unit) }
+                thead { tr {
+                    th scope="col" { "" }
+                    @for t in &terms { th scope="col" .num { (t.name()) } }
+                    th scope="col" .num { "Residual RMS" }
+                    th scope="col" .num { "dof" }
+                    @if d.temperatures_c.is_some() { th scope="col" .num { "°C" } }
+                } }
+                tbody {
+                    @for (j, r) in d.runs.iter().enumerate() {
+                        tr data-run=(j) {
+                            th scope="row" { "Run " (j + 1) }
+                            @for t in &terms { td.num { (opt(v(&r.coefficients, *t), num)) } }
+                            td.num { (unc(r.residual_rms)) }
+                            td.num { (r.dof) }
+                            @if let Some(temps) = &d.temperatures_c { td.num { (opt(temps.get(j).copied(), |x| format!("{x}"))) } }
+                        }
+                    }
+                    tr.summary data-row="mean" {
+                        th scope="row" { "Mean (eq. 1)" }
+                        @for t in &terms { td.num { (opt(v(&d.mean.coefficients, *t), num)) } }
+                        td {} td {} @if d.temperatures_c.is_some() { td {} }
+                    }
+                    tr data-row="mean-dispersion" {
+                        th scope="row" { "Dispersion about the mean (eq. 8)" }
+                        @for t in &terms { td.num { (opt(v(&d.mean.dispersion, *t), unc)) } }
+                        td {} td {} @if d.temperatures_c.is_some() { td {} }
+                    }
+                    tr.summary data-row="fused" {
+                        th scope="row" { "Fused (batch estimate)" }
+                        @for t in &terms { td.num { (opt(v(&d.fused.coefficients, *t), num)) } }
+                        td {} td {} @if d.temperatures_c.is_some() { td {} }
+                    }
+                    tr data-row="fused-std-error" {
+                        th scope="row" { "Fused standard error" }
+                        @for t in &terms { td.num { (opt(v(&d.fused.std_errors, *t), unc)) } }
+                        td {} td {} @if d.temperatures_c.is_some() { td {} }
+                    }
+                    tr data-row="fused-dispersion" {
+                        th scope="row" { "Dispersion about the fused value (eq. 8)" }
+                        @for t in &terms { td.num { (opt(v(&d.fused.dispersion, *t), unc)) } }
+                        td {} td {} @if d.temperatures_c.is_some() { td {} }
+                    }
+                }
+            }
+        }
+        p.muted {
+            "Batches: "
+            @for (k, b) in d.fused.batches.iter().enumerate() {
+                @if k > 0 { "; " }
+                "runs " (b.runs.iter().map(|r| (r + 1).to_string()).collect::<Vec<_>>().join(", "))
+            }
+            ". Condition number of the design " (format!("{:.4}", d.condition_number)) "."
+        }
+    }
+}
+
+fn residuals(d: &ResultDoc) -> Markup {
+    let names: Vec<String> = d
+        .positions
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p.name(i))
+        .collect();
+    let chart = Chart {
+        id: "residuals".into(),
+        title: "Residuals of each run at each position".into(),
+        y_label: format!("residual ({})", d.unit),
+        x: XAxis::Index(names.clone()),
+        series: d
+            .runs
+            .iter()
+            .enumerate()
+            .map(|(j, r)| Series {
+                name: format!("run {}", j + 1),
+                points: r
+                    .residuals
+                    .iter()
+                    .enumerate()
+                    .map(|(i, e)| Point {
+                        x: i as f64,
+                        y: *e,
+                        err: None,
+                        data: vec![("run", j.to_string()), ("position", i.to_string())],
+                        label: format!("run {}, {}: {}", j + 1, names[i], unc(*e)),
+                        flagged: false,
+                    })
+                    .collect(),
+            })
+            .collect(),
+        rules: vec![],
+        segments: vec![],
+    };
+    html! {
+        section.chart-block aria-label="Residuals" {
+            (plot::render(&chart))
+            div.table-wrap tabindex="0" role="region" aria-label="Residuals per run and position" {
+                table #residuals-table {
+                    caption { "Residual of each run at each position (" (d.unit) ")" }
+                    thead { tr {
+                        th scope="col" { "Position" }
+                        @for j in 0..d.runs.len() { th scope="col" .num { "Run " (j + 1) } }
+                    } }
+                    tbody {
+                        @for (i, name) in names.iter().enumerate() {
+                            tr data-position=(i) {
+                                th scope="row" { (name) }
+                                @for r in &d.runs { td.num { (opt(r.residuals.get(i).copied(), unc)) } }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The uncertainty budget table (also on the certificate).
+pub fn budget(d: &ResultDoc) -> Markup {
+    html! {
+        @if let Some(u) = &d.uncertainty {
+            div.table-wrap tabindex="0" role="region" aria-label="Uncertainty budget" {
+                table #budget {
+                    caption { "Uncertainty budget (" (d.unit) "); expanded with k = " (u.coverage_factor) }
+                    thead { tr {
+                        th scope="col" { "Term" }
+                        th scope="col" .num { "Statistical" }
+                        th scope="col" .num { "Indexing" }
+                        th scope="col" .num { "Gravity" }
+                        th scope="col" .num { "Combined" }
+                        th scope="col" .num { "Expanded U" }
+                    } }
+                    tbody {
+                        @for (t, b) in u.terms.iter() {
+                            tr data-term=(t.name()) {
+                                th scope="row" { (t.name()) }
+                                td.num { (unc(b.statistical)) }
+                                td.num { (unc(b.indexing)) }
+                                td.num { (unc(b.gravity)) }
+                                td.num { (unc(b.combined)) }
+                                td.num { (unc(b.expanded)) }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The decision table (also on the certificate).
+pub fn decision(d: &ResultDoc) -> Markup {
+    html! {
+        @if let Some(dec) = &d.decision {
+            p { "Rule " strong { (dec.rule) } " (ILAC-G8); verdict " (badge(&dec.verdict, &dec.verdict)) }
+            div.table-wrap tabindex="0" role="region" aria-label="Decision" {
+                table #decision {
+                    caption { "Each limited coefficient against its limits (" (d.unit) ")" }
+                    thead { tr {
+                        th scope="col" { "Term" }
+                        th scope="col" .num { "Value" }
+                        th scope="col" .num { "Min" }
+                        th scope="col" .num { "Max" }
+                        th scope="col" .num { "U" }
+                        th scope="col" { "Verdict" }
+                    } }
+                    tbody {
+                        @for (t, x) in dec.terms.iter() {
+                            tr data-term=(t.name()) {
+                                th scope="row" { (t.name()) }
+                                td.num { (num(x.value)) }
+                                td.num { (opt(x.min, num)) }
+                                td.num { (opt(x.max, num)) }
+                                td.num { (unc(x.expanded)) }
+                                td { (badge(&x.verdict, &x.verdict)) }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The as-found table (also on the certificate).
+pub fn as_found(d: &ResultDoc) -> Markup {
+    html! {
+        @if let Some(a) = &d.as_found {
+            p {
+                "Against the previous calibration "
+                a href={"/ui/calibrations/" (a.previous_calibration_id)} { code { (a.previous_calibration_id) } }
+                ": largest error " strong { (unc(a.max_abs_error_g)) " g" } "."
+            }
+            div.table-wrap tabindex="0" role="region" aria-label="As found" {
+                table #as-found {
+                    caption { "Error of the previous coefficients at each position" }
+                    thead { tr {
+                        th scope="col" { "Position" }
+                        th scope="col" .num { "Error (" (d.unit) ")" }
+                        th scope="col" .num { "Error (g)" }
+                    } }
+                    tbody {
+                        @for (i, e) in a.positions.iter().enumerate() {
+                            tr data-position=(i) {
+                                th scope="row" { (d.positions.get(i).map_or_else(|| format!("#{}", i + 1), |p| p.name(i))) }
+                                td.num { (unc(e.error_output)) }
+                                td.num { (unc(e.error_g)) }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn temperature(d: &ResultDoc) -> Markup {
+    html! {
+        @if let Some(t) = &d.temperature {
+            h2 { "Temperature" }
+            div.table-wrap tabindex="0" role="region" aria-label="Temperature sensitivity" {
+                table #temperature {
+                    caption { "Per-run coefficients against run temperature (least squares)" }
+                    thead { tr {
+                        th scope="col" { "Term" }
+                        th scope="col" .num { "Per kelvin" }
+                        th scope="col" .num { "SE" }
+                        th scope="col" .num { "Reference °C" }
+                        th scope="col" .num { "Value there" }
+                    } }
+                    tbody {
+                        @for (term, s) in t.iter() {
+                            tr data-term=(term.name()) {
+                                th scope="row" { (term.name()) }
+                                td.num { (unc(s.per_kelvin)) }
+                                td.num { (opt(s.std_error, unc)) }
+                                td.num { (format!("{:.2}", s.reference_c)) }
+                                td.num { (num(s.value_at_reference)) }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn warnings(d: &ResultDoc) -> Markup {
+    let list = d
+        .quality
+        .as_ref()
+        .map_or(&[][..], |q| q.warnings.as_slice());
+    html! {
+        @for w in list {
+            p.notice.warning role="note" {
+                @match w {
+                    WarningDoc::IllConditioned { condition_number, terms } => {
+                        strong { "Ill-conditioned design. " }
+                        "Condition number " (format!("{condition_number:.3e}")) ": the positions barely separate "
+                        (terms.join(", ")) "."
+                    }
+                    WarningDoc::NoisyRun { run, residual_rms, median_residual_rms } => {
+                        strong { "Noisy run. " }
+                        "Run " (run + 1) " fits with residual RMS " (unc(*residual_rms))
+                        ", more than three times the median " (unc(*median_residual_rms)) "."
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `GET /ui/calibrations/{id}`.
+pub async fn page(
+    State(state): State<AppState>,
+    viewer: Viewer,
+    Path(id): Path<String>,
+) -> Result<Html, UiError> {
+    let d = load(&state, &id).await?;
+    let content = html! {
+        p.muted {
+            a href="/ui/sensors" { "Fleet" } " / "
+            a href={"/ui/sensors/" (d.sensor_id)} { (d.sensor_id) } " / calibration"
+        }
+        h1 { "Calibration of " (d.sensor_id) " "
+            @if let Some(dec) = &d.decision { (badge(&dec.verdict, &dec.verdict)) } }
+        p.lead { "Performed " (when(&d.performed_at)) }
+        dl.facts {
+            div { dt { "Calibration id" } dd { code { (d.id) } } }
+            div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
+            div { dt { "Received" } dd { (when(&d.received_at)) } }
+            div { dt { "Model" } dd { (d.model.join(", ")) " · " (d.mount) " mount" } }
+            div { dt { "Runs, batches" } dd { (d.runs.len()) ", " (d.batches) } }
+            div { dt { "Unit" } dd { (d.unit) } }
+            div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
+            div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
+            @if let Some(s) = &d.stand {
+                div { dt { "Stand" } dd { (s.id.as_deref().unwrap_or("unnamed")) ": " (s.angle_std_arcsec) "″ indexing, " (s.gravity_rel_std) " in g" } }
+            }
+        }
+        p.no-print {
+            a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" } " · "
+            a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
+        }
+        @if let Some(n) = &d.notes { p { "Notes: " (n) } }
+        (warnings(&d))
+        @if d.decision.is_some() {
+            h2 { "Decision" }
+            (decision(&d))
+        }
+        h2 { "Coefficients" }
+        (runs_table(&d))
+        @if d.uncertainty.is_some() {
+            h2 { "Uncertainty" }
+            (budget(&d))
+        }
+        @if d.as_found.is_some() {
+            h2 { "As found" }
+            (as_found(&d))
+        }
+        (temperature(&d))
+        h2 { "Residuals" }
+        (residuals(&d))
+    };
+    Ok(Html::ok(layout(
+        &format!("Calibration of {}", d.sensor_id),
+        Some(&viewer),
+        content,
+    )))
+}
+
+/// `GET /ui/calibrations/{id}/submission`: the stored body, as a download.
+pub async fn submission(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    Path(raw): Path<String>,
+) -> Result<Response, UiError> {
+    let id = path_id(&raw, "calibration")?;
+    let s = state
+        .store
+        .submission(id)
+        .await?
+        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    let ext = if s.content_type.starts_with("text/csv") {
+        "csv"
+    } else {
+        "json"
+    };
+    let mut res = s.body.into_response();
+    let h = res.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_str(&s.content_type)
+            .unwrap_or(HeaderValue::from_static("application/octet-stream")),
+    );
+    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{id}.{ext}\"")) {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(res)
+}

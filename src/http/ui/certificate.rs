@@ -1,0 +1,229 @@
+//! The printable calibration certificate (HTML, A4 under `@media print`):
+//! `GET /v1/calibrations/{id}/certificate` with a bearer token, and
+//! `GET /ui/calibrations/{id}/certificate` from the pages.
+//!
+//! It states what a lab signs: the item (sensor, type), where and how it was
+//! calibrated (station, stand, method, model), when, the fused coefficients
+//! with their expanded uncertainty and coverage factor, the decision rule and
+//! verdict, as found, the due date — and what makes it verifiable: the
+//! SHA-256 of the stored submission, the accelcal version and the
+//! certificate's own URL. The document carries its stylesheet inline
+//! (allowed by hash in its Content-Security-Policy), so a saved copy prints
+//! the same.
+
+use std::sync::LazyLock;
+
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use base64::Engine as _;
+use base64::engine::general_purpose::STANDARD;
+use maud::{DOCTYPE, Markup, PreEscaped, html};
+use sha2::{Digest, Sha256};
+
+use super::assets::STYLESHEET;
+use super::calibration::{as_found, budget, decision, load, when};
+use super::format::{num, unc};
+use super::result::ResultDoc;
+use super::session::Viewer;
+use super::{UiError, badge};
+use crate::domain::timestamp::Timestamp;
+use crate::http::problem::Problem;
+use crate::http::{AppState, path_id};
+
+/// The certificate's Content-Security-Policy: its own inline stylesheet
+/// (by hash) and nothing else.
+static CSP: LazyLock<String> = LazyLock::new(|| {
+    let hash = STANDARD.encode(Sha256::digest(STYLESHEET.as_bytes()));
+    format!(
+        "default-src 'none'; style-src 'sha256-{hash}'; frame-ancestors 'none'; \
+         base-uri 'none'; form-action 'none'"
+    )
+});
+
+/// The paper the method follows.
+pub const PAPER: &str = "Pei Fang-xia, Wang Heng-hui, \u{201c}Identification of Stationary Model \
+     for Accelerometer Based on Data Fusion\u{201d}, Chinese Journal of Electron Devices 28(4), 2005";
+
+/// Everything a certificate shows beyond the result document.
+pub struct Context {
+    /// SHA-256 of the stored submission, hex.
+    pub submission_sha256: String,
+    /// Its media type.
+    pub content_type: String,
+    /// The certificate's own URL.
+    pub url: String,
+    /// When this copy was produced.
+    pub issued: Timestamp,
+}
+
+/// The certificate document.
+pub fn render(d: &ResultDoc, c: &Context) -> Markup {
+    let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
+    html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                meta name="viewport" content="width=device-width, initial-scale=1";
+                title { "Calibration certificate " (d.id) }
+                style { (PreEscaped(STYLESHEET)) }
+            }
+            body.certificate {
+                main {
+                    div.cert-head {
+                        div {
+                            h1 { "Calibration certificate" }
+                            p.muted { "No. " code { (d.id) } }
+                        }
+                        div {
+                            @if let Some(dec) = &d.decision {
+                                p { "Verdict " (badge(&dec.verdict, &dec.verdict)) }
+                            }
+                        }
+                    }
+                    h2 { "Item and calibration" }
+                    dl.facts {
+                        div { dt { "Sensor" } dd { strong { (d.sensor_id) } } }
+                        div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
+                        div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
+                        div { dt { "Stand" } dd { @match &d.stand {
+                            Some(s) => { (s.id.as_deref().unwrap_or("unnamed")) ": indexing " (s.angle_std_arcsec) "″ (1σ), gravity " (s.gravity_rel_std) " (relative, 1σ)" },
+                            None => "not declared (no stand contribution)",
+                        } } }
+                        div { dt { "Performed" } dd { (when(&d.performed_at)) } }
+                        div { dt { "Received" } dd { (when(&d.received_at)) } }
+                        div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
+                        div { dt { "Output unit" } dd { (d.unit) } }
+                    }
+                    h2 { "Method" }
+                    p {
+                        "Tumble test in the 1 g field on a dividing head (" (d.mount) " mount, "
+                        (d.positions.len()) " positions, " (d.runs.len()) " runs). The static model "
+                        code { "U = Σ k·f(a)" } " with terms " strong { (d.model.join(", ")) }
+                        " is identified from each run by least squares; the runs are fused by batch "
+                        "estimation (" (d.batches) " batches, inverse-variance weighting of batch means), after "
+                        (PAPER) ". Uncertainty after the GUM: the fused standard error, the stand's indexing "
+                        "error and the uncertainty of gravity, combined in quadrature and expanded"
+                        @if let Some(k) = coverage { " with coverage factor k = " (k) } "."
+                    }
+                    h2 { "Results" }
+                    div.table-wrap tabindex="0" role="region" aria-label="Fused coefficients" {
+                        table #certificate-results {
+                            caption { "Fused coefficients (" (d.unit) ")" }
+                            thead { tr {
+                                th scope="col" { "Term" }
+                                th scope="col" .num { "Value" }
+                                th scope="col" .num { "Standard error" }
+                                th scope="col" .num { @match coverage { Some(k) => { "Expanded U (k = " (k) ")" }, None => "Expanded U" } }
+                            } }
+                            tbody {
+                                @for (t, v) in d.fused.coefficients.iter() {
+                                    tr data-term=(t.name()) {
+                                        th scope="row" { (t.name()) }
+                                        td.num { (num(*v)) }
+                                        td.num { (d.fused.std_errors.get(t).map_or("—".into(), |x| unc(*x))) }
+                                        td.num { (d.uncertainty.as_ref().and_then(|u| u.terms.get(t)).map_or("—".into(), |b| unc(b.expanded))) }
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    (budget(d))
+                    @if d.decision.is_some() {
+                        h2 { "Conformity" }
+                        (decision(d))
+                    }
+                    @if d.as_found.is_some() {
+                        h2 { "As found" }
+                        (as_found(d))
+                    }
+                    h2 { "Traceability of this document" }
+                    dl.facts {
+                        div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
+                        div { dt { "Submission format" } dd { (c.content_type) } }
+                        div { dt { "Produced by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
+                        div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
+                        div { dt { "This certificate" } dd.sha { (c.url) } }
+                    }
+                    div.signatures {
+                        p { "Calibrated by: ______________________   Date: ____________" }
+                        p { "Approved by: ______________________   Date: ____________" }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The certificate's own URL: under `--public-url`, else the request's host.
+fn own_url(state: &AppState, headers: &HeaderMap, id: &uuid::Uuid) -> String {
+    let path = format!("/v1/calibrations/{id}/certificate");
+    match &state.web.public_url {
+        Some(base) => format!("{}{path}", base.trim_end_matches('/')),
+        None => match headers.get(header::HOST).and_then(|h| h.to_str().ok()) {
+            Some(host)
+                if host
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || ".-:[]".contains(c)) =>
+            {
+                format!("http://{host}{path}")
+            }
+            _ => path,
+        },
+    }
+}
+
+/// The certificate of calibration `raw_id`, as a response.
+pub async fn respond(
+    state: &AppState,
+    headers: &HeaderMap,
+    raw_id: &str,
+) -> Result<Response, Problem> {
+    let id = path_id(raw_id, "calibration")?;
+    let d = load(state, raw_id).await?;
+    let s = state
+        .store
+        .submission(id)
+        .await?
+        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    let ctx = Context {
+        submission_sha256: hex::encode(Sha256::digest(&s.body)),
+        content_type: s.content_type,
+        url: own_url(state, headers, &id),
+        issued: Timestamp::now(),
+    };
+    let mut res = render(&d, &ctx).into_string().into_response();
+    let h = res.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("text/html; charset=utf-8"),
+    );
+    if let Ok(v) = HeaderValue::from_str(&CSP) {
+        h.insert(header::CONTENT_SECURITY_POLICY, v);
+    }
+    Ok(res)
+}
+
+/// `GET /ui/calibrations/{id}/certificate`.
+pub async fn ui_page(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, UiError> {
+    Ok(respond(&state, &headers, &id).await?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_policy_allows_exactly_the_inline_stylesheet() {
+        let hash = STANDARD.encode(Sha256::digest(STYLESHEET.as_bytes()));
+        assert!(CSP.contains(&format!("'sha256-{hash}'")));
+        assert!(!CSP.contains("unsafe-inline"));
+        assert!(CSP.starts_with("default-src 'none'"));
+    }
+}

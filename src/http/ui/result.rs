@@ -1,0 +1,276 @@
+//! A stored result document read back for the pages and the certificate.
+//!
+//! The pages render what was answered when the calibration was stored (its
+//! result document, immutable), never a recomputation. Fields that later
+//! versions added (`uncertainty`, `decision`, …) are optional, so documents
+//! stored before them still render.
+
+use accelcal_core::TermMap;
+use serde::Deserialize;
+use uuid::Uuid;
+
+/// One position, resolved.
+#[derive(Debug, Clone, Deserialize)]
+pub struct PositionDoc {
+    /// Gravity components in g.
+    pub a: [f64; 3],
+    /// The angle, when given.
+    #[serde(default)]
+    pub angle_deg: Option<f64>,
+    /// Its label.
+    #[serde(default)]
+    pub label: Option<String>,
+}
+
+impl PositionDoc {
+    /// A short name: the label, else the angle, else the components.
+    pub fn name(&self, index: usize) -> String {
+        match (&self.label, self.angle_deg) {
+            (Some(l), _) => l.clone(),
+            (None, Some(deg)) => format!("{deg}°"),
+            (None, None) => format!(
+                "#{} ({}, {}, {})",
+                index + 1,
+                self.a[0],
+                self.a[1],
+                self.a[2]
+            ),
+        }
+    }
+}
+
+/// The stand a submission declared.
+#[derive(Debug, Clone, Deserialize)]
+pub struct StandDoc {
+    /// Its id.
+    #[serde(default)]
+    pub id: Option<String>,
+    /// Indexing error (1σ), arcseconds.
+    pub angle_std_arcsec: f64,
+    /// Relative uncertainty of gravity.
+    pub gravity_rel_std: f64,
+}
+
+/// One run's identification.
+#[derive(Debug, Clone, Deserialize)]
+pub struct RunDoc {
+    /// Coefficients.
+    pub coefficients: TermMap<f64>,
+    /// Standard errors (none without spare positions).
+    #[serde(default)]
+    pub std_errors: Option<TermMap<f64>>,
+    /// Residual per position.
+    pub residuals: Vec<f64>,
+    /// Their root mean square.
+    pub residual_rms: f64,
+    /// Degrees of freedom.
+    pub dof: usize,
+}
+
+/// The plain mean of the runs.
+#[derive(Debug, Clone, Deserialize)]
+pub struct MeanDoc {
+    /// Eq. 1.
+    pub coefficients: TermMap<f64>,
+    /// Eq. 8 about the mean.
+    pub dispersion: TermMap<f64>,
+}
+
+/// One fusion batch.
+#[derive(Debug, Clone, Deserialize)]
+pub struct BatchDoc {
+    /// Its runs (0-based).
+    pub runs: Vec<usize>,
+}
+
+/// The batch-estimation fusion.
+#[derive(Debug, Clone, Deserialize)]
+pub struct FusedDoc {
+    /// The batches.
+    pub batches: Vec<BatchDoc>,
+    /// Fused values.
+    pub coefficients: TermMap<f64>,
+    /// Their standard errors.
+    pub std_errors: TermMap<f64>,
+    /// Eq. 8 about the fused values.
+    pub dispersion: TermMap<f64>,
+}
+
+/// One coefficient's budget.
+#[derive(Debug, Clone, Copy, Deserialize)]
+pub struct BudgetDoc {
+    /// Fused standard error.
+    pub statistical: f64,
+    /// From the stand's indexing error.
+    pub indexing: f64,
+    /// From gravity.
+    pub gravity: f64,
+    /// Root-sum-square.
+    pub combined: f64,
+    /// Expanded.
+    pub expanded: f64,
+}
+
+/// The uncertainty budget.
+#[derive(Debug, Clone, Deserialize)]
+pub struct UncertaintyDoc {
+    /// Coverage factor.
+    pub coverage_factor: f64,
+    /// Per coefficient.
+    pub terms: TermMap<BudgetDoc>,
+}
+
+/// One term's decision.
+#[derive(Debug, Clone, Deserialize)]
+pub struct TermDecisionDoc {
+    /// The fused value.
+    pub value: f64,
+    /// Lower limit.
+    #[serde(default)]
+    pub min: Option<f64>,
+    /// Upper limit.
+    #[serde(default)]
+    pub max: Option<f64>,
+    /// Expanded uncertainty.
+    pub expanded: f64,
+    /// Its verdict.
+    pub verdict: String,
+}
+
+/// The decision against the sensor type's limits.
+#[derive(Debug, Clone, Deserialize)]
+pub struct DecisionDoc {
+    /// `simple` or `guarded`.
+    pub rule: String,
+    /// `pass`, `conditional` or `fail`.
+    pub verdict: String,
+    /// Per limited term.
+    pub terms: TermMap<TermDecisionDoc>,
+}
+
+/// The error at one position with the previous coefficients.
+#[derive(Debug, Clone, Copy, Deserialize)]
+pub struct PositionErrorDoc {
+    /// In output units.
+    pub error_output: f64,
+    /// In g.
+    pub error_g: f64,
+}
+
+/// As found.
+#[derive(Debug, Clone, Deserialize)]
+pub struct AsFoundDoc {
+    /// The previous calibration.
+    pub previous_calibration_id: Uuid,
+    /// Per position.
+    pub positions: Vec<PositionErrorDoc>,
+    /// Largest |error_g|.
+    pub max_abs_error_g: f64,
+}
+
+/// One coefficient's temperature sensitivity.
+#[derive(Debug, Clone, Copy, Deserialize)]
+pub struct SensitivityDoc {
+    /// Slope per kelvin.
+    pub per_kelvin: f64,
+    /// Its standard error.
+    #[serde(default)]
+    pub std_error: Option<f64>,
+    /// Mean run temperature.
+    pub reference_c: f64,
+    /// The fit there.
+    pub value_at_reference: f64,
+}
+
+/// A quality warning.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum WarningDoc {
+    /// The design barely separates these terms.
+    IllConditioned {
+        /// Condition number.
+        condition_number: f64,
+        /// The terms.
+        terms: Vec<String>,
+    },
+    /// A run fits much worse than the others.
+    NoisyRun {
+        /// Run index (0-based).
+        run: usize,
+        /// Its residual RMS.
+        residual_rms: f64,
+        /// The median.
+        median_residual_rms: f64,
+    },
+}
+
+/// Quality flags.
+#[derive(Debug, Clone, Deserialize)]
+pub struct QualityDoc {
+    /// The warnings.
+    pub warnings: Vec<WarningDoc>,
+}
+
+/// A stored result document.
+#[derive(Debug, Clone, Deserialize)]
+pub struct ResultDoc {
+    /// Calibration id.
+    pub id: Uuid,
+    /// The sensor.
+    pub sensor_id: String,
+    /// The station.
+    #[serde(default)]
+    pub station_id: Option<String>,
+    /// When performed (canonical text).
+    pub performed_at: String,
+    /// When received.
+    pub received_at: String,
+    /// Output unit.
+    pub unit: String,
+    /// Model terms.
+    pub model: Vec<String>,
+    /// Mount.
+    pub mount: String,
+    /// Fusion batches.
+    pub batches: usize,
+    /// Notes.
+    #[serde(default)]
+    pub notes: Option<String>,
+    /// Positions.
+    pub positions: Vec<PositionDoc>,
+    /// The sensor type in force.
+    #[serde(default)]
+    pub sensor_type: Option<String>,
+    /// The stand.
+    #[serde(default)]
+    pub stand: Option<StandDoc>,
+    /// Run temperatures.
+    #[serde(default)]
+    pub temperatures_c: Option<Vec<f64>>,
+    /// Condition number of the design.
+    pub condition_number: f64,
+    /// Per run.
+    pub runs: Vec<RunDoc>,
+    /// The plain mean.
+    pub mean: MeanDoc,
+    /// The fusion.
+    pub fused: FusedDoc,
+    /// The uncertainty budget.
+    #[serde(default)]
+    pub uncertainty: Option<UncertaintyDoc>,
+    /// The decision.
+    #[serde(default)]
+    pub decision: Option<DecisionDoc>,
+    /// As found.
+    #[serde(default)]
+    pub as_found: Option<AsFoundDoc>,
+    /// Due date.
+    #[serde(default)]
+    pub due_at: Option<String>,
+    /// Temperature sensitivity.
+    #[serde(default)]
+    pub temperature: Option<TermMap<SensitivityDoc>>,
+    /// Quality flags.
+    #[serde(default)]
+    pub quality: Option<QualityDoc>,
+}

@@ -1,0 +1,407 @@
+//! `GET /ui/sensors/{sensor_id}`: one chart per coefficient over
+//! `performed_at`, with ±expanded-uncertainty error bars (±2 fused standard
+//! errors for calibrations stored without a budget), the individuals-chart
+//! control limits and the fitted drift line; the stability numbers; the list
+//! of calibrations. `from` and `to` (dates or RFC 3339) narrow the window,
+//! `after` pages the list.
+
+use accelcal_core::Term;
+use accelcal_core::history::TermStability;
+use axum::extract::{Path, RawQuery, State};
+use maud::{Markup, html};
+use uuid::Uuid;
+
+use super::format::{date, instant, num, opt, unc};
+use super::plot::{self, Chart, Point, Rule, Segment, Series, XAxis};
+use super::session::Viewer;
+use super::{Html, UiError, badge, layout};
+use crate::domain::timestamp::Timestamp;
+use crate::http::AppState;
+use crate::http::page::Page;
+use crate::http::problem::Problem;
+use crate::http::stability::{Report, report_of, years};
+use crate::store::{CalibrationSummary, HistoryQuery};
+
+/// Calibrations listed per page.
+const PAGE: usize = 50;
+
+/// `from`/`to`: a date (`2026-01-31`: the whole day) or an RFC 3339 instant.
+fn bound(name: &str, raw: Option<&str>, end_of_day: bool) -> Result<Option<Timestamp>, Problem> {
+    let Some(raw) = raw.filter(|r| !r.is_empty()) else {
+        return Ok(None);
+    };
+    let text = if raw.len() == 10 {
+        format!(
+            "{raw}T{}Z",
+            if end_of_day {
+                "23:59:59.999999"
+            } else {
+                "00:00:00"
+            }
+        )
+    } else {
+        raw.to_owned()
+    };
+    Timestamp::parse(&text).map(Some).map_err(|_| {
+        Problem::bad_parameter(name, "must be a date (2026-01-31) or an RFC 3339 instant")
+    })
+}
+
+struct Query {
+    from: Option<Timestamp>,
+    to: Option<Timestamp>,
+    from_raw: String,
+    to_raw: String,
+    after: Option<Uuid>,
+}
+
+fn query(raw: Option<&str>) -> Result<Query, Problem> {
+    let mut q = Query {
+        from: None,
+        to: None,
+        from_raw: String::new(),
+        to_raw: String::new(),
+        after: None,
+    };
+    for (k, v) in form_urlencoded::parse(raw.unwrap_or_default().as_bytes()) {
+        match k.as_ref() {
+            "from" => {
+                q.from = bound("from", Some(&v), false)?;
+                q.from_raw = v.into_owned();
+            }
+            "to" => {
+                q.to = bound("to", Some(&v), true)?;
+                q.to_raw = v.into_owned();
+            }
+            "after" if !v.is_empty() => {
+                q.after =
+                    Some(Uuid::try_parse(&v).map_err(|_| {
+                        Problem::bad_parameter("after", "must be a calibration id")
+                    })?);
+            }
+            _ => {}
+        }
+    }
+    Ok(q)
+}
+
+/// The error bar of one calibration's term: its expanded uncertainty, or
+/// two fused standard errors when it was stored without a budget.
+fn bar(c: &CalibrationSummary, term: Term) -> Option<(f64, bool)> {
+    c.expanded
+        .as_ref()
+        .and_then(|e| e.get(term).copied())
+        .map(|u| (u, true))
+        .or_else(|| c.std_errors.get(term).map(|se| (2.0 * se, false)))
+}
+
+/// Every term of the window, in model order of first appearance.
+fn terms(series: &[CalibrationSummary]) -> Vec<Term> {
+    let mut out: Vec<Term> = Vec::new();
+    for c in series {
+        for (t, _) in c.coefficients.iter() {
+            if !out.contains(&t) {
+                out.push(t);
+            }
+        }
+    }
+    out.sort();
+    out
+}
+
+/// The chart of one term.
+fn chart(r: &Report, term: Term, unit: &str) -> Chart {
+    let s = r.stability.terms.get(term);
+    let flagged = |id: &Uuid| s.is_some_and(|s| s.control.out_of_control.contains(&id.to_string()));
+    let points: Vec<Point> = r
+        .series
+        .iter()
+        .filter_map(|c| {
+            let v = *c.coefficients.get(term)?;
+            let err = bar(c, term);
+            Some(Point {
+                x: c.performed_at.unix_micros() as f64 / 1e6,
+                y: v,
+                err: err.map(|(e, _)| e),
+                data: vec![("calibration-id", c.id.to_string())],
+                label: format!(
+                    "{}: {} = {} ± {} {unit}",
+                    date(&c.performed_at),
+                    term.name(),
+                    num(v),
+                    err.map_or("—".into(), |(e, _)| unc(e))
+                ),
+                flagged: flagged(&c.id),
+            })
+        })
+        .collect();
+    let mut rules = Vec::new();
+    let mut segments = Vec::new();
+    if let Some(s) = s {
+        rules.push(Rule {
+            y: s.control.centre,
+            label: "centre (mean)".into(),
+            class: "centre",
+        });
+        if let (Some(lo), Some(hi)) = (s.control.lower, s.control.upper) {
+            rules.push(Rule {
+                y: lo,
+                label: "control limits: mean ∓ 2.66 × mean moving range".into(),
+                class: "limit",
+            });
+            rules.push(Rule {
+                y: hi,
+                label: "upper control limit: mean + 2.66 × mean moving range".into(),
+                class: "limit",
+            });
+        }
+        if let (Some(b), Some(first), Some(last)) =
+            (s.drift_per_year, r.series.first(), r.series.last())
+        {
+            let t_mean =
+                r.series.iter().map(|c| years(c.performed_at)).sum::<f64>() / r.series.len() as f64;
+            let at = |c: &CalibrationSummary| {
+                (
+                    c.performed_at.unix_micros() as f64 / 1e6,
+                    s.mean + b * (years(c.performed_at) - t_mean),
+                )
+            };
+            segments.push(Segment {
+                from: at(first),
+                to: at(last),
+                label: format!("drift {} {unit}/year", unc(b)),
+                class: "drift",
+            });
+        }
+    }
+    Chart {
+        id: format!("chart-{}", term.name()),
+        title: format!(
+            "{} of {} over time, with error bars",
+            term.name(),
+            r.sensor.sensor_id
+        ),
+        y_label: format!("{} ({unit})", term.name()),
+        x: XAxis::Time,
+        series: vec![Series {
+            name: term.name().to_owned(),
+            points,
+        }],
+        rules,
+        segments,
+    }
+}
+
+/// The table beside a term's chart: the same points.
+fn chart_table(r: &Report, term: Term) -> Markup {
+    let s = r.stability.terms.get(term);
+    html! {
+        div.table-wrap tabindex="0" role="region" aria-label={(term.name()) " per calibration"} {
+            table data-term=(term.name()) {
+                caption { (term.name()) " per calibration (error bar: expanded uncertainty U, or 2σ)" }
+                thead { tr {
+                    th scope="col" { "Performed" }
+                    th scope="col" .num { (term.name()) }
+                    th scope="col" .num { "±" }
+                    th scope="col" { "" }
+                } }
+                tbody {
+                    @for c in &r.series {
+                        @if let Some(v) = c.coefficients.get(term) {
+                            tr data-calibration-id=(c.id) {
+                                td { a href={"/ui/calibrations/" (c.id)} { (date(&c.performed_at)) } }
+                                td.num data-value=(v) { (num(*v)) }
+                                td.num { @match bar(c, term) {
+                                    Some((e, true)) => { (unc(e)) " (U)" },
+                                    Some((e, false)) => { (unc(e)) " (2σ)" },
+                                    None => "—",
+                                } }
+                                td { @if s.is_some_and(|s| s.control.out_of_control.contains(&c.id.to_string())) {
+                                    span.badge.fail title="outside the control limits" { "out" }
+                                } }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn stability_table(r: &Report) -> Markup {
+    let rows: Vec<(Term, &TermStability)> = r.stability.terms.iter().collect();
+    html! {
+        @if rows.is_empty() {
+            p.muted { "No coefficient is present in every calibration of the window." }
+        } @else {
+            div.table-wrap tabindex="0" role="region" aria-label="Stability" {
+                table #stability {
+                    caption {
+                        (r.stability.calibrations) " calibrations; drift by least squares over years of 365.25 days; "
+                        "latest change judged with k = " (r.stability.coverage_factor)
+                    }
+                    thead { tr {
+                        th scope="col" { "Term" }
+                        th scope="col" .num { "Mean" }
+                        th scope="col" .num { "Std" }
+                        th scope="col" .num { "Min" }
+                        th scope="col" .num { "Max" }
+                        th scope="col" .num { "Drift / year" }
+                        th scope="col" .num { "SE" }
+                        th scope="col" .num { "t" }
+                        th scope="col" .num { "Control limits" }
+                        th scope="col" .num { "Latest change" }
+                        th scope="col" .num { "U of change" }
+                        th scope="col" { "Significant" }
+                    } }
+                    tbody {
+                        @for (t, s) in &rows {
+                            tr data-term=(t.name()) {
+                                th scope="row" { (t.name()) }
+                                td.num { (num(s.mean)) }
+                                td.num { (opt(s.std, unc)) }
+                                td.num { (num(s.min)) }
+                                td.num { (num(s.max)) }
+                                td.num { (opt(s.drift_per_year, unc)) }
+                                td.num { (opt(s.drift_std_error, unc)) }
+                                td.num { (opt(s.drift_t, |v| format!("{v:.2}"))) }
+                                td.num { @match (s.control.lower, s.control.upper) {
+                                    (Some(lo), Some(hi)) => { (num(lo)) " … " (num(hi)) },
+                                    _ => "—",
+                                } }
+                                td.num { (opt(s.latest_change, unc)) }
+                                td.num { (opt(s.latest_change_expanded, unc)) }
+                                td { @match s.latest_change_significant {
+                                    Some(true) => (badge("fail", "yes")),
+                                    Some(false) => (badge("pass", "no")),
+                                    None => span.muted { "—" },
+                                } }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// `GET /ui/sensors/{sensor_id}`.
+pub async fn page(
+    State(state): State<AppState>,
+    viewer: Viewer,
+    Path(sensor_id): Path<String>,
+    RawQuery(raw): RawQuery,
+) -> Result<Html, UiError> {
+    let q = query(raw.as_deref())?;
+    let report = report_of(&state, &sensor_id, q.from, q.to).await?;
+    if let Some(id) = q.after {
+        let known = state.store.calibration_summary(id).await?;
+        if known.is_none_or(|c| c.sensor_id != sensor_id) {
+            return Err(Problem::not_found(
+                "this sensor has no such calibration to continue after",
+            )
+            .into());
+        }
+    }
+    let history = state
+        .store
+        .history(
+            sensor_id.clone(),
+            HistoryQuery {
+                from: q.from,
+                to: q.to,
+                before: q.after,
+                limit: PAGE + 1,
+            },
+        )
+        .await?;
+    let history = Page::from_overfetch(history, PAGE, |c| c.id.to_string());
+    let s = &report.sensor;
+    let unit = s.latest.unit.clone();
+    let window = |after: Option<&str>| {
+        let mut ser = form_urlencoded::Serializer::new(String::new());
+        if !q.from_raw.is_empty() {
+            ser.append_pair("from", &q.from_raw);
+        }
+        if !q.to_raw.is_empty() {
+            ser.append_pair("to", &q.to_raw);
+        }
+        if let Some(a) = after {
+            ser.append_pair("after", a);
+        }
+        let qs = ser.finish();
+        if qs.is_empty() {
+            format!("/ui/sensors/{sensor_id}")
+        } else {
+            format!("/ui/sensors/{sensor_id}?{qs}")
+        }
+    };
+    let content = html! {
+        p.muted { a href="/ui/sensors" { "Fleet" } " / sensor" }
+        h1 { (s.sensor_id) " " (badge(s.status.as_str(), &s.status.as_str().replace('_', " "))) }
+        dl.facts {
+            div { dt { "Sensor type" } dd { (s.sensor_type.as_deref().unwrap_or("none")) } }
+            div { dt { "Calibrations" } dd { (s.calibration_count) } }
+            div { dt { "First performed" } dd { (instant(&s.first_performed_at)) } }
+            div { dt { "Latest performed" } dd { a href={"/ui/calibrations/" (s.latest.id)} { (instant(&s.latest_performed_at)) } } }
+            div { dt { "Latest verdict" } dd { @match s.latest_verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } } }
+            div { dt { "Due" } dd { @match &s.due_at { Some(d) => (date(d)), None => "—" } } }
+        }
+        form.filters method="get" action={"/ui/sensors/" (s.sensor_id)} {
+            label for="from" { "From" input id="from" name="from" type="date" value=(q.from_raw); }
+            label for="to" { "To" input id="to" name="to" type="date" value=(q.to_raw); }
+            button type="submit" { "Show window" }
+            @if q.from.is_some() || q.to.is_some() { a href={"/ui/sensors/" (s.sensor_id)} { "Whole history" } }
+        }
+        h2 { "Coefficients over time" }
+        @if report.series.is_empty() {
+            p.notice { "No calibration in this window." }
+        } @else {
+            div.charts {
+                @for term in terms(&report.series) {
+                    section.chart-block aria-label={(term.name()) " over time"} {
+                        (plot::render(&chart(&report, term, &unit)))
+                        (chart_table(&report, term))
+                    }
+                }
+            }
+        }
+        h2 { "Stability" }
+        (stability_table(&report))
+        h2 #calibrations { "Calibrations" }
+        div.table-wrap tabindex="0" role="region" aria-label="Calibrations" {
+            table #history {
+                caption { "Newest performed first" }
+                thead { tr {
+                    th scope="col" { "Performed" }
+                    th scope="col" { "Calibration" }
+                    th scope="col" { "Station" }
+                    th scope="col" .num { "Runs" }
+                    th scope="col" { "Type" }
+                    th scope="col" { "Verdict" }
+                    th scope="col" { "Due" }
+                    th scope="col" { "Certificate" }
+                } }
+                tbody {
+                    @for c in &history.items {
+                        tr data-calibration-id=(c.id) {
+                            td { (instant(&c.performed_at)) }
+                            td { a href={"/ui/calibrations/" (c.id)} { code { (c.id.to_string().get(..13).unwrap_or_default()) "…" } } }
+                            td { (c.station_id.as_deref().unwrap_or("—")) }
+                            td.num { (c.runs) }
+                            td { (c.sensor_type.as_deref().unwrap_or("—")) }
+                            td { @match c.verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } }
+                            td { @match &c.due_at { Some(d) => (date(d)), None => "—" } }
+                            td { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
+                        }
+                    }
+                }
+            }
+        }
+        nav.pages aria-label="Pages of calibrations" {
+            @if q.after.is_some() { a href=(window(None)) { "Newest" } }
+            @if let Some(next) = &history.next { a href=(window(Some(next))) rel="next" { "Older" } }
+        }
+    };
+    Ok(Html::ok(layout(&s.sensor_id, Some(&viewer), content)))
+}

@@ -1,0 +1,172 @@
+//! Decoding rows by column name into typed records.
+
+use accelcal_core::decision::Verdict;
+use accelcal_core::{Model, TermMap};
+use tokio_postgres::Row;
+use tokio_postgres::types::FromSql;
+
+use super::errors::decode;
+use crate::domain::auth::Role;
+use crate::domain::status::Status;
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::TokenRecord;
+use crate::store::{CalibrationSummary, NewCalibration, SensorSummary, StoreError};
+
+/// A column of a row.
+pub fn get<'a, T: FromSql<'a>>(row: &'a Row, column: &str) -> Result<T, StoreError> {
+    row.try_get(column).map_err(|e| decode(column, e))
+}
+
+fn timestamp(row: &Row, column: &str) -> Result<Timestamp, StoreError> {
+    get::<time::OffsetDateTime>(row, column).map(Timestamp::from_datetime)
+}
+
+fn optional_timestamp(row: &Row, column: &str) -> Result<Option<Timestamp>, StoreError> {
+    Ok(get::<Option<time::OffsetDateTime>>(row, column)?.map(Timestamp::from_datetime))
+}
+
+/// A JSON column selected as text (`column::text AS column`).
+fn json<T: serde::de::DeserializeOwned>(row: &Row, column: &str) -> Result<T, StoreError> {
+    let text: &str = get(row, column)?;
+    serde_json::from_str(text).map_err(|e| decode(column, e))
+}
+
+fn optional_json<T: serde::de::DeserializeOwned>(
+    row: &Row,
+    column: &str,
+) -> Result<Option<T>, StoreError> {
+    get::<Option<&str>>(row, column)?
+        .map(|t| serde_json::from_str(t).map_err(|e| decode(column, e)))
+        .transpose()
+}
+
+fn count(row: &Row, column: &str) -> Result<u64, StoreError> {
+    let n: i64 = get(row, column)?;
+    u64::try_from(n).map_err(|e| decode(column, e))
+}
+
+fn verdict(row: &Row, column: &str) -> Result<Option<Verdict>, StoreError> {
+    get::<Option<&str>>(row, column)?
+        .map(|v| {
+            [Verdict::Pass, Verdict::Conditional, Verdict::Fail]
+                .into_iter()
+                .find(|x| x.as_str() == v)
+                .ok_or_else(|| decode(column, "not a verdict"))
+        })
+        .transpose()
+}
+
+/// The columns of [`summary`], from `calibrations c`.
+pub const SUMMARY_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+     c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
+     c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
+     c.expanded::text AS expanded";
+
+/// A calibration summary from a row holding [`SUMMARY_COLUMNS`].
+pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
+    Ok(CalibrationSummary {
+        id: get(row, "id")?,
+        sensor_id: get(row, "sensor_id")?,
+        station_id: get(row, "station_id")?,
+        performed_at: timestamp(row, "performed_at")?,
+        received_at: timestamp(row, "received_at")?,
+        unit: get(row, "unit")?,
+        model: json::<Model>(row, "model")?,
+        runs: usize::try_from(get::<i32>(row, "runs")?).map_err(|e| decode("runs", e))?,
+        coefficients: json::<TermMap<f64>>(row, "coefficients")?,
+        std_errors: json::<TermMap<f64>>(row, "std_errors")?,
+        sensor_type: get(row, "sensor_type")?,
+        verdict: verdict(row, "verdict")?,
+        due_at: optional_timestamp(row, "due_at")?,
+        expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+    })
+}
+
+/// The columns of [`record`]: everything stored for a calibration.
+pub const RECORD_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+     c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
+     c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
+     c.expanded::text AS expanded, c.result, c.submission, c.content_type, c.submitted_by";
+
+/// A whole calibration from a row holding [`RECORD_COLUMNS`].
+pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
+    let s = summary(row)?;
+    Ok(NewCalibration {
+        id: s.id,
+        sensor_id: s.sensor_id,
+        station_id: s.station_id,
+        performed_at: s.performed_at,
+        received_at: s.received_at,
+        unit: s.unit,
+        model: s.model,
+        runs: s.runs,
+        coefficients: s.coefficients,
+        std_errors: s.std_errors,
+        result: bytes::Bytes::from(get::<String>(row, "result")?),
+        submission: bytes::Bytes::from(get::<Vec<u8>>(row, "submission")?),
+        content_type: get(row, "content_type")?,
+        submitted_by: get(row, "submitted_by")?,
+        sensor_type: s.sensor_type,
+        assigns_type: false,
+        verdict: s.verdict,
+        due_at: s.due_at,
+        expanded: s.expanded,
+    })
+}
+
+/// A sensor's status (domain rule [`Status::of`]) in SQL, at `$now` and
+/// `$soon` (now plus 30 days), given as the placeholders named.
+pub fn status(now: &str, soon: &str) -> String {
+    format!(
+        "CASE WHEN s.latest_verdict = 'fail' THEN 'failed' \
+         WHEN s.latest_due_at IS NULL THEN 'unknown' \
+         WHEN s.latest_due_at < {now} THEN 'overdue' \
+         WHEN s.latest_due_at < {soon} THEN 'due_soon' ELSE 'ok' END"
+    )
+}
+
+/// The sensor columns beside [`SUMMARY_COLUMNS`] of its latest calibration,
+/// with the status computed at `$1` (now) and `$2` (now + 30 days).
+pub fn sensor_query(filter: &str) -> String {
+    format!(
+        "SELECT s.calibration_count, s.first_performed_at, s.latest_performed_at, \
+         s.sensor_type AS assigned_type, s.latest_verdict, s.latest_due_at, {} AS status, \
+         {SUMMARY_COLUMNS} \
+         FROM sensors s JOIN calibrations c ON c.id = s.latest_calibration_id {filter}",
+        status("$1", "$2")
+    )
+}
+
+/// A sensor summary from a row of [`sensor_query`].
+pub fn sensor(row: &Row) -> Result<SensorSummary, StoreError> {
+    let latest = summary(row)?;
+    let status: &str = get(row, "status")?;
+    Ok(SensorSummary {
+        sensor_id: latest.sensor_id.clone(),
+        calibration_count: count(row, "calibration_count")?,
+        first_performed_at: timestamp(row, "first_performed_at")?,
+        latest_performed_at: timestamp(row, "latest_performed_at")?,
+        sensor_type: get(row, "assigned_type")?,
+        latest_verdict: verdict(row, "latest_verdict")?,
+        due_at: optional_timestamp(row, "latest_due_at")?,
+        status: Status::parse(status).ok_or_else(|| decode("status", "not a status"))?,
+        latest,
+    })
+}
+
+/// The columns of [`token`].
+pub const TOKEN_COLUMNS: &str = "id, secret_hash, role, station_id, label, created_at, revoked_at";
+
+/// A token from a row holding [`TOKEN_COLUMNS`].
+pub fn token(row: &Row) -> Result<TokenRecord, StoreError> {
+    let role: &str = get(row, "role")?;
+    Ok(TokenRecord {
+        id: get(row, "id")?,
+        secret_hash: get(row, "secret_hash")?,
+        role: Role::parse(role).ok_or_else(|| decode("role", "not a role"))?,
+        station_id: get(row, "station_id")?,
+        label: get(row, "label")?,
+        created_at: timestamp(row, "created_at")?,
+        revoked_at: optional_timestamp(row, "revoked_at")?,
+    })
+}

@@ -1,0 +1,243 @@
+//! Calibrations: the durable insert (with its sensor and idempotency key in
+//! one transaction) and the reads of results, submissions and summaries.
+
+use bytes::Bytes;
+use rusqlite::{Connection, TransactionBehavior, params};
+use uuid::Uuid;
+
+use super::errors::map;
+use super::rows::{self, SUMMARY_COLUMNS};
+use crate::store::{
+    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, StoreError, Stored,
+    StoredSubmission,
+};
+
+fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
+    serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
+}
+
+/// Stores a calibration, its sensor's summary and its key, atomically; the
+/// commit returns once the WAL is on stable storage (`synchronous=FULL`).
+pub fn insert(
+    conn: &mut Connection,
+    n: NewCalibration,
+    key: Option<IdempotencyKey>,
+) -> Result<Stored, StoreError> {
+    n.check()?;
+    let tx = conn
+        .transaction_with_behavior(TransactionBehavior::Immediate)
+        .map_err(map)?;
+    let id = n.id.to_string();
+    let performed_at = n.performed_at.to_string();
+    let result = std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
+    tx.execute(
+        "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
+         model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
+         sensor_type, verdict, due_at, expanded) \
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18)",
+        params![
+            id,
+            n.sensor_id,
+            n.station_id,
+            performed_at,
+            n.received_at.to_string(),
+            n.unit,
+            json(&n.model)?,
+            n.runs as i64,
+            json(&n.coefficients)?,
+            json(&n.std_errors)?,
+            result,
+            &n.submission[..],
+            n.content_type,
+            n.submitted_by,
+            n.sensor_type,
+            n.verdict.map(|v| v.as_str()),
+            n.due_at.map(|t| t.to_string()),
+            n.expanded.as_ref().map(json).transpose()?
+        ],
+    )
+    .map_err(map)?;
+    if let Some(k) = key {
+        // Record the key as done, unless a request with the same key
+        // (after our lease expired) completed it first.
+        let changed = tx
+            .execute(
+                "INSERT INTO idempotency_keys (principal, key, request_hash, calibration_id, created_at) \
+                 VALUES (?1, ?2, ?3, ?4, ?5) \
+                 ON CONFLICT (principal, key) DO UPDATE SET calibration_id = excluded.calibration_id, \
+                   locked_until = NULL WHERE idempotency_keys.calibration_id IS NULL",
+                params![k.principal, k.key, k.request_hash.to_vec(), id, n.received_at.to_string()],
+            )
+            .map_err(map)?;
+        if changed == 0 {
+            let existing = rows::first(
+                &tx,
+                "SELECT calibration_id FROM idempotency_keys WHERE principal = ?1 AND key = ?2",
+                params![k.principal, k.key],
+                |r| rows::uuid(r, "calibration_id"),
+            )?
+            .ok_or_else(|| {
+                StoreError::corrupt("idempotency key", "vanished inside a transaction")
+            })?;
+            return Ok(Stored::Existing(existing));
+        }
+    }
+    // The new calibration becomes the latest when it is newer (performed_at,
+    // then id); a type named by the submission becomes the sensor's.
+    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
+                 > (latest_performed_at, latest_calibration_id)";
+    tx.execute(
+        &format!(
+            "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
+             latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
+             VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) \
+             ON CONFLICT (sensor_id) DO UPDATE SET \
+               calibration_count = calibration_count + 1, \
+               first_performed_at = min(first_performed_at, excluded.first_performed_at), \
+               latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE latest_calibration_id END, \
+               latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE latest_verdict END, \
+               latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE latest_due_at END, \
+               latest_performed_at = max(latest_performed_at, excluded.latest_performed_at), \
+               sensor_type = coalesce(excluded.sensor_type, sensor_type)"
+        ),
+        params![
+            n.sensor_id,
+            performed_at,
+            id,
+            n.sensor_type.as_ref().filter(|_| n.assigns_type),
+            n.verdict.map(|v| v.as_str()),
+            n.due_at.map(|t| t.to_string())
+        ],
+    )
+    .map_err(map)?;
+    tx.commit().map_err(map)?;
+    Ok(Stored::New)
+}
+
+/// The stored result document.
+pub fn result(conn: &Connection, id: Uuid) -> Result<Option<Bytes>, StoreError> {
+    rows::first(
+        conn,
+        "SELECT result FROM calibrations WHERE id = ?1",
+        [id.to_string()],
+        |r| {
+            let text: String = r.get("result").map_err(map)?;
+            Ok(Bytes::from(text))
+        },
+    )
+}
+
+/// The stored submission.
+pub fn submission(conn: &Connection, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
+    rows::first(
+        conn,
+        "SELECT content_type, submission FROM calibrations WHERE id = ?1",
+        [id.to_string()],
+        |r| {
+            Ok(StoredSubmission {
+                content_type: r.get("content_type").map_err(map)?,
+                body: Bytes::from(r.get::<_, Vec<u8>>("submission").map_err(map)?),
+            })
+        },
+    )
+}
+
+/// One calibration's summary.
+pub fn summary(conn: &Connection, id: Uuid) -> Result<Option<CalibrationSummary>, StoreError> {
+    let sql = format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = ?1");
+    rows::first(conn, &sql, [id.to_string()], rows::summary)
+}
+
+/// A sensor's calibrations, newest `performed_at` first (ties: larger id).
+pub fn history(
+    conn: &Connection,
+    sensor_id: &str,
+    q: &HistoryQuery,
+) -> Result<Vec<CalibrationSummary>, StoreError> {
+    let sql = format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+         AND (?4 IS NULL OR (c.performed_at, c.id) < \
+              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
+    );
+    let params = params![
+        sensor_id,
+        q.from.map(|t| t.to_string()),
+        q.to.map(|t| t.to_string()),
+        q.before.map(|id| id.to_string()),
+        q.limit as i64
+    ];
+    rows::all(conn, &sql, params, rows::summary)
+}
+
+/// A sensor's calibrations within `from..=to`, oldest first.
+pub fn series(
+    conn: &Connection,
+    sensor_id: &str,
+    from: Option<crate::domain::timestamp::Timestamp>,
+    to: Option<crate::domain::timestamp::Timestamp>,
+) -> Result<Vec<CalibrationSummary>, StoreError> {
+    let sql = format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+         ORDER BY c.performed_at, c.id"
+    );
+    rows::all(
+        conn,
+        &sql,
+        params![
+            sensor_id,
+            from.map(|t| t.to_string()),
+            to.map(|t| t.to_string())
+        ],
+        rows::summary,
+    )
+}
+
+/// The latest calibration of a sensor performed strictly before `before`.
+pub fn previous(
+    conn: &Connection,
+    sensor_id: &str,
+    before: crate::domain::timestamp::Timestamp,
+) -> Result<Option<CalibrationSummary>, StoreError> {
+    let sql = format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND c.performed_at < ?2 \
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
+    );
+    rows::first(
+        conn,
+        &sql,
+        params![sensor_id, before.to_string()],
+        rows::summary,
+    )
+}
+
+/// Whole calibrations in id order after `after` (for copying a database).
+pub fn export(
+    conn: &Connection,
+    after: Option<Uuid>,
+    limit: usize,
+) -> Result<Vec<NewCalibration>, StoreError> {
+    let sql = format!(
+        "SELECT {} FROM calibrations c WHERE (?1 IS NULL OR c.id > ?1) ORDER BY c.id LIMIT ?2",
+        rows::RECORD_COLUMNS
+    );
+    rows::all(
+        conn,
+        &sql,
+        params![after.map(|a| a.to_string()), limit as i64],
+        rows::record,
+    )
+}
+
+/// Whether the database holds no calibration, token or sensor type.
+pub fn is_empty(conn: &Connection) -> Result<bool, StoreError> {
+    conn.query_row(
+        "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
+         OR EXISTS (SELECT 1 FROM sensor_types))",
+        [],
+        |r| r.get(0),
+    )
+    .map_err(map)
+}

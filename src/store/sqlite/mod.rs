@@ -1,0 +1,309 @@
+//! The SQLite engine: one file, WAL journal, `synchronous=FULL`.
+//!
+//! A commit returns only once the WAL is on stable storage, so an
+//! acknowledged calibration survives a crash or power loss; a transaction
+//! interrupted by a crash is rolled back on the next open. Calls run on
+//! tokio's blocking pool over a small [`pool`] of connections. One file per
+//! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`tokens`],
+//! [`sessions`], [`idempotency`];
+//! [`rows`] decodes rows by column name, [`errors`] maps the driver's errors.
+
+mod calibrations;
+mod errors;
+mod idempotency;
+mod migrations;
+mod pool;
+mod rows;
+mod sensor_types;
+mod sensors;
+mod sessions;
+mod tokens;
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use async_trait::async_trait;
+use bytes::Bytes;
+use rusqlite::Connection;
+use uuid::Uuid;
+
+use self::pool::Pool;
+use super::{
+    CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
+    SensorSummary, Store, StoreError, Stored, StoredSubmission,
+};
+use crate::domain::sensor_types::SensorType;
+use crate::domain::session::SessionRecord;
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::TokenRecord;
+
+/// A SQLite-backed [`Store`].
+#[derive(Clone)]
+pub struct SqliteStore {
+    pool: Arc<Pool>,
+}
+
+impl SqliteStore {
+    /// Opens (creating if needed, mode 0600) the database at `path`,
+    /// migrates it, and frees the idempotency leases a crash left behind.
+    pub fn open(path: impl Into<PathBuf>) -> Result<Self, StoreError> {
+        let store = SqliteStore {
+            pool: Arc::new(Pool::create(path.into())?),
+        };
+        let first = store.pool.checkout()?;
+        idempotency::free_leases(&first.conn)?;
+        store.pool.checkin(first);
+        Ok(store)
+    }
+
+    /// The database file.
+    pub fn path(&self) -> &Path {
+        self.pool.path()
+    }
+
+    /// Runs `f` on a pooled connection on the blocking pool, timed as
+    /// `operation` (see [`crate::store::observe`]). A connection whose call
+    /// failed is dropped, not returned.
+    async fn run<T, F>(&self, operation: &'static str, f: F) -> Result<T, StoreError>
+    where
+        T: Send + 'static,
+        F: FnOnce(&mut Connection) -> Result<T, StoreError> + Send + 'static,
+    {
+        let pool = self.pool.clone();
+        let started = std::time::Instant::now();
+        let out = tokio::task::spawn_blocking(move || {
+            let mut p = pool.checkout()?;
+            let out = f(&mut p.conn);
+            if out.is_ok() {
+                pool.checkin(p);
+            }
+            out
+        })
+        .await
+        .map_err(|e| StoreError::Unavailable(Box::new(e)))
+        .and_then(|r| r);
+        super::observe(operation, started, &out);
+        out
+    }
+}
+
+#[async_trait]
+impl Store for SqliteStore {
+    async fn ping(&self) -> Result<(), StoreError> {
+        self.run("ping", |conn| {
+            conn.query_row("SELECT count(*) FROM sensors", [], |r| r.get::<_, i64>(0))
+                .map_err(errors::map)?;
+            Ok(())
+        })
+        .await
+    }
+
+    async fn insert_calibration(
+        &self,
+        n: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError> {
+        n.check()?;
+        self.run("insert_calibration", move |conn| {
+            calibrations::insert(conn, n, key)
+        })
+        .await
+    }
+
+    async fn claim_key(
+        &self,
+        k: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError> {
+        self.run("claim_key", move |conn| {
+            idempotency::claim(conn, &k, now, lease_until)
+        })
+        .await
+    }
+
+    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
+        self.run("release_key", move |conn| idempotency::release(conn, &key))
+            .await
+    }
+
+    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
+        self.run("calibration_result", move |conn| {
+            calibrations::result(conn, id)
+        })
+        .await
+    }
+
+    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
+        self.run("submission", move |conn| calibrations::submission(conn, id))
+            .await
+    }
+
+    async fn calibration_summary(
+        &self,
+        id: Uuid,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.run("calibration_summary", move |conn| {
+            calibrations::summary(conn, id)
+        })
+        .await
+    }
+
+    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
+        self.run("sensors", move |conn| sensors::list(conn, &q))
+            .await
+    }
+
+    async fn sensor(
+        &self,
+        sensor_id: String,
+        now: Timestamp,
+    ) -> Result<Option<SensorSummary>, StoreError> {
+        self.run("sensor", move |conn| sensors::get(conn, &sensor_id, now))
+            .await
+    }
+
+    async fn series(
+        &self,
+        sensor_id: String,
+        from: Option<Timestamp>,
+        to: Option<Timestamp>,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        self.run("series", move |conn| {
+            calibrations::series(conn, &sensor_id, from, to)
+        })
+        .await
+    }
+
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.run("previous_calibration", move |conn| {
+            calibrations::previous(conn, &sensor_id, before)
+        })
+        .await
+    }
+
+    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
+        self.run("put_sensor_type", move |conn| sensor_types::put(conn, &t))
+            .await
+    }
+
+    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError> {
+        self.run("sensor_type", move |conn| sensor_types::get(conn, &type_id))
+            .await
+    }
+
+    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError> {
+        self.run("sensor_types", |conn| sensor_types::list(conn))
+            .await
+    }
+
+    async fn assign_sensor_type(
+        &self,
+        sensor_id: String,
+        type_id: String,
+    ) -> Result<bool, StoreError> {
+        self.run("assign_sensor_type", move |conn| {
+            sensors::assign_type(conn, &sensor_id, &type_id)
+        })
+        .await
+    }
+
+    async fn history(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        self.run("history", move |conn| {
+            calibrations::history(conn, &sensor_id, &q)
+        })
+        .await
+    }
+
+    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
+        self.run("insert_token", move |conn| tokens::insert(conn, &t))
+            .await
+    }
+
+    async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
+        self.run("token", move |conn| tokens::get(conn, id)).await
+    }
+
+    async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
+        self.run("tokens", |conn| tokens::list(conn)).await
+    }
+
+    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+        self.run("revoke_token", move |conn| tokens::revoke(conn, id, at))
+            .await
+    }
+
+    async fn has_admin_token(&self) -> Result<bool, StoreError> {
+        self.run("has_admin_token", |conn| tokens::has_admin(conn))
+            .await
+    }
+
+    async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError> {
+        self.run("insert_session", move |conn| sessions::insert(conn, &s))
+            .await
+    }
+
+    async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError> {
+        self.run("session", move |conn| sessions::get(conn, id_hash))
+            .await
+    }
+
+    async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError> {
+        self.run("delete_session", move |conn| {
+            sessions::delete(conn, id_hash)
+        })
+        .await
+    }
+
+    async fn is_empty(&self) -> Result<bool, StoreError> {
+        self.run("is_empty", |conn| calibrations::is_empty(conn))
+            .await
+    }
+
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError> {
+        self.run("export_calibrations", move |conn| {
+            calibrations::export(conn, after, limit)
+        })
+        .await
+    }
+
+    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
+        self.run("done_keys", move |conn| idempotency::done(conn, since))
+            .await
+    }
+
+    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
+        self.run("put_done_key", move |conn| idempotency::put_done(conn, &k))
+            .await
+    }
+
+    async fn close(&self) {
+        let pool = self.pool.clone();
+        let _ = tokio::task::spawn_blocking(move || {
+            let conns = pool.drain();
+            if let Some(p) = conns.first() {
+                // Fold the WAL back into the main file so a copy of the
+                // database file alone is complete.
+                if let Err(e) = p
+                    .conn
+                    .query_row("PRAGMA wal_checkpoint(TRUNCATE)", [], |_| Ok(()))
+                {
+                    tracing::warn!(error = %e, "WAL checkpoint at shutdown failed");
+                }
+            }
+        })
+        .await;
+    }
+}

@@ -1,0 +1,202 @@
+//! A small pool of SQLite connections, each checked against the database
+//! file it opened.
+//!
+//! A connection that reported an error is dropped rather than reused, and
+//! every checkout checks that the database file is still the one the
+//! connection opened, so the service recovers by itself when a missing,
+//! replaced or read-only database is put right. (r2d2 and deadpool pool
+//! connections, but neither can tell that the file behind one was replaced.)
+
+use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use rusqlite::{Connection, OpenFlags};
+
+use super::errors::map;
+use super::migrations::migrate;
+use crate::store::StoreError;
+
+/// How long a statement waits for a lock held by another connection.
+const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
+
+/// Idle connections kept for reuse.
+const POOL_SIZE: usize = 8;
+
+/// Identity of the database file a connection opened (device, inode).
+type FileId = (u64, u64);
+
+/// A connection and the file it opened.
+pub struct Pooled {
+    /// The connection.
+    pub conn: Connection,
+    file: FileId,
+}
+
+/// The pool.
+pub struct Pool {
+    path: PathBuf,
+    idle: Mutex<Vec<Pooled>>,
+}
+
+fn file_id(path: &Path) -> Result<FileId, StoreError> {
+    let meta = std::fs::metadata(path).map_err(|e| {
+        StoreError::Unavailable(format!("database file {}: {e}", path.display()).into())
+    })?;
+    Ok((meta.dev(), meta.ino()))
+}
+
+impl Pool {
+    /// A pool for the database at `path`, creating the file (readable by its
+    /// owner only: it holds token hashes and every submission) if there is
+    /// none. Only this first open may create it: later, a missing file is an
+    /// outage to report, not an empty database to start afresh.
+    pub fn create(path: PathBuf) -> Result<Self, StoreError> {
+        if !path.exists() {
+            std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .mode(0o600)
+                .open(&path)
+                .map_err(|e| {
+                    StoreError::Unavailable(format!("creating {}: {e}", path.display()).into())
+                })?;
+        }
+        Ok(Pool {
+            path,
+            idle: Mutex::new(Vec::new()),
+        })
+    }
+
+    /// The database file.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Opens a new connection: WAL journal (SQLite gives the `-wal` and
+    /// `-shm` files the database file's permissions), `synchronous=FULL`,
+    /// foreign keys on, migrated.
+    fn connect(&self) -> Result<Pooled, StoreError> {
+        let file = file_id(&self.path)?;
+        let flags = OpenFlags::SQLITE_OPEN_READ_WRITE
+            | OpenFlags::SQLITE_OPEN_NO_MUTEX
+            | OpenFlags::SQLITE_OPEN_URI;
+        let mut conn = Connection::open_with_flags(&self.path, flags).map_err(map)?;
+        conn.busy_timeout(BUSY_TIMEOUT).map_err(map)?;
+        conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get::<_, String>(0))
+            .map_err(map)?;
+        conn.pragma_update(None, "synchronous", "FULL")
+            .map_err(map)?;
+        conn.pragma_update(None, "foreign_keys", "ON")
+            .map_err(map)?;
+        migrate(&mut conn).map_err(map)?;
+        Ok(Pooled { conn, file })
+    }
+
+    /// A connection to the current database file.
+    pub fn checkout(&self) -> Result<Pooled, StoreError> {
+        let current = file_id(&self.path);
+        let mut idle = self.idle.lock().expect("pool lock");
+        match current {
+            Err(e) => {
+                idle.clear();
+                return Err(e);
+            }
+            Ok(id) => idle.retain(|p| p.file == id),
+        }
+        let pooled = idle.pop();
+        drop(idle);
+        match pooled {
+            Some(p) => Ok(p),
+            None => self.connect(),
+        }
+    }
+
+    /// Returns a connection that worked to the pool.
+    pub fn checkin(&self, p: Pooled) {
+        let mut idle = self.idle.lock().expect("pool lock");
+        if idle.len() < POOL_SIZE {
+            idle.push(p);
+        }
+    }
+
+    /// Takes every idle connection (at shutdown).
+    pub fn drain(&self) -> Vec<Pooled> {
+        std::mem::take(&mut *self.idle.lock().expect("pool lock"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::os::unix::fs::PermissionsExt;
+
+    use super::*;
+
+    #[test]
+    fn a_missing_file_is_not_recreated_after_the_first_open() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("gone.db");
+        let pool = Pool::create(path.clone()).unwrap();
+        pool.checkin(pool.checkout().unwrap());
+        std::fs::remove_file(&path).unwrap();
+        assert!(matches!(pool.checkout(), Err(StoreError::Unavailable(_))));
+        assert!(!path.exists());
+    }
+
+    /// The durability promise rests on these settings of every connection a
+    /// commit can run on: a kill -9 test alone cannot tell `FULL` from `OFF`.
+    #[test]
+    fn every_pooled_connection_commits_durably() {
+        let dir = tempfile::tempdir().unwrap();
+        let pool = Pool::create(dir.path().join("durable.db")).unwrap();
+        // Eight at once: the pool must open fresh connections for them.
+        let held: Vec<Pooled> = (0..8).map(|_| pool.checkout().unwrap()).collect();
+        for p in &held {
+            let sync: i64 = p
+                .conn
+                .pragma_query_value(None, "synchronous", |r| r.get(0))
+                .unwrap();
+            let journal: String = p
+                .conn
+                .pragma_query_value(None, "journal_mode", |r| r.get(0))
+                .unwrap();
+            let fk: i64 = p
+                .conn
+                .pragma_query_value(None, "foreign_keys", |r| r.get(0))
+                .unwrap();
+            assert_eq!(sync, 2, "synchronous must be FULL (2)");
+            assert_eq!(journal, "wal");
+            assert_eq!(fk, 1);
+        }
+        for p in held {
+            pool.checkin(p);
+        }
+        // And the ones handed out again from the pool.
+        let again = pool.checkout().unwrap();
+        let sync: i64 = again
+            .conn
+            .pragma_query_value(None, "synchronous", |r| r.get(0))
+            .unwrap();
+        assert_eq!(sync, 2);
+    }
+
+    #[test]
+    fn the_database_and_its_wal_are_private_to_their_owner() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("private.db");
+        let pool = Pool::create(path.clone()).unwrap();
+        let c = pool.checkout().unwrap();
+        c.conn
+            .execute_batch("CREATE TABLE t (x); INSERT INTO t VALUES (1);")
+            .unwrap();
+        for file in [
+            path.clone(),
+            path.with_extension("db-wal"),
+            path.with_extension("db-shm"),
+        ] {
+            let mode = std::fs::metadata(&file).unwrap().permissions().mode() & 0o777;
+            assert_eq!(mode, 0o600, "{}", file.display());
+        }
+    }
+}

@@ -1,0 +1,215 @@
+//! Decoding rows by column name into typed records.
+
+use accelcal_core::{Model, TermMap};
+use rusqlite::{Connection, Row};
+use uuid::Uuid;
+
+use super::errors::map;
+use accelcal_core::decision::Verdict;
+
+use crate::domain::auth::Role;
+use crate::domain::status::Status;
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::TokenRecord;
+use crate::store::{CalibrationSummary, SensorSummary, StoreError};
+
+/// A column as text, decoded by `parse` (the row's id names it in errors).
+fn decoded<T, E>(
+    row: &Row<'_>,
+    column: &str,
+    parse: impl FnOnce(&str) -> Result<T, E>,
+) -> Result<T, StoreError>
+where
+    E: Into<crate::store::BoxError>,
+{
+    let text: String = row.get(column).map_err(map)?;
+    parse(&text).map_err(|e| StoreError::corrupt(format!("column `{column}` ({text:?})"), e))
+}
+
+fn timestamp(row: &Row<'_>, column: &str) -> Result<Timestamp, StoreError> {
+    decoded(row, column, Timestamp::parse)
+}
+
+fn optional_timestamp(row: &Row<'_>, column: &str) -> Result<Option<Timestamp>, StoreError> {
+    let text: Option<String> = row.get(column).map_err(map)?;
+    text.map(|t| {
+        Timestamp::parse(&t).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
+    })
+    .transpose()
+}
+
+/// A UUID column.
+pub fn uuid(row: &Row<'_>, column: &str) -> Result<Uuid, StoreError> {
+    decoded(row, column, Uuid::try_parse)
+}
+
+fn json<T: serde::de::DeserializeOwned>(row: &Row<'_>, column: &str) -> Result<T, StoreError> {
+    decoded(row, column, |text: &str| serde_json::from_str::<T>(text))
+}
+
+fn optional_json<T: serde::de::DeserializeOwned>(
+    row: &Row<'_>,
+    column: &str,
+) -> Result<Option<T>, StoreError> {
+    let text: Option<String> = row.get(column).map_err(map)?;
+    text.map(|t| {
+        serde_json::from_str::<T>(&t)
+            .map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
+    })
+    .transpose()
+}
+
+fn count(row: &Row<'_>, column: &str) -> Result<u64, StoreError> {
+    let n: i64 = row.get(column).map_err(map)?;
+    u64::try_from(n).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
+}
+
+/// The columns of [`summary`], from `calibrations c`.
+pub const SUMMARY_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+     c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
+     c.expanded";
+
+fn verdict(row: &Row<'_>, column: &str) -> Result<Option<Verdict>, StoreError> {
+    let text: Option<String> = row.get(column).map_err(map)?;
+    text.map(|v| {
+        [Verdict::Pass, Verdict::Conditional, Verdict::Fail]
+            .into_iter()
+            .find(|x| x.as_str() == v)
+            .ok_or_else(|| {
+                StoreError::corrupt(format!("column `{column}` ({v:?})"), "not a verdict")
+            })
+    })
+    .transpose()
+}
+
+/// A calibration summary from a row holding [`SUMMARY_COLUMNS`].
+pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
+    Ok(CalibrationSummary {
+        id: uuid(row, "id")?,
+        sensor_id: row.get("sensor_id").map_err(map)?,
+        station_id: row.get("station_id").map_err(map)?,
+        performed_at: timestamp(row, "performed_at")?,
+        received_at: timestamp(row, "received_at")?,
+        unit: row.get("unit").map_err(map)?,
+        model: json::<Model>(row, "model")?,
+        runs: count(row, "runs")? as usize,
+        coefficients: json::<TermMap<f64>>(row, "coefficients")?,
+        std_errors: json::<TermMap<f64>>(row, "std_errors")?,
+        sensor_type: row.get("sensor_type").map_err(map)?,
+        verdict: verdict(row, "verdict")?,
+        due_at: optional_timestamp(row, "due_at")?,
+        expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+    })
+}
+
+/// The columns of [`record`]: everything stored for a calibration.
+pub const RECORD_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+     c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
+     c.expanded, c.result, c.submission, c.content_type, c.submitted_by";
+
+/// A whole calibration from a row holding [`RECORD_COLUMNS`].
+pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError> {
+    let s = summary(row)?;
+    let result: String = row.get("result").map_err(map)?;
+    let submission: Vec<u8> = row.get("submission").map_err(map)?;
+    Ok(crate::store::NewCalibration {
+        id: s.id,
+        sensor_id: s.sensor_id,
+        station_id: s.station_id,
+        performed_at: s.performed_at,
+        received_at: s.received_at,
+        unit: s.unit,
+        model: s.model,
+        runs: s.runs,
+        coefficients: s.coefficients,
+        std_errors: s.std_errors,
+        result: bytes::Bytes::from(result),
+        submission: bytes::Bytes::from(submission),
+        content_type: row.get("content_type").map_err(map)?,
+        submitted_by: row.get("submitted_by").map_err(map)?,
+        sensor_type: s.sensor_type,
+        assigns_type: false,
+        verdict: s.verdict,
+        due_at: s.due_at,
+        expanded: s.expanded,
+    })
+}
+
+/// A sensor's status (domain rule [`Status::of`]) in SQL, at `?now` and
+/// `?soon` (now plus 30 days), named parameters of the query.
+pub const STATUS: &str = "CASE WHEN s.latest_verdict = 'fail' THEN 'failed' \
+     WHEN s.latest_due_at IS NULL THEN 'unknown' \
+     WHEN s.latest_due_at < :now THEN 'overdue' \
+     WHEN s.latest_due_at < :soon THEN 'due_soon' ELSE 'ok' END";
+
+/// The sensor columns beside [`SUMMARY_COLUMNS`] of its latest calibration
+/// (the calibration's own type column is the one named `sensor_type`; the
+/// sensor's assigned type is `assigned_type`).
+pub fn sensor_query(filter: &str) -> String {
+    format!(
+        "SELECT s.calibration_count, s.first_performed_at, s.latest_performed_at, \
+         s.sensor_type AS assigned_type, s.latest_verdict, s.latest_due_at, {STATUS} AS status, \
+         {SUMMARY_COLUMNS} \
+         FROM sensors s JOIN calibrations c ON c.id = s.latest_calibration_id {filter}"
+    )
+}
+
+/// A sensor summary from a row of [`sensor_query`].
+pub fn sensor(row: &Row<'_>) -> Result<SensorSummary, StoreError> {
+    let latest = summary(row)?;
+    Ok(SensorSummary {
+        sensor_id: latest.sensor_id.clone(),
+        calibration_count: count(row, "calibration_count")?,
+        first_performed_at: timestamp(row, "first_performed_at")?,
+        latest_performed_at: timestamp(row, "latest_performed_at")?,
+        sensor_type: row.get("assigned_type").map_err(map)?,
+        latest_verdict: verdict(row, "latest_verdict")?,
+        due_at: optional_timestamp(row, "latest_due_at")?,
+        status: decoded(row, "status", |s| Status::parse(s).ok_or("not a status"))?,
+        latest,
+    })
+}
+
+/// The columns of [`token`].
+pub const TOKEN_COLUMNS: &str = "id, secret_hash, role, station_id, label, created_at, revoked_at";
+
+/// A token from a row holding [`TOKEN_COLUMNS`].
+pub fn token(row: &Row<'_>) -> Result<TokenRecord, StoreError> {
+    Ok(TokenRecord {
+        id: uuid(row, "id")?,
+        secret_hash: row.get("secret_hash").map_err(map)?,
+        role: decoded(row, "role", |r| Role::parse(r).ok_or("not a role"))?,
+        station_id: row.get("station_id").map_err(map)?,
+        label: row.get("label").map_err(map)?,
+        created_at: timestamp(row, "created_at")?,
+        revoked_at: optional_timestamp(row, "revoked_at")?,
+    })
+}
+
+/// Every row of a query (a cached statement), decoded by `decode`.
+pub fn all<T>(
+    conn: &Connection,
+    sql: &str,
+    params: impl rusqlite::Params,
+    decode: impl Fn(&Row<'_>) -> Result<T, StoreError>,
+) -> Result<Vec<T>, StoreError> {
+    let mut stmt = conn.prepare_cached(sql).map_err(map)?;
+    let mut rows = stmt.query(params).map_err(map)?;
+    let mut out = Vec::new();
+    while let Some(row) = rows.next().map_err(map)? {
+        out.push(decode(row)?);
+    }
+    Ok(out)
+}
+
+/// The first row of a query, if any.
+pub fn first<T>(
+    conn: &Connection,
+    sql: &str,
+    params: impl rusqlite::Params,
+    decode: impl Fn(&Row<'_>) -> Result<T, StoreError>,
+) -> Result<Option<T>, StoreError> {
+    let mut stmt = conn.prepare_cached(sql).map_err(map)?;
+    let mut rows = stmt.query(params).map_err(map)?;
+    rows.next().map_err(map)?.map(decode).transpose()
+}
