@@ -1,17 +1,31 @@
 #!/usr/bin/env bash
 # The README walkthrough, run for real: start the service, submit the paper's
 # six tests with curl, read back and check the fused coefficients.
-# Usage: tests/walkthrough.sh [path/to/accelcal]   (default target/debug/accelcal)
+# Usage: tests/walkthrough.sh [path/to/accelcal] [sqlite|postgres]
+#   (defaults target/debug/accelcal, sqlite). With `postgres`, the service
+#   runs on a fresh database of the server ACCELCAL_TEST_POSTGRES_URL names
+#   (default postgres://postgres@127.0.0.1:5432/test), dropped afterwards.
 set -euo pipefail
 BIN=$(realpath "${1:-$(dirname "$0")/../target/debug/accelcal}")
+ENGINE=${2:-sqlite}
 cd "$(dirname "$0")/.."
 WORK=$(mktemp -d)
 PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 BASE=http://127.0.0.1:$PORT
 export ACCELCAL_ADMIN_TOKEN=walkthrough-admin-token-0123
-"$BIN" serve --listen 127.0.0.1:$PORT --database "$WORK/accelcal.db" >"$WORK/out.log" 2>"$WORK/err.log" &
+case $ENGINE in
+  sqlite) DATABASE=$WORK/accelcal.db; DROP=: ;;
+  postgres)
+    ADMIN_URL=${ACCELCAL_TEST_POSTGRES_URL:-postgres://postgres@127.0.0.1:5432/test}
+    NAME=accelcal_walkthrough_$$
+    psql -q "$ADMIN_URL" -c "CREATE DATABASE $NAME" >/dev/null
+    DATABASE=${ADMIN_URL%/*}/$NAME
+    DROP="psql -q $ADMIN_URL -c 'DROP DATABASE IF EXISTS $NAME WITH (FORCE)'" ;;
+  *) echo "walkthrough: engine must be sqlite or postgres" >&2; exit 2 ;;
+esac
+"$BIN" serve --listen 127.0.0.1:$PORT --database "$DATABASE" >"$WORK/out.log" 2>"$WORK/err.log" &
 PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; rm -rf "$WORK"' EXIT
+trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; eval "$DROP" >/dev/null 2>&1; rm -rf "$WORK"' EXIT
 for _ in $(seq 50); do curl -sf $BASE/healthz >/dev/null && break; sleep 0.1; done
 
 fail() { echo "walkthrough: $*" >&2; cat "$WORK/err.log" >&2; exit 1; }
@@ -38,12 +52,23 @@ curl -sf -X POST $BASE/v1/calibrations -H "Authorization: Bearer $STATION" \
 
 # --- README: read back the fused coefficients ---------------------------------
 curl -sf $BASE/v1/sensors/PAPER-2005/coefficients -H "Authorization: Bearer $STATION" >"$WORK/coef.json"
-python3 - "$WORK/coef.json" "$WORK/created.json" "$ID" <<'PY' || fail "coefficients differ from the paper"
+python3 - "$WORK/coef.json" "$WORK/created.json" "$ID" core/tests/data/reference.json <<'PY' || fail "coefficients differ from the reference"
 import json, sys
 coef, created, cid = json.load(open(sys.argv[1])), json.load(open(sys.argv[2])), sys.argv[3]
+ref = json.load(open(sys.argv[4]))["table1"]   # independent: core/tests/data/reference.py
+def near(got, want, rel):
+    assert abs(got - want) <= rel * abs(want), (got, want)
 assert coef["calibration_id"] == cid, coef
-assert abs(coef["coefficients"]["kp"] - 0.0062738448) < 1e-9, coef   # fused alpha, NOTES section 5
-assert abs(created["mean"]["coefficients"]["kp"] - 0.0062108047) < 1e-9, created["mean"]
+for t in ("k0", "ki", "kp"):
+    near(coef["coefficients"][t], ref["fused"][t], 1e-12)
+    near(coef["std_errors"][t], ref["fused_std_error"][t], 1e-9)
+    near(created["mean"]["coefficients"][t], ref["mean"][t], 1e-12)
+    for run, want in zip(created["runs"], ref["runs"]):
+        near(run["coefficients"][t], want["coefficients"][t], 1e-12)
+# What the README prints: k0 -0.000682…, ki -1.216154…, kp 0.0062738449…
+assert str(coef["coefficients"]["k0"]).startswith("-0.000682"), coef
+assert str(coef["coefficients"]["ki"]).startswith("-1.216154"), coef
+assert str(coef["coefficients"]["kp"]).startswith("0.0062738449"), coef
 alphas = [r["coefficients"]["kp"] for r in created["runs"]]
 table2 = [0.006091826, 0.006149912, 0.006163094, 0.006287309, 0.006297850, 0.006274837]
 assert all(abs(a - b) < 1e-9 for a, b in zip(alphas, table2)), alphas
@@ -56,9 +81,14 @@ cmp -s "$WORK/sub.json" examples/paper-table1.json || fail "submission not retur
 # --- README: compensate raw outputs -------------------------------------------
 curl -sf -X POST $BASE/v1/sensors/PAPER-2005/compensate -H "Authorization: Bearer $STATION" \
   -H 'Content-Type: application/json' -d '{"outputs": [-1.2167, 0.0055, 1.2154], "a_p": [0, 1, 0]}' >"$WORK/comp.json"
-python3 -c "
-import json; a=json.load(open('$WORK/comp.json'))['a_i']
-assert abs(a[0]-1)<1e-3 and abs(a[1])<1e-3 and abs(a[2]+1)<1e-3, a" || fail "compensation"
+python3 - "$WORK/comp.json" "$WORK/coef.json" <<'PY' || fail "compensation"
+import json, sys
+a, k = json.load(open(sys.argv[1]))["a_i"], json.load(open(sys.argv[2]))["coefficients"]
+# The linear model inverted by hand: a_i = (U - k0 - kp a_p) / ki.
+for got, u, ap in zip(a, [-1.2167, 0.0055, 1.2154], [0, 1, 0]):
+    want = (u - k["k0"] - k["kp"] * ap) / k["ki"]
+    assert abs(got - want) < 1e-12, (got, want)
+PY
 
 # --- README: a bad submission is a precise 422 --------------------------------
 code=$(curl -s -o "$WORK/bad.json" -w '%{http_code}' -X POST $BASE/v1/calibrations \
@@ -73,16 +103,65 @@ code=$(curl -s -o "$WORK/csv.json" -w '%{http_code}' -X POST $BASE/v1/calibratio
   -H "Authorization: Bearer $STATION" -H 'Content-Type: text/csv' --data-binary @"$WORK/paper.csv")
 [ "$code" = 201 ] || fail "CSV submit answered $code: $(cat "$WORK/csv.json")"
 
+# --- README: a sensor type, a recalibration a year on --------------------------
+code=$(curl -s -o "$WORK/type.json" -w '%{http_code}' -X PUT $BASE/v1/sensor-types/NAV \
+  -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" -H 'Content-Type: application/json' \
+  --data-binary @examples/sensor-type-nav.json)
+[ "$code" = 201 ] || fail "sensor type answered $code: $(cat "$WORK/type.json")"
+code=$(curl -s -o "$WORK/recal.json" -w '%{http_code}' -X POST $BASE/v1/calibrations \
+  -H "Authorization: Bearer $STATION" -H 'Content-Type: application/json' \
+  --data-binary @examples/paper-recalibration.json)
+[ "$code" = 201 ] || fail "recalibration answered $code: $(cat "$WORK/recal.json")"
+curl -sf $BASE/v1/sensors/PAPER-2005 -H "Authorization: Bearer $STATION" >"$WORK/sensor.json"
+curl -sf $BASE/v1/sensors/PAPER-2005/stability -H "Authorization: Bearer $STATION" >"$WORK/stability.json"
+python3 - "$WORK/recal.json" "$WORK/created.json" examples/sensor-type-nav.json "$WORK/sensor.json" "$WORK/stability.json" <<'PY' || fail "metrology"
+import json, math, sys
+r, first, typ, sensor, stab = (json.load(open(p)) for p in sys.argv[1:6])
+# The guarded decision (ILAC-G8), re-derived from the values, U and limits.
+for t, lim in typ["limits"].items():
+    x, u = r["fused"]["coefficients"][t], r["uncertainty"]["terms"][t]["expanded"]
+    lo, hi = lim.get("min", -math.inf), lim.get("max", math.inf)
+    want = "pass" if lo + u <= x <= hi - u else ("fail" if x < lo - u or x > hi + u else "conditional")
+    assert r["decision"]["terms"][t]["verdict"] == want, (t, r["decision"])
+verdicts = [d["verdict"] for d in r["decision"]["terms"].values()]
+worst = "fail" if "fail" in verdicts else ("conditional" if "conditional" in verdicts else "pass")
+assert r["decision"]["verdict"] == worst and r["decision"]["rule"] == "guarded", r["decision"]
+# The stand's gravity part of ki's budget is u·|ki| (a linear model).
+ki = r["fused"]["coefficients"]["ki"]
+assert abs(r["uncertainty"]["terms"]["ki"]["gravity"] - 1e-5 * abs(ki)) < 1e-15
+# As found, by hand from the submitted file: the mean of every sample at a
+# position minus the first calibration's fused model at that position's a.
+af = r["as_found"]
+assert af["previous_calibration_id"] == first["id"], af
+body = json.load(open("examples/paper-recalibration.json"))
+k = first["fused"]["coefficients"]
+assert len(af["positions"]) == len(body["positions"]), af
+for i, (pos, e) in enumerate(zip(body["positions"], af["positions"])):
+    th = math.radians(pos["angle_deg"])
+    a_i, a_p = -math.sin(th), math.cos(th)
+    samples = [x for run in body["runs"] for x in run["readings"][i]]
+    want = sum(samples) / len(samples) - (k["k0"] + k["ki"] * a_i + k["kp"] * a_p)
+    assert abs(e["error_output"] - want) < 1e-12, (i, e, want)
+    assert abs(e["error_g"] - want / k["ki"]) < 1e-12, (i, e)
+assert af["max_abs_error_g"] == max(abs(e["error_g"]) for e in af["positions"]), af
+assert r["due_at"] == "2007-08-01T00:00:00.000000Z", r["due_at"]
+assert sensor["sensor_type"] == "NAV" and sensor["latest_verdict"] == r["decision"]["verdict"], sensor
+# Stability over the two: the change in k0 is the drift put in.
+k0 = stab["terms"]["k0"]
+assert stab["calibrations"] == 2 and abs(k0["latest_change"] - 2.1e-5) < 1e-12, stab
+assert k0["drift_per_year"] is None
+PY
+
 # --- README: accelcal submit retries safely -----------------------------------
 "$BIN" submit examples/paper-table1.json --url $BASE --token "$STATION" >"$WORK/cli.json"
 [ "$(json "$WORK/cli.json" "d['sensor_id']")" = PAPER-2005 ] || fail "accelcal submit"
 "$BIN" submit examples/paper-table1.json --url $BASE --token "$STATION" >"$WORK/cli2.json"
 [ "$(json "$WORK/cli2.json" "d['id']")" = "$(json "$WORK/cli.json" "d['id']")" ] || fail "accelcal submit twice stored twice"
 COUNT=$(curl -sf $BASE/v1/sensors/PAPER-2005 -H "Authorization: Bearer $STATION" | python3 -c 'import json,sys; print(json.load(sys.stdin)["calibration_count"])')
-[ "$COUNT" = 2 ] || fail "expected 2 calibrations of PAPER-2005, found $COUNT"
+[ "$COUNT" = 3 ] || fail "expected 3 calibrations of PAPER-2005, found $COUNT"
 
 # --- graceful stop ------------------------------------------------------------
 kill -TERM $PID
 wait $PID || fail "server did not exit 0 on SIGTERM"
-trap 'rm -rf "$WORK"' EXIT
-echo "walkthrough: ok"
+trap 'eval "$DROP" >/dev/null 2>&1; rm -rf "$WORK"' EXIT
+echo "walkthrough ($ENGINE): ok"

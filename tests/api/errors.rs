@@ -1,7 +1,6 @@
 //! Every error class answers a problem document naming what is wrong, and
 //! none of them stores anything.
 
-use accelcal::startup::Config;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
@@ -62,9 +61,13 @@ async fn malformed_and_mistyped_bodies() {
     )
     .await;
     assert!(
-        p["detail"].as_str().unwrap().contains("duplicate key"),
+        p["errors"][0]["detail"]
+            .as_str()
+            .unwrap()
+            .contains("duplicate key `sensor_id`"),
         "{p}"
     );
+    assert_eq!(p["errors"][0]["pointer"], "/sensor_id");
 }
 
 #[tokio::test]
@@ -218,23 +221,26 @@ async fn credentials() {
     assert!(p["detail"].as_str().unwrap().contains("station"), "{p}");
 }
 
+/// Over raw TCP, so that it can tell: the 413 arrives while the client has
+/// sent only the head, not one byte of the declared body.
 #[tokio::test]
 async fn oversized_bodies_are_refused_before_reading() {
-    let dir = tempfile::tempdir().unwrap();
-    let db = dir.path().join("a.db");
-    let mut config = Config::for_tests(db.to_str().unwrap(), ADMIN);
-    config.limits.max_body_bytes = 1024;
-    let app = TestApp::spawn_with(config, db).await;
-    let big = "x".repeat(4096);
-    let res = app
-        .client
-        .post(app.url("/v1/calibrations"))
-        .bearer_auth(ADMIN)
-        .header("content-type", "application/json")
-        .body(big)
-        .send()
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let app = TestApp::configured(|c| c.limits.max_body_bytes = 1024).await;
+    let mut s = tokio::net::TcpStream::connect(app.base.trim_start_matches("http://"))
         .await
         .unwrap();
-    let p = problem(res, StatusCode::PAYLOAD_TOO_LARGE).await;
-    assert!(p["detail"].as_str().unwrap().contains("1024"));
+    let head = format!(
+        "POST /v1/calibrations HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {ADMIN}\r\n\
+         Content-Type: application/json\r\nContent-Length: 4096\r\n\r\n"
+    );
+    s.write_all(head.as_bytes()).await.unwrap();
+    let mut buf = vec![0u8; 8192];
+    let n = tokio::time::timeout(std::time::Duration::from_secs(5), s.read(&mut buf))
+        .await
+        .expect("answered without waiting for the body")
+        .unwrap();
+    let answer = String::from_utf8_lossy(&buf[..n]);
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    assert!(answer.contains("the limit of 1024 bytes"), "{answer}");
 }

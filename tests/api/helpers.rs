@@ -56,53 +56,137 @@ pub fn submission(sensor: &str, performed_at: &str, runs: usize) -> Value {
     })
 }
 
+/// The engine a test binary's servers run on (its root says which, as
+/// `crate::ENGINE`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Engine {
+    /// A SQLite file in a temporary directory.
+    Sqlite,
+    /// A database of its own on the test PostgreSQL server.
+    Postgres,
+}
+
+/// A fresh database, removed when dropped. A PostgreSQL database is reached
+/// through a [`crate::pg::Relay`], so that a test can make it unreachable.
+pub struct Database {
+    /// Its URL (a file path for SQLite).
+    pub url: String,
+    _dir: Option<tempfile::TempDir>,
+    relay: Option<crate::pg::Relay>,
+    _pg: Option<crate::pg::TestDb>,
+}
+
+impl Database {
+    /// A fresh, empty database on `crate::ENGINE`.
+    pub async fn fresh() -> Database {
+        match crate::ENGINE {
+            Engine::Sqlite => {
+                let dir = tempfile::tempdir().unwrap();
+                Database {
+                    url: dir.path().join("accelcal.db").to_str().unwrap().to_owned(),
+                    _dir: Some(dir),
+                    relay: None,
+                    _pg: None,
+                }
+            }
+            Engine::Postgres => {
+                let db = crate::pg::TestDb::create().await;
+                let url = db.url.clone();
+                let (target, through) = crate::pg::split_authority(&url);
+                let relay = crate::pg::Relay::start(target).await;
+                let url = through(&relay.addr.to_string());
+                Database {
+                    url,
+                    _dir: None,
+                    relay: Some(relay),
+                    _pg: Some(db),
+                }
+            }
+        }
+    }
+
+    /// Makes the database unavailable: the SQLite file moved aside, the
+    /// PostgreSQL server unreachable. [`Database::restore`] undoes it.
+    pub fn cut(&self) {
+        match &self.relay {
+            Some(r) => r.cut(),
+            None => std::fs::rename(&self.url, format!("{}.aside", self.url)).unwrap(),
+        }
+    }
+
+    /// Makes the database available again.
+    pub fn restore(&self) {
+        match &self.relay {
+            Some(r) => r.restore(),
+            None => std::fs::rename(format!("{}.aside", self.url), &self.url).unwrap(),
+        }
+    }
+}
+
 /// A running server.
 pub struct TestApp {
     /// `http://127.0.0.1:PORT`.
     pub base: String,
-    /// The database file.
-    pub db: PathBuf,
+    /// Its database's URL (a file path for SQLite).
+    pub database: String,
     /// A client.
     pub client: Client,
+    /// The server's admission budgets (to observe what it has taken in).
+    pub admission: accelcal::http::stack::Admission,
     stop: Option<oneshot::Sender<()>>,
     task: Option<JoinHandle<anyhow::Result<()>>>,
-    _dir: Option<tempfile::TempDir>,
+    owned: Option<Database>,
 }
 
 impl TestApp {
     /// A server on a fresh database.
     pub async fn spawn() -> TestApp {
-        let dir = tempfile::tempdir().unwrap();
-        let db = dir.path().join("accelcal.db");
-        let mut app = Self::spawn_on(db).await;
-        app._dir = Some(dir);
+        Self::configured(|_| {}).await
+    }
+
+    /// A server on a fresh database, its test configuration changed by `f`.
+    pub async fn configured(f: impl FnOnce(&mut Config)) -> TestApp {
+        let db = Database::fresh().await;
+        let mut config = Config::for_tests(&db.url, ADMIN);
+        f(&mut config);
+        let mut app = Self::spawn_with(config).await;
+        app.owned = Some(db);
         app
     }
 
-    /// A server on the given database file.
-    pub async fn spawn_on(db: PathBuf) -> TestApp {
-        Self::spawn_with(Config::for_tests(db.to_str().unwrap(), ADMIN), db).await
+    /// A server on the given database.
+    pub async fn spawn_on(database: &str) -> TestApp {
+        Self::spawn_with(Config::for_tests(database, ADMIN)).await
     }
 
     /// A server with a custom configuration.
-    pub async fn spawn_with(config: Config, db: PathBuf) -> TestApp {
+    pub async fn spawn_with(config: Config) -> TestApp {
+        let database = config.database.clone();
         let app = Application::build(config).await.expect("server builds");
         let base = format!("http://127.0.0.1:{}", app.port());
+        let admission = app.admission();
         let (tx, rx) = oneshot::channel::<()>();
         let task = tokio::spawn(app.run_until_stopped(async {
             let _ = rx.await;
         }));
         TestApp {
             base,
-            db,
+            database,
             client: Client::new(),
+            admission,
             stop: Some(tx),
             task: Some(task),
-            _dir: None,
+            owned: None,
         }
     }
 
-    /// Stops the server gracefully and waits for it; keeps the directory.
+    /// The SQLite file (tests of SQLite's own failure modes).
+    pub fn db_path(&self) -> PathBuf {
+        assert_eq!(crate::ENGINE, Engine::Sqlite, "a SQLite-only test");
+        PathBuf::from(&self.database)
+    }
+
+    /// Stops the server gracefully and waits for it; keeps the database.
     pub async fn stop(&mut self) {
         if let Some(tx) = self.stop.take() {
             let _ = tx.send(());
@@ -112,9 +196,16 @@ impl TestApp {
         }
     }
 
-    /// Takes the temporary directory (so a restarted server can reuse it).
-    pub fn take_dir(&mut self) -> Option<tempfile::TempDir> {
-        self._dir.take()
+    /// Its database (the one [`TestApp::configured`] made for it).
+    pub fn db(&self) -> &Database {
+        self.owned
+            .as_ref()
+            .expect("a server on a database of its own")
+    }
+
+    /// Takes the database (so a restarted server can reuse it).
+    pub fn take_database(&mut self) -> Option<Database> {
+        self.owned.take()
     }
 
     /// `url` relative to the server.
@@ -199,6 +290,25 @@ pub fn pointers(problem: &Value) -> Vec<String> {
                 .collect()
         })
         .unwrap_or_default()
+}
+
+/// Polls `check` until it gives `Some`, or fails after `limit` naming `what`.
+pub async fn eventually<T, F: std::future::Future<Output = Option<T>>>(
+    limit: std::time::Duration,
+    what: &str,
+    mut check: impl FnMut() -> F,
+) -> T {
+    let deadline = std::time::Instant::now() + limit;
+    loop {
+        if let Some(v) = check().await {
+            return v;
+        }
+        assert!(
+            std::time::Instant::now() < deadline,
+            "{what} did not happen within {limit:?}"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(20)).await;
+    }
 }
 
 /// Asserts `got` is within `tol` of `want`.

@@ -10,14 +10,14 @@ async fn restart_keeps_calibrations_and_tokens() {
     let mut app = TestApp::spawn().await;
     let created = app.submit(ADMIN, &paper()).await;
     let reader = app.token("reader", None).await;
-    let db = app.db.clone();
-    let dir = app.take_dir();
+    let db = app.take_database().unwrap();
     app.stop().await;
 
-    let again = TestApp::spawn_on(db).await;
+    let again = TestApp::spawn_on(&db.url).await;
     let path = format!("/v1/calibrations/{}", created["id"].as_str().unwrap());
     let res = again.get(&path, &reader).await;
     assert_eq!(res.status(), StatusCode::OK);
     assert_eq!(res.json::<Value>().await.unwrap(), created);
-    drop(dir);
+    drop(again);
+    drop(db);
 }

@@ -1,6 +1,14 @@
 //! The real `accelcal` binary as a process: kill -9 at random moments,
 //! SIGTERM with a request in flight, and what it writes to its log.
 
+#[path = "../common/pg.rs"]
+mod pg;
+
+mod cli;
 mod crash;
+mod db;
+mod metrics;
+mod migrate;
+mod replicas;
 mod server;
 mod shutdown;

@@ -3,7 +3,6 @@
 #![allow(dead_code)]
 
 use std::io::{BufRead, BufReader};
-use std::path::Path;
 use std::process::{Child, Command, Stdio};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
@@ -23,13 +22,13 @@ pub struct Server {
 
 impl Server {
     /// Starts the binary on `db` (debug logging) and waits until it listens.
-    pub fn start(db: &Path) -> Server {
+    pub fn start(db: impl AsRef<std::ffi::OsStr>) -> Server {
         Self::start_with(db, &[], "debug")
     }
 
     /// Starts the binary on `db` with extra `serve` flags and a `RUST_LOG`
     /// filter, and waits until it listens.
-    pub fn start_with(db: &Path, flags: &[&str], rust_log: &str) -> Server {
+    pub fn start_with(db: impl AsRef<std::ffi::OsStr>, flags: &[&str], rust_log: &str) -> Server {
         let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
             .args(["serve", "--listen", "127.0.0.1:0", "--log-format", "json"])
             .args(["--shutdown-grace", "10"])

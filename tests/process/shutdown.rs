@@ -40,9 +40,25 @@ async fn sigterm_finishes_in_flight_requests_and_exits_0() {
          Content-Type: application/json\r\nContent-Length: {}\r\n\r\n",
         body.len()
     );
+    // Observed, not assumed: the server is receiving this body (one more
+    // "receiving a request body" than the token request left in the log).
+    let receiving = || {
+        server
+            .log_text()
+            .matches("receiving a request body")
+            .count()
+    };
+    let before = receiving();
     s.write_all(head.as_bytes()).await.unwrap();
     s.write_all(first.as_bytes()).await.unwrap();
-    tokio::time::sleep(Duration::from_millis(200)).await;
+    let deadline = std::time::Instant::now() + Duration::from_secs(10);
+    while receiving() == before {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the body was never taken in"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
     server.terminate();
 
     // No new connections are accepted once the signal is handled (polled).

@@ -1,4 +1,4 @@
-//! The access matrix: every endpoint × {no token, malformed, revoked, reader,
+//! The access matrix: every endpoint (18) × {no token, malformed, revoked, reader,
 //! station, other station, admin} → the expected status.
 
 use reqwest::{Method, StatusCode};
@@ -92,6 +92,16 @@ async fn every_endpoint_against_every_kind_of_caller() {
         .submit(ADMIN, &submission("M-1", "2026-01-01T00:00:00Z", 4))
         .await;
     let id = r["id"].as_str().unwrap();
+    let nav = json!({"limits": {"k0": {"min": -1, "max": 1}}, "decision_rule": "simple"});
+    let created = app
+        .client
+        .put(app.url("/v1/sensor-types/NAV"))
+        .bearer_auth(ADMIN)
+        .json(&nav)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(created.status(), StatusCode::CREATED);
     let mut as_a = submission("M-2", "2026-01-01T00:00:00Z", 4);
     as_a["station_id"] = json!("ST-A");
 
@@ -119,7 +129,21 @@ async fn every_endpoint_against_every_kind_of_caller() {
         ),
         (
             Method::GET,
+            format!("/v1/calibrations/{id}/certificate"),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
             "/v1/sensors".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/sensors?search=m-&status=unknown".into(),
             None,
             Needs::Read,
             StatusCode::OK,
@@ -150,6 +174,41 @@ async fn every_endpoint_against_every_kind_of_caller() {
             "/v1/sensors/M-1/compensate".into(),
             Some(json!({"outputs": [0.5]})),
             Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/sensors/M-1/stability".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::PUT,
+            "/v1/sensors/M-1".into(),
+            Some(json!({"sensor_type": "NAV"})),
+            Needs::Admin,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/sensor-types".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/sensor-types/NAV".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::PUT,
+            "/v1/sensor-types/NAV".into(),
+            Some(nav.clone()),
+            Needs::Admin,
             StatusCode::OK,
         ),
         (

@@ -79,6 +79,8 @@ fn snapshot(db: &std::path::Path) -> String {
         "SELECT sensor_id || calibration_count || latest_calibration_id FROM sensors ORDER BY sensor_id",
         "SELECT id || role || coalesce(revoked_at, '-') FROM tokens ORDER BY id",
         "SELECT principal || key || coalesce(calibration_id, '-') FROM idempotency_keys ORDER BY principal, key",
+        "SELECT type_id || definition FROM sensor_types ORDER BY type_id",
+        "SELECT sensor_id || coalesce(sensor_type, '-') FROM sensors ORDER BY sensor_id",
     ] {
         let mut stmt = c.prepare(sql).unwrap();
         let rows = stmt.query_map([], |r| r.get::<_, String>(0)).unwrap();
@@ -99,7 +101,7 @@ async fn every_bad_input_gets_a_precise_4xx_and_changes_nothing() {
     let app = TestApp::spawn().await;
     app.submit(ADMIN, &paper()).await;
     let reader = app.token("reader", None).await;
-    let before = snapshot(&app.db);
+    let before = snapshot(&app.db_path());
 
     let mut failures = Vec::new();
     for case in &cases {
@@ -180,7 +182,7 @@ async fn every_bad_input_gets_a_precise_4xx_and_changes_nothing() {
         failures.join("\n")
     );
     assert_eq!(
-        snapshot(&app.db),
+        snapshot(&app.db_path()),
         before,
         "bad input changed the stored data"
     );

@@ -127,7 +127,13 @@ async fn concurrent_retries_store_exactly_one_record() {
             .map(|_| {
                 let (app, key, body) = (app.clone(), key.clone(), body.clone());
                 tokio::spawn(async move {
+                    // A key stuck in flight fails the test instead of hanging it.
+                    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(30);
                     loop {
+                        assert!(
+                            std::time::Instant::now() < deadline,
+                            "the key stayed in flight"
+                        );
                         let res = post_with_key(&app, ADMIN, &key, &body).await;
                         match res.status() {
                             StatusCode::CONFLICT => {
@@ -161,25 +167,49 @@ async fn concurrent_retries_store_exactly_one_record() {
 /// copies run.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn the_submit_client_retries_through_an_outage_without_duplicates() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicU32, Ordering};
     let app = TestApp::spawn().await;
-    let aside = app.db.with_extension("aside");
-    std::fs::rename(&app.db, &aside).unwrap();
-    let upload = accelcal::client::Upload {
-        url: app.base.clone(),
-        token: ADMIN.into(),
-        body: serde_json::to_vec(&submission("RETRY-1", "2026-01-01T00:00:00Z", 4)).unwrap(),
-        content_type: "application/json",
-        attempts: 30,
-        backoff: std::time::Duration::from_millis(50),
-    };
-    let uploads: Vec<_> = (0..3)
-        .map(|_| {
-            let u = upload.clone();
+    app.db().cut();
+    let retried: Vec<Arc<AtomicU32>> = (0..3).map(|_| Arc::new(AtomicU32::new(0))).collect();
+    let uploads: Vec<_> = retried
+        .iter()
+        .map(|count| {
+            let count = count.clone();
+            let u = accelcal::client::Upload {
+                url: app.base.clone(),
+                token: ADMIN.into(),
+                body: serde_json::to_vec(&submission("RETRY-1", "2026-01-01T00:00:00Z", 4))
+                    .unwrap(),
+                content_type: "application/json",
+                attempts: 30,
+                backoff: std::time::Duration::from_millis(50),
+                on_retry: Some(Arc::new(move |r: &accelcal::client::Retry| {
+                    // The outage (503), or another copy holding the key (409).
+                    assert!(
+                        r.reason.starts_with("503") || r.reason.starts_with("409"),
+                        "{}",
+                        r.reason
+                    );
+                    count.fetch_add(1, Ordering::SeqCst);
+                })),
+            };
             tokio::spawn(async move { accelcal::client::submit(&u).await.unwrap() })
         })
         .collect();
-    tokio::time::sleep(std::time::Duration::from_millis(400)).await;
-    std::fs::rename(&aside, &app.db).unwrap();
+    // The database comes back once every upload has met the outage.
+    eventually(
+        std::time::Duration::from_secs(20),
+        "every upload to retry",
+        || async {
+            retried
+                .iter()
+                .all(|c| c.load(Ordering::SeqCst) > 0)
+                .then_some(())
+        },
+    )
+    .await;
+    app.db().restore();
     let mut ids = Vec::new();
     for u in uploads {
         let answer = u.await.unwrap();

@@ -11,8 +11,8 @@ async fn a_missing_database_is_503_until_it_returns() {
     let app = TestApp::spawn().await;
     app.submit(ADMIN, &submission("D-1", "2026-01-01T00:00:00Z", 4))
         .await;
-    let aside = app.db.with_extension("aside");
-    std::fs::rename(&app.db, &aside).unwrap();
+    let aside = app.db_path().with_extension("aside");
+    std::fs::rename(app.db_path(), &aside).unwrap();
 
     let res = app.get("/v1/sensors", ADMIN).await;
     assert!(res.headers().contains_key("retry-after"));
@@ -28,11 +28,11 @@ async fn a_missing_database_is_503_until_it_returns() {
     let res = app.client.get(app.url("/readyz")).send().await.unwrap();
     problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
     assert!(
-        !app.db.exists(),
+        !app.db_path().exists(),
         "a missing database must not be silently recreated"
     );
 
-    std::fs::rename(&aside, &app.db).unwrap();
+    std::fs::rename(&aside, app.db_path()).unwrap();
     assert_eq!(
         app.client
             .get(app.url("/readyz"))
@@ -56,7 +56,7 @@ async fn a_missing_database_is_503_until_it_returns() {
 #[tokio::test]
 async fn a_locked_database_is_503_until_the_lock_is_released() {
     let app = TestApp::spawn().await;
-    let locker = rusqlite::Connection::open(&app.db).unwrap();
+    let locker = rusqlite::Connection::open(app.db_path()).unwrap();
     locker.execute_batch("BEGIN EXCLUSIVE").unwrap();
 
     let res = app
@@ -70,7 +70,14 @@ async fn a_locked_database_is_503_until_the_lock_is_released() {
 
     locker.execute_batch("COMMIT").unwrap();
     drop(locker);
-    tokio::time::sleep(Duration::from_millis(50)).await;
-    app.submit(ADMIN, &submission("L-1", "2026-01-01T00:00:00Z", 4))
-        .await;
+    let body = submission("L-1", "2026-01-01T00:00:00Z", 4);
+    eventually(
+        Duration::from_secs(10),
+        "the submission to be stored",
+        || async {
+            let res = app.post("/v1/calibrations", ADMIN, &body).await;
+            (res.status() == StatusCode::CREATED).then_some(())
+        },
+    )
+    .await;
 }

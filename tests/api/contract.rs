@@ -1,0 +1,80 @@
+//! One source of truth for the contract: the committed `openapi.yaml` is what
+//! `accelcal openapi` generates from the code, and what the server serves.
+
+use reqwest::StatusCode;
+
+use crate::helpers::*;
+
+const COMMITTED: &str = include_str!("../../openapi.yaml");
+
+#[test]
+fn the_committed_contract_is_what_the_code_generates() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .arg("openapi")
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let generated = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        generated == COMMITTED,
+        "openapi.yaml differs from `accelcal openapi`; regenerate it with \
+         `cargo run -- openapi > openapi.yaml` and review the diff"
+    );
+}
+
+#[tokio::test]
+async fn the_server_serves_the_committed_contract() {
+    let app = TestApp::spawn().await;
+    let res = app
+        .client
+        .get(app.url("/openapi.yaml"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.text().await.unwrap(), COMMITTED);
+}
+
+/// The contract keeps the constraints the checks enforce (a sample of them,
+/// read from the document as a client would).
+#[test]
+fn the_contract_carries_the_limits() {
+    let doc: serde_json::Value = serde_norway::from_str(COMMITTED).unwrap();
+    let schemas = &doc["components"]["schemas"];
+    assert_eq!(schemas["Submission"]["additionalProperties"], false);
+    assert_eq!(
+        schemas["Submission"]["properties"]["positions"]["maxItems"],
+        360
+    );
+    assert_eq!(
+        schemas["Submission"]["properties"]["runs"]["maxItems"],
+        1000
+    );
+    assert_eq!(
+        schemas["RunIn"]["properties"]["readings"]["items"]["maxItems"],
+        1000
+    );
+    assert_eq!(schemas["Identifier"]["maxLength"], 64);
+    assert_eq!(
+        schemas["Identifier"]["pattern"],
+        "^[A-Za-z0-9][A-Za-z0-9._:-]*$"
+    );
+    assert_eq!(schemas["TokenRequest"]["additionalProperties"], false);
+    assert_eq!(
+        schemas["TokenRequest"]["then"]["properties"]["station_id"]["type"],
+        "null"
+    );
+    assert_eq!(schemas["FuseRequest"]["additionalProperties"], false);
+    assert_eq!(
+        schemas["CompensateRequest"]["properties"]["outputs"]["maxItems"],
+        10000
+    );
+    assert!(schemas["Submission"]["examples"].is_array());
+    let submit = &doc["paths"]["/v1/calibrations"]["post"];
+    assert_eq!(submit["operationId"], "submitCalibration");
+    assert_eq!(
+        submit["responses"]["422"]["$ref"],
+        "#/components/responses/Invalid"
+    );
+    assert!(submit["responses"]["201"]["links"]["GetCalibration"].is_object());
+}

@@ -1,0 +1,544 @@
+//! The metrology over HTTP: sensor types, decisions, uncertainty, as found,
+//! due dates and status, stability, temperature and quality flags — each
+//! value checked against a computation written here from the definitions.
+
+use reqwest::StatusCode;
+use serde_json::{Value, json};
+
+use crate::helpers::*;
+
+const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
+
+async fn put(app: &TestApp, path: &str, token: &str, body: &Value) -> reqwest::Response {
+    app.client
+        .put(app.url(path))
+        .bearer_auth(token)
+        .json(body)
+        .send()
+        .await
+        .unwrap()
+}
+
+fn nav_type() -> Value {
+    json!({
+        "label": "Navigation grade",
+        "limits": {"k0": {"min": -1e-3, "max": 1e-3}, "kp": {"min": -6.2e-3, "max": 6.2e-3}},
+        "decision_rule": "guarded",
+        "coverage_factor": 2,
+        "interval_days": 180
+    })
+}
+
+fn f(v: &Value) -> f64 {
+    v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+#[tokio::test]
+async fn sensor_types_are_written_by_admins_and_checked() {
+    let app = TestApp::spawn().await;
+    let res = put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let t: Value = res.json().await.unwrap();
+    assert_eq!(
+        (t["type_id"].as_str(), t["interval_days"].as_u64()),
+        (Some("NAV"), Some(180))
+    );
+    assert_eq!(
+        put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type())
+            .await
+            .status(),
+        StatusCode::OK
+    );
+    let reader = app.token("reader", None).await;
+    problem(
+        put(&app, "/v1/sensor-types/X", &reader, &nav_type()).await,
+        StatusCode::FORBIDDEN,
+    )
+    .await;
+    let list: Value = app
+        .get("/v1/sensor-types", &reader)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(list["items"][0]["type_id"], "NAV");
+    problem(
+        app.get("/v1/sensor-types/NONE", &reader).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    for (body, pointer) in [
+        (
+            json!({"limits": {"k0": {"min": 1, "max": -1}}, "decision_rule": "simple"}),
+            "/limits/k0",
+        ),
+        (
+            json!({"limits": {}, "decision_rule": "simple", "interval_days": -5}),
+            "/interval_days",
+        ),
+        (
+            json!({"limits": {"k9": {"min": 1}}, "decision_rule": "simple"}),
+            "/limits/k9",
+        ),
+        (
+            json!({"limits": {}, "decision_rule": "strict"}),
+            "/decision_rule",
+        ),
+    ] {
+        let p = problem(
+            put(&app, "/v1/sensor-types/BAD", ADMIN, &body).await,
+            StatusCode::UNPROCESSABLE_ENTITY,
+        )
+        .await;
+        assert!(pointers(&p).contains(&pointer.to_owned()), "{p}");
+    }
+}
+
+/// The paper's submission on a typed sensor with a stand: the budget's
+/// indexing and gravity parts follow the four-position closed form
+/// (indexing(k0) = σ·√(ki² + kp²)/(2√2), indexing(ki) = σ·|kp|/√2,
+/// indexing(kp) = σ·|ki|/√2; gravity = u·|k| on ki and kp), the guarded
+/// decision follows ILAC-G8, and the due date is 180 days on.
+#[tokio::test]
+async fn a_typed_calibration_carries_its_budget_decision_and_due_date() {
+    let app = TestApp::spawn().await;
+    put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
+    let mut body = paper();
+    body["sensor_type"] = json!("NAV");
+    body["stand"] = json!({"id": "DH-1", "angle_std_arcsec": 4.0, "gravity_rel_std": 2e-5});
+    let r = app.submit(ADMIN, &body).await;
+    let k = &r["fused"]["coefficients"];
+    let se = &r["fused"]["std_errors"];
+    let (ki, kp) = (f(&k["ki"]), f(&k["kp"]));
+    let (sigma, u) = (4.0 * ARCSEC, 2e-5);
+    let b = &r["uncertainty"]["terms"];
+    let want = [
+        (
+            "k0",
+            sigma * (ki * ki + kp * kp).sqrt() / (2.0 * 2f64.sqrt()),
+            0.0,
+        ),
+        ("ki", sigma * kp.abs() / 2f64.sqrt(), u * ki.abs()),
+        ("kp", sigma * ki.abs() / 2f64.sqrt(), u * kp.abs()),
+    ];
+    for (t, indexing, gravity) in want {
+        close(&b[t]["indexing"], indexing, 1e-12 * indexing.abs() + 1e-20);
+        close(&b[t]["gravity"], gravity, 1e-12 * gravity.abs() + 1e-18);
+        assert_eq!(b[t]["statistical"], se[t]);
+        let combined = (f(&se[t]).powi(2) + indexing.powi(2) + gravity.powi(2)).sqrt();
+        close(&b[t]["combined"], combined, 1e-12 * combined);
+        close(&b[t]["expanded"], 2.0 * combined, 1e-12 * combined);
+    }
+    assert_eq!(r["uncertainty"]["coverage_factor"], 2.0);
+    assert_eq!(
+        r["stand"],
+        json!({"id": "DH-1", "angle_std_arcsec": 4.0, "gravity_rel_std": 2e-5})
+    );
+    assert_eq!(r["sensor_type"], "NAV");
+    // ILAC-G8 guarded: k0 = −6.8e-4 ± U well inside ±1e-3 → pass; kp =
+    // 6.2738e-3 is above the 6.2e-3 limit but within it + U → conditional.
+    let d = &r["decision"];
+    assert_eq!(d["rule"], "guarded");
+    let verdict = |t: &str| {
+        let (x, uu) = (f(&k[t]), f(&b[t]["expanded"]));
+        let (lo, hi) = (
+            f(&nav_type()["limits"][t]["min"]),
+            f(&nav_type()["limits"][t]["max"]),
+        );
+        if lo + uu <= x && x <= hi - uu {
+            "pass"
+        } else if x < lo - uu || x > hi + uu {
+            "fail"
+        } else {
+            "conditional"
+        }
+    };
+    assert_eq!(d["terms"]["k0"]["verdict"], verdict("k0"));
+    assert_eq!(d["terms"]["kp"]["verdict"], verdict("kp"));
+    assert_eq!(d["terms"]["k0"]["verdict"], "pass");
+    // kp − U = 6.2738e-3 − 3.6e-5 lies above the limit plus U: fail.
+    assert_eq!(d["terms"]["kp"]["verdict"], "fail", "{d}");
+    assert_eq!(d["verdict"], "fail");
+    assert_eq!(
+        r["due_at"], "2006-01-28T00:00:00.000000Z",
+        "2005-08-01 plus 180 days"
+    );
+    let s: Value = app
+        .get("/v1/sensors/PAPER-2005", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        (
+            s["sensor_type"].as_str(),
+            s["latest_verdict"].as_str(),
+            s["status"].as_str()
+        ),
+        (Some("NAV"), Some("fail"), Some("failed"))
+    );
+    let failed: Value = app
+        .get("/v1/sensors?status=failed", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(failed["items"][0]["sensor_id"], "PAPER-2005");
+    let ok: Value = app
+        .get("/v1/sensors?status=ok", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(ok["items"], json!([]));
+    problem(
+        app.get("/v1/sensors?status=bad", ADMIN).await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    let found: Value = app
+        .get("/v1/sensors?search=paper-&status=failed", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(found["items"][0]["sensor_id"], "PAPER-2005");
+    let none: Value = app
+        .get("/v1/sensors?search=GYRO", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(none["items"], json!([]));
+    for bad in ["%25", "a%20b", ""] {
+        let p = problem(
+            app.get(&format!("/v1/sensors?search={bad}"), ADMIN).await,
+            StatusCode::BAD_REQUEST,
+        )
+        .await;
+        assert_eq!(p["parameter"], "search", "{bad}");
+    }
+}
+
+/// A type changed later never rewrites a stored decision; a submission
+/// naming an unknown type, or a type limiting a term the model lacks, is 422.
+#[tokio::test]
+async fn decisions_are_immutable_and_types_must_fit() {
+    let app = TestApp::spawn().await;
+    put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
+    let mut body = submission("IMM-1", "2026-01-01T00:00:00Z", 4);
+    body["sensor_type"] = json!("NAV");
+    let first = app.submit(ADMIN, &body).await;
+    let mut looser = nav_type();
+    looser["limits"]["kp"] = json!({"min": -1, "max": 1});
+    looser["decision_rule"] = json!("simple");
+    put(&app, "/v1/sensor-types/NAV", ADMIN, &looser).await;
+    let again: Value = app
+        .get(
+            &format!("/v1/calibrations/{}", first["id"].as_str().unwrap()),
+            ADMIN,
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(again["decision"], first["decision"]);
+    body["sensor_type"] = json!("NOPE");
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/sensor_type"]);
+    put(
+        &app,
+        "/v1/sensor-types/KO",
+        ADMIN,
+        &json!({"limits": {"ko": {"max": 1}}, "decision_rule": "simple"}),
+    )
+    .await;
+    body["sensor_type"] = json!("KO");
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/model"]);
+}
+
+/// As found: the second calibration's position means against the first
+/// calibration's model, computed here from the submitted readings.
+#[tokio::test]
+async fn a_later_calibration_is_found_against_the_previous_one() {
+    let app = TestApp::spawn().await;
+    let first = app
+        .submit(ADMIN, &submission("AF-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(first["as_found"], Value::Null);
+    let mut later = submission("AF-1", "2026-06-01T00:00:00Z", 6);
+    // The sensor drifted: +2e-5 on every output.
+    for run in later["runs"].as_array_mut().unwrap() {
+        for samples in run["readings"].as_array_mut().unwrap() {
+            for x in samples.as_array_mut().unwrap() {
+                *x = json!(f(x) + 2e-5);
+            }
+        }
+    }
+    let second = app.submit(ADMIN, &later).await;
+    let af = &second["as_found"];
+    assert_eq!(af["previous_calibration_id"], first["id"]);
+    let k = &first["fused"]["coefficients"];
+    let positions = second["positions"].as_array().unwrap();
+    let mut max = 0.0f64;
+    for (r, p) in positions.iter().enumerate() {
+        let samples: Vec<f64> = later["runs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .flat_map(|run| run["readings"][r].as_array().unwrap().iter().map(f))
+            .collect();
+        let mean = samples.iter().sum::<f64>() / samples.len() as f64;
+        let model = f(&k["k0"]) + f(&k["ki"]) * f(&p["a"][0]) + f(&k["kp"]) * f(&p["a"][1]);
+        let err = mean - model;
+        close(&af["positions"][r]["error_output"], err, 1e-12);
+        close(&af["positions"][r]["error_g"], err / f(&k["ki"]), 1e-12);
+        max = max.max((err / f(&k["ki"])).abs());
+    }
+    close(&af["max_abs_error_g"], max, 1e-12);
+    // An earlier calibration submitted afterwards is found against nothing
+    // older than it.
+    let older = app
+        .submit(ADMIN, &submission("AF-1", "2025-06-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(older["as_found"], Value::Null);
+}
+
+/// Stability over four calibrations, against statistics computed here from
+/// the fused values the calibrations returned.
+#[tokio::test]
+async fn stability_summarises_the_history() {
+    let app = TestApp::spawn().await;
+    let days = ["2026-01-01", "2026-04-01", "2026-07-01", "2026-10-01"];
+    let mut values = Vec::new();
+    let mut times = Vec::new();
+    let mut ses = Vec::new();
+    for (n, day) in days.iter().enumerate() {
+        let mut body = submission("STB-1", &format!("{day}T00:00:00Z"), 4 + 2 * n);
+        for run in body["runs"].as_array_mut().unwrap() {
+            for samples in run["readings"].as_array_mut().unwrap() {
+                for x in samples.as_array_mut().unwrap() {
+                    *x = json!(f(x) + 1e-5 * n as f64);
+                }
+            }
+        }
+        let r = app.submit(ADMIN, &body).await;
+        values.push(f(&r["fused"]["coefficients"]["k0"]));
+        ses.push(f(&r["fused"]["std_errors"]["k0"]));
+        let t = time::OffsetDateTime::parse(
+            &format!("{day}T00:00:00Z"),
+            &time::format_description::well_known::Rfc3339,
+        )
+        .unwrap();
+        times.push(t.unix_timestamp() as f64 / (365.25 * 86400.0));
+    }
+    let s: Value = app
+        .get("/v1/sensors/STB-1/stability", ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(s["calibrations"], 4);
+    let k0 = &s["terms"]["k0"];
+    let n = 4.0;
+    let mean = values.iter().sum::<f64>() / n;
+    let tm = times.iter().sum::<f64>() / n;
+    let stt: f64 = times.iter().map(|t| (t - tm).powi(2)).sum();
+    let slope = times
+        .iter()
+        .zip(&values)
+        .map(|(t, x)| (t - tm) * (x - mean))
+        .sum::<f64>()
+        / stt;
+    let rss: f64 = times
+        .iter()
+        .zip(&values)
+        .map(|(t, x)| (x - mean - slope * (t - tm)).powi(2))
+        .sum();
+    let se = (rss / 2.0).sqrt() / stt.sqrt();
+    close(&k0["mean"], mean, 1e-15);
+    close(&k0["drift_per_year"], slope, 1e-9 * slope.abs());
+    close(&k0["drift_std_error"], se, 1e-6 * se);
+    let mr = values.windows(2).map(|w| (w[1] - w[0]).abs()).sum::<f64>() / 3.0;
+    close(&k0["control"]["moving_range_mean"], mr, 1e-15);
+    close(&k0["control"]["upper"], mean + 2.66 * mr, 1e-15);
+    close(&k0["latest_change"], values[3] - values[2], 1e-15);
+    close(
+        &k0["latest_change_expanded"],
+        2.0 * (ses[3].powi(2) + ses[2].powi(2)).sqrt(),
+        1e-15,
+    );
+    // A window.
+    let w: Value = app
+        .get(
+            "/v1/sensors/STB-1/stability?from=2026-03-01T00:00:00Z&to=2026-08-01T00:00:00Z",
+            ADMIN,
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(w["calibrations"], 2);
+    assert_eq!(w["terms"]["k0"]["drift_per_year"], Value::Null);
+    problem(
+        app.get("/v1/sensors/NONE/stability", ADMIN).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+}
+
+/// Runs at three temperatures: the sensitivity is the least-squares slope
+/// of the per-run coefficients on temperature, computed here.
+#[tokio::test]
+async fn runs_at_several_temperatures_give_sensitivities() {
+    let app = TestApp::spawn().await;
+    let mut body = submission("TMP-1", "2026-01-01T00:00:00Z", 6);
+    let temps = [15.0, 15.0, 25.0, 25.0, 35.0, 35.0];
+    for (run, t) in body["runs"].as_array_mut().unwrap().iter_mut().zip(temps) {
+        run["temperature_c"] = json!(t);
+        for samples in run["readings"].as_array_mut().unwrap() {
+            for x in samples.as_array_mut().unwrap() {
+                *x = json!(f(x) + 3e-6 * (t - 25.0));
+            }
+        }
+    }
+    let r = app.submit(ADMIN, &body).await;
+    let k0: Vec<f64> = r["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| f(&x["coefficients"]["k0"]))
+        .collect();
+    let (tm, xm) = (25.0, k0.iter().sum::<f64>() / 6.0);
+    let stt: f64 = temps.iter().map(|t| (t - tm).powi(2)).sum();
+    let slope = temps
+        .iter()
+        .zip(&k0)
+        .map(|(t, x)| (t - tm) * (x - xm))
+        .sum::<f64>()
+        / stt;
+    let t = &r["temperature"]["k0"];
+    close(&t["per_kelvin"], slope, 1e-12);
+    assert!(
+        (slope - 3e-6).abs() < 2e-7,
+        "the injected sensitivity comes back: {slope}"
+    );
+    close(&t["reference_c"], 25.0, 1e-12);
+    close(&t["value_at_reference"], xm, 1e-15);
+    assert!(t["std_error"].is_number());
+    assert_eq!(r["temperatures_c"], json!(temps));
+    // Some runs with a temperature and some without: refused.
+    body["runs"][0]["temperature_c"] = Value::Null;
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/runs/0/temperature_c"]);
+    // One temperature for all: no sensitivity.
+    let plain = app
+        .submit(ADMIN, &submission("TMP-2", "2026-01-01T00:00:00Z", 4))
+        .await;
+    assert!(plain.get("temperature").is_none());
+}
+
+/// Assigning a type to a sensor (admin): it applies to the next
+/// calibrations.
+#[tokio::test]
+async fn a_sensor_can_be_given_a_type() {
+    let app = TestApp::spawn().await;
+    put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
+    app.submit(ADMIN, &submission("AS-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let s: Value = put(
+        &app,
+        "/v1/sensors/AS-1",
+        ADMIN,
+        &json!({"sensor_type": "NAV"}),
+    )
+    .await
+    .json()
+    .await
+    .unwrap();
+    assert_eq!(
+        (s["sensor_type"].as_str(), s["status"].as_str()),
+        (Some("NAV"), Some("unknown"))
+    );
+    let next = app
+        .submit(ADMIN, &submission("AS-1", "2026-02-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(next["sensor_type"], "NAV");
+    assert!(next["decision"].is_object());
+    problem(
+        put(
+            &app,
+            "/v1/sensors/AS-1",
+            ADMIN,
+            &json!({"sensor_type": "NOPE"}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    problem(
+        put(
+            &app,
+            "/v1/sensors/NONE",
+            ADMIN,
+            &json!({"sensor_type": "NAV"}),
+        )
+        .await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    let reader = app.token("reader", None).await;
+    problem(
+        put(
+            &app,
+            "/v1/sensors/AS-1",
+            &reader,
+            &json!({"sensor_type": "NAV"}),
+        )
+        .await,
+        StatusCode::FORBIDDEN,
+    )
+    .await;
+}
+
+/// Quality flags: a noisy run is named, and the numbers are those of the
+/// same submission without flags (flags never change a number).
+#[tokio::test]
+async fn a_noisy_run_is_flagged() {
+    let app = TestApp::spawn().await;
+    let mut body = submission("Q-1", "2026-01-01T00:00:00Z", 6);
+    body["positions"] =
+        json!([0, 45, 90, 135, 180, 225, 270, 315].map(|d| json!({"angle_deg": d})));
+    let (k0, ki, kp) = (-8.4e-4, -1.216, 6.2e-3);
+    for (j, run) in body["runs"].as_array_mut().unwrap().iter_mut().enumerate() {
+        let amp = if j == 4 { 2e-4 } else { 1e-5 };
+        let readings: Vec<Value> = (0..8)
+            .map(|p| {
+                let th = (45.0 * p as f64).to_radians();
+                json!([k0 - ki * th.sin() + kp * th.cos() + amp * ((j * 8 + p) as f64 * 1.3).sin()])
+            })
+            .collect();
+        run["readings"] = json!(readings);
+    }
+    let r = app.submit(ADMIN, &body).await;
+    let w = &r["quality"]["warnings"];
+    assert_eq!(w.as_array().unwrap().len(), 1, "{w}");
+    assert_eq!(
+        (w[0]["kind"].as_str(), w[0]["run"].as_u64()),
+        (Some("noisy_run"), Some(4))
+    );
+    assert_eq!(r["quality"]["condition_number"], r["condition_number"]);
+}

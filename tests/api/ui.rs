@@ -1,0 +1,422 @@
+//! The web pages over real HTTP, without a browser (tests/ui/ drives a real
+//! one): sign-in, sessions, CSRF, redirects, headers, and the certificate
+//! checked against independent computations.
+
+use std::time::Duration;
+
+use accelcal::startup::Web;
+use reqwest::header::{CONTENT_TYPE, LOCATION, SET_COOKIE};
+use reqwest::redirect::Policy;
+use reqwest::{Client, StatusCode};
+use serde_json::{Value, json};
+use sha2::{Digest, Sha256};
+
+use crate::helpers::{ADMIN, TestApp, paper};
+
+fn browser() -> Client {
+    Client::builder().redirect(Policy::none()).build().unwrap()
+}
+
+/// The value of `name` in a response's `Set-Cookie` headers, and the whole header.
+fn set_cookie(res: &reqwest::Response, name: &str) -> Option<(String, String)> {
+    res.headers().get_all(SET_COOKIE).iter().find_map(|v| {
+        let text = v.to_str().ok()?.to_owned();
+        let value = text
+            .strip_prefix(&format!("{name}="))?
+            .split(';')
+            .next()?
+            .to_owned();
+        Some((value, text))
+    })
+}
+
+fn hidden(html: &str, name: &str) -> String {
+    let at = html.find(&format!(r#"name="{name}" value=""#)).expect(name);
+    let rest = &html[at + name.len() + 15..];
+    rest[..rest.find('"').unwrap()].to_owned()
+}
+
+/// Signs in with `token`; returns the session cookie's value and its header.
+async fn sign_in(app: &TestApp, token: &str) -> (String, String) {
+    let c = browser();
+    let form = c.get(app.url("/ui/login")).send().await.unwrap();
+    let (login, _) = set_cookie(&form, "accelcal_login").expect("a sign-in cookie");
+    let csrf = hidden(&form.text().await.unwrap(), "csrf");
+    assert_eq!(csrf, login, "double submit: the form repeats the cookie");
+    let res = c
+        .post(app.url("/ui/login"))
+        .header("cookie", format!("accelcal_login={login}"))
+        .form(&[
+            ("token", token),
+            ("csrf", &csrf),
+            ("next", "/ui/sensors/PAPER-2005"),
+        ])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    assert_eq!(res.headers()[LOCATION], "/ui/sensors/PAPER-2005");
+    set_cookie(&res, "accelcal_session").expect("a session cookie")
+}
+
+async fn page(app: &TestApp, path: &str, session: &str) -> reqwest::Response {
+    browser()
+        .get(app.url(path))
+        .header("cookie", format!("accelcal_session={session}"))
+        .send()
+        .await
+        .unwrap()
+}
+
+#[tokio::test]
+async fn pages_ask_to_sign_in_and_come_back() {
+    let app = TestApp::spawn().await;
+    let res = browser()
+        .get(app.url("/ui/sensors?status=ok"))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    assert_eq!(
+        res.headers()[LOCATION],
+        "/ui/login?next=%2Fui%2Fsensors%3Fstatus%3Dok"
+    );
+    for (path, to) in [
+        ("/", "/ui/sensors"),
+        ("/ui", "/ui/sensors"),
+        ("/ui/", "/ui/sensors"),
+    ] {
+        let res = browser().get(app.url(path)).send().await.unwrap();
+        assert_eq!(
+            (res.status(), res.headers()[LOCATION].to_str().unwrap()),
+            (StatusCode::SEE_OTHER, to),
+            "{path}"
+        );
+    }
+    let reader = app.token("reader", None).await;
+    app.submit(ADMIN, &paper()).await;
+    let (session, header) = sign_in(&app, &reader).await;
+    for attribute in ["HttpOnly", "SameSite=Strict", "Path=/ui"] {
+        assert!(header.contains(attribute), "{header}");
+    }
+    assert!(
+        !header.contains("Secure"),
+        "plain http without a public https URL: {header}"
+    );
+    assert!(
+        !header.contains("Max-Age"),
+        "the server ends sessions, the browser forgets them on close: {header}"
+    );
+    let res = page(&app, "/ui/sensors/PAPER-2005", &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    let csp = res.headers()["content-security-policy"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    assert!(
+        csp.starts_with("default-src 'none'; style-src 'self'"),
+        "{csp}"
+    );
+    assert!(
+        !csp.contains("script-src") && !csp.contains("unsafe"),
+        "{csp}"
+    );
+    let html = res.text().await.unwrap();
+    assert!(!html.contains("<script"), "no script at all");
+    assert!(!html.contains("style=\""), "no inline style");
+    assert!(html.contains("PAPER-2005"));
+    // The stylesheet the page names is served, cached for good under its hash.
+    let at = html.find("/ui/assets/style-").unwrap();
+    let href = &html[at..at + html[at..].find('"').unwrap()];
+    let css = browser().get(app.url(href)).send().await.unwrap();
+    assert_eq!(css.status(), StatusCode::OK);
+    assert_eq!(
+        css.headers()["cache-control"],
+        "public, max-age=31536000, immutable"
+    );
+    assert_eq!(css.headers()[CONTENT_TYPE], "text/css; charset=utf-8");
+}
+
+#[tokio::test]
+async fn a_wrong_token_or_a_forged_form_gets_the_form_again() {
+    let app = TestApp::spawn().await;
+    let c = browser();
+    let form = c.get(app.url("/ui/login")).send().await.unwrap();
+    let (login, _) = set_cookie(&form, "accelcal_login").unwrap();
+    let post = |token: &str, csrf: &str, cookie: Option<&str>| {
+        let mut req = c
+            .post(app.url("/ui/login"))
+            .form(&[("token", token), ("csrf", csrf)]);
+        if let Some(v) = cookie {
+            req = req.header("cookie", format!("accelcal_login={v}"));
+        }
+        req.send()
+    };
+    let wrong = post("acc_not_a_token", &login, Some(&login)).await.unwrap();
+    assert_eq!(wrong.status(), StatusCode::UNAUTHORIZED);
+    assert_eq!(wrong.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    let html = wrong.text().await.unwrap();
+    assert!(
+        html.contains("That token was not accepted: the token is not valid."),
+        "{html}"
+    );
+    assert!(html.contains(r#"name="token""#), "the form again");
+    for (csrf, cookie) in [
+        (login.as_str(), None),
+        ("", Some(login.as_str())),
+        ("forged", Some(login.as_str())),
+    ] {
+        let res = post(ADMIN, csrf, cookie).await.unwrap();
+        assert_eq!(
+            res.status(),
+            StatusCode::FORBIDDEN,
+            "csrf {csrf:?} cookie {cookie:?}"
+        );
+        assert!(set_cookie(&res, "accelcal_session").is_none());
+        assert!(
+            res.text()
+                .await
+                .unwrap()
+                .contains("did not come from this site")
+        );
+    }
+    let cross = c
+        .post(app.url("/ui/login"))
+        .header("cookie", format!("accelcal_login={login}"))
+        .header("sec-fetch-site", "cross-site")
+        .form(&[("token", ADMIN), ("csrf", login.as_str())])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(cross.status(), StatusCode::FORBIDDEN);
+}
+
+#[tokio::test]
+async fn only_pages_of_the_site_are_returned_to() {
+    let app = TestApp::spawn().await;
+    let c = browser();
+    for next in [
+        "https://evil.example/",
+        "//evil.example/ui/",
+        "/v1/tokens",
+        "/ui/login",
+    ] {
+        let form = c.get(app.url("/ui/login")).send().await.unwrap();
+        let (login, _) = set_cookie(&form, "accelcal_login").unwrap();
+        let res = c
+            .post(app.url("/ui/login"))
+            .header("cookie", format!("accelcal_login={login}"))
+            .form(&[("token", ADMIN), ("csrf", login.as_str()), ("next", next)])
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(res.headers()[LOCATION], "/ui/sensors", "{next}");
+    }
+}
+
+#[tokio::test]
+async fn sessions_end_on_expiry_revocation_and_sign_out() {
+    let app = TestApp::configured(|c| {
+        c.web = Web {
+            public_url: Some("https://cal.example.com".into()),
+            session_ttl: Duration::from_secs(1),
+        }
+    })
+    .await;
+    let reader = app.token("reader", None).await;
+    let (session, header) = sign_in(&app, &reader).await;
+    assert!(
+        header.contains("Secure"),
+        "a public https URL makes cookies Secure: {header}"
+    );
+    assert_eq!(
+        page(&app, "/ui/sensors", &session).await.status(),
+        StatusCode::OK
+    );
+    tokio::time::sleep(Duration::from_millis(1300)).await;
+    let res = page(&app, "/ui/sensors", &session).await;
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    assert!(
+        res.headers()[LOCATION]
+            .to_str()
+            .unwrap()
+            .ends_with("&reason=expired")
+    );
+    let again = browser()
+        .get(app.url("/ui/login?reason=expired"))
+        .send()
+        .await
+        .unwrap();
+    assert!(
+        again
+            .text()
+            .await
+            .unwrap()
+            .contains("Your session has expired")
+    );
+
+    // Revoking the token ends its sessions at once.
+    let created: Value = app
+        .post("/v1/tokens", ADMIN, &json!({"role": "reader"}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    // (A second server on the same database, with the default lifetime.)
+    let app2 = TestApp::spawn_on(&app.database).await;
+    let (s2, _) = sign_in(&app2, created["token"].as_str().unwrap()).await;
+    assert_eq!(
+        page(&app2, "/ui/sensors", &s2).await.status(),
+        StatusCode::OK
+    );
+    let revoked = app2
+        .client
+        .delete(app2.url(&format!("/v1/tokens/{}", created["id"].as_str().unwrap())))
+        .bearer_auth(ADMIN)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    let res = page(&app2, "/ui/sensors", &s2).await;
+    assert!(
+        res.headers()[LOCATION]
+            .to_str()
+            .unwrap()
+            .ends_with("&reason=ended")
+    );
+
+    // Signing out needs the session's CSRF token, then ends it.
+    let (s3, _) = sign_in(&app2, ADMIN).await;
+    let html = page(&app2, "/ui/sensors", &s3).await.text().await.unwrap();
+    assert!(html.contains("(configured admin token)"));
+    let csrf = hidden(&html, "csrf");
+    let out = |csrf: String| {
+        browser()
+            .post(app2.url("/ui/logout"))
+            .header("cookie", format!("accelcal_session={s3}"))
+            .form(&[("csrf", csrf)])
+            .send()
+    };
+    assert_eq!(
+        out(String::new()).await.unwrap().status(),
+        StatusCode::FORBIDDEN
+    );
+    assert_eq!(
+        out("x".repeat(43)).await.unwrap().status(),
+        StatusCode::FORBIDDEN
+    );
+    assert_eq!(
+        page(&app2, "/ui/sensors", &s3).await.status(),
+        StatusCode::OK,
+        "still signed in"
+    );
+    let res = out(csrf).await.unwrap();
+    assert_eq!(res.headers()[LOCATION], "/ui/login?reason=signed-out");
+    let cleared = set_cookie(&res, "accelcal_session").unwrap().1;
+    assert!(cleared.contains("Max-Age=0"), "{cleared}");
+    assert_eq!(
+        page(&app2, "/ui/sensors", &s3).await.status(),
+        StatusCode::SEE_OTHER
+    );
+}
+
+#[tokio::test]
+async fn unknown_pages_and_calibrations_are_pages_not_problems() {
+    let app = TestApp::spawn().await;
+    let (session, _) = sign_in(&app, ADMIN).await;
+    for path in [
+        "/ui/nowhere",
+        "/ui/calibrations/not-an-id",
+        "/ui/sensors/NOPE",
+        "/ui/assets/x.css",
+    ] {
+        let res = page(&app, path, &session).await;
+        assert_eq!(res.status(), StatusCode::NOT_FOUND, "{path}");
+        assert_eq!(
+            res.headers()[CONTENT_TYPE],
+            "text/html; charset=utf-8",
+            "{path}"
+        );
+    }
+    let res = page(&app, "/ui/sensors?status=sideways", &session).await;
+    assert_eq!(res.status(), StatusCode::BAD_REQUEST);
+    assert!(res.text().await.unwrap().contains("status"));
+}
+
+#[tokio::test]
+async fn the_certificate_is_verifiable() {
+    let app =
+        TestApp::configured(|c| c.web.public_url = Some("https://cal.example.com/".into())).await;
+    let body = serde_json::to_vec(&paper()).unwrap();
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(ADMIN)
+        .header(CONTENT_TYPE, "application/json")
+        .body(body.clone())
+        .send()
+        .await
+        .unwrap();
+    let stored: Value = res.json().await.unwrap();
+    let id = stored["id"].as_str().unwrap();
+    let path = format!("/v1/calibrations/{id}/certificate");
+    assert_eq!(
+        app.client
+            .get(app.url(&path))
+            .send()
+            .await
+            .unwrap()
+            .status(),
+        StatusCode::UNAUTHORIZED
+    );
+    let reader = app.token("reader", None).await;
+    let res = app.get(&path, &reader).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    let csp = res.headers()["content-security-policy"]
+        .to_str()
+        .unwrap()
+        .to_owned();
+    let html = res.text().await.unwrap();
+    // The inline stylesheet is exactly the one the policy allows.
+    let style = &html[html.find("<style>").unwrap() + 7..html.find("</style>").unwrap()];
+    use base64::Engine as _;
+    let hash = base64::engine::general_purpose::STANDARD.encode(Sha256::digest(style.as_bytes()));
+    assert!(csp.contains(&format!("style-src 'sha256-{hash}'")), "{csp}");
+    assert!(html.contains("@page { size: A4"), "prints on A4");
+    // What makes it verifiable, computed here independently.
+    assert!(
+        html.contains(&hex::encode(Sha256::digest(&body))),
+        "the submission's SHA-256"
+    );
+    assert!(
+        html.contains(&format!("https://cal.example.com{path}")),
+        "its own URL"
+    );
+    assert!(html.contains(concat!("accelcal ", env!("CARGO_PKG_VERSION"))));
+    assert!(html.contains("PAPER-2005") && html.contains("k0, ki, kp"));
+    assert!(html.contains("-1.21615405"), "fused K1 to nine digits");
+    assert!(html.contains("Expanded U (k = 2)"));
+    assert_eq!(
+        app.get(
+            "/v1/calibrations/01a20000-0000-7000-8000-000000000000/certificate",
+            &reader
+        )
+        .await
+        .status(),
+        StatusCode::NOT_FOUND
+    );
+    // The same certificate from the pages.
+    let (session, _) = sign_in(&app, &reader).await;
+    let from_ui = page(
+        &app,
+        &format!("/ui/calibrations/{id}/certificate"),
+        &session,
+    )
+    .await
+    .text()
+    .await
+    .unwrap();
+    assert!(from_ui.contains(&hex::encode(Sha256::digest(&body))));
+}

@@ -1,0 +1,242 @@
+//! The command line's promises, run as a user runs them: `identify`,
+//! `token create`, `health`, `serve`'s admin-token rules and first start.
+//! (`submit` is exercised by the walkthrough and `tests/reliability/client.rs`.)
+
+use std::io::{BufRead, BufReader};
+use std::process::{Command, Stdio};
+
+use serde_json::Value;
+
+use crate::server::Server;
+
+fn accelcal() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_accelcal"));
+    c.env_remove("ACCELCAL_ADMIN_TOKEN")
+        .env_remove("ACCELCAL_DATABASE_URL")
+        .env_remove("ACCELCAL_URL")
+        .env_remove("ACCELCAL_TOKEN");
+    c
+}
+
+fn reference() -> Value {
+    serde_json::from_str(include_str!("../../core/tests/data/reference.json")).unwrap()
+}
+
+#[test]
+fn identify_prints_the_result_or_the_problem() {
+    let out = accelcal()
+        .args(["identify", "examples/paper-table1.json"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let want = reference()["table1"]["fused"]["kp"].as_f64().unwrap();
+    let got = r["fused"]["coefficients"]["kp"].as_f64().unwrap();
+    assert!((got - want).abs() <= 1e-12 * want.abs(), "{got} vs {want}");
+    assert!(
+        r.get("id").is_none(),
+        "nothing is stored, so there is no id"
+    );
+
+    // CSV by extension.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("paper.csv");
+    std::fs::write(
+        &csv,
+        format!(
+            "# sensor_id: CLI-CSV\n{}",
+            include_str!("../../core/tests/data/table1.csv")
+        ),
+    )
+    .unwrap();
+    let out = accelcal().arg("identify").arg(&csv).output().unwrap();
+    assert!(out.status.success());
+    let r: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(r["sensor_id"], "CLI-CSV");
+
+    // Bad input: the problem document on stderr, exit status 1.
+    let bad = dir.path().join("bad.json");
+    std::fs::write(&bad, r#"{"sensor_id": "x", "batchs": 2}"#).unwrap();
+    let out = accelcal().arg("identify").arg(&bad).output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let p: Value = serde_json::from_slice(&out.stderr).unwrap();
+    assert_eq!(p["status"], 422);
+    assert_eq!(p["errors"][0]["pointer"], "/batchs");
+    // A missing file: exit status 2 and a message.
+    let out = accelcal()
+        .args(["identify", "no/such/file.json"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read"));
+}
+
+#[tokio::test]
+async fn token_create_issues_a_token_the_server_accepts() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("tokens.db");
+    let out = accelcal()
+        .args([
+            "token",
+            "create",
+            "--role",
+            "station",
+            "--station",
+            "LAB-7",
+            "--label",
+            "bench 7",
+        ])
+        .arg("--database")
+        .arg(&db)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let created: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let token = created["token"].as_str().unwrap().to_owned();
+    assert_eq!(created["role"], "station");
+    assert_eq!(created["station_id"], "LAB-7");
+
+    // Refusals name the flag.
+    for (args, says) in [
+        (vec!["--role", "root"], "--role"),
+        (
+            vec!["--role", "reader", "--station", "LAB-7"],
+            "--station only a station token",
+        ),
+        (
+            vec!["--role", "station", "--station", "bad id"],
+            "--station must start",
+        ),
+    ] {
+        let out = accelcal()
+            .args(["token", "create"])
+            .args(&args)
+            .arg("--database")
+            .arg(&db)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
+
+    let server = Server::start(&db);
+    let res = reqwest::Client::new()
+        .get(format!("{}/v1/sensors", server.base))
+        .bearer_auth(&token)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 200);
+}
+
+#[test]
+fn health_exits_0_when_ready_and_1_when_not() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(dir.path().join("health.db"));
+    let ok = accelcal()
+        .args(["health", "--url", &server.base])
+        .output()
+        .unwrap();
+    assert!(
+        ok.status.success(),
+        "{}",
+        String::from_utf8_lossy(&ok.stderr)
+    );
+    drop(server);
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let closed = format!("http://{}", listener.local_addr().unwrap());
+    drop(listener);
+    let down = accelcal()
+        .args(["health", "--url", &closed])
+        .output()
+        .unwrap();
+    assert_eq!(down.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&down.stderr).contains("no answer"));
+}
+
+#[test]
+fn a_short_admin_token_is_refused_at_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = accelcal()
+        .args([
+            "serve",
+            "--listen",
+            "127.0.0.1:0",
+            "--admin-token",
+            "fifteen-chars-x",
+        ])
+        .arg("--database")
+        .arg(dir.path().join("short.db"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("at least 16 characters"), "{err}");
+}
+
+/// Starts `serve` with no admin token configured; gives the token line it
+/// printed on standard output, if any, once it listens.
+fn first_start(db: &std::path::Path) -> (std::process::Child, String, Option<String>) {
+    let mut child = accelcal()
+        .args(["serve", "--listen", "127.0.0.1:0", "--log-format", "json"])
+        .arg("--database")
+        .arg(db)
+        .env("RUST_LOG", "info")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stderr = BufReader::new(child.stderr.take().unwrap());
+    let mut address = String::new();
+    for line in stderr.lines().map_while(Result::ok) {
+        let v: Value = serde_json::from_str(&line).unwrap_or_default();
+        if v["message"] == "accelcal listening" {
+            address = v["address"].as_str().unwrap().to_owned();
+            break;
+        }
+    }
+    assert!(!address.is_empty(), "the server did not start");
+    // Printed before listening: whatever stdout holds now is all there is.
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let mut printed = String::new();
+    std::io::Read::read_to_string(&mut child.stdout.take().unwrap(), &mut printed).unwrap();
+    let token = printed
+        .lines()
+        .find(|l| l.starts_with("acc_"))
+        .map(str::to_owned);
+    (child, address, token)
+}
+
+#[tokio::test]
+async fn the_first_start_prints_an_admin_token_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("first.db");
+    let (_, _, token) = first_start(&db);
+    let token = token.expect("the first start prints an admin token");
+    let (_, _, again) = first_start(&db);
+    assert_eq!(again, None, "a second start prints no token");
+    // The printed token is an admin token.
+    let server = Server::start(&db);
+    let res = reqwest::Client::new()
+        .get(format!("{}/v1/tokens", server.base))
+        .bearer_auth(&token)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 200);
+    let tokens: Value = res.json().await.unwrap();
+    assert_eq!(
+        tokens["items"][0]["label"],
+        "first admin (created at start)"
+    );
+}

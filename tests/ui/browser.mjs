@@ -1,0 +1,342 @@
+// accelcal's pages in a real browser (Debian's chromium, driven by
+// playwright-core), against a real accelcal holding the paper's submission
+// and a synthetic history. Run by tests/ui/run.sh, which starts the servers.
+//
+// It signs in, opens the fleet, sensor, calibration and certificate pages
+// and checks that the plotted points are the history the API serves, that
+// the tables hold the stored numbers, that no page logs a console error or
+// asks for anything beyond the server, and that axe-core finds no serious or
+// critical accessibility violation (light and dark); it saves full-page
+// screenshots (light, dark, phone) under target/ui-screenshots/. It also
+// checks that a wrong token, an expired or revoked session and form posts
+// without their CSRF token are refused.
+
+import assert from 'node:assert/strict';
+import { createHash } from 'node:crypto';
+import fs from 'node:fs';
+import path from 'node:path';
+import { chromium } from 'playwright-core';
+
+const BASE = process.env.ACCELCAL_URL;
+const SHORT = process.env.ACCELCAL_SHORT_SESSION_URL; // same database, 1 s sessions
+const ADMIN = process.env.ACCELCAL_ADMIN_TOKEN;
+const SHOTS = process.env.SCREENSHOTS ?? 'target/ui-screenshots';
+const CHROMIUM = process.env.CHROMIUM ?? '/usr/bin/chromium';
+const AXE = fs.readFileSync(new URL('./node_modules/axe-core/axe.min.js', import.meta.url), 'utf8');
+
+let checks = 0;
+const ok = (what) => { checks += 1; console.log(`ok ${checks} - ${what}`); };
+
+// ---------------------------------------------------------------- the API
+async function api(method, p, { token = ADMIN, body, type = 'application/json' } = {}) {
+  const res = await fetch(BASE + p, {
+    method,
+    headers: { Authorization: `Bearer ${token}`, ...(body ? { 'Content-Type': type } : {}) },
+    body,
+  });
+  const text = await res.text();
+  let json = null;
+  try { json = JSON.parse(text); } catch { /* not JSON */ }
+  return { status: res.status, json, text };
+}
+
+async function must(status, promise, what) {
+  const r = await promise;
+  assert.equal(r.status, status, `${what}: ${r.text.slice(0, 400)}`);
+  return r.json;
+}
+
+// A deterministic synthetic sensor: k0 drifts 2e-5 per year, one test (the
+// seventh) is 1.5e-4 off, small noise from a fixed-seed generator.
+let seed = 20261122;
+const noise = () => { seed = (seed * 1103515245 + 12345) % 2147483648; return (seed / 2147483648 - 0.5) * 2e-6; };
+function synthetic(i) {
+  const t = i / 6; // every two months
+  const k0 = 1e-4 + 2e-5 * t + (i === 6 ? 1.5e-4 : 0);
+  const ki = 1.0 + 1e-5 * t;
+  const kp = 2e-3;
+  const positions = [0, 90, 180, 270];
+  const out = (deg) => {
+    const th = (deg * Math.PI) / 180;
+    return k0 + ki * -Math.sin(th) + kp * Math.cos(th);
+  };
+  const day = new Date(Date.UTC(2024, 0, 15) + i * 61 * 86400e3).toISOString();
+  return {
+    sensor_id: 'SYN-001',
+    performed_at: day,
+    unit: 'mA',
+    station_id: 'LAB-2',
+    sensor_type: 'SYN',
+    stand: { id: 'DH-2', angle_std_arcsec: 3, gravity_rel_std: 2e-6 },
+    positions: positions.map((angle_deg) => ({ angle_deg })),
+    runs: [0, 1, 2, 3].map(() => ({ readings: positions.map((d) => [out(d) + noise(), out(d) + noise()]) })),
+  };
+}
+
+// ------------------------------------------------------------ the browser
+const browser = await chromium.launch({
+  executablePath: CHROMIUM,
+  args: ['--no-sandbox', '--disable-gpu', '--disable-quic', '--no-first-run',
+    '--disable-background-networking', '--disable-component-update', '--disable-sync'],
+});
+const offsite = [];
+const problems = [];
+// Pages where a test provokes a 4xx on purpose (chromium logs those).
+const provoked = new Set();
+
+async function newContext(options = {}) {
+  const context = await browser.newContext({ baseURL: BASE, ...options });
+  await context.route('**/*', (route) => {
+    const url = new URL(route.request().url());
+    if (url.hostname !== '127.0.0.1' && url.hostname !== 'localhost') {
+      offsite.push(url.href);
+      return route.abort();
+    }
+    return route.continue();
+  });
+  context.on('page', watch);
+  return context;
+}
+
+function watch(page) {
+  page.on('console', (m) => {
+    const expected = provoked.has(page.url()) && /^Failed to load resource: the server responded with a status of 4\d\d/.test(m.text());
+    if ((m.type() === 'error' || m.type() === 'warning') && !expected) problems.push(`${page.url()}: console ${m.type()}: ${m.text()}`);
+  });
+  page.on('pageerror', (e) => problems.push(`${page.url()}: ${e.message}`));
+  page.on('response', (r) => { if (r.status() >= 500) problems.push(`${r.url()}: ${r.status()}`); });
+}
+
+async function signIn(page, token, base = BASE) {
+  await page.goto(`${base}/ui/sensors`);
+  assert.match(page.url(), /\/ui\/login\?next=/, 'a page asks to sign in first');
+  await page.fill('#token', token);
+  const [res] = await Promise.all([page.waitForNavigation(), page.click('button[type=submit]')]);
+  return res;
+}
+
+async function axe(page, what) {
+  const result = await page.evaluate(`${AXE}; axe.run(document, { resultTypes: ['violations'] })`);
+  const bad = result.violations.filter((v) => v.impact === 'serious' || v.impact === 'critical');
+  assert.deepEqual(
+    bad.map((v) => `${v.id}: ${v.help} (${v.nodes.map((n) => n.target.join(' ')).slice(0, 3).join('; ')})`),
+    [],
+    `axe-core on ${what}`,
+  );
+}
+
+const num = (text) => Number(text.trim().replace('−', '-'));
+const close = (got, want, rel, what) => assert.ok(
+  Math.abs(got - want) <= rel * Math.abs(want) + 1e-300, `${what}: ${got} is not ${want} (to ${rel})`);
+
+try {
+  // --------------------------------------------------------------- seed
+  const reader = (await must(201, api('POST', '/v1/tokens', { body: JSON.stringify({ role: 'reader', label: 'ui' }) }), 'reader token')).token;
+  await must(201, api('PUT', '/v1/sensor-types/NAV', { body: fs.readFileSync('examples/sensor-type-nav.json') }), 'type NAV');
+  await must(201, api('PUT', '/v1/sensor-types/SYN', {
+    body: JSON.stringify({ label: 'Synthetic', limits: { k0: { min: -5e-4, max: 5e-4 }, ki: { min: 0.999, max: 1.001 } }, decision_rule: 'guarded', interval_days: 180 }),
+  }), 'type SYN');
+  const paperBytes = fs.readFileSync('examples/paper-table1.json');
+  const paper = await must(201, api('POST', '/v1/calibrations', { body: paperBytes }), 'paper');
+  const recal = await must(201, api('POST', '/v1/calibrations', { body: fs.readFileSync('examples/paper-recalibration.json') }), 'recalibration');
+  for (let i = 0; i < 12; i += 1) {
+    await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(synthetic(i)) }), `synthetic ${i}`);
+  }
+  const history = (await must(200, api('GET', '/v1/sensors/SYN-001/calibrations?limit=500'), 'history')).items;
+  const stability = await must(200, api('GET', '/v1/sensors/SYN-001/stability'), 'stability');
+  const sensors = (await must(200, api('GET', '/v1/sensors'), 'sensors')).items;
+  assert.equal(history.length, 12);
+  ok('seeded: the paper, its recalibration and twelve synthetic calibrations');
+
+  // ------------------------------------------------------------ sign in
+  const context = await newContext({ viewport: { width: 1280, height: 900 } });
+  const page = await context.newPage();
+  await signIn(page, reader);
+  assert.match(page.url(), /\/ui\/sensors$/);
+  const cookies = await context.cookies();
+  const session = cookies.find((c) => c.name === 'accelcal_session');
+  assert.ok(session, 'a session cookie');
+  assert.equal(session.httpOnly, true);
+  assert.equal(session.sameSite, 'Strict');
+  assert.equal(session.path, '/ui');
+  ok('a reader token signs in; the session cookie is HttpOnly, SameSite=Strict, Path=/ui');
+
+  // -------------------------------------------------------------- fleet
+  const rows = await page.$$eval('#fleet tbody tr', (trs) => trs.map((tr) => tr.dataset.sensorId));
+  assert.deepEqual(rows, sensors.map((s) => s.sensor_id));
+  for (const s of sensors) {
+    const status = await page.$eval(`#fleet tr[data-sensor-id="${s.sensor_id}"] td:last-child`, (td) => td.textContent.trim());
+    assert.equal(status, s.status.replace('_', ' '), `status of ${s.sensor_id}`);
+  }
+  await page.fill('#search', 'syn');
+  await Promise.all([page.waitForNavigation(), page.click('form.filters button')]);
+  assert.deepEqual(await page.$$eval('#fleet tbody tr', (trs) => trs.map((tr) => tr.dataset.sensorId)), ['SYN-001']);
+  const synStatus = sensors.find((s) => s.sensor_id === 'SYN-001').status;
+  await page.goto(`/ui/sensors?status=${synStatus}`);
+  const byStatus = await page.$$eval('#fleet tbody tr', (trs) => trs.map((tr) => tr.dataset.sensorId));
+  assert.deepEqual(byStatus, sensors.filter((s) => s.status === synStatus).map((s) => s.sensor_id));
+  ok('fleet: every sensor with its status; search and the status filter select what the API selects');
+
+  // ------------------------------------------------------------- sensor
+  await page.goto('/ui/sensors/SYN-001');
+  for (const term of ['k0', 'ki', 'kp']) {
+    const points = await page.$$eval(`#chart-${term} circle.pt`, (cs) => cs.map((c) => ({
+      id: c.dataset.calibrationId, y: c.dataset.y, flagged: c.classList.contains('flagged'),
+    })));
+    assert.equal(points.length, history.length, `${term}: one point per calibration`);
+    const byId = new Map(history.map((c) => [c.id, c]));
+    for (const p of points) {
+      const c = byId.get(p.id);
+      assert.ok(c, `${term}: point ${p.id} is a calibration of the sensor`);
+      assert.equal(Number(p.y), c.coefficients[term], `${term}: the plotted value of ${p.id} is the stored one`);
+    }
+    const flagged = points.filter((p) => p.flagged).map((p) => p.id).sort();
+    assert.deepEqual(flagged, [...stability.terms[term].control.out_of_control].sort(), `${term}: flagged points`);
+    const cells = await page.$$eval(`table[data-term="${term}"] tbody tr`, (trs) => trs.map((tr) => ({
+      id: tr.dataset.calibrationId, v: tr.querySelector('td[data-value]').dataset.value,
+    })));
+    assert.deepEqual(cells.map((c) => [c.id, Number(c.v)]).sort(), points.map((p) => [p.id, Number(p.y)]).sort(), `${term}: the table beside the chart`);
+    assert.equal(await page.locator(`#chart-${term} line.rule.limit`).count(), 2, `${term}: two control limits`);
+    assert.equal(await page.locator(`#chart-${term} line.segment.drift`).count(), 1, `${term}: the drift line`);
+  }
+  assert.ok(stability.terms.k0.control.out_of_control.includes(history.find((c) => c.performed_at.startsWith('2025-01')).id),
+    'the synthetic outlier is out of control');
+  const meanCell = await page.$eval('#stability tr[data-term="k0"] td', (td) => td.textContent);
+  close(num(meanCell), stability.terms.k0.mean, 5e-9, 'stability mean of k0');
+  const driftCell = await page.$eval('#stability tr[data-term="k0"] td:nth-of-type(5)', (td) => td.textContent);
+  close(num(driftCell), stability.terms.k0.drift_per_year, 5e-5, 'drift of k0 per year');
+  ok('sensor: every plotted point is a stored calibration at its stored value, flagged as the API flags it; the tables agree');
+
+  // -------------------------------------------------------- calibration
+  await page.goto(`/ui/calibrations/${paper.id}`);
+  const fused = await page.$$eval('#estimates tr[data-row="fused"] td.num', (tds) => tds.map((td) => td.textContent));
+  assert.equal(fused.length, 3);
+  ['k0', 'ki', 'kp'].forEach((t, k) => close(num(fused[k]), paper.fused.coefficients[t], 5e-9, `fused ${t}`));
+  close(num(fused[1]), -1.216154046, 5e-9, 'the paper\'s fused K1');
+  const se = await page.$$eval('#estimates tr[data-row="fused-std-error"] td.num', (tds) => tds.map((td) => td.textContent));
+  ['k0', 'ki', 'kp'].forEach((t, k) => close(num(se[k]), paper.fused.std_errors[t], 5e-5, `fused SE ${t}`));
+  close(num(se[2]), 6.3637e-6, 5e-5, 'the fused SE of α from Table 1');
+  const runRows = await page.$$eval('#estimates tbody tr[data-run]', (trs) => trs.length);
+  assert.equal(runRows, 6);
+  const residuals = await page.$$eval('#residuals circle.pt', (cs) => cs.map((c) => [Number(c.dataset.run), Number(c.dataset.position), Number(c.dataset.y)]));
+  assert.equal(residuals.length, 6 * 4);
+  for (const [j, i, y] of residuals) assert.equal(y, paper.runs[j].residuals[i], `residual of run ${j} at position ${i}`);
+  ok('calibration: the paper\'s fused coefficients and standard errors, every run, every residual');
+
+  await page.goto(`/ui/calibrations/${recal.id}`);
+  const budget = await page.$$eval('#budget tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelector('td:last-child').textContent]));
+  for (const [t, u] of budget) close(num(u), recal.uncertainty.terms[t].expanded, 5e-5, `expanded U of ${t}`);
+  const verdicts = await page.$$eval('#decision tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelector('td:last-child').textContent.trim()]));
+  assert.deepEqual(Object.fromEntries(verdicts), Object.fromEntries(Object.entries(recal.decision.terms).map(([t, d]) => [t, d.verdict])));
+  const asFound = await page.$$eval('#as-found tbody tr td:last-child', (tds) => tds.map((td) => td.textContent));
+  recal.as_found.positions.forEach((p, i) => close(num(asFound[i]), p.error_g, 5e-5, `as found at position ${i}`));
+  ok('calibration: uncertainty budget, decision and as found as stored');
+
+  // -------------------------------------------------------- certificate
+  await page.goto(`/ui/calibrations/${recal.id}`);
+  await Promise.all([page.waitForNavigation(), page.click('a[href$="/certificate"]')]);
+  const text = await page.textContent('body');
+  const sha = createHash('sha256').update(fs.readFileSync('examples/paper-recalibration.json')).digest('hex');
+  assert.ok(text.includes(sha), 'the SHA-256 of the submission as sent');
+  assert.ok(text.includes(`${BASE}/v1/calibrations/${recal.id}/certificate`), 'its own URL');
+  assert.ok(text.includes('PAPER-2005') && text.includes('NAV') && text.includes('DH-1'), 'sensor, type, stand');
+  assert.ok(/accelcal \d+\.\d+\.\d+/.test(text), 'the accelcal version');
+  const certRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelectorAll('td')[0].textContent, tr.querySelectorAll('td')[2].textContent]));
+  for (const [t, v, u] of certRows) {
+    close(num(v), recal.fused.coefficients[t], 5e-9, `certificate value of ${t}`);
+    close(num(u), recal.uncertainty.terms[t].expanded, 5e-5, `certificate U of ${t}`);
+  }
+  const pdf = await page.pdf({ format: 'A4' });
+  assert.ok(pdf.length > 10000, 'the certificate prints');
+  fs.mkdirSync(SHOTS, { recursive: true });
+  fs.writeFileSync(path.join(SHOTS, 'certificate.pdf'), pdf);
+  ok('certificate: SHA-256, own URL, sensor, type, stand, version, values and U; prints to A4');
+
+  // ---------------------------------- accessibility and screenshots
+  const pages = {
+    fleet: '/ui/sensors',
+    sensor: '/ui/sensors/SYN-001',
+    calibration: `/ui/calibrations/${recal.id}`,
+    certificate: `/ui/calibrations/${recal.id}/certificate`,
+  };
+  const variants = {
+    light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },
+    dark: { viewport: { width: 1280, height: 900 }, colorScheme: 'dark' },
+    phone: { viewport: { width: 390, height: 844 }, deviceScaleFactor: 2, isMobile: true, hasTouch: true, colorScheme: 'light' },
+  };
+  const state = await context.storageState();
+  for (const [variant, options] of Object.entries(variants)) {
+    const ctx = await newContext({ ...options, storageState: state });
+    const p = await ctx.newPage();
+    for (const [name, url] of Object.entries(pages)) {
+      const res = await p.goto(url);
+      assert.equal(res.status(), 200, `${name} (${variant})`);
+      if (variant !== 'phone') await axe(p, `${name} (${variant})`);
+      const overflow = await p.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
+      assert.ok(overflow <= 1, `${name} (${variant}) scrolls sideways by ${overflow}px`);
+      await p.screenshot({ path: path.join(SHOTS, `${name}-${variant}.png`), fullPage: true });
+    }
+    await ctx.close();
+  }
+  // The README's picture (docs/ui-sensor.jpg is a copy of this one).
+  await page.goto('/ui/sensors/SYN-001');
+  await page.screenshot({ path: path.join(SHOTS, 'readme.jpg'), type: 'jpeg', quality: 70 });
+  ok('axe-core: no serious or critical violation, light and dark; no page wider than the screen; screenshots saved');
+
+  // -------------------------------------------------------- refusals
+  const anon = await newContext();
+  const login = await anon.newPage();
+  await login.goto('/ui/login');
+  await login.fill('#token', 'acc_00000000000000000000000000000000_wrongwrongwrongwrongwrongwrongwrongwrongwro');
+  provoked.add(`${BASE}/ui/login`);
+  const [wrong] = await Promise.all([login.waitForNavigation(), login.click('button[type=submit]')]);
+  assert.equal(wrong.status(), 401);
+  assert.match(await login.textContent('[role=alert]'), /not accepted/);
+  assert.equal(await login.locator('#token').count(), 1, 'the form again');
+  ok('a wrong token gets the form again with the reason (401)');
+
+  const forged = await anon.request.post('/ui/login', { form: { token: reader, csrf: 'guess', next: '/ui/sensors' }, maxRedirects: 0 });
+  assert.equal(forged.status(), 403);
+  await page.goto('/ui/sensors');
+  const csrf = await page.$eval('form[action="/ui/logout"] input[name=csrf]', (i) => i.value);
+  const noToken = await context.request.post('/ui/logout', { form: {}, maxRedirects: 0 });
+  assert.equal(noToken.status(), 403);
+  const wrongToken = await context.request.post('/ui/logout', { form: { csrf: 'x'.repeat(43) }, maxRedirects: 0 });
+  assert.equal(wrongToken.status(), 403);
+  const crossSite = await context.request.post('/ui/logout', { form: { csrf }, headers: { 'Sec-Fetch-Site': 'cross-site' }, maxRedirects: 0 });
+  assert.equal(crossSite.status(), 403);
+  assert.equal((await page.goto('/ui/sensors')).status(), 200, 'the session survives forged posts');
+  ok('form posts without their CSRF token (or from another site) are refused with 403');
+
+  const brief = await newContext();
+  const bp = await brief.newPage();
+  await signIn(bp, reader, SHORT);
+  assert.match(bp.url(), /\/ui\/sensors$/);
+  await new Promise((r) => setTimeout(r, 2500));
+  await bp.goto(`${SHORT}/ui/sensors`);
+  assert.match(bp.url(), /\/ui\/login\?.*reason=expired/);
+  assert.match(await bp.textContent('[role=alert]'), /expired/);
+  ok('an expired session goes back to sign-in, saying so');
+
+  const doomed = (await must(201, api('POST', '/v1/tokens', { body: JSON.stringify({ role: 'reader' }) }), 'doomed token'));
+  const rc = await newContext();
+  const rp = await rc.newPage();
+  await signIn(rp, doomed.token);
+  await must(204, api('DELETE', `/v1/tokens/${doomed.id}`), 'revoke');
+  await rp.goto('/ui/sensors');
+  assert.match(rp.url(), /reason=ended/);
+  ok('revoking the token ends its sessions at once');
+
+  await Promise.all([page.waitForNavigation(), page.click('form[action="/ui/logout"] button')]);
+  assert.match(page.url(), /\/ui\/login\?reason=signed-out/);
+  await page.goto('/ui/sensors');
+  assert.match(page.url(), /\/ui\/login/);
+  ok('signing out ends the session');
+
+  assert.deepEqual(offsite, [], 'no request leaves the server');
+  assert.deepEqual(problems, [], 'no console error, page error or 5xx');
+  ok('no request left localhost; no console error or warning, no page error, no 5xx');
+} finally {
+  await browser.close();
+}
+console.log(`ui: ${checks} checks passed`);
