@@ -4,7 +4,12 @@
 //! ```text
 //! cargo bench --bench soak                      # 60 s soak (CI runs this)
 //! SOAK_SECONDS=20 SOAK_WORKERS=32 cargo bench --bench soak
+//! SOAK_ENGINES=sqlite,postgres cargo bench --bench soak   # both, one run
 //! ```
+//!
+//! With `postgres` among `SOAK_ENGINES`, the soak runs again on a fresh
+//! database of the server `ACCELCAL_TEST_POSTGRES_URL` names (default: the
+//! local one), after SQLite, in the same process and run.
 //!
 //! 1. **Bare stack**: a minimal axum handler returning a constant JSON body,
 //!    in this process, loaded by the same client for 5 s: the ceiling this
@@ -30,6 +35,9 @@ use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
 #[path = "../tests/process/server.rs"]
 mod server;
+
+#[path = "../tests/common/pg.rs"]
+mod pg;
 
 use server::{ADMIN, Server};
 
@@ -140,20 +148,26 @@ struct Soak {
 }
 
 impl Soak {
+    /// Sends a request expecting one status; on it, returns the JSON body
+    /// and the headers, else records the answer as unexpected.
     async fn call(
         &self,
         kind: &'static str,
         req: reqwest::RequestBuilder,
-        want: &[u16],
-    ) -> Option<Value> {
+        want: u16,
+    ) -> Option<(Value, reqwest::header::HeaderMap)> {
         let t = Instant::now();
         let res = req.bearer_auth(ADMIN).send().await;
         let micros = t.elapsed().as_micros() as u32;
         match res {
-            Ok(r) if want.contains(&r.status().as_u16()) => {
+            Ok(r) if r.status().as_u16() == want => {
+                let headers = r.headers().clone();
                 let body = r.bytes().await.ok()?;
                 self.stats.lock().unwrap().record(kind, micros);
-                serde_json::from_slice(&body).ok()
+                Some((
+                    serde_json::from_slice(&body).unwrap_or(Value::Null),
+                    headers,
+                ))
             }
             Ok(r) => {
                 let s = r.status();
@@ -177,13 +191,36 @@ impl Soak {
         }
     }
 
+    /// Records a wrong value (the status was right, the content not).
+    fn wrong(&self, kind: &str, what: String) {
+        self.stats
+            .lock()
+            .unwrap()
+            .errors
+            .push(format!("{kind}: {what}"));
+    }
+
+    /// One client on its own sensor: it knows every calibration it stored,
+    /// so every answer is checked against what it must be — the latest
+    /// coefficients, the history's order and size, compensation against the
+    /// model inverted by hand, a retry's replay of the same id, and 404 only
+    /// while nothing is stored yet.
     async fn worker(self: Arc<Self>, w: u64) {
         let mut n = w * 1_000_000;
-        let mut last: Option<(String, Value)> = None;
+        let mut last: Option<(String, Value, String)> = None;
+        // (performed_at, id, fused coefficients) of every stored calibration.
+        let mut stored: Vec<(String, String, Value)> = Vec::new();
         let sensor = format!("SOAK-{w}");
         let url = |p: &str| format!("{}{p}", self.base);
+        let latest = |stored: &[(String, String, Value)]| {
+            stored
+                .iter()
+                .max_by(|a, b| (&a.0, &a.1).cmp(&(&b.0, &b.1)))
+                .cloned()
+        };
         while !self.stop.load(Ordering::Relaxed) {
             n += 1;
+            let nothing = stored.is_empty();
             match n % 20 {
                 0..=4 => {
                     let body = submission(&sensor, n);
@@ -193,34 +230,71 @@ impl Soak {
                         .post(url("/v1/calibrations"))
                         .header("idempotency-key", &key)
                         .json(&body);
-                    self.call("submit", req, &[201]).await;
-                    last = Some((key, body));
+                    if let Some((r, h)) = self.call("submit", req, 201).await {
+                        if h.contains_key("idempotent-replayed") {
+                            self.wrong("submit", "a first request was answered as a replay".into());
+                        }
+                        let id = r["id"].as_str().unwrap_or_default().to_owned();
+                        let at = r["performed_at"].as_str().unwrap_or_default().to_owned();
+                        stored.push((at, id.clone(), r["fused"]["coefficients"].clone()));
+                        last = Some((key, body, id));
+                    }
                 }
                 5 => {
-                    if let Some((key, body)) = &last {
+                    if let Some((key, body, id)) = &last {
                         let req = self
                             .client
                             .post(url("/v1/calibrations"))
                             .header("idempotency-key", key)
                             .json(body);
-                        self.call("submit retry", req, &[201]).await;
+                        if let Some((r, h)) = self.call("submit retry", req, 201).await {
+                            if h.get("idempotent-replayed").is_none_or(|v| v != "true") {
+                                self.wrong("submit retry", "no Idempotent-Replayed: true".into());
+                            }
+                            if r["id"] != json!(id) {
+                                self.wrong(
+                                    "submit retry",
+                                    format!("id {} instead of {id}", r["id"]),
+                                );
+                            }
+                        }
                     }
                 }
                 6..=9 => {
                     let req = self
                         .client
                         .get(url(&format!("/v1/sensors/{sensor}/coefficients")));
-                    self.call("coefficients", req, &[200, 404]).await;
+                    let want = if nothing { 404 } else { 200 };
+                    if let (Some((r, _)), Some((_, id, coefficients))) =
+                        (self.call("coefficients", req, want).await, latest(&stored))
+                        && (r["calibration_id"] != json!(id) || r["coefficients"] != coefficients)
+                    {
+                        self.wrong(
+                            "coefficients",
+                            format!("{r} is not the latest stored ({id})"),
+                        );
+                    }
                 }
                 10 | 11 => {
                     let req = self
                         .client
                         .get(url(&format!("/v1/sensors/{sensor}/calibrations?limit=20")));
-                    self.call("history", req, &[200, 404]).await;
+                    let want = if nothing { 404 } else { 200 };
+                    if let (Some((r, _)), Some((_, id, _))) =
+                        (self.call("history", req, want).await, latest(&stored))
+                    {
+                        let items = r["items"].as_array().map_or(0, Vec::len);
+                        if items != stored.len().min(20) || r["items"][0]["id"] != json!(id) {
+                            self.wrong(
+                                "history",
+                                format!("{items} items, first {}", r["items"][0]["id"]),
+                            );
+                        }
+                    }
                 }
                 12 => {
                     let req = self.client.get(url("/v1/sensors?limit=100"));
-                    self.call("sensors", req, &[200]).await;
+                    self.call("sensors", req, 200).await;
                 }
                 13 | 14 => {
                     let outputs: Vec<f64> =
@@ -229,31 +303,67 @@ impl Soak {
                         .client
                         .post(url(&format!("/v1/sensors/{sensor}/compensate")))
                         .json(&json!({"outputs": outputs}));
-                    self.call("compensate", req, &[200, 404]).await;
+                    let want = if nothing { 404 } else { 200 };
+                    if let (Some((r, _)), Some((_, _, k))) =
+                        (self.call("compensate", req, want).await, latest(&stored))
+                    {
+                        // U = k0 + ki·a_i + kp·a_p with a_p = 0, inverted by hand.
+                        let (k0, ki) = (
+                            k["k0"].as_f64().unwrap_or(0.0),
+                            k["ki"].as_f64().unwrap_or(1.0),
+                        );
+                        let ok = outputs.iter().enumerate().all(|(j, u)| {
+                            r["a_i"][j]
+                                .as_f64()
+                                .is_some_and(|a| (a - (u - k0) / ki).abs() < 1e-12)
+                        });
+                        if !ok {
+                            self.wrong("compensate", format!("{}", r["a_i"][0]));
+                        }
+                    }
                 }
                 15 | 16 => {
                     let req = self
                         .client
                         .post(url("/v1/identify"))
                         .json(&submission(&sensor, n));
-                    self.call("identify", req, &[200]).await;
+                    if let Some((r, _)) = self.call("identify", req, 200).await
+                        && (r["sensor_id"] != json!(sensor)
+                            || r.get("id").is_some()
+                            || r["runs"].as_array().map_or(0, Vec::len) != 6)
+                    {
+                        self.wrong("identify", "not the result of the request".into());
+                    }
                 }
                 17 => {
                     let mut bad = submission(&sensor, n);
                     bad["batchs"] = json!(2);
                     let req = self.client.post(url("/v1/calibrations")).json(&bad);
-                    self.call("invalid (422)", req, &[422]).await;
+                    if let Some((r, _)) = self.call("invalid (422)", req, 422).await
+                        && r["errors"][0]["pointer"] != "/batchs"
+                    {
+                        self.wrong("invalid (422)", format!("{r}"));
+                    }
                 }
                 18 => {
+                    let values = [1.0, 1.1, 0.9, 1.05, 0.97, 1.02];
                     let req = self
                         .client
                         .post(url("/v1/fuse"))
-                        .json(&json!({"values": {"k0": [1.0, 1.1, 0.9, 1.05, 0.97, 1.02]}}));
-                    self.call("fuse", req, &[200]).await;
+                        .json(&json!({"values": {"k0": values}}));
+                    if let Some((r, _)) = self.call("fuse", req, 200).await {
+                        let mean = values.iter().sum::<f64>() / 6.0;
+                        if r["mean"]["coefficients"]["k0"]
+                            .as_f64()
+                            .is_none_or(|m| (m - mean).abs() > 1e-15)
+                        {
+                            self.wrong("fuse", format!("{}", r["mean"]));
+                        }
+                    }
                 }
                 _ => {
                     let req = self.client.get(url("/healthz"));
-                    self.call("healthz", req, &[200]).await;
+                    self.call("healthz", req, 200).await;
                 }
             }
         }
@@ -340,13 +450,43 @@ fn main() {
         std::thread::available_parallelism().map_or(0, |n| n.get())
     );
     let (bare_rps, bare_p50, bare_p99) = rt.block_on(bare_stack(workers));
-    println!(
-        "bare stack (axum constant JSON):   {bare_rps:8.0} req/s  p50 {bare_p50:.2} ms  p99 {bare_p99:.2} ms"
-    );
 
+    let engines = std::env::var("SOAK_ENGINES").unwrap_or_else(|_| "sqlite".into());
+    let mut failed = false;
+    for engine in engines.split(',').map(str::trim) {
+        println!();
+        println!("### {engine}");
+        failed |= !soak_on(
+            engine,
+            &rt,
+            seconds,
+            workers,
+            (bare_rps, bare_p50, bare_p99),
+        );
+    }
+    if failed {
+        std::process::exit(1);
+    }
+    println!("soak: ok (no unexpected answer, memory flat)");
+}
+
+/// The soak on one engine; whether it passed.
+fn soak_on(
+    engine: &str,
+    rt: &tokio::runtime::Runtime,
+    seconds: u64,
+    workers: usize,
+    (bare_rps, bare_p50, bare_p99): (f64, f64, f64),
+) -> bool {
     let dir = tempfile::tempdir().unwrap();
+    let pg = (engine == "postgres").then(pg::TestDb::create_blocking);
+    let database = match (&pg, engine) {
+        (Some(db), _) => db.url.clone(),
+        (None, "sqlite") => dir.path().join("soak.db").to_str().unwrap().to_owned(),
+        (None, other) => panic!("SOAK_ENGINES: unknown engine {other}"),
+    };
     let mut server = Server::start_with(
-        &dir.path().join("soak.db"),
+        &database,
         &["--body-timeout", "3"],
         "warn,accelcal::startup=info",
     );
@@ -354,9 +494,6 @@ fn main() {
     let base = server.base.clone();
 
     let (h_rps, h_p50, h_p99) = rt.block_on(plain_load(format!("{base}/healthz"), workers, 5));
-    println!(
-        "accelcal GET /healthz:             {h_rps:8.0} req/s  p50 {h_p50:.2} ms  p99 {h_p99:.2} ms"
-    );
 
     let soak = Arc::new(Soak {
         base: base.clone(),
@@ -399,31 +536,43 @@ fn main() {
 
     let mut stats = soak.stats.lock().unwrap();
     let total: usize = stats.latencies.values().map(Vec::len).sum();
+    let unexpected = stats.errors.len();
+    // Markdown, to paste unedited into BENCHMARKS.md.
+    println!();
+    println!("| | req/s | p50 ms | p99 ms |");
+    println!("|---|---|---|---|");
     println!(
-        "soak: {total} answers in {elapsed:.1} s = {:.0} req/s",
+        "| bare stack (axum, constant JSON, same client) | {bare_rps:.0} | {bare_p50:.2} | {bare_p99:.2} |"
+    );
+    println!(
+        "| accelcal `GET /healthz` (full middleware) | {h_rps:.0} | {h_p50:.2} | {h_p99:.2} |"
+    );
+    println!(
+        "| soak, every kind together | {:.0} | | |",
         total as f64 / elapsed
     );
-    println!(
-        "  {:<22} {:>8} {:>10} {:>10}",
-        "kind", "count", "p50 ms", "p99 ms"
-    );
+    println!();
+    println!("| kind (soak, {seconds} s, {workers} workers) | count | p50 ms | p99 ms |");
+    println!("|---|---|---|---|");
     for (kind, l) in stats.latencies.iter_mut() {
         l.sort_unstable();
         println!(
-            "  {kind:<22} {:>8} {:>10.2} {:>10.2}",
+            "| {kind} | {} | {:.2} | {:.2} |",
             l.len(),
             percentile(l, 0.5),
             percentile(l, 0.99)
         );
     }
+    println!("| **all answers checked** | **{total}** | | |");
+    println!("| unexpected (wrong status or value) | {unexpected} | | |");
     let mean = |w: &[u64]| w.iter().sum::<u64>() as f64 / w.len().max(1) as f64 / 1024.0;
     let early = mean(&rss[10..20]);
     let late = mean(&rss[rss.len() - 10..]);
     let max = *rss.iter().max().unwrap() as f64 / 1024.0;
+    println!();
     println!(
-        "server RSS: s10–20 mean {early:.1} MiB, last 10 s mean {late:.1} MiB, max {max:.1} MiB"
+        "Server RSS: mean {early:.1} MiB over seconds 10–20, {late:.1} MiB over the last 10 s, maximum {max:.1} MiB. Exit on SIGTERM: {exit}."
     );
-    println!("server exit on SIGTERM: {exit}");
 
     let mut failed = false;
     if !stats.errors.is_empty() || !server_errors.is_empty() {
@@ -445,8 +594,5 @@ fn main() {
         failed = true;
         println!("FAIL: the server did not exit cleanly");
     }
-    if failed {
-        std::process::exit(1);
-    }
-    println!("soak: ok (no unexpected answer, memory flat)");
+    !failed
 }
