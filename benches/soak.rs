@@ -2,7 +2,8 @@
 //! under a bounded soak of mixed traffic from a loopback load generator.
 //!
 //! ```text
-//! cargo bench --bench soak                      # 60 s soak (CI runs this)
+//! cargo bench --bench soak                      # 60 s soak, release build
+//! cargo test --bench soak                       # the same in the test profile (CI)
 //! SOAK_SECONDS=20 SOAK_WORKERS=32 cargo bench --bench soak
 //! SOAK_ENGINES=sqlite,postgres cargo bench --bench soak   # both, one run
 //! ```
