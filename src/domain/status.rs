@@ -72,3 +72,26 @@ impl Status {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The order of the rule, and its edges: due exactly now is not yet
+    /// overdue; due exactly 30 days on is no longer due soon.
+    #[test]
+    fn status_follows_the_verdict_then_the_due_date() {
+        let now = Timestamp::parse("2026-06-01T00:00:00Z").unwrap();
+        let day = 86_400;
+        let later = |s: i64| Some(now.plus_seconds(s));
+        assert_eq!(Status::of(true, None, now), Status::Failed);
+        assert_eq!(Status::of(true, later(400 * day), now), Status::Failed);
+        assert_eq!(Status::of(false, None, now), Status::Unknown);
+        assert_eq!(Status::of(false, later(-day), now), Status::Overdue);
+        assert_eq!(Status::of(false, later(-1), now), Status::Overdue);
+        assert_eq!(Status::of(false, later(0), now), Status::DueSoon);
+        assert_eq!(Status::of(false, later(30 * day - 1), now), Status::DueSoon);
+        assert_eq!(Status::of(false, later(30 * day), now), Status::Ok);
+        assert_eq!(Status::of(false, later(365 * day), now), Status::Ok);
+    }
+}

@@ -118,6 +118,20 @@ async fn validation_lists_every_field() {
     .await;
     assert_eq!(pointers(&p), ["/values/k1"]);
 
+    // Coefficients with different numbers of runs: the pointer names the
+    // one that differs from the first (in model order).
+    let p = problem(
+        app.post(
+            "/v1/fuse",
+            ADMIN,
+            &json!({"values": {"ki": [1, 2, 3], "k0": [1, 2, 3, 4]}}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/values/ki"]);
+
     let csv = "run,angle_deg,output\n1,0,1.0\n1,90,oops\n";
     let p = problem(
         post_raw(&app, "/v1/calibrations", Some("text/csv"), csv).await,
