@@ -12,6 +12,7 @@ use accelcal::domain::sensor_types::SensorType;
 use accelcal::domain::status::Status;
 use accelcal::domain::timestamp::Timestamp;
 use accelcal::domain::tokens::TokenRecord;
+use accelcal::store::cache::{CAPACITY, CachedStore, SensorCache};
 use accelcal::store::{
     Claim, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery, Store, StoreError, Stored,
     postgres::PostgresStore, sqlite::SqliteStore,
@@ -797,7 +798,7 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1]);
+    assert_eq!(versions, [1, 2]);
 }
 
 /// Every pooled connection commits durably, whatever the server's default.
@@ -977,4 +978,118 @@ async fn sqlite_schema_refuses_non_finite_numbers_and_changes() {
         .unwrap_err()
         .to_string();
     assert!(changed.contains("never changes"), "{changed}");
+}
+
+#[tokio::test]
+async fn sqlite_behind_the_cache_conforms() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cached.db");
+    let store = accelcal::store::open(path.to_str().unwrap()).await.unwrap();
+    conformance(store).await;
+}
+
+/// A replica behind its sensor cache and listener, as `store::open` builds
+/// it, with the cache at hand; waits until the listener is connected.
+async fn cached_replica(url: &str) -> (Arc<dyn Store>, Arc<SensorCache>) {
+    let inner = Arc::new(PostgresStore::open(url).await.unwrap());
+    let cache = Arc::new(SensorCache::new(CAPACITY, false));
+    let listener = accelcal::store::postgres::listen::spawn(url.to_owned(), cache.clone());
+    let store: Arc<dyn Store> = Arc::new(CachedStore::new(inner, cache.clone(), Some(listener)));
+    until(|| cache.is_live(), "the listener to connect").await;
+    (store, cache)
+}
+
+/// Polls `done` every 2 ms for up to 10 s.
+async fn until(mut done: impl FnMut() -> bool, what: &str) {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while !done() {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "waited 10 s for {what}"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(2)).await;
+    }
+}
+
+#[tokio::test]
+async fn postgres_behind_the_cache_conforms() {
+    let db = pg::TestDb::create().await;
+    let (store, _) = cached_replica(&db.url).await;
+    conformance(store).await;
+}
+
+/// Two replicas, each with its cache: what one stores, the other serves
+/// once the notification arrives — never the replaced calibration for
+/// longer — and while its listener is gone it reads the database instead.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn postgres_replica_caches_follow_each_others_writes() {
+    let db = pg::TestDb::create().await;
+    let (a, _) = cached_replica(&db.url).await;
+    let (b, b_cache) = cached_replica(&db.url).await;
+    let now = t("2026-11-22T00:00:00Z");
+    let first = calibration("SHARED", "2026-01-01T00:00:00Z");
+    a.insert_calibration(first.clone(), None).await.unwrap();
+    // b's first reads may race the notification of a's insert, which
+    // forbids them to fill; one after it does.
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
+    while b_cache.is_empty() {
+        let seen = b.sensor("SHARED".into(), now).await.unwrap().unwrap();
+        assert_eq!(seen.latest.id, first.id);
+        assert!(
+            std::time::Instant::now() < deadline,
+            "b's reads never filled its cache"
+        );
+    }
+    for (i, day) in ["02", "03", "04"].into_iter().enumerate() {
+        let newer = calibration("SHARED", &format!("2026-01-{day}T00:00:00Z"));
+        a.insert_calibration(newer.clone(), None).await.unwrap();
+        let started = std::time::Instant::now();
+        loop {
+            let s = b.sensor("SHARED".into(), now).await.unwrap().unwrap();
+            if s.latest.id == newer.id {
+                assert_eq!(s.calibration_count, i as u64 + 2);
+                eprintln!(
+                    "replica b served a's write {:?} after a's insert returned",
+                    started.elapsed()
+                );
+                break;
+            }
+            assert!(
+                started.elapsed() < std::time::Duration::from_secs(10),
+                "replica b still serves {} after 10 s",
+                s.latest.id
+            );
+            tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+        }
+        // And a's own write is seen by a at once, from its cache or not.
+        let own = a.sensor("SHARED".into(), now).await.unwrap().unwrap();
+        assert_eq!(own.latest.id, newer.id);
+    }
+    // b's listener is cut off: b bypasses its cache until it is back.
+    let c = db.client().await;
+    let cut = c
+        .execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
+             WHERE datname = $1 AND application_name = $2",
+            &[
+                &db.name,
+                &accelcal::store::postgres::listen::APPLICATION_NAME,
+            ],
+        )
+        .await
+        .unwrap();
+    assert_eq!(cut, 2, "both replicas' listeners were connected");
+    until(|| !b_cache.is_live(), "b to notice").await;
+    let during = calibration("SHARED", "2026-02-01T00:00:00Z");
+    a.insert_calibration(during.clone(), None).await.unwrap();
+    let s = b.sensor("SHARED".into(), now).await.unwrap().unwrap();
+    assert_eq!(
+        s.latest.id, during.id,
+        "a replica without its listener read a stale entry"
+    );
+    until(|| b_cache.is_live(), "b's listener to reconnect").await;
+    let s = b.sensor("SHARED".into(), now).await.unwrap().unwrap();
+    assert_eq!(s.latest.id, during.id);
+    a.close().await;
+    b.close().await;
 }

@@ -34,6 +34,9 @@ const BUCKETS: &[f64] = &[
     0.0005, 0.001, 0.0025, 0.005, 0.01, 0.025, 0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0,
 ];
 
+/// Batch-size buckets: powers of two up to the writer's largest batch (256).
+const BATCH_BUCKETS: &[f64] = &[1.0, 2.0, 4.0, 8.0, 16.0, 32.0, 64.0, 128.0, 256.0];
+
 static HANDLE: OnceLock<PrometheusHandle> = OnceLock::new();
 
 /// The process's Prometheus recorder, installed on first use (the `metrics`
@@ -44,6 +47,10 @@ pub fn recorder() -> anyhow::Result<PrometheusHandle> {
     }
     let handle = PrometheusBuilder::new()
         .set_buckets_for_metric(Matcher::Suffix("_duration_seconds".into()), BUCKETS)?
+        .set_buckets_for_metric(
+            Matcher::Full("accelcal_storage_write_batch_size".into()),
+            BATCH_BUCKETS,
+        )?
         .install_recorder()?;
     let handle = HANDLE.get_or_init(|| handle).clone();
     metrics::gauge!("accelcal_build_info", "version" => env!("CARGO_PKG_VERSION")).set(1.0);
@@ -78,6 +85,15 @@ fn describe() {
         "accelcal_storage_operation_duration_seconds",
         Unit::Seconds,
         "Latency of storage operations, by operation and outcome."
+    );
+    describe_histogram!(
+        "accelcal_storage_write_batch_size",
+        Unit::Count,
+        "Writes committed together in one SQLite transaction (group commit)."
+    );
+    describe_counter!(
+        "accelcal_sensor_cache_total",
+        "Reads of a sensor's latest state, answered from memory (hit) or from the database (miss)."
     );
     describe_gauge!("accelcal_build_info", "Always 1; the version is a label.");
 }

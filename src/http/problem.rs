@@ -355,6 +355,13 @@ impl From<StoreError> for Problem {
                 tracing::warn!(error = %e.chain(), "storage unavailable");
                 Problem::unavailable("the database is unavailable; retry shortly", 2)
             }
+            StoreError::Overloaded(_) => {
+                tracing::warn!(error = %e, "write queue full");
+                Problem::unavailable(
+                    "too many submissions are waiting to be stored; retry in a second",
+                    1,
+                )
+            }
             _ => {
                 tracing::error!(error = %e.chain(), "storage fault");
                 Problem::internal()
@@ -411,5 +418,16 @@ mod tests {
         assert!(doc["parameter"].as_str().unwrap().chars().count() <= 65);
         assert_eq!(doc["request_id"], "id-1");
         assert!(doc.get("errors").is_none());
+    }
+
+    #[test]
+    fn a_full_write_queue_is_a_retryable_503() {
+        let res = Problem::from(StoreError::Overloaded(512)).response(None);
+        assert_eq!(res.status(), StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(res.headers()[header::RETRY_AFTER], "1");
+        assert_eq!(
+            res.headers()[header::CONTENT_TYPE],
+            "application/problem+json"
+        );
     }
 }

@@ -23,6 +23,12 @@ pub enum StoreError {
         #[source]
         source: BoxError,
     },
+    /// Too many writes are already waiting for the database: the queue in
+    /// front of the writer is full. Retryable at once: answered 503 with
+    /// `Retry-After: 1`, so a burst costs a retry instead of unbounded
+    /// latency and memory.
+    #[error("{0} writes are already waiting for the database")]
+    Overloaded(usize),
     /// A record the store refuses to write (a non-finite number).
     #[error("refused to store the record: {0}")]
     Refused(String),

@@ -1,14 +1,16 @@
 //! Storage of calibrations, sensors, tokens and idempotency keys behind one
 //! engine-agnostic trait.
 //!
-//! Handlers see only [`Store`]; each engine (SQLite today, see
+//! Handlers see only [`Store`]; each engine (PostgreSQL, and SQLite, see
 //! [`sqlite::SqliteStore`]) implements it and runs the shared conformance
-//! tests in `tests/store.rs`. Failures of the database itself — locked, gone,
+//! tests in `tests/store.rs`; [`open`] puts the sensor cache ([`cache`]) in
+//! front of it. Failures of the database itself — locked, gone,
 //! read-only, full — are [`StoreError::Unavailable`], which the HTTP layer
 //! answers with a retryable 503. A new engine goes in a folder of its own
 //! beside `sqlite/`, with its migrations, one file per concern, and one line
 //! in [`open`].
 
+pub mod cache;
 pub mod copy;
 mod error;
 pub mod postgres;
@@ -140,8 +142,8 @@ pub trait Store: Send + Sync + 'static {
 
 /// Records one storage operation's latency in
 /// `accelcal_storage_operation_duration_seconds{operation, outcome}`, the
-/// outcome being `ok`, `unavailable` (the database), `constraint`, `corrupt`
-/// or `refused`. Every engine calls it.
+/// outcome being `ok`, `unavailable` (the database), `constraint`, `corrupt`,
+/// `refused` or `overloaded` (the write queue was full). Every engine calls it.
 pub fn observe<T>(
     operation: &'static str,
     started: std::time::Instant,
@@ -153,6 +155,7 @@ pub fn observe<T>(
         Err(StoreError::Constraint(_)) => "constraint",
         Err(StoreError::Corrupt { .. }) => "corrupt",
         Err(StoreError::Refused(_)) => "refused",
+        Err(StoreError::Overloaded(_)) => "overloaded",
     };
     metrics::histogram!(
         "accelcal_storage_operation_duration_seconds",
@@ -164,14 +167,26 @@ pub fn observe<T>(
 
 /// Opens the database named by a URL — `postgres://…` or `postgresql://…`
 /// (PostgreSQL), `sqlite://PATH`, `sqlite:PATH` or a plain file path
-/// (SQLite) — and brings its schema up to date.
+/// (SQLite) — brings its schema up to date, and puts the sensor cache
+/// ([`cache`]) in front of it: for PostgreSQL with its listener, so that
+/// writes by other replicas reach it.
 pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
     if url.starts_with("postgres://") || url.starts_with("postgresql://") {
-        return Ok(Arc::new(postgres::PostgresStore::open(url).await?));
+        let inner = Arc::new(postgres::PostgresStore::open(url).await?);
+        let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, false));
+        let listener = postgres::listen::spawn(url.to_owned(), cache.clone());
+        return Ok(Arc::new(cache::CachedStore::new(
+            inner,
+            cache,
+            Some(listener),
+        )));
     }
     let path = url
         .strip_prefix("sqlite://")
         .or_else(|| url.strip_prefix("sqlite:"))
         .unwrap_or(url);
-    Ok(Arc::new(sqlite::SqliteStore::open(path)?))
+    let inner = Arc::new(sqlite::SqliteStore::open(path)?);
+    // One process serves a SQLite file: every write passes through here.
+    let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, true));
+    Ok(Arc::new(cache::CachedStore::new(inner, cache, None)))
 }

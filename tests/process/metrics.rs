@@ -183,6 +183,37 @@ async fn metrics_count_what_was_asked() {
             r#"accelcal_storage_operation_duration_seconds_count{operation="insert_calibration",outcome="ok"}"#
         ) >= 2.0
     );
+    // Three reads of one sensor after its last write: the first fills the
+    // cache, the other two are answered from it.
+    assert_eq!(get(r#"accelcal_sensor_cache_total{outcome="hit"}"#), 2.0);
+    assert!(get(r#"accelcal_sensor_cache_total{outcome="miss"}"#) >= 1.0);
+    // Group commit: at least the two stored calibrations and the key's
+    // claim went through the writer, in at most as many batches.
+    let batched = get("accelcal_storage_write_batch_size_sum");
+    let batches = get("accelcal_storage_write_batch_size_count");
+    assert!(batched >= 3.0, "{batched} writes batched");
+    assert!((1.0..=batched).contains(&batches), "{batches} batches");
+    assert_eq!(
+        get(r#"accelcal_storage_write_batch_size_bucket{le="256"}"#),
+        batches,
+        "batch sizes are a histogram with size buckets, none above 256"
+    );
+    // Every family has help text and a type (what `promtool check metrics`
+    // insists on).
+    let families: std::collections::BTreeSet<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("# TYPE "))
+        .filter_map(|l| l.split_whitespace().next())
+        .collect();
+    assert!(families.len() >= 9, "{families:?}");
+    for family in families {
+        assert!(
+            text.lines().any(|l| l
+                .strip_prefix("# HELP ")
+                .is_some_and(|h| h.split_whitespace().next() == Some(family))),
+            "{family} has no help text"
+        );
+    }
     assert!(
         !text.contains("/no/such/path"),
         "raw paths never become labels"

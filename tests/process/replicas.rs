@@ -200,7 +200,10 @@ async fn three_replicas_share_one_database_through_a_kill() {
         "one calibration per key, no more, no less"
     );
     db.check().await;
-    let counts: Vec<i64> = {
+    // A sensor's summary on one replica follows another replica's commit
+    // once the notification has arrived (its cache): poll, with a deadline.
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let counts: Vec<i64> = loop {
         let mut v = Vec::new();
         for s in 0..4 {
             let res: Value = client
@@ -214,7 +217,10 @@ async fn three_replicas_share_one_database_through_a_kill() {
                 .unwrap();
             v.push(res["calibration_count"].as_i64().unwrap());
         }
-        v
+        if v.iter().sum::<i64>() == after || Instant::now() >= deadline {
+            break v;
+        }
+        tokio::time::sleep(Duration::from_millis(20)).await;
     };
     assert_eq!(
         counts.iter().sum::<i64>(),

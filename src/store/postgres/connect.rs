@@ -141,8 +141,9 @@ fn rustls_pemfile_certs(pem: &[u8]) -> Result<Vec<CertificateDer<'static>>, Stor
         .map_err(|e| refused(format!("sslrootcert: {e}")))
 }
 
-/// The pool for `url` (no connection is opened yet).
-pub fn pool(url: &str) -> Result<Pool, StoreError> {
+/// The connection settings and TLS connector for `url`, as every
+/// connection of accelcal's uses them (the pool's and the listener's).
+pub fn config(url: &str) -> Result<(tokio_postgres::Config, MakeRustlsConnect), StoreError> {
     let (url, root_cert) = split_root_cert(url);
     let mut config: tokio_postgres::Config = url
         .parse()
@@ -158,9 +159,15 @@ pub fn pool(url: &str) -> Result<Pool, StoreError> {
     if config.get_connect_timeout().is_none() {
         config.connect_timeout(WAIT);
     }
+    Ok((config, tls(root_cert.as_deref())?))
+}
+
+/// The pool for `url` (no connection is opened yet).
+pub fn pool(url: &str) -> Result<Pool, StoreError> {
+    let (config, tls) = config(url)?;
     let manager = Manager::from_config(
         config,
-        tls(root_cert.as_deref())?,
+        tls,
         ManagerConfig {
             recycling_method: RecyclingMethod::Fast,
         },

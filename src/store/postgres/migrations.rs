@@ -10,7 +10,10 @@ use super::errors::{map, pool};
 use crate::store::StoreError;
 
 /// The migrations, oldest first.
-const MIGRATIONS: &[&str] = &[include_str!("migrations/0001_schema.sql")];
+const MIGRATIONS: &[&str] = &[
+    include_str!("migrations/0001_schema.sql"),
+    include_str!("migrations/0002_sensor_notify.sql"),
+];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).
 const LOCK: i64 = 0x6163_6365_6c63_616c;

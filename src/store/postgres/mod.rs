@@ -18,6 +18,7 @@ mod calibrations;
 pub mod connect;
 mod errors;
 mod idempotency;
+pub mod listen;
 mod migrations;
 mod rows;
 mod sensor_types;

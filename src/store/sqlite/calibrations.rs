@@ -2,7 +2,7 @@
 //! one transaction) and the reads of results, submissions and summaries.
 
 use bytes::Bytes;
-use rusqlite::{Connection, TransactionBehavior, params};
+use rusqlite::{Connection, params};
 use uuid::Uuid;
 
 use super::errors::map;
@@ -16,17 +16,17 @@ fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
     serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
 }
 
-/// Stores a calibration, its sensor's summary and its key, atomically; the
-/// commit returns once the WAL is on stable storage (`synchronous=FULL`).
+/// Stores a calibration, its sensor's summary and its key, inside a
+/// transaction (the writer's savepoint, see [`super::writer`]) that the
+/// caller commits when the answer is [`Stored::New`] and rolls back
+/// otherwise: [`Stored::Existing`] has written a calibration row that must
+/// not stay.
 pub fn insert(
-    conn: &mut Connection,
+    tx: &Connection,
     n: NewCalibration,
     key: Option<IdempotencyKey>,
 ) -> Result<Stored, StoreError> {
     n.check()?;
-    let tx = conn
-        .transaction_with_behavior(TransactionBehavior::Immediate)
-        .map_err(map)?;
     let id = n.id.to_string();
     let performed_at = n.performed_at.to_string();
     let result = std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
@@ -71,7 +71,7 @@ pub fn insert(
             .map_err(map)?;
         if changed == 0 {
             let existing = rows::first(
-                &tx,
+                tx,
                 "SELECT calibration_id FROM idempotency_keys WHERE principal = ?1 AND key = ?2",
                 params![k.principal, k.key],
                 |r| rows::uuid(r, "calibration_id"),
@@ -110,7 +110,6 @@ pub fn insert(
         ],
     )
     .map_err(map)?;
-    tx.commit().map_err(map)?;
     Ok(Stored::New)
 }
 

@@ -3,7 +3,7 @@
 //! calibration's own transaction ([`super::calibrations::insert`]),
 //! released when the request stores nothing.
 
-use rusqlite::{Connection, TransactionBehavior, params};
+use rusqlite::{Connection, params};
 
 use super::errors::map;
 use super::rows;
@@ -18,15 +18,14 @@ struct KeyRow {
 }
 
 /// Claims `k` until `lease_until`; forgets keys past the retention period.
+/// Runs inside a transaction (the writer's savepoint) that the caller
+/// commits whatever the answer.
 pub fn claim(
-    conn: &mut Connection,
+    tx: &Connection,
     k: &IdempotencyKey,
     now: Timestamp,
     lease_until: Timestamp,
 ) -> Result<Claim, StoreError> {
-    let tx = conn
-        .transaction_with_behavior(TransactionBehavior::Immediate)
-        .map_err(map)?;
     let horizon = now.plus_seconds(-IDEMPOTENCY_RETENTION_SECONDS).to_string();
     tx.execute(
         "DELETE FROM idempotency_keys WHERE created_at < ?1",
@@ -34,7 +33,7 @@ pub fn claim(
     )
     .map_err(map)?;
     let row = rows::first(
-        &tx,
+        tx,
         "SELECT request_hash, calibration_id, locked_until FROM idempotency_keys \
          WHERE principal = ?1 AND key = ?2",
         params![k.principal, k.key],
@@ -90,7 +89,6 @@ pub fn claim(
             Claim::Fresh
         }
     };
-    tx.commit().map_err(map)?;
     Ok(claim)
 }
 

@@ -2,8 +2,10 @@
 //!
 //! A commit returns only once the WAL is on stable storage, so an
 //! acknowledged calibration survives a crash or power loss; a transaction
-//! interrupted by a crash is rolled back on the next open. Calls run on
-//! tokio's blocking pool over a small [`pool`] of connections. One file per
+//! interrupted by a crash is rolled back on the next open. Submissions and
+//! idempotency claims go through the [`writer`], which commits many in one
+//! transaction (group commit); other calls run on tokio's blocking pool over
+//! a small [`pool`] of connections. One file per
 //! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`tokens`],
 //! [`sessions`], [`idempotency`];
 //! [`rows`] decodes rows by column name, [`errors`] maps the driver's errors.
@@ -18,6 +20,7 @@ mod sensor_types;
 mod sensors;
 mod sessions;
 mod tokens;
+pub mod writer;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -28,6 +31,7 @@ use rusqlite::Connection;
 use uuid::Uuid;
 
 use self::pool::Pool;
+use self::writer::Writer;
 use super::{
     CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
     SensorSummary, Store, StoreError, Stored, StoredSubmission,
@@ -41,19 +45,25 @@ use crate::domain::tokens::TokenRecord;
 #[derive(Clone)]
 pub struct SqliteStore {
     pool: Arc<Pool>,
+    writer: Arc<Writer>,
 }
 
 impl SqliteStore {
     /// Opens (creating if needed, mode 0600) the database at `path`,
     /// migrates it, and frees the idempotency leases a crash left behind.
     pub fn open(path: impl Into<PathBuf>) -> Result<Self, StoreError> {
-        let store = SqliteStore {
-            pool: Arc::new(Pool::create(path.into())?),
-        };
-        let first = store.pool.checkout()?;
+        Self::open_with_queue(path, writer::QUEUE)
+    }
+
+    /// [`SqliteStore::open`], refusing writes with
+    /// [`StoreError::Overloaded`] once `queue` are waiting for the writer.
+    pub fn open_with_queue(path: impl Into<PathBuf>, queue: usize) -> Result<Self, StoreError> {
+        let pool = Arc::new(Pool::create(path.into())?);
+        let first = pool.checkout()?;
         idempotency::free_leases(&first.conn)?;
-        store.pool.checkin(first);
-        Ok(store)
+        pool.checkin(first);
+        let writer = Arc::new(Writer::start(pool.clone(), queue)?);
+        Ok(SqliteStore { pool, writer })
     }
 
     /// The database file.
@@ -87,6 +97,21 @@ impl SqliteStore {
     }
 }
 
+impl SqliteStore {
+    /// Runs `f` in the writer's next batch (see [`writer`]), timed as
+    /// `operation`; answers after the batch's durable commit.
+    async fn write<T, F>(&self, operation: &'static str, f: F) -> Result<T, StoreError>
+    where
+        T: Send + 'static,
+        F: FnOnce(&Connection) -> Result<(T, bool), StoreError> + Send + 'static,
+    {
+        let started = std::time::Instant::now();
+        let out = self.writer.write(f).await;
+        super::observe(operation, started, &out);
+        out
+    }
+}
+
 #[async_trait]
 impl Store for SqliteStore {
     async fn ping(&self) -> Result<(), StoreError> {
@@ -104,8 +129,10 @@ impl Store for SqliteStore {
         key: Option<IdempotencyKey>,
     ) -> Result<Stored, StoreError> {
         n.check()?;
-        self.run("insert_calibration", move |conn| {
-            calibrations::insert(conn, n, key)
+        self.write("insert_calibration", move |conn| {
+            let stored = calibrations::insert(conn, n, key)?;
+            let keep = stored == Stored::New;
+            Ok((stored, keep))
         })
         .await
     }
@@ -116,15 +143,17 @@ impl Store for SqliteStore {
         now: Timestamp,
         lease_until: Timestamp,
     ) -> Result<Claim, StoreError> {
-        self.run("claim_key", move |conn| {
-            idempotency::claim(conn, &k, now, lease_until)
+        self.write("claim_key", move |conn| {
+            Ok((idempotency::claim(conn, &k, now, lease_until)?, true))
         })
         .await
     }
 
     async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
-        self.run("release_key", move |conn| idempotency::release(conn, &key))
-            .await
+        self.write("release_key", move |conn| {
+            Ok((idempotency::release(conn, &key)?, true))
+        })
+        .await
     }
 
     async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
@@ -291,7 +320,9 @@ impl Store for SqliteStore {
 
     async fn close(&self) {
         let pool = self.pool.clone();
+        let writer = self.writer.clone();
         let _ = tokio::task::spawn_blocking(move || {
+            writer.stop();
             let conns = pool.drain();
             if let Some(p) = conns.first() {
                 // Fold the WAL back into the main file so a copy of the

@@ -1,0 +1,451 @@
+//! Sensors' latest state held in memory, so the reads control systems make
+//! most — latest coefficients, compensation, a sensor's summary — are
+//! answered without a database round trip.
+//!
+//! [`CachedStore`] wraps any engine and caches [`Store::sensor`]: the
+//! sensor's summary with its latest calibration. What is cached is the
+//! state stored; the status, which depends on the time of the read, is
+//! computed again on every hit ([`Status::of`]). The rules that keep every
+//! read seeing every acknowledged write:
+//!
+//! * **Writes through this process** ([`Store::insert_calibration`],
+//!   [`Store::assign_sensor_type`]) drop the sensor's entry after the
+//!   database answered and before the caller can answer its client —
+//!   whatever the outcome, since a failed commit may still have landed.
+//! * **A read racing a write** cannot put back what the write replaced:
+//!   every drop bumps an epoch, and a read fills the cache only if no drop
+//!   happened between its start and its end.
+//! * **Writes through other processes** (replicas sharing PostgreSQL) reach
+//!   this one as notifications: a trigger announces every change of a
+//!   sensor's row on commit (`pg_notify`), and a listener
+//!   ([`super::postgres::listen`]) drops the entry when it hears it. The
+//!   cache is used only while that listener is connected; it is emptied when
+//!   the listener connects and bypassed while it is not, so a lost
+//!   notification cannot leave an entry stale. A replica reading just after
+//!   another replica's commit sees it once the notification has arrived
+//!   (a few milliseconds on one host: see BENCHMARKS.md);
+//!   in between it may answer the previous calibration — the same as a read
+//!   that arrived a moment earlier. SQLite has one serving process, so
+//!   there the first two rules are the whole story.
+//! * **Bounded**: at most [`CAPACITY`] sensors; when full, an arbitrary
+//!   entry makes room.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use async_trait::async_trait;
+use bytes::Bytes;
+use uuid::Uuid;
+
+use super::{
+    CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
+    SensorSummary, Store, StoreError, Stored, StoredSubmission,
+};
+use crate::domain::sensor_types::SensorType;
+use crate::domain::session::SessionRecord;
+use crate::domain::status::Status;
+use crate::domain::timestamp::Timestamp;
+use crate::domain::tokens::TokenRecord;
+use accelcal_core::decision::Verdict;
+
+/// Sensors cached at most (a summary is about 1 KiB).
+pub const CAPACITY: usize = 4096;
+
+/// The cached summaries and what guards them.
+#[derive(Debug)]
+pub struct SensorCache {
+    inner: Mutex<Entries>,
+    /// Whether the cache may be used: always for an engine no other process
+    /// writes to; for PostgreSQL, while the listener is connected.
+    live: AtomicBool,
+    capacity: usize,
+}
+
+#[derive(Debug, Default)]
+struct Entries {
+    map: HashMap<String, Arc<SensorSummary>>,
+    /// Bumped by every drop: a read that started before it must not fill.
+    epoch: u64,
+}
+
+impl SensorCache {
+    /// An empty cache of at most `capacity` sensors, live or not.
+    pub fn new(capacity: usize, live: bool) -> Self {
+        SensorCache {
+            inner: Mutex::new(Entries::default()),
+            live: AtomicBool::new(live),
+            capacity,
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Entries> {
+        // The lock guards plain data; a panic elsewhere cannot leave it
+        // half-updated in a way that matters, so a poisoned lock is used.
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Drops what is cached of `sensor_id`.
+    pub fn invalidate(&self, sensor_id: &str) {
+        let mut e = self.lock();
+        e.epoch += 1;
+        e.map.remove(sensor_id);
+    }
+
+    /// Empties the cache and makes it usable (or not) from now on: what
+    /// was cached while notifications could be missed is gone.
+    pub fn reset(&self, live: bool) {
+        let mut e = self.lock();
+        e.epoch += 1;
+        e.map.clear();
+        self.live.store(live, Ordering::SeqCst);
+    }
+
+    /// The epoch a read starts at, or `None` when the cache is not live.
+    fn begin(&self) -> Option<u64> {
+        let e = self.lock();
+        self.live.load(Ordering::SeqCst).then_some(e.epoch)
+    }
+
+    fn get(&self, sensor_id: &str) -> Option<Arc<SensorSummary>> {
+        if !self.live.load(Ordering::SeqCst) {
+            return None;
+        }
+        self.lock().map.get(sensor_id).cloned()
+    }
+
+    /// Keeps what a read that began at `epoch` found, unless anything was
+    /// dropped since.
+    fn fill(&self, epoch: u64, summary: &SensorSummary) {
+        let mut e = self.lock();
+        if e.epoch != epoch || !self.live.load(Ordering::SeqCst) {
+            return;
+        }
+        if e.map.len() >= self.capacity
+            && !e.map.contains_key(&summary.sensor_id)
+            && let Some(victim) = e.map.keys().next().cloned()
+        {
+            e.map.remove(&victim);
+        }
+        e.map
+            .insert(summary.sensor_id.clone(), Arc::new(summary.clone()));
+    }
+
+    /// Whether reads may use the cache now.
+    pub fn is_live(&self) -> bool {
+        self.live.load(Ordering::SeqCst)
+    }
+
+    /// Sensors cached now.
+    pub fn len(&self) -> usize {
+        self.lock().map.len()
+    }
+
+    /// Whether nothing is cached.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// A cached summary as of `now`: its status computed again.
+fn at(summary: &SensorSummary, now: Timestamp) -> SensorSummary {
+    let mut s = summary.clone();
+    s.status = Status::of(s.latest_verdict == Some(Verdict::Fail), s.due_at, now);
+    s
+}
+
+/// An engine with [`SensorCache`] in front of its sensor reads.
+pub struct CachedStore {
+    inner: Arc<dyn Store>,
+    cache: Arc<SensorCache>,
+    /// Stopped at [`Store::close`] (the PostgreSQL listener).
+    listener: Mutex<Option<tokio::task::JoinHandle<()>>>,
+}
+
+impl CachedStore {
+    /// `inner` behind `cache`; `listener` is the task that keeps the cache
+    /// in step with other processes, if any.
+    pub fn new(
+        inner: Arc<dyn Store>,
+        cache: Arc<SensorCache>,
+        listener: Option<tokio::task::JoinHandle<()>>,
+    ) -> Self {
+        CachedStore {
+            inner,
+            cache,
+            listener: Mutex::new(listener),
+        }
+    }
+
+    /// The cache (for tests and metrics).
+    pub fn cache(&self) -> &Arc<SensorCache> {
+        &self.cache
+    }
+}
+
+#[async_trait]
+impl Store for CachedStore {
+    async fn sensor(
+        &self,
+        sensor_id: String,
+        now: Timestamp,
+    ) -> Result<Option<SensorSummary>, StoreError> {
+        if let Some(hit) = self.cache.get(&sensor_id) {
+            metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
+            return Ok(Some(at(&hit, now)));
+        }
+        metrics::counter!("accelcal_sensor_cache_total", "outcome" => "miss").increment(1);
+        let epoch = self.cache.begin();
+        let found = self.inner.sensor(sensor_id, now).await?;
+        if let (Some(epoch), Some(s)) = (epoch, &found) {
+            self.cache.fill(epoch, s);
+        }
+        Ok(found)
+    }
+
+    async fn insert_calibration(
+        &self,
+        c: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError> {
+        let sensor_id = c.sensor_id.clone();
+        let out = self.inner.insert_calibration(c, key).await;
+        self.cache.invalidate(&sensor_id);
+        out
+    }
+
+    async fn assign_sensor_type(
+        &self,
+        sensor_id: String,
+        type_id: String,
+    ) -> Result<bool, StoreError> {
+        let out = self
+            .inner
+            .assign_sensor_type(sensor_id.clone(), type_id)
+            .await;
+        self.cache.invalidate(&sensor_id);
+        out
+    }
+
+    async fn close(&self) {
+        let listener = self
+            .listener
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take();
+        if let Some(l) = listener {
+            l.abort();
+        }
+        self.cache.reset(false);
+        self.inner.close().await;
+    }
+
+    // Everything else is the engine's.
+
+    async fn ping(&self) -> Result<(), StoreError> {
+        self.inner.ping().await
+    }
+    async fn claim_key(
+        &self,
+        key: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError> {
+        self.inner.claim_key(key, now, lease_until).await
+    }
+    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
+        self.inner.release_key(key).await
+    }
+    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
+        self.inner.calibration_result(id).await
+    }
+    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
+        self.inner.submission(id).await
+    }
+    async fn calibration_summary(
+        &self,
+        id: Uuid,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.inner.calibration_summary(id).await
+    }
+    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
+        self.inner.sensors(q).await
+    }
+    async fn history(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        self.inner.history(sensor_id, q).await
+    }
+    async fn series(
+        &self,
+        sensor_id: String,
+        from: Option<Timestamp>,
+        to: Option<Timestamp>,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        self.inner.series(sensor_id, from, to).await
+    }
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.inner.previous_calibration(sensor_id, before).await
+    }
+    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
+        self.inner.put_sensor_type(t).await
+    }
+    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError> {
+        self.inner.sensor_type(type_id).await
+    }
+    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError> {
+        self.inner.sensor_types().await
+    }
+    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
+        self.inner.insert_token(t).await
+    }
+    async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
+        self.inner.token(id).await
+    }
+    async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
+        self.inner.tokens().await
+    }
+    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+        self.inner.revoke_token(id, at).await
+    }
+    async fn has_admin_token(&self) -> Result<bool, StoreError> {
+        self.inner.has_admin_token().await
+    }
+    async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError> {
+        self.inner.insert_session(s).await
+    }
+    async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError> {
+        self.inner.session(id_hash).await
+    }
+    async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError> {
+        self.inner.delete_session(id_hash).await
+    }
+    async fn is_empty(&self) -> Result<bool, StoreError> {
+        self.inner.is_empty().await
+    }
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError> {
+        self.inner.export_calibrations(after, limit).await
+    }
+    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
+        self.inner.done_keys(since).await
+    }
+    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
+        self.inner.put_done_key(k).await
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use accelcal_core::{Model, Term, TermMap};
+
+    use super::*;
+
+    fn ts(s: &str) -> Timestamp {
+        Timestamp::parse(s).unwrap()
+    }
+
+    fn summary(sensor: &str, due: Option<&str>, verdict: Option<Verdict>) -> SensorSummary {
+        let at = ts("2026-01-01T00:00:00Z");
+        SensorSummary {
+            sensor_id: sensor.into(),
+            calibration_count: 1,
+            first_performed_at: at,
+            latest_performed_at: at,
+            sensor_type: None,
+            latest_verdict: verdict,
+            due_at: due.map(ts),
+            status: Status::Unknown,
+            latest: CalibrationSummary {
+                id: Uuid::from_u128(7),
+                sensor_id: sensor.into(),
+                station_id: None,
+                performed_at: at,
+                received_at: at,
+                unit: "mA".into(),
+                model: Model::new(vec![Term::K0, Term::Ki]).unwrap(),
+                runs: 1,
+                coefficients: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 1.0)]),
+                std_errors: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0)]),
+                sensor_type: None,
+                verdict,
+                due_at: due.map(ts),
+                expanded: None,
+            },
+        }
+    }
+
+    #[test]
+    fn a_read_that_raced_a_drop_does_not_fill() {
+        let c = SensorCache::new(8, true);
+        let epoch = c.begin().unwrap();
+        c.invalidate("S");
+        c.fill(epoch, &summary("S", None, None));
+        assert!(c.get("S").is_none(), "a fill from before the drop was kept");
+        let epoch = c.begin().unwrap();
+        c.fill(epoch, &summary("S", None, None));
+        assert!(c.get("S").is_some());
+        c.invalidate("S");
+        assert!(c.get("S").is_none());
+    }
+
+    #[test]
+    fn a_cache_that_is_not_live_neither_answers_nor_fills() {
+        let c = SensorCache::new(8, true);
+        c.fill(c.begin().unwrap(), &summary("S", None, None));
+        c.reset(false);
+        assert!(c.is_empty(), "reset empties");
+        assert!(c.begin().is_none());
+        assert!(c.get("S").is_none());
+        c.reset(true);
+        let epoch = c.begin().unwrap();
+        c.reset(false);
+        c.fill(epoch, &summary("S", None, None));
+        assert!(c.is_empty());
+    }
+
+    #[test]
+    fn the_cache_holds_at_most_its_capacity() {
+        let c = SensorCache::new(3, true);
+        for i in 0..10 {
+            c.fill(c.begin().unwrap(), &summary(&format!("S{i}"), None, None));
+            assert!(c.len() <= 3);
+        }
+        assert_eq!(c.len(), 3);
+        assert!(c.get("S9").is_some(), "the newest entry is kept");
+        // Refilling a present sensor evicts nothing.
+        c.fill(c.begin().unwrap(), &summary("S9", None, None));
+        assert_eq!(c.len(), 3);
+    }
+
+    /// The status is the domain rule at the time of the read, not at the
+    /// time of the fill: one cached entry, four reads.
+    #[test]
+    fn a_hit_computes_the_status_at_the_read() {
+        let due = summary("S", Some("2026-06-01T00:00:00Z"), Some(Verdict::Pass));
+        let at_ = |now: &str| at(&due, ts(now)).status;
+        assert_eq!(at_("2026-01-01T00:00:00Z"), Status::Ok);
+        assert_eq!(at_("2026-05-15T00:00:00Z"), Status::DueSoon);
+        assert_eq!(at_("2026-06-01T00:00:01Z"), Status::Overdue);
+        let failed = summary("S", Some("2026-06-01T00:00:00Z"), Some(Verdict::Fail));
+        assert_eq!(
+            at(&failed, ts("2026-01-01T00:00:00Z")).status,
+            Status::Failed
+        );
+        let conditional = summary("S", None, Some(Verdict::Conditional));
+        assert_eq!(
+            at(&conditional, ts("2026-01-01T00:00:00Z")).status,
+            Status::Unknown
+        );
+    }
+}
