@@ -31,7 +31,8 @@ curl -sf http://127.0.0.1:$METRICS_PORT/metrics >"$WORK/metrics.txt"
 promtool check metrics <"$WORK/metrics.txt"
 for metric in accelcal_http_requests_total accelcal_http_request_duration_seconds_bucket \
   accelcal_http_requests_in_flight accelcal_submissions_total accelcal_verdicts_total \
-  accelcal_storage_operation_duration_seconds_bucket accelcal_build_info; do
+  accelcal_storage_operation_duration_seconds_bucket accelcal_build_info \
+  accelcal_storage_write_batch_size_bucket accelcal_sensor_cache_total; do
   grep -q "^$metric" "$WORK/metrics.txt" || { echo "metrics: $metric missing" >&2; exit 1; }
 done
 echo "metrics: promtool check passed"
