@@ -152,3 +152,28 @@ fn csv_and_json_forms_calibrate_alike() {
     let from_json = run(&paper()).unwrap();
     assert_eq!(from_csv.calibration.fused, from_json.calibration.fused);
 }
+
+#[test]
+fn numbers_are_finite_and_within_their_bound() {
+    use node::Scalar;
+    assert_eq!(Scalar::Num(2.0, None).number(2.0), Ok(2.0));
+    assert_eq!(Scalar::Num(-2.0, None).number(2.0), Ok(-2.0));
+    for x in [
+        2.000_001,
+        -2.000_001,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::NAN,
+    ] {
+        assert_eq!(
+            Scalar::Num(x, None).number(2.0),
+            Err("must be a finite number of magnitude at most 2e0".to_owned()),
+            "{x}"
+        );
+    }
+    assert!(Scalar::Num(f64::INFINITY, None).number(f64::MAX).is_err());
+    assert_eq!(
+        Scalar::Str("1".into()).number(2.0),
+        Err("must be a number, not a string".to_owned())
+    );
+}

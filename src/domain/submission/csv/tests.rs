@@ -174,3 +174,38 @@ fn temperatures_and_the_stand_come_from_columns_and_metadata() {
         "/stand_angle_std_arcsec"
     );
 }
+
+#[test]
+fn the_station_comes_from_its_metadata_line() {
+    let d = read(b"# station_id: ST-4\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.station_id, Slot::Value("ST-4".into()));
+    let d = read(b"# station_id: two words\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    assert_eq!(d.station_id, Slot::Invalid);
+    assert_eq!(d.errors.into_invalid().errors[0].pointer, "/station_id");
+}
+
+#[test]
+fn the_cell_count_may_reach_the_sample_limit_but_not_pass_it() {
+    // One row per run, the runs spread over the positions: `runs × positions`
+    // cells, most of them empty. At exactly MAX_TOTAL_SAMPLES cells the
+    // reader goes on to name the empty cells; one position more and it
+    // refuses the shape in one message.
+    let table = |positions: usize| {
+        let mut text = String::from("run,angle_deg,output\n");
+        for k in 0..MAX_RUNS {
+            text += &format!("r{k},{},1\n", k % positions);
+        }
+        text
+    };
+    assert_eq!(MAX_RUNS * 200, MAX_TOTAL_SAMPLES);
+    let e = errors(&table(200));
+    assert!(e[0].contains("has no samples at position"), "{e:?}");
+    let e = errors(&table(201));
+    assert_eq!(
+        e,
+        [
+            "CSV: 1000 runs × 201 positions need a sample in each of 201000 cells; only 1000 were given"
+        ]
+    );
+}

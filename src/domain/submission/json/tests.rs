@@ -75,3 +75,16 @@ fn syntax_errors_abort_with_the_parsers_message() {
     let e = read(b"{\"a\": tru}").unwrap_err();
     assert!(e.contains("line 1 column"), "where it breaks is said: {e}");
 }
+
+#[test]
+fn the_stand_is_an_object_or_absent() {
+    let d = read(br#"{"stand": null}"#).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.stand, Slot::Absent);
+    let d = read(br#"{"stand": 5}"#).unwrap();
+    assert_eq!(d.stand, Slot::Invalid);
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/stand");
+    assert_eq!(inv.errors[0].detail, "must be an object, not a number");
+}
