@@ -4,6 +4,7 @@
 //! ```text
 //! cargo bench --bench load                          # SQLite, 5 s legs
 //! LOAD_SECONDS=8 LOAD_ENGINES=sqlite,postgres cargo bench --bench load
+//! LOAD_ROUTES=submit LOAD_CONNS=64 cargo bench --bench load   # one leg, e.g. to profile
 //! ```
 //!
 //! The **bare stack** is a minimal axum server (this binary, started again
@@ -288,8 +289,10 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
         "| route | conns | accelcal req/s | p50 ms | p99 ms | p99.9 ms | bare req/s | bare p50 | bare p99 | bare p99.9 | ratio | accelcal RSS MiB | bare RSS MiB |"
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
-    for route in ROUTES {
-        for conns in CONNECTIONS {
+    let routes = chosen("LOAD_ROUTES", &ROUTES);
+    let connections = chosen("LOAD_CONNS", &CONNECTIONS);
+    for &route in &routes {
+        for &conns in &connections {
             let b = rt.block_on(leg(&bare_base, route, conns, seconds, bare_pid));
             let a = rt.block_on(leg(&base, route, conns, seconds, pid));
             println!(
@@ -313,6 +316,21 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
     server.terminate();
     drop(server);
     drop(pg);
+}
+
+/// The values of `all` named in the comma-separated variable `var` (all of
+/// them when it is unset); a name that is not among them aborts the run.
+fn chosen<T: Copy + ToString>(var: &str, all: &[T]) -> Vec<T> {
+    let Ok(list) = std::env::var(var) else {
+        return all.to_vec();
+    };
+    list.split(',')
+        .map(|name| {
+            *all.iter()
+                .find(|x| x.to_string() == name.trim())
+                .unwrap_or_else(|| panic!("{var}: {name} is not one of the choices"))
+        })
+        .collect()
 }
 
 fn main() {

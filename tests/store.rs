@@ -760,6 +760,40 @@ async fn sqlite_handles_agree() {
     two_handles(Arc::new(a), Arc::new(b)).await;
 }
 
+/// Many reads at once share the pool's reader connections: none is opened
+/// beyond them (an open parses the whole schema; churning connections under
+/// load was the submit path's largest cost after the disk).
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn sqlite_concurrent_reads_reuse_the_pool() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Arc::new(SqliteStore::open(dir.path().join("readers.db")).unwrap());
+    store
+        .insert_calibration(calibration("R-1", "2026-01-01T00:00:00Z"), None)
+        .await
+        .unwrap();
+    let before = store.connections_opened();
+    for _ in 0..4 {
+        let reads: Vec<_> = (0..64)
+            .map(|_| {
+                let store = store.clone();
+                tokio::spawn(async move {
+                    store
+                        .previous_calibration("R-1".into(), t("2026-06-01T00:00:00Z"))
+                        .await
+                })
+            })
+            .collect();
+        for r in reads {
+            assert!(r.await.unwrap().unwrap().is_some());
+        }
+    }
+    let opened = store.connections_opened();
+    assert!(
+        opened <= accelcal::store::sqlite::READERS + 1,
+        "{opened} connections opened for 256 reads ({before} before them)"
+    );
+}
+
 #[tokio::test]
 async fn postgres_conforms() {
     let db = pg::TestDb::create().await;

@@ -22,6 +22,8 @@ mod sessions;
 mod tokens;
 pub mod writer;
 
+pub use self::pool::READERS;
+
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
@@ -46,6 +48,8 @@ use crate::domain::tokens::TokenRecord;
 pub struct SqliteStore {
     pool: Arc<Pool>,
     writer: Arc<Writer>,
+    /// One permit per reader connection ([`READERS`]).
+    readers: Arc<tokio::sync::Semaphore>,
 }
 
 impl SqliteStore {
@@ -63,7 +67,16 @@ impl SqliteStore {
         idempotency::free_leases(&first.conn)?;
         pool.checkin(first);
         let writer = Arc::new(Writer::start(pool.clone(), queue)?);
-        Ok(SqliteStore { pool, writer })
+        Ok(SqliteStore {
+            pool,
+            writer,
+            readers: Arc::new(tokio::sync::Semaphore::new(pool::READERS)),
+        })
+    }
+
+    /// Connections opened so far (reads reuse at most [`READERS`]).
+    pub fn connections_opened(&self) -> usize {
+        self.pool.opened()
     }
 
     /// The database file.
@@ -81,7 +94,11 @@ impl SqliteStore {
     {
         let pool = self.pool.clone();
         let started = std::time::Instant::now();
+        let permit = self.readers.clone().acquire_owned().await;
         let out = tokio::task::spawn_blocking(move || {
+            // The semaphore is never closed; holding the permit keeps this
+            // read within the pool's connections.
+            let _permit = permit;
             let mut p = pool.checkout()?;
             let out = f(&mut p.conn);
             if out.is_ok() {
