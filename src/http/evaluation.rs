@@ -70,13 +70,17 @@ pub async fn assess(
     id: Option<Uuid>,
 ) -> Result<Assessed, Problem> {
     let (bytes, content_type) = (body.bytes.clone(), body.content_type.clone());
+    let size = bytes.len();
     let who = principal.clone();
     let (evaluated, station_id) = state
-        .compute(move || -> Result<(Evaluated, Option<String>), Problem> {
-            let e = evaluate(body.media, &body.bytes, received_at)?;
-            let station_id = station(&who, e.submission.station_id.as_deref())?;
-            Ok((e, station_id))
-        })
+        .compute_for(
+            size,
+            move || -> Result<(Evaluated, Option<String>), Problem> {
+                let e = evaluate(body.media, &body.bytes, received_at)?;
+                let station_id = station(&who, e.submission.station_id.as_deref())?;
+                Ok((e, station_id))
+            },
+        )
         .await??;
     let sensor_type = sensor_type(state, &evaluated, received_at).await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
@@ -91,7 +95,7 @@ pub async fn assess(
         });
     let submitted_by = principal.id.clone();
     state
-        .compute(move || -> Result<Assessed, Problem> {
+        .compute_for(size, move || -> Result<Assessed, Problem> {
             let e = &evaluated;
             let type_id = sensor_type.as_ref().map(|t| t.type_id.as_str());
             let metrology =
