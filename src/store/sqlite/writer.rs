@@ -258,6 +258,39 @@ mod tests {
         (dir, pool, writer)
     }
 
+    /// Starts a write of `x` that holds the writer, once it has started,
+    /// until the returned sender is used.
+    fn hold(
+        writer: &Arc<Writer>,
+        x: i64,
+    ) -> (
+        tokio::task::JoinHandle<Result<i64, StoreError>>,
+        std::sync::mpsc::Sender<()>,
+    ) {
+        let (started, wait) = std::sync::mpsc::channel();
+        let (release, held) = std::sync::mpsc::channel::<()>();
+        let w = writer.clone();
+        let first = tokio::spawn(async move {
+            w.write(move |c| {
+                started.send(()).unwrap();
+                held.recv().unwrap();
+                insert(x)(c)
+            })
+            .await
+        });
+        wait.recv().unwrap();
+        (first, release)
+    }
+
+    /// Waits (at most 5 s) until `n` writes wait in the queue.
+    async fn until_queued(writer: &Writer, n: usize) {
+        let deadline = std::time::Instant::now() + Duration::from_secs(5);
+        while writer.queue.capacity() > writer.queue.max_capacity() - n {
+            assert!(std::time::Instant::now() < deadline, "write not queued");
+            tokio::time::sleep(Duration::from_millis(2)).await;
+        }
+    }
+
     fn rows(path: &std::path::Path) -> Vec<i64> {
         let c = Connection::open(path).unwrap();
         let mut st = c.prepare("SELECT x FROM t ORDER BY x").unwrap();
@@ -326,31 +359,10 @@ mod tests {
         let writer = Arc::new(writer);
         // Hold the writer with a slow write so the next ones queue and
         // then share one batch, whose last write is slow too.
-        let (started, wait) = std::sync::mpsc::channel();
-        let (release, hold) = std::sync::mpsc::channel::<()>();
-        let w = writer.clone();
-        let first = tokio::spawn(async move {
-            w.write(move |c| {
-                started.send(()).unwrap();
-                hold.recv().unwrap();
-                insert(100)(c)
-            })
-            .await
-        });
-        wait.recv().unwrap();
-        let queued = |n: usize| {
-            let writer = writer.clone();
-            async move {
-                let deadline = std::time::Instant::now() + Duration::from_secs(5);
-                while writer.queue.capacity() > QUEUE - n {
-                    assert!(std::time::Instant::now() < deadline, "write not queued");
-                    tokio::time::sleep(Duration::from_millis(2)).await;
-                }
-            }
-        };
+        let (first, release) = hold(&writer, 100);
         let w = writer.clone();
         let fast = tokio::spawn(async move { w.write(insert(1)).await });
-        queued(1).await;
+        until_queued(&writer, 1).await;
         let w = writer.clone();
         let slow = tokio::spawn(async move {
             w.write(move |c| {
@@ -359,7 +371,7 @@ mod tests {
             })
             .await
         });
-        queued(2).await;
+        until_queued(&writer, 2).await;
         release.send(()).unwrap();
         assert_eq!(fast.await.unwrap().unwrap(), 1);
         // Heard at once on the answer: the slow write of the same batch
@@ -417,25 +429,10 @@ mod tests {
         let (dir, _pool, writer) = setup(QUEUE);
         let writer = Arc::new(writer);
         // The writer is held by a first write until 7 is surely queued.
-        let (started, wait) = std::sync::mpsc::channel();
-        let (release, hold) = std::sync::mpsc::channel::<()>();
-        let w = writer.clone();
-        let first = tokio::spawn(async move {
-            w.write(move |c| {
-                started.send(()).unwrap();
-                hold.recv().unwrap();
-                insert(6)(c)
-            })
-            .await
-        });
-        wait.recv().unwrap();
+        let (first, release) = hold(&writer, 6);
         let w = writer.clone();
         let queued = tokio::spawn(async move { w.write(insert(7)).await });
-        let deadline = std::time::Instant::now() + Duration::from_secs(5);
-        while writer.queue.capacity() == QUEUE {
-            assert!(std::time::Instant::now() < deadline, "write not queued");
-            tokio::time::sleep(Duration::from_millis(2)).await;
-        }
+        until_queued(&writer, 1).await;
         let w = writer.clone();
         let stopping = tokio::task::spawn_blocking(move || w.stop());
         release.send(()).unwrap();
