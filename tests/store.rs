@@ -7,6 +7,9 @@ use std::sync::Arc;
 #[path = "common/pg.rs"]
 mod pg;
 
+#[path = "store/group_commit.rs"]
+mod group_commit;
+
 use accelcal::domain::auth::Role;
 use accelcal::domain::sensor_types::SensorType;
 use accelcal::domain::status::Status;
@@ -832,7 +835,28 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1, 2]);
+    assert_eq!(versions, [1, 2, 3]);
+    // Version 3: result documents and submissions compressed with lz4 (this
+    // server, Debian's, is built with it).
+    let compression: Vec<(String, i8)> = c
+        .query(
+            "SELECT attname::text, attcompression FROM pg_attribute \
+             WHERE attrelid = 'calibrations'::regclass AND attname IN ('result', 'submission') \
+             ORDER BY attname",
+            &[],
+        )
+        .await
+        .unwrap()
+        .iter()
+        .map(|r| (r.get(0), r.get(1)))
+        .collect();
+    assert_eq!(
+        compression,
+        [
+            ("result".to_owned(), b'l' as i8),
+            ("submission".to_owned(), b'l' as i8)
+        ]
+    );
 }
 
 /// Every pooled connection commits durably, whatever the server's default.

@@ -89,7 +89,7 @@ fn describe() {
     describe_histogram!(
         "accelcal_storage_write_batch_size",
         Unit::Count,
-        "Writes committed together in one SQLite transaction (group commit)."
+        "Writes committed together in one transaction (group commit, both engines)."
     );
     describe_counter!(
         "accelcal_sensor_cache_total",

@@ -1,15 +1,19 @@
 //! Calibrations: the durable insert (with its sensor and idempotency key in
 //! one transaction) and the reads of results, submissions and summaries.
 //!
+//! A calibration is written by [`write`] inside a transaction that is
+//! either its own ([`insert`]) or its batch's ([`writer`](super::writer)).
+//!
 //! Under READ COMMITTED, the sensor's upsert locks its row: concurrent
 //! inserts for one sensor — from any replica — apply one after the other,
 //! each to the row as the other left it, so no count or "latest" is lost.
-//! Completing an idempotency key is an upsert guarded by `calibration_id IS
-//! NULL`: of two requests completing one key at once, the second waits for
-//! the first, finds the key completed, and rolls its own calibration back.
+//! An idempotency key is looked at under its row lock before anything is
+//! written, and completed by an upsert guarded by `calibration_id IS NULL`:
+//! of two requests completing one key at once, the second waits for the
+//! first's lock and finds the key completed, so it writes nothing.
 
 use bytes::Bytes;
-use deadpool_postgres::Object;
+use deadpool_postgres::{Object, Transaction};
 use uuid::Uuid;
 
 use super::errors::map;
@@ -24,26 +28,84 @@ fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
     serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
 }
 
-/// Stores a calibration, its sensor's summary and its key, atomically; the
-/// commit returns once it is durable (`synchronous_commit=on`).
-pub async fn insert(
-    client: &mut Object,
+/// A calibration ready to bind: checked, its maps rendered as JSON text.
+pub struct Row {
     n: NewCalibration,
-    key: Option<IdempotencyKey>,
-) -> Result<Stored, StoreError> {
-    n.check()?;
-    let result = std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
-    let (model, coefficients, std_errors) = (
-        json(&n.model)?,
-        json(&n.coefficients)?,
-        json(&n.std_errors)?,
-    );
-    let expanded = n.expanded.as_ref().map(json).transpose()?;
-    let runs = i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?;
+    model: String,
+    coefficients: String,
+    std_errors: String,
+    expanded: Option<String>,
+    runs: i32,
+}
+
+impl Row {
+    /// Checks `n` (nothing non-finite) and renders what is stored as JSON.
+    pub fn new(n: NewCalibration) -> Result<Self, StoreError> {
+        n.check()?;
+        std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
+        Ok(Row {
+            model: json(&n.model)?,
+            coefficients: json(&n.coefficients)?,
+            std_errors: json(&n.std_errors)?,
+            expanded: n.expanded.as_ref().map(json).transpose()?,
+            runs: i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?,
+            n,
+        })
+    }
+
+    /// The sensor the calibration is of.
+    pub fn sensor_id(&self) -> &str {
+        &self.n.sensor_id
+    }
+}
+
+/// What writing one calibration inside an open transaction came to.
+pub enum Written {
+    /// Stored (once the transaction commits).
+    New,
+    /// The key was already completed by this calibration: nothing written.
+    Existing(Uuid),
+    /// Another request completed the key between this one's look at it and
+    /// its own completion: the calibration was written, and the transaction
+    /// must be rolled back.
+    Raced,
+}
+
+/// Writes a calibration, its key and its sensor's summary in `tx`.
+///
+/// The key is looked at first, under its row lock (`FOR UPDATE`): a key
+/// already completed writes nothing, so a transaction holding several
+/// calibrations (the [`writer`](super::writer)'s batches) never has to undo
+/// one of them. Only a key row that did not exist at the look and was
+/// completed by another request before this one's completion ends in
+/// [`Written::Raced`].
+pub async fn write(
+    tx: &Transaction<'_>,
+    row: &Row,
+    key: Option<&IdempotencyKey>,
+) -> Result<Written, StoreError> {
+    let n = &row.n;
+    if let Some(k) = key {
+        let look = tx
+            .prepare_cached(
+                "SELECT calibration_id FROM idempotency_keys \
+                 WHERE principal = $1 AND key = $2 FOR UPDATE",
+            )
+            .await
+            .map_err(map)?;
+        if let Some(found) = tx
+            .query_opt(&look, &[&k.principal, &k.key])
+            .await
+            .map_err(map)?
+            && let Some(existing) = rows::get::<Option<Uuid>>(&found, "calibration_id")?
+        {
+            return Ok(Written::Existing(existing));
+        }
+    }
     let performed_at = n.performed_at.datetime();
     let verdict = n.verdict.map(|v| v.as_str());
     let due_at = n.due_at.map(|t| t.datetime());
-    let tx = client.transaction().await.map_err(map)?;
+    let result = std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
     let insert = tx
         .prepare_cached(
             "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
@@ -63,10 +125,10 @@ pub async fn insert(
             &performed_at,
             &n.received_at.datetime(),
             &n.unit,
-            &model,
-            &runs,
-            &coefficients,
-            &std_errors,
+            &row.model,
+            &row.runs,
+            &row.coefficients,
+            &row.std_errors,
             &result,
             &&n.submission[..],
             &n.content_type,
@@ -74,7 +136,7 @@ pub async fn insert(
             &n.sensor_type,
             &verdict,
             &due_at,
-            &expanded,
+            &row.expanded,
         ],
     )
     .await
@@ -103,19 +165,7 @@ pub async fn insert(
             .await
             .map_err(map)?;
         if changed == 0 {
-            let row = tx
-                .query_one(
-                    "SELECT calibration_id FROM idempotency_keys WHERE principal = $1 AND key = $2",
-                    &[&k.principal, &k.key],
-                )
-                .await
-                .map_err(map)?;
-            let existing: Option<Uuid> = rows::get(&row, "calibration_id")?;
-            let existing = existing.ok_or_else(|| {
-                StoreError::corrupt("idempotency key", "completed without a calibration")
-            })?;
-            tx.rollback().await.map_err(map)?;
-            return Ok(Stored::Existing(existing));
+            return Ok(Written::Raced);
         }
     }
     // The new calibration becomes the latest when it is newer (performed_at,
@@ -152,29 +202,66 @@ pub async fn insert(
     )
     .await
     .map_err(map)?;
-    tx.commit().await.map_err(map)?;
-    Ok(Stored::New)
+    Ok(Written::New)
+}
+
+/// Stores one calibration, its sensor's summary and its key in a
+/// transaction of its own; the commit returns once it is durable
+/// (`synchronous_commit=on`). Of two requests completing one key at once,
+/// the second waits for the first's row lock, finds the key completed, and
+/// stores nothing.
+pub async fn insert(
+    client: &mut Object,
+    row: &Row,
+    key: Option<&IdempotencyKey>,
+) -> Result<Stored, StoreError> {
+    let tx = client.transaction().await.map_err(map)?;
+    match write(&tx, row, key).await? {
+        Written::New => {
+            tx.commit().await.map_err(map)?;
+            Ok(Stored::New)
+        }
+        Written::Existing(id) => {
+            tx.rollback().await.map_err(map)?;
+            Ok(Stored::Existing(id))
+        }
+        Written::Raced => {
+            tx.rollback().await.map_err(map)?;
+            let k =
+                key.ok_or_else(|| StoreError::corrupt("idempotency key", "raced without a key"))?;
+            let row = client
+                .query_one(
+                    "SELECT calibration_id FROM idempotency_keys WHERE principal = $1 AND key = $2",
+                    &[&k.principal, &k.key],
+                )
+                .await
+                .map_err(map)?;
+            let existing: Option<Uuid> = rows::get(&row, "calibration_id")?;
+            existing.map(Stored::Existing).ok_or_else(|| {
+                StoreError::corrupt("idempotency key", "completed without a calibration")
+            })
+        }
+    }
 }
 
 /// The stored result document.
 pub async fn result(client: &Object, id: Uuid) -> Result<Option<Bytes>, StoreError> {
-    let row = client
-        .query_opt("SELECT result FROM calibrations WHERE id = $1", &[&id])
+    let stmt = client
+        .prepare_cached("SELECT result FROM calibrations WHERE id = $1")
         .await
         .map_err(map)?;
+    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
     row.map(|r| rows::get::<String>(&r, "result").map(Bytes::from))
         .transpose()
 }
 
 /// The stored submission.
 pub async fn submission(client: &Object, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
-    let row = client
-        .query_opt(
-            "SELECT content_type, submission FROM calibrations WHERE id = $1",
-            &[&id],
-        )
+    let stmt = client
+        .prepare_cached("SELECT content_type, submission FROM calibrations WHERE id = $1")
         .await
         .map_err(map)?;
+    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
     row.map(|r| {
         Ok(StoredSubmission {
             content_type: rows::get(&r, "content_type")?,
@@ -187,7 +274,8 @@ pub async fn submission(client: &Object, id: Uuid) -> Result<Option<StoredSubmis
 /// One calibration's summary.
 pub async fn summary(client: &Object, id: Uuid) -> Result<Option<CalibrationSummary>, StoreError> {
     let sql = format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = $1");
-    let row = client.query_opt(&sql, &[&id]).await.map_err(map)?;
+    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
     row.as_ref().map(rows::summary).transpose()
 }
 
@@ -261,8 +349,9 @@ pub async fn previous(
         "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND c.performed_at < $2 \
          ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
     );
+    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
     let row = client
-        .query_opt(&sql, &[&sensor_id, &before.datetime()])
+        .query_opt(&stmt, &[&sensor_id, &before.datetime()])
         .await
         .map_err(map)?;
     row.as_ref().map(rows::summary).transpose()

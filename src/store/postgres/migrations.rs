@@ -13,6 +13,7 @@ use crate::store::StoreError;
 const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0001_schema.sql"),
     include_str!("migrations/0002_sensor_notify.sql"),
+    include_str!("migrations/0003_cheaper_writes.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

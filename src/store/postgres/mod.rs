@@ -5,7 +5,8 @@
 //! URL's `sslmode`; embedded migrations under an advisory lock
 //! ([`migrations`]); every write in one transaction, committed with
 //! `synchronous_commit=on`, so a 201 from any replica is durable and visible
-//! to every replica as soon as it is sent. Correct across processes, not
+//! to every replica as soon as it is sent. Calibrations are committed many
+//! to a transaction by the [`writer`] (group commit). Correct across processes, not
 //! only threads: sensor summaries are row-locked upserts
 //! ([`calibrations`]), idempotency keys are claimed under a row lock with a
 //! lease that names its holder ([`idempotency`]). A database that restarts
@@ -25,7 +26,9 @@ mod sensor_types;
 mod sensors;
 mod sessions;
 mod tokens;
+pub mod writer;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use async_trait::async_trait;
@@ -46,14 +49,28 @@ use crate::domain::tokens::TokenRecord;
 #[derive(Clone)]
 pub struct PostgresStore {
     pool: Pool,
+    writer: Arc<writer::Writer>,
 }
 
 impl PostgresStore {
     /// Connects to the database at `url` and brings its schema up to date.
     pub async fn open(url: &str) -> Result<Self, StoreError> {
+        Self::open_with_queue(url, writer::QUEUE).await
+    }
+
+    /// As [`open`](Self::open), answering [`StoreError::Overloaded`] once
+    /// `queue` calibrations are waiting for the [`writer`].
+    pub async fn open_with_queue(url: &str, queue: usize) -> Result<Self, StoreError> {
         let pool = connect::pool(url)?;
         migrations::migrate(&pool).await?;
-        Ok(PostgresStore { pool })
+        let writer = Arc::new(writer::Writer::start(pool.clone(), queue));
+        Ok(PostgresStore { pool, writer })
+    }
+
+    /// The group-commit writer (how many writes wait, how many batches
+    /// committed).
+    pub fn writer(&self) -> &writer::Writer {
+        &self.writer
     }
 
     /// A run-time setting as a pooled connection sees it (`synchronous_commit`,
@@ -115,10 +132,13 @@ impl Store for PostgresStore {
         n: NewCalibration,
         key: Option<IdempotencyKey>,
     ) -> Result<Stored, StoreError> {
-        op!(self, "insert_calibration", |c| calibrations::insert(
-            &mut c, n, key
-        )
-        .await)
+        let started = Instant::now();
+        let out = match calibrations::Row::new(n) {
+            Ok(row) => self.writer.insert(row, key).await,
+            Err(e) => Err(e),
+        };
+        observe("insert_calibration", started, &out);
+        out
     }
 
     async fn claim_key(
