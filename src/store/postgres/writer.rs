@@ -13,8 +13,11 @@
 //!
 //! * every answer still follows the durable commit of what it reports
 //!   (`synchronous_commit=on` on every connection);
-//! * a batch is ordered by sensor, so two replicas' batches lock sensors'
-//!   rows in one order and cannot deadlock each other;
+//! * a batch is ordered by sensor, so two replicas' batches take sensors'
+//!   row locks in one order and do not deadlock on them (a deadlock
+//!   PostgreSQL still detects — two batches completing the same two
+//!   idempotency keys at once — fails a statement, and is handled as the
+//!   next point says);
 //! * a write that fails (a constraint) aborts PostgreSQL's transaction, so
 //!   the batch is rolled back and each of its writes is then stored in a
 //!   transaction of its own — the failing one fails alone, exactly as it
@@ -25,9 +28,10 @@
 //! * when [`QUEUE`] writes are already waiting, a new one is refused at once
 //!   with [`StoreError::Overloaded`] (503, `Retry-After: 1`).
 //!
-//! Batches stay at or under 64: beyond that PostgreSQL's per-backend cache
-//! of subtransactions is not the issue (there are none), but a longer
-//! transaction holds its sensors' row locks longer against other replicas.
+//! A batch holds at most 64 writes (SQLite's writer takes 256): a longer
+//! transaction would hold its sensors' row locks longer against other
+//! replicas. No savepoints are used, so a batch costs PostgreSQL no
+//! subtransactions.
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
