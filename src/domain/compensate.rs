@@ -112,3 +112,40 @@ impl CompensateRequest {
         errors.finish(|| a_i)
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn request(outputs: Vec<f64>, a_p: Option<Vec<f64>>) -> CompensateRequest {
+        CompensateRequest {
+            outputs,
+            a_p,
+            a_o: None,
+            calibration_id: None,
+        }
+    }
+
+    fn pointers(e: Invalid) -> Vec<String> {
+        e.errors.iter().map(|f| f.pointer.clone()).collect()
+    }
+
+    /// Each bound is inclusive: a value of exactly the largest magnitude
+    /// allowed passes, the next one up is named.
+    #[test]
+    fn magnitudes_may_reach_their_bound_but_not_pass_it() {
+        let at = request(
+            vec![MAX_READING, -MAX_READING],
+            Some(vec![MAX_CROSS_G, -MAX_CROSS_G]),
+        );
+        assert!(at.check().is_ok());
+        let over = request(
+            vec![MAX_READING, f64::next_up(MAX_READING)],
+            Some(vec![f64::next_down(-MAX_CROSS_G), 0.0]),
+        );
+        assert_eq!(
+            pointers(over.check().unwrap_err()),
+            ["/outputs/1", "/a_p/0"]
+        );
+    }
+}

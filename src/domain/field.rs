@@ -187,4 +187,13 @@ mod tests {
         );
         assert_eq!(Invalid::one("/a", "is wrong").to_string(), "/a: is wrong");
     }
+
+    /// A problem with the whole body has no pointer to print before it.
+    #[test]
+    fn a_problem_at_the_root_is_its_detail_alone() {
+        assert_eq!(
+            Invalid::one(Loc::Root, "must be a JSON object").to_string(),
+            "must be a JSON object"
+        );
+    }
 }

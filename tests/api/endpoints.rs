@@ -137,7 +137,9 @@ async fn compensation_inverts_the_stored_model() {
     let r: Value = res.json().await.unwrap();
     assert_eq!(r["calibration_id"], latest["id"]);
     assert_eq!(r["unit"], "mA");
-    for (got, want) in r["a_i"].as_array().unwrap().iter().zip(inputs) {
+    let a_i = r["a_i"].as_array().unwrap();
+    assert_eq!(a_i.len(), inputs.len(), "one input per output: {a_i:?}");
+    for (got, want) in a_i.iter().zip(inputs) {
         close(got, want, 1e-12);
     }
 
