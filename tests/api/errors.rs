@@ -132,6 +132,21 @@ async fn validation_lists_every_field() {
     .await;
     assert_eq!(pointers(&p), ["/values/ki"]);
 
+    // A batch of identical values cannot be weighted by its variance: the
+    // pointer names the coefficient whose fusion failed (kp's first batch
+    // of two is 1, 1), not the batches nor the whole map.
+    let p = problem(
+        app.post(
+            "/v1/fuse",
+            ADMIN,
+            &json!({"values": {"k0": [1, 2, 3, 4], "kp": [1, 1, 3, 4]}}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/values/kp"]);
+
     let csv = "run,angle_deg,output\n1,0,1.0\n1,90,oops\n";
     let p = problem(
         post_raw(&app, "/v1/calibrations", Some("text/csv"), csv).await,
