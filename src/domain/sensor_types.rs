@@ -142,6 +142,21 @@ mod tests {
             .map_err(|i| i.errors.into_iter().map(|e| e.pointer).collect())
     }
 
+    /// A limit may pin a coefficient to one value (`min` = `max`); `min`
+    /// above `max` is named.
+    #[test]
+    fn a_limit_may_be_a_single_value_but_not_inverted() {
+        let t =
+            check(r#"{"limits": {"k0": {"min": 1e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
+                .unwrap();
+        assert_eq!(t.limits.len(), 1);
+        assert_eq!(
+            check(r#"{"limits": {"k0": {"min": 1.0000001e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
+                .unwrap_err(),
+            ["/limits/k0"]
+        );
+    }
+
     #[test]
     fn a_type_is_checked_field_by_field() {
         let t = check(r#"{"limits": {"kp": {"max": 0.01}, "k0": {"min": -1e-3, "max": 1e-3}}, "decision_rule": "guarded"}"#).unwrap();

@@ -93,7 +93,12 @@ mod tests {
         let (other, other_id) = open("p".into(), [7; 32], now, 3600).unwrap();
         assert_ne!(other_id, id);
         assert_ne!(other.csrf, record.csrf);
-        assert!(!format!("{record:?}").contains(&record.csrf));
+        let debug = format!("{record:?}");
+        assert!(!debug.contains(&record.csrf), "{debug}");
+        assert!(
+            debug.starts_with(r#"SessionRecord { principal: "p", expires_at: "#),
+            "{debug}"
+        );
     }
 
     #[test]

@@ -59,11 +59,6 @@ impl Timestamp {
         self.0.year()
     }
 
-    /// Seconds since the Unix epoch (for arithmetic such as lease expiry).
-    pub fn unix_seconds(&self) -> i64 {
-        self.0.unix_timestamp()
-    }
-
     /// Microseconds since the Unix epoch.
     pub fn unix_micros(&self) -> i64 {
         (self.0.unix_timestamp_nanos() / 1000) as i64

@@ -48,16 +48,6 @@ pub enum Media {
     Csv,
 }
 
-impl Media {
-    /// The media type's name.
-    pub fn as_str(self) -> &'static str {
-        match self {
-            Media::Json => "application/json",
-            Media::Csv => "text/csv",
-        }
-    }
-}
-
 /// Why a body could not be read at all (answered 400, not 422).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum Unreadable {

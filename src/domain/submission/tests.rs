@@ -177,3 +177,29 @@ fn numbers_are_finite_and_within_their_bound() {
         Err("must be a number, not a string".to_owned())
     );
 }
+
+/// 1970 is the first year accepted: its first second passes, the last
+/// second of 1969 is named.
+#[test]
+fn the_test_may_be_performed_from_1970_on() {
+    let mut b = paper();
+    b["performed_at"] = json!("1970-01-01T00:00:00Z");
+    assert_eq!(pointers(&b), Vec::<String>::new());
+    b["performed_at"] = json!("1969-12-31T23:59:59Z");
+    assert_eq!(pointers(&b), ["/performed_at"]);
+}
+
+/// The core's refusal of a run's reading count points at that run's
+/// readings. (The checks before the core refuse such a run first; the
+/// mapping stands behind them.)
+#[test]
+fn a_reading_count_refused_by_the_core_names_the_runs_readings() {
+    let draft = read(Media::Json, &serde_json::to_vec(&paper()).unwrap()).unwrap();
+    let (_, hints) = check(draft, now()).unwrap();
+    let e = accelcal_core::Error::ReadingCount {
+        run: 4,
+        expected: 4,
+        found: 3,
+    };
+    assert_eq!(hints.pointer_of(&e), "/runs/4/readings");
+}
