@@ -97,14 +97,21 @@ fn errors_name_lines_and_fields() {
         e[0].contains("run `2` has no samples at position 1"),
         "{e:?}"
     );
+    // A metadata line at fault is the problem; the missing header after it
+    // is not reported again.
     let e = errors("# sensor: x\n");
+    assert_eq!(e.len(), 1, "{e:?}");
     assert!(e[0].contains("unknown field `sensor`"), "{e:?}");
     let e = errors("# Station ID: x\nrun,angle_deg,output\n1,0,1\n");
     assert!(
         e[0].contains("CSV line 1: unknown field `Station ID`"),
         "{e:?}"
     );
-    assert!(!errors("").is_empty());
+    assert_eq!(errors(""), ["CSV line 1: no header line and no samples"]);
+    assert_eq!(
+        errors("# sensor_id: S-1\n"),
+        ["CSV line 2: no header line and no samples"]
+    );
     let d =
         read(b"# batches: many\n# notes just a comment\nrun,angle_deg,output\n1,0,1\n").unwrap();
     let inv = d.errors.into_invalid();
