@@ -22,10 +22,14 @@ fn paper(prefix: &str) -> String {
 
 #[test]
 fn paper_table_reads_like_the_json_example() {
-    let d = read(paper("# sensor_id: PAPER-2005\n# model: k0, ki, kp\n# batches: 2\n").as_bytes())
-        .unwrap();
+    let d = read(
+        paper("# sensor_id: PAPER-2005\n# unit: mA\n# model: k0, ki, kp\n# batches: 2\n")
+            .as_bytes(),
+    )
+    .unwrap();
     assert!(d.errors.is_empty(), "{:?}", d.errors);
     assert_eq!(d.sensor_id, Slot::Value("PAPER-2005".into()));
+    assert_eq!(d.unit, Slot::Value("mA".into()));
     assert_eq!(d.model, Slot::Value(vec![Term::K0, Term::Ki, Term::Kp]));
     assert_eq!(d.batches, Slot::Value(2));
     let Slot::Value(positions) = &d.positions else {
@@ -214,5 +218,25 @@ fn the_cell_count_may_reach_the_sample_limit_but_not_pass_it() {
         [
             "CSV: 1000 runs × 201 positions need a sample in each of 201000 cells; only 1000 were given"
         ]
+    );
+}
+
+/// A model may name every term there is, once each; one name more is
+/// refused with the count allowed.
+#[test]
+fn a_model_may_name_every_term() {
+    let all: Vec<&str> = Term::ALL.iter().map(|t| t.name()).collect();
+    let d = read(format!("# model: {}\nrun,angle_deg,output\n1,0,1\n", all.join(", ")).as_bytes())
+        .unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.model, Slot::Value(Term::ALL.to_vec()));
+    let e = errors(&format!(
+        "# model: {}, k0\nrun,angle_deg,output\n1,0,1\n",
+        all.join(", ")
+    ));
+    assert_eq!(
+        e,
+        [format!("must name 1 to {} terms", Term::ALL.len())],
+        "{e:?}"
     );
 }
