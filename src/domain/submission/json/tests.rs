@@ -88,3 +88,28 @@ fn the_stand_is_an_object_or_absent() {
     assert_eq!(inv.errors[0].pointer, "/stand");
     assert_eq!(inv.errors[0].detail, "must be an object, not a number");
 }
+
+#[test]
+fn the_model_is_an_array_or_absent() {
+    let d = read(br#"{"model": null}"#).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.model, Slot::Absent);
+    let d = read(br#"{"model": "k0"}"#).unwrap();
+    assert_eq!(d.model, Slot::Invalid);
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/model");
+    assert_eq!(inv.errors[0].detail, "must be an array, not a string");
+}
+
+/// The stand's uncertainties run from 0 (inclusive) to their bounds: a
+/// negative one is named.
+#[test]
+fn the_stands_uncertainties_are_not_negative() {
+    let d = read(br#"{"stand": {"angle_std_arcsec": 0, "gravity_rel_std": 0}}"#).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(
+        pointers(r#"{"stand": {"angle_std_arcsec": -1e-9, "gravity_rel_std": -1}}"#),
+        ["/stand/angle_std_arcsec", "/stand/gravity_rel_std"]
+    );
+}
