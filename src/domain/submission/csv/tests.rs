@@ -97,9 +97,10 @@ fn errors_name_lines_and_fields() {
     assert!(e[0].starts_with("CSV line 3"), "{e:?}");
     assert!(e[1].starts_with("CSV line 4"), "{e:?}");
     let e = errors("run,angle_deg,output\n1,0,1\n1,90,2\n2,0,1\n");
-    assert!(
-        e[0].contains("run `2` has no samples at position 1"),
-        "{e:?}"
+    assert_eq!(
+        e,
+        ["CSV: run `2` has no samples at position 1 (angle_deg 90)"],
+        "the empty cell's position is described"
     );
     // A metadata line at fault is the problem; the missing header after it
     // is not reported again.
@@ -237,6 +238,36 @@ fn a_model_may_name_every_term() {
     assert_eq!(
         e,
         [format!("must name 1 to {} terms", Term::ALL.len())],
+        "{e:?}"
+    );
+}
+
+/// Positions may be given by their gravity components alone (no angle),
+/// and blank lines between rows — empty or spaces only — are skipped.
+#[test]
+fn gravity_columns_stand_for_the_angle_and_blank_lines_are_skipped() {
+    let d = read(b"run,a_i,a_p,a_o,output\n1,1,0,0,1.5\n\n   \n1,-1,0,0,-0.5\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    assert_eq!(runs[0].as_ref().unwrap().readings, [vec![1.5], vec![-0.5]]);
+}
+
+/// One cell (a run at a position) holds at most MAX_SAMPLES samples: that
+/// many pass, one more is named at its line.
+#[test]
+fn a_cell_may_hold_the_sample_limit_but_not_pass_it() {
+    let cell = |n: usize| {
+        let mut text = String::from("run,angle_deg,output\n");
+        for _ in 0..n {
+            text += "1,0,1.5\n";
+        }
+        text
+    };
+    assert_eq!(errors(&cell(MAX_SAMPLES)), Vec::<String>::new());
+    let e = errors(&cell(MAX_SAMPLES + 1));
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert!(
+        e[0].starts_with(&format!("CSV line {}:", MAX_SAMPLES + 2)),
         "{e:?}"
     );
 }

@@ -113,3 +113,16 @@ fn the_stands_uncertainties_are_not_negative() {
         ["/stand/angle_std_arcsec", "/stand/gravity_rel_std"]
     );
 }
+
+#[test]
+fn the_runs_are_an_array_or_absent() {
+    let d = read(br#"{"runs": null}"#).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.runs, Slot::Absent);
+    let d = read(br#"{"runs": 6}"#).unwrap();
+    assert_eq!(d.runs, Slot::Invalid);
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/runs");
+    assert_eq!(inv.errors[0].detail, "must be an array, not a number");
+}
