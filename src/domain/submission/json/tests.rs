@@ -76,38 +76,50 @@ fn syntax_errors_abort_with_the_parsers_message() {
     assert!(e.contains("line 1 column"), "where it breaks is said: {e}");
 }
 
+/// Reads `body`, whose one problem is `detail` at `pointer`.
+fn one_problem(body: &[u8], pointer: &str, detail: &str) -> Draft {
+    let mut d = read(body).unwrap();
+    let inv = std::mem::take(&mut d.errors).into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, pointer);
+    assert_eq!(inv.errors[0].detail, detail);
+    d
+}
+
+/// Reads `body`, which has no problem.
+fn no_problem(body: &[u8]) -> Draft {
+    let d = read(body).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    d
+}
+
 #[test]
 fn the_stand_is_an_object_or_absent() {
-    let d = read(br#"{"stand": null}"#).unwrap();
-    assert!(d.errors.is_empty(), "{:?}", d.errors);
-    assert_eq!(d.stand, Slot::Absent);
-    let d = read(br#"{"stand": 5}"#).unwrap();
+    assert_eq!(no_problem(br#"{"stand": null}"#).stand, Slot::Absent);
+    let d = one_problem(
+        br#"{"stand": 5}"#,
+        "/stand",
+        "must be an object, not a number",
+    );
     assert_eq!(d.stand, Slot::Invalid);
-    let inv = d.errors.into_invalid();
-    assert_eq!(inv.errors.len(), 1, "{inv:?}");
-    assert_eq!(inv.errors[0].pointer, "/stand");
-    assert_eq!(inv.errors[0].detail, "must be an object, not a number");
 }
 
 #[test]
 fn the_model_is_an_array_or_absent() {
-    let d = read(br#"{"model": null}"#).unwrap();
-    assert!(d.errors.is_empty(), "{:?}", d.errors);
-    assert_eq!(d.model, Slot::Absent);
-    let d = read(br#"{"model": "k0"}"#).unwrap();
+    assert_eq!(no_problem(br#"{"model": null}"#).model, Slot::Absent);
+    let d = one_problem(
+        br#"{"model": "k0"}"#,
+        "/model",
+        "must be an array, not a string",
+    );
     assert_eq!(d.model, Slot::Invalid);
-    let inv = d.errors.into_invalid();
-    assert_eq!(inv.errors.len(), 1, "{inv:?}");
-    assert_eq!(inv.errors[0].pointer, "/model");
-    assert_eq!(inv.errors[0].detail, "must be an array, not a string");
 }
 
 /// The stand's uncertainties run from 0 (inclusive) to their bounds: a
 /// negative one is named.
 #[test]
 fn the_stands_uncertainties_are_not_negative() {
-    let d = read(br#"{"stand": {"angle_std_arcsec": 0, "gravity_rel_std": 0}}"#).unwrap();
-    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    no_problem(br#"{"stand": {"angle_std_arcsec": 0, "gravity_rel_std": 0}}"#);
     assert_eq!(
         pointers(r#"{"stand": {"angle_std_arcsec": -1e-9, "gravity_rel_std": -1}}"#),
         ["/stand/angle_std_arcsec", "/stand/gravity_rel_std"]
@@ -116,13 +128,7 @@ fn the_stands_uncertainties_are_not_negative() {
 
 #[test]
 fn the_runs_are_an_array_or_absent() {
-    let d = read(br#"{"runs": null}"#).unwrap();
-    assert!(d.errors.is_empty(), "{:?}", d.errors);
-    assert_eq!(d.runs, Slot::Absent);
-    let d = read(br#"{"runs": 6}"#).unwrap();
+    assert_eq!(no_problem(br#"{"runs": null}"#).runs, Slot::Absent);
+    let d = one_problem(br#"{"runs": 6}"#, "/runs", "must be an array, not a number");
     assert_eq!(d.runs, Slot::Invalid);
-    let inv = d.errors.into_invalid();
-    assert_eq!(inv.errors.len(), 1, "{inv:?}");
-    assert_eq!(inv.errors[0].pointer, "/runs");
-    assert_eq!(inv.errors[0].detail, "must be an array, not a number");
 }
