@@ -200,9 +200,10 @@ mod tests {
         assert!(!verify("x", &t.secret_hash));
         let other = generate().unwrap();
         assert_ne!(t.text, other.text);
-        assert!(
-            !format!("{t:?}").contains(secret),
-            "Debug must not print the secret"
+        assert_eq!(
+            format!("{t:?}"),
+            format!("NewToken {{ id: {}, .. }}", t.id),
+            "Debug shows the id, never the secret"
         );
     }
 
@@ -233,7 +234,17 @@ mod tests {
             assert!(r.contains(&t.id.simple().to_string()), "the id stays: {r}");
             assert!(holds_token(&text));
         }
+        assert_eq!(
+            redact(&format!("token={} end", t.text)),
+            format!("token=acc_{}_[redacted] end", t.id.simple()),
+            "exactly the secret is replaced, not the `_` before it"
+        );
         assert_eq!(redact("acc_nothex_x"), "acc_nothex_x");
+        // An id at the very end, with no `_` or secret after it: nothing to
+        // redact (and nothing read past the text's end).
+        let bare_id = format!("see acc_{}", t.id.simple());
+        assert_eq!(redact(&bare_id), bare_id);
+        assert!(!holds_token(&bare_id));
         assert!(!holds_token("01a200f3-0000-7000-8000-000000000000"));
     }
 

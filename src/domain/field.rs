@@ -188,6 +188,23 @@ mod tests {
         assert_eq!(Invalid::one("/a", "is wrong").to_string(), "/a: is wrong");
     }
 
+    /// One listed problem with more omitted is summarised as a count, not
+    /// shown as if it were the only one.
+    #[test]
+    fn one_listed_problem_with_more_omitted_is_counted() {
+        let inv = Invalid {
+            errors: vec![FieldError {
+                pointer: "/a".into(),
+                detail: "is wrong".into(),
+            }],
+            omitted: 2,
+        };
+        assert_eq!(
+            inv.to_string(),
+            "3 problems in the request body (the first 1 are listed)"
+        );
+    }
+
     /// A problem with the whole body has no pointer to print before it.
     #[test]
     fn a_problem_at_the_root_is_its_detail_alone() {

@@ -80,3 +80,37 @@ impl FuseRequest {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use serde_json::json;
+
+    use super::*;
+
+    fn fuse(body: serde_json::Value) -> Result<Estimates, Invalid> {
+        serde_json::from_value::<FuseRequest>(body).unwrap().fuse()
+    }
+
+    fn pointers(e: Invalid) -> Vec<String> {
+        e.errors.into_iter().map(|e| e.pointer).collect()
+    }
+
+    #[test]
+    fn values_may_reach_the_magnitude_bound_but_not_pass_it() {
+        let over = MAX_READING * (1.0 + f64::EPSILON);
+        let e = fuse(json!({"values": {"k0": [1.0, -over, 3.0, over]}})).unwrap_err();
+        assert_eq!(pointers(e), ["/values/k0/1", "/values/k0/3"]);
+        let at = fuse(json!({"values": {"k0": [1.0, -MAX_READING, 3.0, MAX_READING]}}));
+        assert!(at.is_ok(), "{at:?}");
+    }
+
+    /// Three values in the default two batches leave a batch of one: the
+    /// values are at fault. The same with `batches` given: the batches are.
+    #[test]
+    fn a_batch_of_one_names_the_values_or_the_batches_given() {
+        let e = fuse(json!({"values": {"k0": [1.0, 2.0, 4.0]}})).unwrap_err();
+        assert_eq!(pointers(e), ["/values/k0"]);
+        let e = fuse(json!({"values": {"k0": [1.0, 2.0, 4.0]}, "batches": 2})).unwrap_err();
+        assert_eq!(pointers(e), ["/batches"]);
+    }
+}

@@ -82,6 +82,8 @@ mod tests {
         assert!(check_str("line one\nline two", 64, Chars::Text).is_ok());
         assert!(check_str("", 64, Chars::Text).is_err());
         assert!(check_str("ééé", 2, Chars::Line).is_err());
+        // The bound counts characters, not bytes, and admits exactly `max`.
+        assert!(check_str("éé", 2, Chars::Line).is_ok());
     }
 
     #[test]

@@ -203,3 +203,36 @@ fn a_reading_count_refused_by_the_core_names_the_runs_readings() {
     };
     assert_eq!(hints.pointer_of(&e), "/runs/4/readings");
 }
+
+/// Where the core's other refusals point: a design that cannot separate the
+/// terms at the model when one was given, else at the positions; no
+/// positions at the positions; a non-finite sample at that sample.
+#[test]
+fn the_cores_refusals_name_the_model_positions_or_sample() {
+    let rank = accelcal_core::Error::RankDeficient {
+        terms: vec![Term::K0, Term::Ki],
+        positions: 4,
+        columns: 3,
+        rank: 2,
+    };
+    let hints_of = |b: &Value| {
+        let draft = read(Media::Json, &serde_json::to_vec(b).unwrap()).unwrap();
+        check(draft, now()).unwrap().1
+    };
+    let given = hints_of(&paper());
+    assert_eq!(given.pointer_of(&rank), "/model");
+    let mut b = paper();
+    b.as_object_mut().unwrap().remove("model");
+    let default = hints_of(&b);
+    assert_eq!(default.pointer_of(&rank), "/positions");
+    assert_eq!(
+        default.pointer_of(&accelcal_core::Error::NoPositions),
+        "/positions"
+    );
+    let sample = accelcal_core::Error::NonFiniteSample {
+        run: 1,
+        position: 2,
+        sample: 3,
+    };
+    assert_eq!(default.pointer_of(&sample), "/runs/1/readings/2/3");
+}
