@@ -88,11 +88,14 @@ pub(super) fn at_line(errors: &mut Errors, line: usize, detail: impl std::fmt::D
 pub fn read(bytes: &[u8]) -> Result<Draft, std::str::Utf8Error> {
     let bytes = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
     let text = std::str::from_utf8(bytes)?;
-    // CR-only line ends (old spreadsheets) become LF, so lines count alike.
-    let text: std::borrow::Cow<'_, str> = if text.contains('\r') && !text.contains('\n') {
-        text.replace('\r', "\n").into()
-    } else {
-        text.into()
+    // Every line end becomes LF, so lines count alike: CR-only line ends
+    // (old spreadsheets), and CRLF (Windows), whose lines the csv crate
+    // numbers one short after the first (rust-csv issue #395: it counts a
+    // line only when it consumes the `\n` of a terminator it ended at `\r`).
+    let text: std::borrow::Cow<'_, str> = match (text.contains('\r'), text.contains('\n')) {
+        (false, _) => text.into(),
+        (true, true) => text.replace("\r\n", "\n").into(),
+        (true, false) => text.replace('\r', "\n").into(),
     };
     let mut draft = Draft::default();
     let (header_line, header_at) = metadata(&text, &mut draft);

@@ -271,3 +271,24 @@ fn a_cell_may_hold_the_sample_limit_but_not_pass_it() {
         "{e:?}"
     );
 }
+
+/// Windows line ends count one line each (only CR-only files have their CRs
+/// turned into line ends), blank lines among the metadata are skipped, and
+/// `# mount:` is read like the JSON member.
+#[test]
+fn crlf_lines_count_once_blank_metadata_lines_are_skipped_and_mount_is_read() {
+    let e = errors("run,angle_deg,output\r\n1,0,1.0\r\n1,90,NaN\r\n");
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert!(e[0].starts_with("CSV line 3:"), "{e:?}");
+    let d =
+        read(b"\n# sensor_id: X\n\n# mount: gate\nrun,angle_deg,output\n1,0,1\n1,90,2\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.sensor_id, Slot::Value("X".into()));
+    assert_eq!(d.mount, Slot::Value(accelcal_core::Mount::Gate));
+    let Slot::Value(p) = &d.positions else {
+        panic!()
+    };
+    assert_eq!(p.len(), 2);
+    let e = errors("# mount: sideways\nrun,angle_deg,output\n1,0,1\n");
+    assert_eq!(e, ["must be \"pendulum\" or \"gate\""], "{e:?}");
+}
