@@ -1006,15 +1006,22 @@ async fn sqlite_schema_refuses_non_finite_numbers_and_changes() {
     store.insert_calibration(c.clone(), None).await.unwrap();
     store.close().await;
     let db = rusqlite::Connection::open(&path).unwrap();
-    let copy_with =
-        |coefficients: &str, expanded: &str| {
-            db.execute(
-            "INSERT INTO calibrations SELECT ?1, sensor_id, station_id, performed_at, received_at, \
+    let copy_with = |coefficients: &str, expanded: &str| {
+        db.execute(
+            "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, \
+             unit, model, runs, coefficients, std_errors, result, submission, content_type, \
+             submitted_by, sensor_type, verdict, due_at, expanded) \
+             SELECT ?1, sensor_id, station_id, performed_at, received_at, \
              unit, model, runs, ?2, std_errors, result, submission, content_type, submitted_by, \
              sensor_type, verdict, due_at, ?3 FROM calibrations WHERE id = ?4",
-            rusqlite::params![Uuid::now_v7().to_string(), coefficients, expanded, c.id.to_string()],
+            rusqlite::params![
+                Uuid::now_v7().to_string(),
+                coefficients,
+                expanded,
+                c.id.to_string()
+            ],
         )
-        };
+    };
     let good = r#"{"k0":1e-6,"ki":2e-6}"#;
     let copy = |coefficients: &str| copy_with(coefficients, good);
     let refused = copy(r#"{"k0":null,"ki":-1.2}"#).unwrap_err().to_string();

@@ -30,7 +30,8 @@ pub fn insert(
     let id = n.id.to_string();
     let performed_at = n.performed_at.to_string();
     let result = std::str::from_utf8(&n.result).map_err(|e| StoreError::Refused(e.to_string()))?;
-    tx.execute(
+    rows::execute(
+        tx,
         "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
          model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
          sensor_type, verdict, due_at, expanded) \
@@ -55,20 +56,24 @@ pub fn insert(
             n.due_at.map(|t| t.to_string()),
             n.expanded.as_ref().map(json).transpose()?
         ],
-    )
-    .map_err(map)?;
+    )?;
     if let Some(k) = key {
         // Record the key as done, unless a request with the same key
         // (after our lease expired) completed it first.
-        let changed = tx
-            .execute(
-                "INSERT INTO idempotency_keys (principal, key, request_hash, calibration_id, created_at) \
+        let changed = rows::execute(
+            tx,
+            "INSERT INTO idempotency_keys (principal, key, request_hash, calibration_id, created_at) \
                  VALUES (?1, ?2, ?3, ?4, ?5) \
                  ON CONFLICT (principal, key) DO UPDATE SET calibration_id = excluded.calibration_id, \
                    locked_until = NULL WHERE idempotency_keys.calibration_id IS NULL",
-                params![k.principal, k.key, k.request_hash.to_vec(), id, n.received_at.to_string()],
-            )
-            .map_err(map)?;
+            params![
+                k.principal,
+                k.key,
+                k.request_hash.to_vec(),
+                id,
+                n.received_at.to_string()
+            ],
+        )?;
         if changed == 0 {
             let existing = rows::first(
                 tx,
@@ -86,7 +91,8 @@ pub fn insert(
     // then id); a type named by the submission becomes the sensor's.
     let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
                  > (latest_performed_at, latest_calibration_id)";
-    tx.execute(
+    rows::execute(
+        tx,
         &format!(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
@@ -108,8 +114,7 @@ pub fn insert(
             n.verdict.map(|v| v.as_str()),
             n.due_at.map(|t| t.to_string())
         ],
-    )
-    .map_err(map)?;
+    )?;
     Ok(Stored::New)
 }
 

@@ -27,11 +27,11 @@ pub fn claim(
     lease_until: Timestamp,
 ) -> Result<Claim, StoreError> {
     let horizon = now.plus_seconds(-IDEMPOTENCY_RETENTION_SECONDS).to_string();
-    tx.execute(
+    rows::execute(
+        tx,
         "DELETE FROM idempotency_keys WHERE created_at < ?1",
         [horizon],
-    )
-    .map_err(map)?;
+    )?;
     let row = rows::first(
         tx,
         "SELECT request_hash, calibration_id, locked_until FROM idempotency_keys \
@@ -59,7 +59,8 @@ pub fn claim(
             ..
         }) if until > now_text => Claim::InFlight,
         Some(_) => {
-            tx.execute(
+            rows::execute(
+                tx,
                 "UPDATE idempotency_keys SET locked_until = ?3, holder = ?4 \
                  WHERE principal = ?1 AND key = ?2",
                 params![
@@ -68,12 +69,12 @@ pub fn claim(
                     lease_until.to_string(),
                     k.holder.to_string()
                 ],
-            )
-            .map_err(map)?;
+            )?;
             Claim::Fresh
         }
         None => {
-            tx.execute(
+            rows::execute(
+                tx,
                 "INSERT INTO idempotency_keys (principal, key, request_hash, locked_until, created_at, holder) \
                  VALUES (?1, ?2, ?3, ?4, ?5, ?6)",
                 params![
@@ -84,8 +85,7 @@ pub fn claim(
                     now_text,
                     k.holder.to_string()
                 ],
-            )
-            .map_err(map)?;
+            )?;
             Claim::Fresh
         }
     };

@@ -202,6 +202,19 @@ pub fn all<T>(
     Ok(out)
 }
 
+/// Runs a statement (a cached one: the writer runs the same few statements
+/// for every calibration, and preparing one costs more than running it);
+/// how many rows it changed.
+pub fn execute(
+    conn: &Connection,
+    sql: &str,
+    params: impl rusqlite::Params,
+) -> Result<usize, StoreError> {
+    conn.prepare_cached(sql)
+        .and_then(|mut stmt| stmt.execute(params))
+        .map_err(map)
+}
+
 /// The first row of a query, if any.
 pub fn first<T>(
     conn: &Connection,
