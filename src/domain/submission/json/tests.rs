@@ -124,6 +124,14 @@ fn the_stands_uncertainties_are_not_negative() {
         pointers(r#"{"stand": {"angle_std_arcsec": -1e-9, "gravity_rel_std": -1}}"#),
         ["/stand/angle_std_arcsec", "/stand/gravity_rel_std"]
     );
+    // One bad member makes the whole stand invalid, even after good ones:
+    // nothing of it is used.
+    let d = one_problem(
+        br#"{"stand": {"id": "DH-1", "angle_std_arcsec": -1}}"#,
+        "/stand/angle_std_arcsec",
+        "must be a number from 0 to 3600",
+    );
+    assert_eq!(d.stand, Slot::Invalid);
 }
 
 #[test]
