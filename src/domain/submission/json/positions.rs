@@ -131,16 +131,19 @@ impl<'de> Node<'de> for Components<'_> {
     }
     fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
         let at = self.at;
-        let mut ok = true;
         let read = elements(seq, self.errors, at, (3, 3), |errors, k, seq| {
             let Some(v) = seq.next_element_seed(Seed(Any))? else {
                 return Ok(None);
             };
-            let x = keep(errors, at.index(k), v.number(MAX_GRAVITY_COMPONENT));
-            ok &= x.is_some();
-            Ok(Some(x))
+            Ok(Some(keep(
+                errors,
+                at.index(k),
+                v.number(MAX_GRAVITY_COMPONENT),
+            )))
         })?;
-        let Some(xs) = read.filter(|xs| ok && xs.len() == 3) else {
+        // A wrong component is recorded and left out: three read means
+        // three good.
+        let Some(xs) = read.filter(|xs| xs.len() == 3) else {
             return Ok(Some(None));
         };
         Ok(Some(keep(self.errors, at, gravity([xs[0], xs[1], xs[2]]))))

@@ -140,3 +140,41 @@ fn the_runs_are_an_array_or_absent() {
     let d = one_problem(br#"{"runs": 6}"#, "/runs", "must be an array, not a number");
     assert_eq!(d.runs, Slot::Invalid);
 }
+
+#[test]
+fn the_positions_are_an_array_or_absent() {
+    assert_eq!(
+        no_problem(br#"{"positions": null}"#).positions,
+        Slot::Absent
+    );
+    let d = one_problem(
+        br#"{"positions": 4}"#,
+        "/positions",
+        "must be an array, not a number",
+    );
+    assert_eq!(d.positions, Slot::Invalid);
+}
+
+/// A position's `a` is an array of three components, or `null` (absent: the
+/// angle alone gives the position).
+#[test]
+fn gravity_components_are_an_array_or_absent() {
+    let d = no_problem(br#"{"positions": [{"angle_deg": 90, "a": null}]}"#);
+    let Slot::Value(p) = d.positions else {
+        panic!("{:?}", d.positions)
+    };
+    assert_eq!(p[0].as_ref().unwrap().angle_deg, Some(90.0));
+    one_problem(
+        br#"{"positions": [{"angle_deg": 90, "a": "down"}]}"#,
+        "/positions/0/a",
+        "must be an array, not a string",
+    );
+    // A wrong component is named alone: the other two are not judged as a
+    // vector of two.
+    let inv = read(br#"{"positions": [{"a": [0, "x", 1]}]}"#)
+        .unwrap()
+        .errors
+        .into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/positions/0/a/1");
+}
