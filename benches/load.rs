@@ -22,7 +22,9 @@
 //! * `history`: `GET /v1/sensors/{id}/calibrations?limit=20`.
 //!
 //! Prints req/s, p50, p99 and p99.9 latency, the ratio of accelcal's req/s
-//! to the bare stack's and both servers' peak RSS during the leg, as a
+//! to the bare stack's, both servers' peak RSS during the leg and their CPU
+//! time per request (user and system, all threads; for PostgreSQL, its own
+//! processes' time is not included), as a
 //! Markdown table for BENCHMARKS.md. Every answer's status is checked (a
 //! wrong status aborts the run); timing is reported, never judged.
 
@@ -87,6 +89,32 @@ fn outputs() -> Value {
     json!({ "outputs": outputs })
 }
 
+/// CPU time (user and system, every thread) `pid` has used, in seconds:
+/// fields 14 and 15 of `/proc/{pid}/stat`, in clock ticks.
+fn cpu_seconds(pid: u32) -> f64 {
+    static TICKS: std::sync::OnceLock<f64> = std::sync::OnceLock::new();
+    let hz = *TICKS.get_or_init(|| {
+        Command::new("getconf")
+            .arg("CLK_TCK")
+            .output()
+            .ok()
+            .and_then(|o| String::from_utf8(o.stdout).ok())
+            .and_then(|s| s.trim().parse().ok())
+            .unwrap_or(100.0)
+    });
+    let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).unwrap_or_default();
+    // The command name (field 2) may hold spaces: count from after it.
+    let after = stat.rsplit_once(')').map_or("", |(_, rest)| rest);
+    let field = |k: usize| -> f64 {
+        after
+            .split_whitespace()
+            .nth(k - 3)
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0.0)
+    };
+    (field(14) + field(15)) / hz
+}
+
 /// One leg's figures.
 struct Leg {
     rps: f64,
@@ -94,6 +122,9 @@ struct Leg {
     p99: f64,
     p999: f64,
     rss_mib: f64,
+    /// The server's CPU time per answered request, in µs: unlike req/s, it
+    /// hardly depends on what else the machine runs.
+    cpu_us: f64,
 }
 
 /// Sends `route` requests to `base` over `connections` connections for
@@ -101,6 +132,7 @@ struct Leg {
 async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, pid: u32) -> Leg {
     let stop = Arc::new(AtomicBool::new(false));
     let all = Arc::new(Mutex::new(Vec::<u32>::new()));
+    let cpu_before = cpu_seconds(pid);
     static SEQUENCE: AtomicU64 = AtomicU64::new(0);
     let start = Instant::now();
     let tasks: Vec<_> = (0..connections)
@@ -167,6 +199,7 @@ async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, 
         t.await.unwrap();
     }
     let elapsed = start.elapsed().as_secs_f64();
+    let cpu = cpu_seconds(pid) - cpu_before;
     let mut l = std::mem::take(&mut *all.lock().unwrap());
     l.sort_unstable();
     Leg {
@@ -175,6 +208,7 @@ async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, 
         p99: percentile(&l, 0.99),
         p999: percentile(&l, 0.999),
         rss_mib: peak as f64 / 1024.0,
+        cpu_us: cpu * 1e6 / l.len().max(1) as f64,
     }
 }
 
@@ -286,9 +320,9 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
 
     println!("\n### {engine}\n");
     println!(
-        "| route | conns | accelcal req/s | p50 ms | p99 ms | p99.9 ms | bare req/s | bare p50 | bare p99 | bare p99.9 | ratio | accelcal RSS MiB | bare RSS MiB |"
+        "| route | conns | accelcal req/s | p50 ms | p99 ms | p99.9 ms | bare req/s | bare p50 | bare p99 | bare p99.9 | ratio | accelcal RSS MiB | bare RSS MiB | accelcal CPU µs/req | bare CPU µs/req |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     let routes = chosen("LOAD_ROUTES", &ROUTES);
     let connections = chosen("LOAD_CONNS", &CONNECTIONS);
     for &route in &routes {
@@ -296,7 +330,7 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
             let b = rt.block_on(leg(&bare_base, route, conns, seconds, bare_pid));
             let a = rt.block_on(leg(&base, route, conns, seconds, pid));
             println!(
-                "| {route} | {conns} | {:.0} | {:.2} | {:.2} | {:.2} | {:.0} | {:.2} | {:.2} | {:.2} | {:.3} | {:.1} | {:.1} |",
+                "| {route} | {conns} | {:.0} | {:.2} | {:.2} | {:.2} | {:.0} | {:.2} | {:.2} | {:.2} | {:.3} | {:.1} | {:.1} | {:.0} | {:.0} |",
                 a.rps,
                 a.p50,
                 a.p99,
@@ -307,7 +341,9 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
                 b.p999,
                 a.rps / b.rps,
                 a.rss_mib,
-                b.rss_mib
+                b.rss_mib,
+                a.cpu_us,
+                b.cpu_us
             );
         }
     }
