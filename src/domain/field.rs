@@ -205,6 +205,18 @@ mod tests {
         );
     }
 
+    /// Several problems, every one listed: a count, without "the first".
+    #[test]
+    fn several_problems_all_listed_are_counted_alone() {
+        let mut e = Errors::default();
+        e.add("/a", "is wrong");
+        e.add("/b", "is wrong too");
+        assert_eq!(
+            e.into_invalid().to_string(),
+            "2 problems in the request body"
+        );
+    }
+
     /// A problem with the whole body has no pointer to print before it.
     #[test]
     fn a_problem_at_the_root_is_its_detail_alone() {
