@@ -235,4 +235,20 @@ fn the_cores_refusals_name_the_model_positions_or_sample() {
         sample: 3,
     };
     assert_eq!(default.pointer_of(&sample), "/runs/1/readings/2/3");
+    let gravity = accelcal_core::Error::NonFiniteGravity {
+        position: 2,
+        axis: 1,
+    };
+    assert_eq!(default.pointer_of(&gravity), "/positions/2");
+}
+
+/// Gravity components given with an angle may differ from the angle's by
+/// up to 1e-3 g on each axis, not more.
+#[test]
+fn components_may_differ_from_the_angle_by_up_to_a_milli_g() {
+    let mut b = paper();
+    b["positions"][0] = json!({"angle_deg": 0, "a": [0.001, 1, 0]});
+    assert_eq!(pointers(&b), Vec::<String>::new());
+    b["positions"][0] = json!({"angle_deg": 0, "a": [0.0011, 1, 0]});
+    assert_eq!(pointers(&b), ["/positions/0/a"]);
 }
