@@ -1,6 +1,8 @@
 //! Calibrations: the durable insert (with its sensor and idempotency key in
 //! one transaction) and the reads of results, submissions and summaries.
 
+use std::sync::LazyLock;
+
 use bytes::Bytes;
 use rusqlite::{Connection, params};
 use uuid::Uuid;
@@ -11,6 +13,60 @@ use crate::store::{
     CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, StoreError, Stored,
     StoredSubmission,
 };
+
+/// The sensor's row after a calibration is stored: counted, and the new
+/// calibration becomes the latest when it is newer (performed_at, then id); a
+/// type named by the submission becomes the sensor's. Formatted once.
+static UPSERT_SENSOR: LazyLock<String> = LazyLock::new(|| {
+    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
+                 > (latest_performed_at, latest_calibration_id)";
+    format!(
+        "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
+         latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
+         VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) \
+         ON CONFLICT (sensor_id) DO UPDATE SET \
+           calibration_count = calibration_count + 1, \
+           first_performed_at = min(first_performed_at, excluded.first_performed_at), \
+           latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE latest_calibration_id END, \
+           latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE latest_verdict END, \
+           latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE latest_due_at END, \
+           latest_performed_at = max(latest_performed_at, excluded.latest_performed_at), \
+           sensor_type = coalesce(excluded.sensor_type, sensor_type)"
+    )
+});
+
+/// One calibration's summary, by id.
+static SUMMARY: LazyLock<String> =
+    LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = ?1"));
+
+/// A page of a sensor's history: newest first, within `?2..=?3`, before the
+/// calibration `?4`, at most `?5`.
+static HISTORY: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+         AND (?4 IS NULL OR (c.performed_at, c.id) < \
+              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
+    )
+});
+
+/// A sensor's calibrations within `?2..=?3`, oldest first.
+static SERIES: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+         ORDER BY c.performed_at, c.id"
+    )
+});
+
+/// A sensor's latest calibration performed strictly before `?2`.
+static PREVIOUS: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND c.performed_at < ?2 \
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
+    )
+});
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
     serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
@@ -87,25 +143,9 @@ pub fn insert(
             return Ok(Stored::Existing(existing));
         }
     }
-    // The new calibration becomes the latest when it is newer (performed_at,
-    // then id); a type named by the submission becomes the sensor's.
-    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
-                 > (latest_performed_at, latest_calibration_id)";
     rows::execute(
         tx,
-        &format!(
-            "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
-             latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-             VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) \
-             ON CONFLICT (sensor_id) DO UPDATE SET \
-               calibration_count = calibration_count + 1, \
-               first_performed_at = min(first_performed_at, excluded.first_performed_at), \
-               latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE latest_calibration_id END, \
-               latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE latest_verdict END, \
-               latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE latest_due_at END, \
-               latest_performed_at = max(latest_performed_at, excluded.latest_performed_at), \
-               sensor_type = coalesce(excluded.sensor_type, sensor_type)"
-        ),
+        &UPSERT_SENSOR,
         params![
             n.sensor_id,
             performed_at,
@@ -148,8 +188,7 @@ pub fn submission(conn: &Connection, id: Uuid) -> Result<Option<StoredSubmission
 
 /// One calibration's summary.
 pub fn summary(conn: &Connection, id: Uuid) -> Result<Option<CalibrationSummary>, StoreError> {
-    let sql = format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = ?1");
-    rows::first(conn, &sql, [id.to_string()], rows::summary)
+    rows::first(conn, &SUMMARY, [id.to_string()], rows::summary)
 }
 
 /// A sensor's calibrations, newest `performed_at` first (ties: larger id).
@@ -158,13 +197,6 @@ pub fn history(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
-         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         AND (?4 IS NULL OR (c.performed_at, c.id) < \
-              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
-    );
     let params = params![
         sensor_id,
         q.from.map(|t| t.to_string()),
@@ -172,7 +204,7 @@ pub fn history(
         q.before.map(|id| id.to_string()),
         q.limit as i64
     ];
-    rows::all(conn, &sql, params, rows::summary)
+    rows::all(conn, &HISTORY, params, rows::summary)
 }
 
 /// A sensor's calibrations within `from..=to`, oldest first.
@@ -182,14 +214,9 @@ pub fn series(
     from: Option<crate::domain::timestamp::Timestamp>,
     to: Option<crate::domain::timestamp::Timestamp>,
 ) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
-         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         ORDER BY c.performed_at, c.id"
-    );
     rows::all(
         conn,
-        &sql,
+        &SERIES,
         params![
             sensor_id,
             from.map(|t| t.to_string()),
@@ -205,13 +232,9 @@ pub fn previous(
     sensor_id: &str,
     before: crate::domain::timestamp::Timestamp,
 ) -> Result<Option<CalibrationSummary>, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND c.performed_at < ?2 \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
-    );
     rows::first(
         conn,
-        &sql,
+        &PREVIOUS,
         params![sensor_id, before.to_string()],
         rows::summary,
     )

@@ -48,6 +48,9 @@ fn apply(conn: &mut Connection, latest: i64) -> rusqlite::Result<()> {
     let tx = conn.transaction_with_behavior(TransactionBehavior::Immediate)?;
     // Re-read under the write lock: another connection may have migrated.
     let version: i64 = tx.pragma_query_value(None, "user_version", |r| r.get(0))?;
+    if version >= latest {
+        return Ok(()); // nothing to apply, nothing to check
+    }
     for sql in MIGRATIONS
         .iter()
         .take(latest as usize)
@@ -76,7 +79,7 @@ fn apply(conn: &mut Connection, latest: i64) -> rusqlite::Result<()> {
 mod tests {
     use rusqlite::{Connection, params};
 
-    use super::{MIGRATIONS, migrate, migrate_to};
+    use super::{MIGRATIONS, apply, migrate, migrate_to};
 
     /// A database at schema version 6 holding one calibration, its sensor
     /// and a completed idempotency key, written in version 6's column order.
@@ -263,5 +266,24 @@ mod tests {
             )
             .unwrap();
         assert_eq!(last, "expanded", "version 6's table, untouched");
+    }
+
+    #[test]
+    fn a_connection_that_finds_the_work_done_under_the_lock_checks_nothing() {
+        // Another connection migrated between this one's first read of the
+        // version and its write lock: `apply` re-reads the version, finds
+        // nothing to do and neither applies nor checks (a whole-database
+        // check would be wasted, and a reference broken by some other tool
+        // is not this open's business).
+        let mut c = version_6();
+        migrate(&mut c).unwrap();
+        c.pragma_update(None, "foreign_keys", false).unwrap();
+        c.execute(
+            "UPDATE sensors SET latest_calibration_id = 'missing' WHERE sensor_id = 'S-1'",
+            [],
+        )
+        .unwrap();
+        apply(&mut c, MIGRATIONS.len() as i64).unwrap();
+        assert_eq!(version(&c), MIGRATIONS.len() as i64);
     }
 }
