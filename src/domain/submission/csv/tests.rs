@@ -292,3 +292,19 @@ fn crlf_lines_count_once_blank_metadata_lines_are_skipped_and_mount_is_read() {
     let e = errors("# mount: sideways\nrun,angle_deg,output\n1,0,1\n");
     assert_eq!(e, ["must be \"pendulum\" or \"gate\""], "{e:?}");
 }
+
+#[test]
+fn notes_are_read_and_checked_like_the_json_member() {
+    let d = read(b"# notes: after the stand's service\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    assert_eq!(d.notes, Slot::Value("after the stand's service".into()));
+    let long = format!(
+        "# notes: {}\nrun,angle_deg,output\n1,0,1\n",
+        "n".repeat(MAX_NOTES_CHARS + 1)
+    );
+    let d = read(long.as_bytes()).unwrap();
+    assert_eq!(d.notes, Slot::Invalid);
+    let e = d.errors.into_invalid().errors;
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert_eq!(e[0].pointer, "/notes", "{e:?}");
+}
