@@ -178,3 +178,19 @@ fn gravity_components_are_an_array_or_absent() {
     assert_eq!(inv.errors.len(), 1, "{inv:?}");
     assert_eq!(inv.errors[0].pointer, "/positions/0/a/1");
 }
+
+/// An empty array is said to be empty; a short one, how short.
+#[test]
+fn arrays_too_short_say_how_short() {
+    one_problem(br#"{"runs": []}"#, "/runs", "must not be empty");
+    one_problem(
+        br#"{"positions": [{"a": [1, 0]}]}"#,
+        "/positions/0/a",
+        "must hold at least 3 elements, not 2",
+    );
+    one_problem(
+        br#"{"positions": [{"a": []}]}"#,
+        "/positions/0/a",
+        "must not be empty",
+    );
+}
