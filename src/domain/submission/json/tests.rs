@@ -153,6 +153,11 @@ fn the_positions_are_an_array_or_absent() {
         "must be an array, not a number",
     );
     assert_eq!(d.positions, Slot::Invalid);
+    one_problem(
+        br#"{"positions": [{"angle_deg": 0}, 90]}"#,
+        "/positions/1",
+        "must be an object, not a number",
+    );
 }
 
 /// A position's `a` is an array of three components, or `null` (absent: the
