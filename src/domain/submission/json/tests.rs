@@ -199,3 +199,33 @@ fn arrays_too_short_say_how_short() {
         "must not be empty",
     );
 }
+
+/// A run with any wrong member is left out whole, so that no later check
+/// judges what is left of it; its problems are said once.
+#[test]
+fn a_run_with_a_wrong_member_is_left_out_whole() {
+    for (body, pointer) in [
+        (
+            &br#"{"runs": [{"readings": [[1]], "speed": 3}, {"readings": [[1]]}]}"#[..],
+            "/runs/0/speed",
+        ),
+        (
+            br#"{"runs": [{"readings": [[1]], "temperature_c": "warm"}, {"readings": [[1]]}]}"#,
+            "/runs/0/temperature_c",
+        ),
+        (
+            br#"{"runs": [{"readings": [[1]], "readings": [[2]]}, {"readings": [[1]]}]}"#,
+            "/runs/0/readings",
+        ),
+    ] {
+        let mut d = read(body).unwrap();
+        let inv = std::mem::take(&mut d.errors).into_invalid();
+        assert_eq!(inv.errors.len(), 1, "{inv:?}");
+        assert_eq!(inv.errors[0].pointer, pointer);
+        let Slot::Value(runs) = d.runs else {
+            panic!("{:?}", d.runs)
+        };
+        assert!(runs[0].is_none(), "{:?}", runs[0]);
+        assert_eq!(runs[1].as_ref().unwrap().readings, vec![vec![1.0]]);
+    }
+}
