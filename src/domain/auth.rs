@@ -245,6 +245,10 @@ mod tests {
         let bare_id = format!("see acc_{}", t.id.simple());
         assert_eq!(redact(&bare_id), bare_id);
         assert!(!holds_token(&bare_id));
+        // An id and its `_` with no secret after them: nothing to redact.
+        let no_secret = format!("see acc_{}_ (cut)", t.id.simple());
+        assert_eq!(redact(&no_secret), no_secret);
+        assert!(!holds_token(&no_secret));
         assert!(!holds_token("01a200f3-0000-7000-8000-000000000000"));
     }
 
