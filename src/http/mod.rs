@@ -30,7 +30,7 @@ use std::time::Duration;
 
 use axum::Router;
 use axum::error_handling::HandleErrorLayer;
-use axum::http::{HeaderName, HeaderValue, StatusCode};
+use axum::http::StatusCode;
 use axum::routing::{delete, get, post};
 use tokio::sync::Semaphore;
 use tower::ServiceBuilder;
@@ -41,7 +41,6 @@ use tower_http::decompression::RequestDecompressionLayer;
 use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::map_request_body::MapRequestBodyLayer;
 use tower_http::request_id::{PropagateRequestIdLayer, SetRequestIdLayer};
-use tower_http::set_header::SetResponseHeaderLayer;
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
 
@@ -249,12 +248,7 @@ pub fn router(state: AppState) -> Router {
                 state.clone(),
                 stack::finalize,
             ))
-            .layer(security_header(0))
-            .layer(security_header(1))
-            .layer(security_header(2))
-            .layer(security_header(3))
-            .layer(security_header(4))
-            .layer(security_header(5))
+            .layer(axum::middleware::map_response(stack::security_headers))
             .layer(CatchPanicLayer::custom(stack::panic_response))
             .layer(TimeoutLayer::with_status_code(
                 StatusCode::SERVICE_UNAVAILABLE,
@@ -262,18 +256,6 @@ pub fn router(state: AppState) -> Router {
             )),
     )
     .with_state(state)
-}
-
-/// The `i`-th of [`stack::SECURITY_HEADERS`], set where the response does
-/// not set it itself.
-fn security_header(i: usize) -> SetResponseHeaderLayer<HeaderValue> {
-    // `router` sets them by index: one more needs one more line there.
-    const _: () = assert!(stack::SECURITY_HEADERS.len() == 6);
-    let (name, value) = stack::SECURITY_HEADERS[i];
-    SetResponseHeaderLayer::if_not_present(
-        HeaderName::from_static(name),
-        HeaderValue::from_static(value),
-    )
 }
 
 /// `routes` behind admission: transfer codings checked, the body size

@@ -52,13 +52,29 @@ async fn responses_carry_security_headers() {
         assert_eq!(h["x-content-type-options"], "nosniff");
         assert_eq!(h["x-frame-options"], "DENY");
         assert_eq!(h["referrer-policy"], "no-referrer");
-        assert!(
-            h["content-security-policy"]
-                .to_str()
-                .unwrap()
-                .contains("frame-ancestors 'none'")
+        assert_eq!(
+            h["content-security-policy"],
+            "default-src 'none'; frame-ancestors 'none'"
         );
+        assert_eq!(h["cross-origin-resource-policy"], "same-origin");
+        assert_eq!(h["cache-control"], "no-store");
+        for name in [
+            "x-frame-options",
+            "content-security-policy",
+            "cache-control",
+        ] {
+            assert_eq!(h.get_all(name).iter().count(), 1, "{name} once");
+        }
     }
+    // A page sets its own policy (its stylesheet and plots), which is kept,
+    // once; the headers it does not set are added.
+    let page = app.client.get(app.url("/ui/login")).send().await.unwrap();
+    let h = page.headers();
+    let csp: Vec<_> = h.get_all("content-security-policy").iter().collect();
+    assert_eq!(csp.len(), 1, "{csp:?}");
+    assert_ne!(csp[0], "default-src 'none'; frame-ancestors 'none'");
+    assert_eq!(h["x-frame-options"], "DENY");
+    assert_eq!(h["cross-origin-resource-policy"], "same-origin");
     let res = app
         .post("/v1/tokens", ADMIN, &serde_json::json!({"role": "reader"}))
         .await;
