@@ -106,8 +106,7 @@ impl Application {
         {
             anyhow::bail!("the public URL must start with http:// or https:// (got {url})");
         }
-        let mut state = AppState::new(store, admin_token_hash, config.limits);
-        state.web = Arc::new(config.web.clone());
+        let state = AppState::with_web(store, admin_token_hash, config.limits, config.web.clone());
         let metrics = match &config.metrics_listen {
             Some(addr) => {
                 let handle =

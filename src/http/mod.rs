@@ -80,9 +80,13 @@ impl Default for Limits {
     }
 }
 
-/// What every handler can reach.
+/// What every handler can reach: one shared allocation, so that the clone
+/// each layer and handler takes is one reference count, not six.
 #[derive(Clone)]
-pub struct AppState {
+pub struct AppState(Arc<Shared>);
+
+/// What [`AppState`] shares.
+pub struct Shared {
     /// The database.
     pub store: Arc<dyn Store>,
     /// `SHA-256` of the configured admin token, if one is configured.
@@ -94,7 +98,14 @@ pub struct AppState {
     /// Permits for CPU-heavy work on the blocking pool.
     pub compute: Arc<Semaphore>,
     /// How the web pages and certificates present themselves.
-    pub web: Arc<Web>,
+    pub web: Web,
+}
+
+impl std::ops::Deref for AppState {
+    type Target = Shared;
+    fn deref(&self) -> &Shared {
+        &self.0
+    }
 }
 
 /// Settings of the web pages and certificates.
@@ -122,16 +133,26 @@ impl Default for Web {
 pub const INLINE_BYTES: usize = 8 * 1024;
 
 impl AppState {
-    /// State over `store` with `limits`.
+    /// State over `store` with `limits` and the default [`Web`] settings.
     pub fn new(store: Arc<dyn Store>, admin_token_hash: Option<[u8; 32]>, limits: Limits) -> Self {
-        AppState {
+        Self::with_web(store, admin_token_hash, limits, Web::default())
+    }
+
+    /// State over `store` with `limits` and `web`.
+    pub fn with_web(
+        store: Arc<dyn Store>,
+        admin_token_hash: Option<[u8; 32]>,
+        limits: Limits,
+        web: Web,
+    ) -> Self {
+        AppState(Arc::new(Shared {
             store,
             admin_token_hash,
             admission: Admission::new(limits.body_budget_bytes, limits.max_concurrent),
             compute: Arc::new(Semaphore::new(limits.compute_threads.max(1))),
-            web: Arc::new(Web::default()),
+            web,
             limits,
-        }
+        }))
     }
 
     /// Runs the work of a body of `bytes` bytes: on the async worker when
