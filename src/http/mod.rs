@@ -81,7 +81,7 @@ impl Default for Limits {
 }
 
 /// What every handler can reach: one shared allocation, so that the clone
-/// each layer and handler takes is one reference count, not six.
+/// each layer and handler takes is one reference count, not five.
 #[derive(Clone)]
 pub struct AppState(Arc<Shared>);
 

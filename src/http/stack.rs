@@ -118,18 +118,24 @@ pub const SECURITY_HEADERS: [(&str, &str); 6] = [
     ("cache-control", "no-store"),
 ];
 
+/// [`SECURITY_HEADERS`] as header names and values, parsed once.
+static SECURITY_HEADER_VALUES: std::sync::LazyLock<[(header::HeaderName, HeaderValue); 6]> =
+    std::sync::LazyLock::new(|| {
+        SECURITY_HEADERS.map(|(name, value)| {
+            (
+                header::HeaderName::from_static(name),
+                HeaderValue::from_static(value),
+            )
+        })
+    });
+
 /// Sets each of [`SECURITY_HEADERS`] the response does not set itself. One
 /// layer for all six: a layer each nested six more futures in every
 /// request's (BENCHMARKS.md, "Where the coefficients route's time goes").
 pub async fn security_headers<B>(mut res: Response<B>) -> Response<B> {
     let headers = res.headers_mut();
-    for (name, value) in SECURITY_HEADERS {
-        if !headers.contains_key(name) {
-            headers.insert(
-                header::HeaderName::from_static(name),
-                HeaderValue::from_static(value),
-            );
-        }
+    for (name, value) in SECURITY_HEADER_VALUES.iter() {
+        headers.entry(name).or_insert_with(|| value.clone());
     }
     res
 }
