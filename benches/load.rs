@@ -5,6 +5,7 @@
 //! cargo bench --bench load                          # SQLite, 5 s legs
 //! LOAD_SECONDS=8 LOAD_ENGINES=sqlite,postgres cargo bench --bench load
 //! LOAD_ROUTES=submit LOAD_CONNS=64 cargo bench --bench load   # one leg, e.g. to profile
+//! LOAD_LOG=info LOAD_METRICS=1 cargo bench --bench load   # observed as deployed
 //! ```
 //!
 //! The **bare stack** is a minimal axum server (this binary, started again
@@ -274,7 +275,17 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
         (None, "sqlite") => dir.path().join("load.db").to_str().unwrap().to_owned(),
         (None, other) => panic!("LOAD_ENGINES: unknown engine {other}"),
     };
-    let server = Server::start_with(&database, &[], "warn,accelcal::startup=info");
+    // The server's log filter: by default warnings only, so the legs measure
+    // the service; `LOAD_LOG=info` (a deployment's default) adds the line
+    // every request writes.
+    // `LOAD_METRICS=1` turns the Prometheus recorder on, as a deployment
+    // scraped by Prometheus runs.
+    let log = std::env::var("LOAD_LOG").unwrap_or_else(|_| "warn".into());
+    let metrics: &[&str] = match std::env::var_os("LOAD_METRICS") {
+        Some(_) => &["--metrics-listen", "127.0.0.1:0"],
+        None => &[],
+    };
+    let server = Server::start_with(&database, metrics, &format!("{log},accelcal::startup=info"));
     let base = server.base.clone();
     let pid = server.child.id();
 

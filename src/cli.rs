@@ -159,7 +159,7 @@ enum TokenCommand {
         /// A label to recognise the token by.
         #[arg(long)]
         label: Option<String>,
-        /// Database: a SQLite file path (or sqlite://PATH), or postgres://… . or postgres://… .
+        /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
         #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
         database: String,
     },
@@ -171,11 +171,12 @@ pub fn main() -> ExitCode {
     match cli.command {
         Command::Identify { file } => identify(&file),
         Command::Serve(args) => {
-            telemetry::init(args.log_format);
+            // Held until the server has stopped: dropping it writes what is queued.
+            let _logs = telemetry::init(args.log_format);
             run_async(serve(args))
         }
         Command::Submit(args) => {
-            telemetry::init(LogFormat::Text);
+            let _logs = telemetry::init(LogFormat::Text);
             run_async(submit(args))
         }
         Command::Token(TokenCommand::Create {

@@ -254,6 +254,7 @@ async fn serve_metrics(listener: TcpListener, handle: PrometheusHandle) {
         axum::routing::get(move || {
             let h = handle.clone();
             async move {
+                http::metrics::before_scrape();
                 (
                     [(
                         axum::http::header::CONTENT_TYPE,

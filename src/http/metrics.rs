@@ -9,6 +9,7 @@
 //! | `accelcal_submissions_total` | counter | `outcome` (`stored`, `replayed`, `refused`), `reason` (the problem type, or `none`) |
 //! | `accelcal_verdicts_total` | counter | `verdict` (of stored calibrations of typed sensors) |
 //! | `accelcal_storage_operation_duration_seconds` | histogram | `operation`, `outcome` |
+//! | `accelcal_log_lines_dropped_total` | counter | |
 //! | `accelcal_build_info` | gauge (1) | `version` |
 //!
 //! Routes are templates (`/v1/sensors/{sensor_id}`), never raw paths, and
@@ -95,7 +96,18 @@ fn describe() {
         "accelcal_sensor_cache_total",
         "Reads of a sensor's latest state, answered from memory (hit) or from the database (miss)."
     );
+    describe_counter!(
+        "accelcal_log_lines_dropped_total",
+        "Log lines dropped because the log writer's queue was full (standard error not read fast enough)."
+    );
     describe_gauge!("accelcal_build_info", "Always 1; the version is a label.");
+}
+
+/// Brings the values kept outside the recorder up to date; called before
+/// each scrape renders.
+pub fn before_scrape() {
+    metrics::counter!("accelcal_log_lines_dropped_total")
+        .absolute(crate::telemetry::dropped_lines());
 }
 
 /// Counts `n` requests in flight for as long as it lives.

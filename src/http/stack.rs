@@ -97,7 +97,8 @@ pub fn request_span(req: &Request) -> tracing::Span {
 /// The request's log line: status and latency, a warning for 5xx.
 pub fn log_response(res: &Response, latency: Duration, _: &tracing::Span) {
     let status = res.status().as_u16();
-    let ms = latency.as_secs_f64() * 1e3;
+    // Milliseconds to the microsecond: `0.833`, not `0.8329369999999999`.
+    let ms = latency.as_micros() as f64 / 1e3;
     if res.status().is_server_error() {
         tracing::warn!(status, latency_ms = ms, "request");
     } else {

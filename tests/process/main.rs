@@ -7,6 +7,7 @@ mod pg;
 mod cli;
 mod crash;
 mod db;
+mod logs;
 mod metrics;
 mod migrate;
 mod replicas;

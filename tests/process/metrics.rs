@@ -170,6 +170,8 @@ async fn metrics_count_what_was_asked() {
         3.0
     );
     assert_eq!(get("accelcal_http_requests_in_flight"), 0.0);
+    // The log is read as it is written: no line was dropped.
+    assert_eq!(get("accelcal_log_lines_dropped_total"), 0.0);
     assert_eq!(
         get(concat!(
             r#"accelcal_build_info{version=""#,
