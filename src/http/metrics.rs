@@ -16,7 +16,8 @@
 //! requests no route matched count as `unmatched`: the label sets stay
 //! bounded whatever clients send.
 
-use std::sync::OnceLock;
+use std::collections::HashMap;
+use std::sync::{LazyLock, OnceLock, RwLock};
 use std::time::Instant;
 
 use axum::extract::{MatchedPath, Request};
@@ -110,43 +111,91 @@ pub fn before_scrape() {
         .absolute(crate::telemetry::dropped_lines());
 }
 
-/// Counts `n` requests in flight for as long as it lives.
-struct InFlight;
+/// One request counted as in flight for as long as it lives.
+struct InFlight(metrics::Gauge);
 
 impl InFlight {
     fn new() -> Self {
-        metrics::gauge!("accelcal_http_requests_in_flight").increment(1.0);
-        InFlight
+        static GAUGE: OnceLock<metrics::Gauge> = OnceLock::new();
+        let gauge = GAUGE
+            .get_or_init(|| metrics::gauge!("accelcal_http_requests_in_flight"))
+            .clone();
+        gauge.increment(1.0);
+        InFlight(gauge)
     }
 }
 
 impl Drop for InFlight {
     fn drop(&mut self) {
-        metrics::gauge!("accelcal_http_requests_in_flight").decrement(1.0);
+        self.0.decrement(1.0);
     }
 }
 
+/// The two request metrics of one method, route and status.
+#[derive(Clone)]
+struct RequestMetrics {
+    count: metrics::Counter,
+    duration: metrics::Histogram,
+}
+
+/// [`RequestMetrics`] by route template, then method and status:
+/// registered with their labels once, then updated through their handles
+/// (building the labels and looking the metric up in the recorder on every
+/// request cost as much as the rest of this layer). Bounded as the labels
+/// are: route templates and `unmatched`, eight method labels, three-digit
+/// statuses.
+type ByRoute = HashMap<String, Vec<(&'static str, u16, RequestMetrics)>>;
+
+static REQUEST_METRICS: LazyLock<RwLock<ByRoute>> = LazyLock::new(Default::default);
+
+fn request_metrics(method: &'static str, route: &str, status: u16) -> RequestMetrics {
+    let found = |map: &ByRoute| {
+        map.get(route)?
+            .iter()
+            .find(|(m, s, _)| *m == method && *s == status)
+            .map(|(_, _, metrics)| metrics.clone())
+    };
+    // The lock guards a cache of handles: a panic cannot leave it wrong.
+    if let Some(m) = found(&REQUEST_METRICS.read().unwrap_or_else(|e| e.into_inner())) {
+        return m;
+    }
+    let mut map = REQUEST_METRICS.write().unwrap_or_else(|e| e.into_inner());
+    if let Some(m) = found(&map) {
+        return m;
+    }
+    let labels = [
+        ("method", method.to_owned()),
+        ("route", route.to_owned()),
+        ("status", status.to_string()),
+    ];
+    let metrics = RequestMetrics {
+        count: metrics::counter!("accelcal_http_requests_total", &labels),
+        duration: metrics::histogram!("accelcal_http_request_duration_seconds", &labels),
+    };
+    map.entry(route.to_owned())
+        .or_default()
+        .push((method, status, metrics.clone()));
+    metrics
+}
+
 /// Records every request: count and latency by method, route template and
-/// status; submissions by outcome.
+/// status; submissions by outcome. Nothing is recorded, at no cost, when
+/// the service runs without `--metrics-listen`.
 pub async fn observe(req: Request, next: Next) -> Response {
+    if HANDLE.get().is_none() {
+        return next.run(req).await;
+    }
     let _in_flight = InFlight::new();
     let started = Instant::now();
-    let method = req.method().clone();
-    let route = req
-        .extensions()
-        .get::<MatchedPath>()
-        .map_or_else(|| "unmatched".to_owned(), |p| p.as_str().to_owned());
+    let method = method_label(req.method());
+    let route = req.extensions().get::<MatchedPath>().cloned();
     let res = next.run(req).await;
     let status = res.status();
-    let labels = [
-        ("method", method_label(&method)),
-        ("route", route.clone()),
-        ("status", status.as_u16().to_string()),
-    ];
-    metrics::counter!("accelcal_http_requests_total", &labels).increment(1);
-    metrics::histogram!("accelcal_http_request_duration_seconds", &labels)
-        .record(started.elapsed().as_secs_f64());
-    if method == Method::POST && route == "/v1/calibrations" {
+    let route = route.as_ref().map_or("unmatched", MatchedPath::as_str);
+    let metrics = request_metrics(method, route, status.as_u16());
+    metrics.count.increment(1);
+    metrics.duration.record(started.elapsed().as_secs_f64());
+    if method == "POST" && route == "/v1/calibrations" {
         let (outcome, reason) = if status.is_success() {
             let replayed = res.headers().contains_key("idempotent-replayed");
             (if replayed { "replayed" } else { "stored" }, "none")
@@ -164,15 +213,15 @@ pub async fn observe(req: Request, next: Next) -> Response {
 }
 
 /// The method as a label: the standard ones by name, anything else `other`.
-fn method_label(m: &Method) -> String {
+fn method_label(m: &Method) -> &'static str {
     match *m {
-        Method::GET
-        | Method::POST
-        | Method::PUT
-        | Method::DELETE
-        | Method::HEAD
-        | Method::OPTIONS
-        | Method::PATCH => m.as_str().to_owned(),
-        _ => "other".to_owned(),
+        Method::GET => "GET",
+        Method::POST => "POST",
+        Method::PUT => "PUT",
+        Method::DELETE => "DELETE",
+        Method::HEAD => "HEAD",
+        Method::OPTIONS => "OPTIONS",
+        Method::PATCH => "PATCH",
+        _ => "other",
     }
 }
