@@ -1,8 +1,14 @@
 //! What control systems use: the latest coefficients, and compensation of
 //! raw outputs with them.
 
+use std::collections::HashMap;
+use std::sync::Mutex;
+
 use axum::Json;
 use axum::extract::{Path, State};
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
 use serde::Serialize;
 use utoipa::ToSchema;
 use uuid::Uuid;
@@ -74,9 +80,67 @@ pub async fn coefficients(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
-) -> Result<Json<Coefficients>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    Ok(Json(sensor(&state, &sensor_id).await?.latest.into()))
+    let latest = sensor(&state, &sensor_id).await?.latest;
+    let body = state.rendered.get_or_render(latest)?;
+    Ok(([(header::CONTENT_TYPE, JSON.clone())], body).into_response())
+}
+
+static JSON: HeaderValue = HeaderValue::from_static("application/json");
+
+/// The answers of `GET /v1/sensors/{sensor_id}/coefficients`, rendered once
+/// per calibration. A stored calibration never changes, so its rendering
+/// cannot go stale; which calibration is a sensor's latest is still asked
+/// of the store on every read (and its sensor cache keeps that exact).
+/// Rendering was a sixth of the route's instructions (BENCHMARKS.md,
+/// "Instructions per request"). Bounded: at most [`RENDERED`] calibrations;
+/// when full, an arbitrary one makes room.
+#[derive(Debug, Default)]
+pub struct Rendered(Mutex<HashMap<Uuid, Bytes>>);
+
+/// Calibrations whose coefficients are kept rendered (each a few hundred
+/// bytes).
+pub const RENDERED: usize = 4096;
+
+impl Rendered {
+    /// The rendered [`Coefficients`] of `latest`, from memory when they
+    /// were rendered before.
+    pub fn get_or_render(&self, latest: CalibrationSummary) -> Result<Bytes, Problem> {
+        let id = latest.id;
+        if let Some(body) = self.lock().get(&id) {
+            return Ok(body.clone());
+        }
+        let body = Bytes::from(
+            serde_json::to_vec(&Coefficients::from(latest)).map_err(|e| {
+                tracing::error!(error = %e, "rendering coefficients failed");
+                Problem::internal()
+            })?,
+        );
+        let mut map = self.lock();
+        if map.len() >= RENDERED
+            && let Some(victim) = map.keys().next().copied()
+        {
+            map.remove(&victim);
+        }
+        map.insert(id, body.clone());
+        Ok(body)
+    }
+
+    /// Calibrations held rendered now.
+    pub fn len(&self) -> usize {
+        self.lock().len()
+    }
+
+    /// Whether none is.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, Bytes>> {
+        // Plain data: a panic elsewhere cannot leave it half-updated.
+        self.0.lock().unwrap_or_else(|e| e.into_inner())
+    }
 }
 
 /// `POST /v1/sensors/{sensor_id}/compensate`: input accelerations (g) from
@@ -134,4 +198,72 @@ pub async fn compensate(
         unit: summary.unit,
         a_i,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use accelcal_core::{Model, Term, TermMap};
+
+    use super::*;
+
+    fn latest(id: u128, k0: f64) -> CalibrationSummary {
+        let at = Timestamp::parse("2026-01-01T00:00:00Z").unwrap();
+        CalibrationSummary {
+            id: Uuid::from_u128(id),
+            sensor_id: "S".into(),
+            station_id: None,
+            performed_at: at,
+            received_at: at,
+            unit: "mA".into(),
+            model: Model::new(vec![Term::K0, Term::Ki]).unwrap(),
+            runs: 1,
+            coefficients: TermMap(vec![(Term::K0, k0), (Term::Ki, -1.216)]),
+            std_errors: TermMap(vec![(Term::K0, 1e-6), (Term::Ki, 2e-6)]),
+            sensor_type: None,
+            verdict: None,
+            due_at: None,
+            expanded: None,
+        }
+    }
+
+    /// The kept rendering is the document itself, field for field.
+    #[test]
+    fn the_rendering_is_the_coefficients_document() {
+        let r = Rendered::default();
+        let body = r.get_or_render(latest(1, -8.4e-4)).unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(
+            v,
+            serde_json::json!({
+                "sensor_id": "S",
+                "calibration_id": Uuid::from_u128(1),
+                "performed_at": "2026-01-01T00:00:00.000000Z",
+                "unit": "mA",
+                "model": ["k0", "ki"],
+                "coefficients": {"k0": -8.4e-4, "ki": -1.216},
+                "std_errors": {"k0": 1e-6, "ki": 2e-6},
+            })
+        );
+        // A second read of that calibration is the kept bytes.
+        let again = r.get_or_render(latest(1, 0.5)).unwrap();
+        assert_eq!(again, body);
+        assert_eq!(r.len(), 1);
+        // Another calibration is rendered on its own.
+        let other = r.get_or_render(latest(2, 0.5)).unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&other).unwrap();
+        assert_eq!(v["coefficients"]["k0"], 0.5);
+        assert_eq!(r.len(), 2);
+    }
+
+    #[test]
+    fn at_most_so_many_calibrations_are_kept() {
+        let r = Rendered::default();
+        for id in 0..(RENDERED as u128 + 10) {
+            r.get_or_render(latest(id, 0.0)).unwrap();
+        }
+        assert_eq!(r.len(), RENDERED);
+        // The newest is among them.
+        let newest = Uuid::from_u128(RENDERED as u128 + 9);
+        assert!(r.lock().contains_key(&newest));
+    }
 }

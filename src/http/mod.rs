@@ -99,6 +99,8 @@ pub struct Shared {
     pub compute: Arc<Semaphore>,
     /// How the web pages and certificates present themselves.
     pub web: Web,
+    /// Coefficients answers rendered once per calibration.
+    pub rendered: coefficients::Rendered,
 }
 
 impl std::ops::Deref for AppState {
@@ -152,6 +154,7 @@ impl AppState {
             compute: Arc::new(Semaphore::new(limits.compute_threads.max(1))),
             web,
             limits,
+            rendered: coefficients::Rendered::default(),
         }))
     }
 

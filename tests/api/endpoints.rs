@@ -38,6 +38,49 @@ async fn page_through(app: &TestApp, first: &str) -> Vec<Vec<String>> {
     pages
 }
 
+/// The coefficients answer (rendered once per calibration) always names
+/// the sensor's latest calibration: a newer one replaces it at once, an
+/// older one does not.
+#[tokio::test]
+async fn coefficients_follow_the_latest_calibration() {
+    let app = TestApp::spawn().await;
+    let get = || async {
+        let res = app.get("/v1/sensors/S-C/coefficients", ADMIN).await;
+        assert_eq!(res.status(), StatusCode::OK);
+        assert_eq!(res.headers()["content-type"], "application/json");
+        res.bytes().await.unwrap()
+    };
+    let check = |body: &[u8], calibration: &Value| {
+        let v: Value = serde_json::from_slice(body).unwrap();
+        assert_eq!(v["sensor_id"], "S-C");
+        assert_eq!(v["calibration_id"], calibration["id"]);
+        assert_eq!(v["performed_at"], calibration["performed_at"]);
+        assert_eq!(v["unit"], "mA");
+        assert_eq!(v["model"], calibration["model"]);
+        assert_eq!(v["coefficients"], calibration["fused"]["coefficients"]);
+        assert_eq!(v["std_errors"], calibration["fused"]["std_errors"]);
+    };
+    let first = app
+        .submit(ADMIN, &submission("S-C", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let a = get().await;
+    check(&a, &first);
+    assert_eq!(get().await, a, "a second read answers the same bytes");
+
+    let newer = app
+        .submit(ADMIN, &submission("S-C", "2026-06-01T00:00:00Z", 6))
+        .await;
+    assert_ne!(
+        newer["fused"]["coefficients"],
+        first["fused"]["coefficients"]
+    );
+    check(&get().await, &newer);
+
+    app.submit(ADMIN, &submission("S-C", "2025-01-01T00:00:00Z", 5))
+        .await;
+    check(&get().await, &newer);
+}
+
 #[tokio::test]
 async fn sensors_are_listed_in_pages_with_their_latest_calibration() {
     let app = TestApp::spawn().await;
