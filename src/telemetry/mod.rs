@@ -1,6 +1,7 @@
 //! Logging: `tracing` to standard error, human-readable or JSON lines,
 //! filtered by `RUST_LOG` (default `info`). Secrets are never logged: tokens
-//! travel only in headers, and headers are not logged.
+//! travel only in headers, and headers are not logged. The JSON lines are
+//! written by [`json`].
 //!
 //! Lines are written **off the request path**: a request formats its line
 //! and queues it; one thread writes the queue to standard error, many lines
@@ -11,6 +12,8 @@
 //! The queue holds at most [`QUEUE_LINES`] lines; past that, lines are
 //! dropped rather than the service blocked, and counted
 //! ([`dropped_lines`], the metric `accelcal_log_lines_dropped_total`).
+
+mod json;
 
 use std::io::BufWriter;
 use std::sync::OnceLock;
@@ -63,12 +66,8 @@ pub fn init(format: LogFormat) -> LogGuard {
     let installed = match format {
         LogFormat::Text => builder.try_init(),
         LogFormat::Json => builder
-            .json()
-            .flatten_event(true)
-            .with_current_span(true)
-            // The request's span is the only one: listing it again as
-            // `spans` doubled the line and the work of writing it.
-            .with_span_list(false)
+            .fmt_fields(json::JsonFields)
+            .event_format(json::JsonLine)
             .try_init(),
     };
     if installed.is_err() {
