@@ -13,6 +13,7 @@ pub mod compute;
 pub mod connection;
 pub mod evaluation;
 pub mod health;
+pub mod json;
 pub mod metrics;
 pub mod openapi;
 pub mod page;

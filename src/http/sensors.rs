@@ -1,6 +1,6 @@
 //! Sensors: listing (by status), one sensor, assigning its type, history.
 
-use axum::Json;
+use super::json::Json;
 use axum::extract::{Path, State};
 use serde::Deserialize;
 use utoipa::{IntoParams, ToSchema};
