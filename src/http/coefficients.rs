@@ -94,7 +94,7 @@ static JSON: HeaderValue = HeaderValue::from_static("application/json");
 /// cannot go stale; which calibration is a sensor's latest is still asked
 /// of the store on every read (and its sensor cache keeps that exact).
 /// Rendering was a sixth of the route's instructions (BENCHMARKS.md,
-/// "Instructions per request"). Bounded: at most [`RENDERED`] calibrations;
+/// "Observed as deployed"). Bounded: at most [`RENDERED`] calibrations;
 /// when full, an arbitrary one makes room.
 #[derive(Debug, Default)]
 pub struct Rendered(Mutex<HashMap<Uuid, Bytes>>);

@@ -4,8 +4,8 @@
 //! of the serialization into a `BytesMut` through `std::io::Write`, a
 //! reservation check per token; this writes into a `Vec` and hands it to
 //! the body without a copy. On the history route (twenty calibrations) that
-//! saved a tenth of the request's instructions (BENCHMARKS.md,
-//! "Instructions per request"). A value that cannot be serialized (none
+//! saved an eighth of the request's instructions (BENCHMARKS.md,
+//! "Observed as deployed"). A value that cannot be serialized (none
 //! of ours can fail) is a 500 problem, not axum's plain-text 500.
 
 use axum::http::{HeaderValue, header};

@@ -14,7 +14,7 @@
 //! into a map of JSON values, and stores a span's fields as JSON text that
 //! it parses back for every line. Here a span's fields are kept as a
 //! ready fragment (`"k":v,"k2":v2`) and copied in, which halved what a
-//! request's line costs (BENCHMARKS.md, "Instructions per request").
+//! request's line costs (BENCHMARKS.md, "Observed as deployed").
 //!
 //! Strings are escaped as JSON requires (`"`, `\`, and every control
 //! character); integers and booleans are written as JSON numbers and

@@ -7,8 +7,8 @@
 //! and queues it; one thread writes the queue to standard error, many lines
 //! per system call, flushing whenever the queue runs empty. Writing each
 //! line in the request that logged it cost a fifth of the server's CPU on
-//! the coefficients read at `info` (BENCHMARKS.md, "Logging off the request
-//! path"), and a log reader that stalls (a full pipe) stalled every request.
+//! the coefficients read at `info` (BENCHMARKS.md, "Observed as deployed"),
+//! and a log reader that stalled (a full pipe) stalled every request.
 //! The queue holds at most [`QUEUE_LINES`] lines; past that, lines are
 //! dropped rather than the service blocked, and counted
 //! ([`dropped_lines`], the metric `accelcal_log_lines_dropped_total`).
