@@ -4,9 +4,9 @@
 use std::collections::HashMap;
 use std::sync::Mutex;
 
-use super::json::Json;
+use super::json::{APPLICATION_JSON, Json};
 use axum::extract::{Path, State};
-use axum::http::{HeaderValue, header};
+use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
 use serde::Serialize;
@@ -84,10 +84,8 @@ pub async fn coefficients(
     require(&principal, Role::Reader)?;
     let latest = sensor(&state, &sensor_id).await?.latest;
     let body = state.rendered.get_or_render(latest)?;
-    Ok(([(header::CONTENT_TYPE, JSON.clone())], body).into_response())
+    Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response())
 }
-
-static JSON: HeaderValue = HeaderValue::from_static("application/json");
 
 /// The answers of `GET /v1/sensors/{sensor_id}/coefficients`, rendered once
 /// per calibration. A stored calibration never changes, so its rendering
@@ -202,28 +200,14 @@ pub async fn compensate(
 
 #[cfg(test)]
 mod tests {
-    use accelcal_core::{Model, Term, TermMap};
+    use accelcal_core::{Term, TermMap};
 
     use super::*;
 
     fn latest(id: u128, k0: f64) -> CalibrationSummary {
-        let at = Timestamp::parse("2026-01-01T00:00:00Z").unwrap();
-        CalibrationSummary {
-            id: Uuid::from_u128(id),
-            sensor_id: "S".into(),
-            station_id: None,
-            performed_at: at,
-            received_at: at,
-            unit: "mA".into(),
-            model: Model::new(vec![Term::K0, Term::Ki]).unwrap(),
-            runs: 1,
-            coefficients: TermMap(vec![(Term::K0, k0), (Term::Ki, -1.216)]),
-            std_errors: TermMap(vec![(Term::K0, 1e-6), (Term::Ki, 2e-6)]),
-            sensor_type: None,
-            verdict: None,
-            due_at: None,
-            expanded: None,
-        }
+        let mut summary = CalibrationSummary::for_test(id, "S", k0, -1.216);
+        summary.std_errors = TermMap(vec![(Term::K0, 1e-6), (Term::Ki, 2e-6)]);
+        summary
     }
 
     /// The kept rendering is the document itself, field for field.

@@ -18,7 +18,8 @@ use super::problem::Problem;
 #[derive(Clone, Copy, Debug)]
 pub struct Json<T>(pub T);
 
-static APPLICATION_JSON: HeaderValue = HeaderValue::from_static("application/json");
+/// The `Content-Type` of every JSON answer.
+pub(crate) static APPLICATION_JSON: HeaderValue = HeaderValue::from_static("application/json");
 
 impl<T: Serialize> IntoResponse for Json<T> {
     fn into_response(self) -> Response {

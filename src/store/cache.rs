@@ -347,8 +347,6 @@ impl Store for CachedStore {
 
 #[cfg(test)]
 mod tests {
-    use accelcal_core::{Model, Term, TermMap};
-
     use super::*;
 
     fn ts(s: &str) -> Timestamp {
@@ -367,20 +365,9 @@ mod tests {
             due_at: due.map(ts),
             status: Status::Unknown,
             latest: CalibrationSummary {
-                id: Uuid::from_u128(7),
-                sensor_id: sensor.into(),
-                station_id: None,
-                performed_at: at,
-                received_at: at,
-                unit: "mA".into(),
-                model: Model::new(vec![Term::K0, Term::Ki]).unwrap(),
-                runs: 1,
-                coefficients: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 1.0)]),
-                std_errors: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0)]),
-                sensor_type: None,
                 verdict,
                 due_at: due.map(ts),
-                expanded: None,
+                ..CalibrationSummary::for_test(7, sensor, 0.0, 1.0)
             },
         }
     }

@@ -128,6 +128,32 @@ pub struct CalibrationSummary {
     pub expanded: Option<TermMap<f64>>,
 }
 
+#[cfg(test)]
+impl CalibrationSummary {
+    /// A minimal summary for tests: sensor `sensor`, model `k0 + ki`, one
+    /// run, performed and received at 2026-01-01, standard errors zero.
+    pub(crate) fn for_test(id: u128, sensor: &str, k0: f64, ki: f64) -> Self {
+        use accelcal_core::Term;
+        let at = Timestamp::parse("2026-01-01T00:00:00Z").expect("a valid timestamp");
+        Self {
+            id: Uuid::from_u128(id),
+            sensor_id: sensor.into(),
+            station_id: None,
+            performed_at: at,
+            received_at: at,
+            unit: "mA".into(),
+            model: Model::new(vec![Term::K0, Term::Ki]).expect("a valid model"),
+            runs: 1,
+            coefficients: TermMap(vec![(Term::K0, k0), (Term::Ki, ki)]),
+            std_errors: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0)]),
+            sensor_type: None,
+            verdict: None,
+            due_at: None,
+            expanded: None,
+        }
+    }
+}
+
 /// A sensor with its calibration count and latest calibration.
 #[derive(Debug, Clone, PartialEq, Serialize, ToSchema)]
 pub struct SensorSummary {
