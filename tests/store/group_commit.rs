@@ -8,7 +8,9 @@ use std::sync::Arc;
 use super::{calibration, key, pg, until};
 use accelcal::store::{
     IdempotencyKey, NewCalibration, Store, StoreError, Stored, postgres::PostgresStore,
+    sqlite::SqliteStore,
 };
+use accelcal_core::decision::Verdict;
 use tokio::task::JoinHandle;
 
 type Answer = JoinHandle<Result<Stored, StoreError>>;
@@ -244,5 +246,210 @@ async fn postgres_a_full_queue_refuses_instead_of_waiting() {
         )
         .await,
         2
+    );
+}
+
+/// One planned write: sensor, performed_at, type named, whether it assigns
+/// it, verdict, due date, idempotency key.
+type Planned = (
+    &'static str,
+    &'static str,
+    Option<&'static str>,
+    bool,
+    Option<Verdict>,
+    Option<&'static str>,
+    Option<&'static str>,
+);
+
+/// A batch stores what the same writes stored one at a time store: every
+/// column of every calibration, and each sensor's summary — count, first
+/// date, latest calibration by `(performed_at, id)` with its verdict and due
+/// date, the last type assigned — with writes out of date order, a tie on
+/// `performed_at`, types named with and without assigning them, a key
+/// completed before the batch and a key completed by it. The reference is
+/// the SQLite engine, written one write at a time.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn postgres_a_batch_stores_what_one_at_a_time_stores() {
+    let db = pg::TestDb::create().await;
+    let pg = Arc::new(PostgresStore::open(&db.url).await.unwrap());
+    let dir = tempfile::tempdir().unwrap();
+    let lite = SqliteStore::open(dir.path().join("reference.db")).unwrap();
+    let stores: [&dyn Store; 2] = [&*pg, &lite];
+    let done = calibration("F-1", "2026-06-01T00:00:00Z");
+    for s in stores {
+        for t in ["NAV", "GYR"] {
+            assert!(s.put_sensor_type(super::sensor_type(t, 365)).await.unwrap());
+        }
+        let first = s
+            .insert_calibration(done.clone(), Some(key("done", 1)))
+            .await
+            .unwrap();
+        assert_eq!(first, Stored::New);
+    }
+
+    let plan: [Planned; 12] = [
+        (
+            "F-1",
+            "2026-06-03T00:00:00Z",
+            Some("NAV"),
+            true,
+            Some(Verdict::Pass),
+            Some("2027-06-03T00:00:00Z"),
+            None,
+        ),
+        (
+            "F-1",
+            "2026-06-02T00:00:00Z",
+            Some("GYR"),
+            true,
+            Some(Verdict::Fail),
+            None,
+            None,
+        ),
+        (
+            "F-2",
+            "2026-06-05T00:00:00Z",
+            None,
+            false,
+            None,
+            None,
+            Some("fresh"),
+        ),
+        (
+            "F-1",
+            "2026-05-01T00:00:00Z",
+            None,
+            false,
+            None,
+            None,
+            Some("done"),
+        ),
+        (
+            "F-2",
+            "2026-06-05T00:00:00Z",
+            Some("NAV"),
+            false,
+            Some(Verdict::Conditional),
+            None,
+            None,
+        ),
+        (
+            "F-3",
+            "2026-06-09T00:00:00Z",
+            Some("GYR"),
+            true,
+            Some(Verdict::Pass),
+            Some("2027-06-09T00:00:00Z"),
+            None,
+        ),
+        ("F-2", "2026-06-04T00:00:00Z", None, false, None, None, None),
+        ("F-3", "2026-06-08T00:00:00Z", None, false, None, None, None),
+        ("F-1", "2026-06-03T00:00:00Z", None, false, None, None, None),
+        (
+            "F-3",
+            "2026-06-07T00:00:00Z",
+            Some("NAV"),
+            true,
+            None,
+            None,
+            None,
+        ),
+        ("F-1", "2026-05-30T00:00:00Z", None, false, None, None, None),
+        ("F-2", "2026-06-01T00:00:00Z", None, false, None, None, None),
+    ];
+    let writes: Vec<(NewCalibration, Option<IdempotencyKey>)> = plan
+        .iter()
+        .map(|&(sensor, at, named, assigns, verdict, due, k)| {
+            let mut c = calibration(sensor, at);
+            c.sensor_type = named.map(Into::into);
+            c.assigns_type = assigns;
+            c.verdict = verdict;
+            c.due_at = due.map(super::t);
+            // Not "done"'s body: its hash is "done"'s, as a retry's is.
+            (c, k.map(|k| key(k, 1)))
+        })
+        .collect();
+
+    let batched = one_batch(&db, &pg, writes.clone()).await;
+    let mut one_by_one = Vec::new();
+    for (c, k) in writes.clone() {
+        one_by_one.push(lite.insert_calibration(c, k).await);
+    }
+    for (i, (b, o)) in batched.into_iter().zip(one_by_one).enumerate() {
+        let expected = if i == 3 {
+            Stored::Existing(done.id)
+        } else {
+            Stored::New
+        };
+        assert_eq!(b.unwrap(), expected, "batched write {i}");
+        assert_eq!(o.unwrap(), expected, "write {i} alone");
+    }
+
+    for (i, (c, _)) in writes.iter().enumerate() {
+        let got = pg.calibration_summary(c.id).await.unwrap();
+        if i == 3 {
+            assert_eq!(got, None, "an answered key's write was stored");
+            continue;
+        }
+        assert_eq!(got, lite.calibration_summary(c.id).await.unwrap(), "{i}");
+        assert_eq!(
+            pg.calibration_result(c.id).await.unwrap(),
+            Some(c.result.clone())
+        );
+        let sub = pg.submission(c.id).await.unwrap().unwrap();
+        assert_eq!(sub.body, c.submission, "{i}");
+    }
+    for sensor in ["F-1", "F-2", "F-3"] {
+        let b = pg.sensor(sensor.into(), super::now()).await.unwrap();
+        let o = lite.sensor(sensor.into(), super::now()).await.unwrap();
+        assert_eq!(b, o, "{sensor}");
+    }
+    // And by hand, what the summaries must be.
+    let f1 = pg
+        .sensor("F-1".into(), super::now())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(f1.calibration_count, 5);
+    assert_eq!(f1.first_performed_at, super::t("2026-05-30T00:00:00Z"));
+    // Two performed on 06-03: the greater id is the latest.
+    let (latest, verdict) = if writes[8].0.id > writes[0].0.id {
+        (writes[8].0.id, None)
+    } else {
+        (writes[0].0.id, Some(Verdict::Pass))
+    };
+    assert_eq!(f1.latest.id, latest);
+    assert_eq!(f1.latest_verdict, verdict);
+    assert_eq!(f1.sensor_type.as_deref(), Some("GYR"));
+    let f2 = pg
+        .sensor("F-2".into(), super::now())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(f2.calibration_count, 4);
+    let (latest, verdict) = if writes[4].0.id > writes[2].0.id {
+        (writes[4].0.id, Some(Verdict::Conditional))
+    } else {
+        (writes[2].0.id, None)
+    };
+    assert_eq!(f2.latest.id, latest);
+    assert_eq!(f2.latest_verdict, verdict);
+    assert_eq!(f2.sensor_type, None);
+    let f3 = pg
+        .sensor("F-3".into(), super::now())
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(f3.calibration_count, 3);
+    assert_eq!(f3.latest.id, writes[5].0.id);
+    assert_eq!(f3.due_at, Some(super::t("2027-06-09T00:00:00Z")));
+    assert_eq!(f3.sensor_type.as_deref(), Some("NAV"));
+    // The key completed by the batch answers its retry.
+    let retry = calibration("F-2", "2026-06-05T00:00:00Z");
+    assert_eq!(
+        pg.insert_calibration(retry, Some(key("fresh", 1)))
+            .await
+            .unwrap(),
+        Stored::Existing(writes[2].0.id)
     );
 }

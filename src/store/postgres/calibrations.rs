@@ -57,6 +57,41 @@ impl Row {
     pub fn sensor_id(&self) -> &str {
         &self.n.sensor_id
     }
+
+    /// The calibration.
+    pub fn new_calibration(&self) -> &NewCalibration {
+        &self.n
+    }
+
+    /// The model's terms, as JSON.
+    pub fn model(&self) -> &str {
+        &self.model
+    }
+
+    /// The fused coefficients, as JSON.
+    pub fn coefficients(&self) -> &str {
+        &self.coefficients
+    }
+
+    /// Their standard errors, as JSON.
+    pub fn std_errors(&self) -> &str {
+        &self.std_errors
+    }
+
+    /// Their expanded uncertainties, as JSON, if computed.
+    pub fn expanded(&self) -> Option<&str> {
+        self.expanded.as_deref()
+    }
+
+    /// The number of runs.
+    pub fn runs(&self) -> i32 {
+        self.runs
+    }
+
+    /// The result document, as text (checked UTF-8 by [`Row::new`]).
+    pub fn result(&self) -> Result<&str, StoreError> {
+        std::str::from_utf8(&self.n.result).map_err(|e| StoreError::Refused(e.to_string()))
+    }
 }
 
 /// What writing one calibration inside an open transaction came to.

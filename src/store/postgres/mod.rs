@@ -15,6 +15,7 @@
 //! connections and opens new ones, so the replica recovers by itself.
 //! One file per concern, as the SQLite engine.
 
+mod batch;
 mod calibrations;
 pub mod connect;
 mod errors;

@@ -7,22 +7,25 @@
 //! the measured submissions were two thirds PostgreSQL's CPU, spread thin
 //! over sixteen backends. Here requests hand their calibrations to a
 //! bounded queue; the writer takes everything waiting (up to
-//! [`MAX_BATCH`]), writes each with [`calibrations::write`] in one
-//! transaction on one connection, commits once, and only then answers each
+//! [`MAX_BATCH`]), writes them with [`batch::write`] — four statements for
+//! the whole batch, not two to four per calibration — in one transaction on
+//! one connection, commits once, and only then answers each
 //! request. So:
 //!
 //! * every answer still follows the durable commit of what it reports
 //!   (`synchronous_commit=on` on every connection);
-//! * a batch is ordered by sensor, so two replicas' batches take sensors'
-//!   row locks in one order and do not deadlock on them (a deadlock
-//!   PostgreSQL still detects — two batches completing the same two
+//! * a batch is ordered by sensor, and its sensors are upserted in that
+//!   order (one `unnest` of a sorted array, scanned in order), so two
+//!   replicas' batches take sensors' row locks in one order and do not
+//!   deadlock on them (a deadlock PostgreSQL still detects — two batches completing the same two
 //!   idempotency keys at once — fails a statement, and is handled as the
 //!   next point says);
 //! * a write that fails (a constraint) aborts PostgreSQL's transaction, so
 //!   the batch is rolled back and each of its writes is then stored in a
 //!   transaction of its own — the failing one fails alone, exactly as it
 //!   would have without batching; so does a key completed concurrently by
-//!   another replica ([`calibrations::Written::Raced`]);
+//!   another replica, or named twice in one batch
+//!   ([`batch::Outcome::Raced`]);
 //! * if the commit itself fails, every write of the batch is told so
 //!   (503): nothing of it is acknowledged;
 //! * when [`QUEUE`] writes are already waiting, a new one is refused at once
@@ -39,7 +42,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use deadpool_postgres::{Object, Pool};
 use tokio::sync::{mpsc, oneshot};
 
-use super::calibrations::{self, Row, Written};
+use super::batch::{self, Outcome};
+use super::calibrations::{self, Row};
 use super::errors;
 use crate::store::{IdempotencyKey, StoreError, Stored};
 
@@ -212,28 +216,13 @@ async fn together(client: &mut Object, batch: &[Pending]) -> Result<Vec<Stored>,
         .transaction()
         .await
         .map_err(|e| Failed::Write(Some(errors::map(e))))?;
-    // The writes are pipelined: each one's statements follow each other,
-    // but the connection carries every write's next statement without
-    // waiting for the others' answers. Each is still a statement of this
-    // one transaction, so how they interleave changes nothing: sensor
-    // summaries are commutative upserts, and two writes of one key in one
-    // batch meet at its completion, which the second finds done (Raced).
-    let written = futures_util::future::join_all(
-        batch
-            .iter()
-            .map(|p| calibrations::write(&tx, &p.row, p.key.as_ref())),
-    )
-    .await;
-    let mut stored = Vec::with_capacity(batch.len());
-    for w in written {
-        // Returning early drops `tx`, which rolls the batch back.
-        match w {
-            Ok(Written::New) => stored.push(Stored::New),
-            Ok(Written::Existing(id)) => stored.push(Stored::Existing(id)),
-            Ok(Written::Raced) => return Err(Failed::Write(None)),
-            Err(e) => return Err(Failed::Write(Some(e))),
-        }
-    }
+    let writes: Vec<_> = batch.iter().map(|p| (&p.row, p.key.as_ref())).collect();
+    // Returning early drops `tx`, which rolls the batch back.
+    let stored = match batch::write(&tx, &writes).await {
+        Ok(Outcome::Stored(stored)) => stored,
+        Ok(Outcome::Raced) => return Err(Failed::Write(None)),
+        Err(e) => return Err(Failed::Write(Some(e))),
+    };
     tx.commit()
         .await
         .map_err(|e| Failed::Commit(errors::map(e)))?;
