@@ -650,6 +650,31 @@ async fn series_and_previous(s: &dyn Store) {
     );
     assert_eq!(prev("2026-03-02T00:00:00Z").await, Some(c.id));
     assert_eq!(prev("2026-01-01T00:00:00Z").await, None);
+    // The same answers, whole, once the sensor's summary was read (behind
+    // the sensor cache, that read fills it, and the cache answers what it
+    // can).
+    let whole = |at: &'static str| async move {
+        s.previous_calibration("SER".into(), t(at)).await.unwrap()
+    };
+    let dates = [
+        "2026-01-01T00:00:00Z",
+        "2026-02-15T00:00:00Z",
+        "2026-03-01T00:00:00Z",
+        "2026-03-01T00:00:00.000001Z",
+        "2027-01-01T00:00:00Z",
+    ];
+    let mut before = Vec::new();
+    for at in dates {
+        before.push(whole(at).await);
+    }
+    s.sensor("SER".into(), now()).await.unwrap().unwrap();
+    for (at, expected) in dates.into_iter().zip(before) {
+        assert_eq!(whole(at).await, expected, "previous before {at}");
+    }
+    assert_eq!(
+        whole("2027-01-01T00:00:00Z").await.map(|x| x.id),
+        Some(c.id)
+    );
 }
 
 /// The whole suite, on a fresh, empty store.

@@ -204,6 +204,26 @@ impl Store for CachedStore {
         Ok(found)
     }
 
+    /// The latest calibration performed strictly before `before`. When the
+    /// sensor is cached and its latest calibration (the greatest by
+    /// `(performed_at, id)`) was performed before `before`, that one is the
+    /// answer — nothing later exists to be "before" — and the database is not
+    /// asked: the common case of a submission, which follows its sensor's
+    /// summary read ([`Store::sensor`]) and comes after its latest. Otherwise
+    /// the engine answers.
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        if let Some(hit) = self.cache.get(&sensor_id)
+            && hit.latest.performed_at < before
+        {
+            return Ok(Some(hit.latest.clone()));
+        }
+        self.inner.previous_calibration(sensor_id, before).await
+    }
+
     async fn insert_calibration(
         &self,
         c: NewCalibration,
@@ -286,13 +306,6 @@ impl Store for CachedStore {
         to: Option<Timestamp>,
     ) -> Result<Vec<CalibrationSummary>, StoreError> {
         self.inner.series(sensor_id, from, to).await
-    }
-    async fn previous_calibration(
-        &self,
-        sensor_id: String,
-        before: Timestamp,
-    ) -> Result<Option<CalibrationSummary>, StoreError> {
-        self.inner.previous_calibration(sensor_id, before).await
     }
     async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
         self.inner.put_sensor_type(t).await
