@@ -198,41 +198,48 @@ impl AppState {
 /// The whole application: routes, state and middleware.
 pub fn router(state: AppState) -> Router {
     let limits = state.limits;
+    // The API's routes with their `/v1` written out, merged rather than
+    // nested: a nested router strips its prefix from every request's URI
+    // (a new `Uri` each time), measurable on the read path (BENCHMARKS.md,
+    // "Then: PostgreSQL's batches").
     let v1 = Router::new()
-        .route("/calibrations", post(calibrations::submit))
-        .route("/calibrations/{id}", get(calibrations::get))
+        .route("/v1/calibrations", post(calibrations::submit))
+        .route("/v1/calibrations/{id}", get(calibrations::get))
         .route(
-            "/calibrations/{id}/certificate",
+            "/v1/calibrations/{id}/certificate",
             get(calibrations::certificate),
         )
         .route(
-            "/calibrations/{id}/submission",
+            "/v1/calibrations/{id}/submission",
             get(calibrations::submission),
         )
-        .route("/sensors", get(sensors::list))
+        .route("/v1/sensors", get(sensors::list))
         .route(
-            "/sensors/{sensor_id}",
+            "/v1/sensors/{sensor_id}",
             get(sensors::get).put(sensors::update),
         )
-        .route("/sensors/{sensor_id}/calibrations", get(sensors::history))
         .route(
-            "/sensors/{sensor_id}/coefficients",
+            "/v1/sensors/{sensor_id}/calibrations",
+            get(sensors::history),
+        )
+        .route(
+            "/v1/sensors/{sensor_id}/coefficients",
             get(coefficients::coefficients),
         )
         .route(
-            "/sensors/{sensor_id}/compensate",
+            "/v1/sensors/{sensor_id}/compensate",
             post(coefficients::compensate),
         )
-        .route("/sensors/{sensor_id}/stability", get(stability::report))
-        .route("/sensor-types", get(sensor_types::list))
+        .route("/v1/sensors/{sensor_id}/stability", get(stability::report))
+        .route("/v1/sensor-types", get(sensor_types::list))
         .route(
-            "/sensor-types/{type_id}",
+            "/v1/sensor-types/{type_id}",
             get(sensor_types::get).put(sensor_types::put),
         )
-        .route("/identify", post(compute::identify))
-        .route("/fuse", post(compute::fuse))
-        .route("/tokens", post(tokens::create).get(tokens::list))
-        .route("/tokens/{id}", delete(tokens::revoke));
+        .route("/v1/identify", post(compute::identify))
+        .route("/v1/fuse", post(compute::fuse))
+        .route("/v1/tokens", post(tokens::create).get(tokens::list))
+        .route("/v1/tokens/{id}", delete(tokens::revoke));
     let app = Router::new()
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))
@@ -245,7 +252,7 @@ pub fn router(state: AppState) -> Router {
             "/ui/",
             get(|| async { axum::response::Redirect::to("/ui/sensors") }),
         )
-        .nest("/v1", admitted(v1, &state))
+        .merge(admitted(v1, &state))
         .nest("/ui", admitted(ui::router(), &state))
         .fallback(health::not_found);
     // One layer of the whole stack, not one `Router::layer` per middleware:
