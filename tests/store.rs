@@ -675,6 +675,25 @@ async fn series_and_previous(s: &dyn Store) {
         whole("2027-01-01T00:00:00Z").await.map(|x| x.id),
         Some(c.id)
     );
+
+    // The latest calibration's id: the sensor's `latest`, before and after
+    // a newer write (behind the cache, a hit until that write drops it).
+    let latest = || async { s.latest_calibration_id("SER".into()).await.unwrap() };
+    assert_eq!(latest().await, Some(c.id));
+    assert_eq!(s.latest_calibration_id("NONE".into()).await.unwrap(), None);
+    let d = calibration("SER", "2026-04-01T00:00:00Z");
+    s.insert_calibration(d.clone(), None).await.unwrap();
+    assert_eq!(latest().await, Some(d.id));
+    let older = calibration("SER", "2025-12-01T00:00:00Z");
+    s.insert_calibration(older, None).await.unwrap();
+    assert_eq!(latest().await, Some(d.id));
+    assert_eq!(
+        latest().await,
+        s.sensor("SER".into(), now())
+            .await
+            .unwrap()
+            .map(|x| x.latest.id)
+    );
 }
 
 /// The whole suite, on a fresh, empty store.

@@ -17,7 +17,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
-use super::sensors::sensor;
+use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
 use crate::domain::text::echo;
@@ -82,8 +82,15 @@ pub async fn coefficients(
     Path(sensor_id): Path<String>,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    let latest = sensor(&state, &sensor_id).await?.latest;
-    let body = state.rendered.get_or_render(latest)?;
+    // Which calibration is the latest, then its rendering if kept; the
+    // summary itself is read only to render a calibration not kept yet.
+    let id = latest_id(&state, &sensor_id).await?;
+    let body = match state.rendered.get(&id) {
+        Some(body) => body,
+        None => state
+            .rendered
+            .get_or_render(sensor(&state, &sensor_id).await?.latest)?,
+    };
     Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response())
 }
 
@@ -123,6 +130,11 @@ impl Rendered {
         }
         map.insert(id, body.clone());
         Ok(body)
+    }
+
+    /// The kept rendering of calibration `id`, if any.
+    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
+        self.lock().get(id).cloned()
     }
 
     /// Calibrations held rendered now.

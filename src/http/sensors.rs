@@ -39,6 +39,18 @@ pub(crate) async fn sensor(state: &AppState, sensor_id: &str) -> Result<SensorSu
         .ok_or_else(|| unknown_sensor(sensor_id))
 }
 
+/// The id of a sensor's latest calibration, or 404.
+pub(crate) async fn latest_id(state: &AppState, sensor_id: &str) -> Result<Uuid, Problem> {
+    if check_str(sensor_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
+        return Err(unknown_sensor(sensor_id));
+    }
+    state
+        .store
+        .latest_calibration_id(sensor_id.to_owned())
+        .await?
+        .ok_or_else(|| unknown_sensor(sensor_id))
+}
+
 /// The query of `GET /v1/sensors`.
 #[derive(Debug, Deserialize, IntoParams)]
 #[serde(deny_unknown_fields)]

@@ -204,6 +204,19 @@ impl Store for CachedStore {
         Ok(found)
     }
 
+    /// From the cached summary when there is one (no copy of it); else
+    /// read, and cached, as [`Store::sensor`] does.
+    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
+        if let Some(hit) = self.cache.get(&sensor_id) {
+            metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
+            return Ok(Some(hit.latest.id));
+        }
+        Ok(self
+            .sensor(sensor_id, Timestamp::now())
+            .await?
+            .map(|s| s.latest.id))
+    }
+
     /// The latest calibration performed strictly before `before`. When the
     /// sensor is cached and its latest calibration (the greatest by
     /// `(performed_at, id)`) was performed before `before`, that one is the

@@ -73,6 +73,15 @@ pub trait Store: Send + Sync + 'static {
         sensor_id: String,
         now: Timestamp,
     ) -> Result<Option<SensorSummary>, StoreError>;
+    /// The id of a sensor's latest calibration (the one [`Store::sensor`]
+    /// reports), `None` for an unknown sensor. The sensor cache answers it
+    /// without copying the summary.
+    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
+        Ok(self
+            .sensor(sensor_id, Timestamp::now())
+            .await?
+            .map(|s| s.latest.id))
+    }
     /// A sensor's calibrations, newest `performed_at` first.
     async fn history(
         &self,
