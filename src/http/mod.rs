@@ -201,7 +201,7 @@ pub fn router(state: AppState) -> Router {
     // The API's routes with their `/v1` written out, merged rather than
     // nested: a nested router strips its prefix from every request's URI
     // (a new `Uri` each time), measurable on the read path (BENCHMARKS.md,
-    // "Then: PostgreSQL's batches").
+    // "Then: PostgreSQL's batches in four statements, …").
     let v1 = Router::new()
         .route("/v1/calibrations", post(calibrations::submit))
         .route("/v1/calibrations/{id}", get(calibrations::get))
