@@ -685,6 +685,7 @@ async fn series_and_previous(s: &dyn Store) {
     s.insert_calibration(d.clone(), None).await.unwrap();
     assert_eq!(latest().await, Some(d.id));
     let older = calibration("SER", "2025-12-01T00:00:00Z");
+    let older_id = older.id;
     s.insert_calibration(older, None).await.unwrap();
     assert_eq!(latest().await, Some(d.id));
     assert_eq!(
@@ -693,6 +694,44 @@ async fn series_and_previous(s: &dyn Store) {
             .await
             .unwrap()
             .map(|x| x.latest.id)
+    );
+
+    // A history page's ids are the ids of its summaries, in order.
+    let page = |limit: usize| HistoryQuery {
+        limit,
+        ..HistoryQuery::default()
+    };
+    let queries = [
+        page(10),
+        page(2),
+        HistoryQuery {
+            before: Some(c.id),
+            ..page(10)
+        },
+        HistoryQuery {
+            from: Some(t("2026-01-15T00:00:00Z")),
+            to: Some(t("2026-03-01T00:00:00Z")),
+            ..page(10)
+        },
+    ];
+    for q in queries {
+        let whole: Vec<_> = s
+            .history("SER".into(), q.clone())
+            .await
+            .unwrap()
+            .into_iter()
+            .map(|x| x.id)
+            .collect();
+        assert!(!whole.is_empty(), "{q:?}");
+        assert_eq!(
+            s.history_ids("SER".into(), q.clone()).await.unwrap(),
+            whole,
+            "{q:?}"
+        );
+    }
+    assert_eq!(
+        s.history_ids("SER".into(), page(10)).await.unwrap(),
+        [d.id, c.id, b.id, a.id, older_id]
     );
 }
 

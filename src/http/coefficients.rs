@@ -1,9 +1,6 @@
 //! What control systems use: the latest coefficients, and compensation of
 //! raw outputs with them.
 
-use std::collections::HashMap;
-use std::sync::Mutex;
-
 use super::json::{APPLICATION_JSON, Json};
 use axum::extract::{Path, State};
 use axum::http::header;
@@ -17,6 +14,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
+use super::rendered::ById;
 use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
@@ -95,26 +93,33 @@ pub async fn coefficients(
 }
 
 /// The answers of `GET /v1/sensors/{sensor_id}/coefficients`, rendered once
-/// per calibration. A stored calibration never changes, so its rendering
-/// cannot go stale; which calibration is a sensor's latest is still asked
-/// of the store on every read (and its sensor cache keeps that exact).
-/// Rendering was a sixth of the route's instructions (BENCHMARKS.md,
-/// "Observed as deployed"). Bounded: at most [`RENDERED`] calibrations;
-/// when full, an arbitrary one makes room.
-#[derive(Debug, Default)]
-pub struct Rendered(Mutex<HashMap<Uuid, Bytes>>);
+/// per calibration ([`super::rendered`]). Rendering was a sixth of the
+/// route's instructions (BENCHMARKS.md, "Observed as deployed").
+#[derive(Debug)]
+pub struct Rendered(ById);
 
 /// Calibrations whose coefficients are kept rendered (each a few hundred
 /// bytes).
 pub const RENDERED: usize = 4096;
 
+impl Default for Rendered {
+    fn default() -> Self {
+        Rendered(ById::new(RENDERED))
+    }
+}
+
 impl Rendered {
+    /// The kept rendering of calibration `id`, if any.
+    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
+        self.0.get(id)
+    }
+
     /// The rendered [`Coefficients`] of `latest`, from memory when they
     /// were rendered before.
     pub fn get_or_render(&self, latest: CalibrationSummary) -> Result<Bytes, Problem> {
         let id = latest.id;
-        if let Some(body) = self.lock().get(&id) {
-            return Ok(body.clone());
+        if let Some(body) = self.0.get(&id) {
+            return Ok(body);
         }
         let body = Bytes::from(
             serde_json::to_vec(&Coefficients::from(latest)).map_err(|e| {
@@ -122,34 +127,18 @@ impl Rendered {
                 Problem::internal()
             })?,
         );
-        let mut map = self.lock();
-        if map.len() >= RENDERED
-            && let Some(victim) = map.keys().next().copied()
-        {
-            map.remove(&victim);
-        }
-        map.insert(id, body.clone());
+        self.0.insert(id, body.clone());
         Ok(body)
-    }
-
-    /// The kept rendering of calibration `id`, if any.
-    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
-        self.lock().get(id).cloned()
     }
 
     /// Calibrations held rendered now.
     pub fn len(&self) -> usize {
-        self.lock().len()
+        self.0.len()
     }
 
     /// Whether none is.
     pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, Bytes>> {
-        // Plain data: a panic elsewhere cannot leave it half-updated.
-        self.0.lock().unwrap_or_else(|e| e.into_inner())
+        self.0.is_empty()
     }
 }
 
@@ -260,6 +249,6 @@ mod tests {
         assert_eq!(r.len(), RENDERED);
         // The newest is among them.
         let newest = Uuid::from_u128(RENDERED as u128 + 9);
-        assert!(r.lock().contains_key(&newest));
+        assert!(r.0.contains(&newest));
     }
 }

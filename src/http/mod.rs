@@ -19,6 +19,7 @@ pub mod openapi;
 pub mod page;
 pub mod problem;
 pub mod query;
+pub mod rendered;
 pub mod sensor_types;
 pub mod sensors;
 pub mod stability;
@@ -102,6 +103,8 @@ pub struct Shared {
     pub web: Web,
     /// Coefficients answers rendered once per calibration.
     pub rendered: coefficients::Rendered,
+    /// Calibration summaries (history pages' items) rendered once each.
+    pub summaries: rendered::ById,
 }
 
 impl std::ops::Deref for AppState {
@@ -156,6 +159,7 @@ impl AppState {
             web,
             limits,
             rendered: coefficients::Rendered::default(),
+            summaries: rendered::ById::new(sensors::SUMMARIES),
         }))
     }
 

@@ -1,7 +1,10 @@
 //! Sensors: listing (by status), one sensor, assigning its type, history.
 
-use super::json::Json;
+use super::json::{APPLICATION_JSON, Json};
 use axum::extract::{Path, State};
+use axum::http::header;
+use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
 use serde::Deserialize;
 use utoipa::{IntoParams, ToSchema};
 use uuid::Uuid;
@@ -17,7 +20,7 @@ use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::status::Status;
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{CalibrationSummary, HistoryQuery, SensorQuery, SensorSummary};
+use crate::store::{HistoryQuery, SensorQuery, SensorSummary};
 
 fn unknown_sensor(sensor_id: &str) -> Problem {
     Problem::not_found(format!(
@@ -226,7 +229,7 @@ pub async fn history(
     principal: Principal,
     Path(sensor_id): Path<String>,
     Params(q): Params<HistoryParams>,
-) -> Result<Json<Page<CalibrationSummary>>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     let limit = limit(q.limit.as_deref())?;
     let (from, to) = (
@@ -255,10 +258,69 @@ pub async fn history(
         before,
         limit: limit + 1,
     };
-    let items = state.store.history(sensor_id, q).await?;
-    Ok(Json(Page::from_overfetch(items, limit, |c| {
-        c.id.to_string()
-    })))
+    // The page's ids, then each summary as rendered before; the summaries
+    // are read (and rendered, and kept) only when one is not kept yet.
+    let ids = state
+        .store
+        .history_ids(sensor_id.clone(), q.clone())
+        .await?;
+    let kept: Option<Vec<Bytes>> = ids.iter().map(|id| state.summaries.get(id)).collect();
+    let items = match kept {
+        Some(bodies) => ids.into_iter().zip(bodies).collect(),
+        None => {
+            let mut items = Vec::new();
+            for c in state.store.history(sensor_id, q).await? {
+                let body = Bytes::from(serde_json::to_vec(&c).map_err(|e| {
+                    tracing::error!(error = %e, "rendering a calibration summary failed");
+                    Problem::internal()
+                })?);
+                state.summaries.insert(c.id, body.clone());
+                items.push((c.id, body));
+            }
+            items
+        }
+    };
+    let body = page_of_rendered(items, limit);
+    Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response())
+}
+
+/// Calibration summaries kept rendered at most (each under a kilobyte).
+pub const SUMMARIES: usize = 4096;
+
+/// The JSON of a [`Page`] of calibration summaries from their renderings:
+/// `{"items":[…],"next":…}` as serde writes a `Page<CalibrationSummary>`,
+/// the last of `limit + 1` fetched items only telling that a next page
+/// exists.
+fn page_of_rendered(mut items: Vec<(Uuid, Bytes)>, limit: usize) -> Bytes {
+    let next = if items.len() > limit {
+        items.truncate(limit);
+        items.last().map(|(id, _)| *id)
+    } else {
+        None
+    };
+    let mut out = Vec::with_capacity(32 + items.iter().map(|(_, b)| b.len() + 1).sum::<usize>());
+    out.extend_from_slice(b"{\"items\":[");
+    for (k, (_, body)) in items.iter().enumerate() {
+        if k > 0 {
+            out.push(b',');
+        }
+        out.extend_from_slice(body);
+    }
+    out.extend_from_slice(b"],\"next\":");
+    match next {
+        Some(id) => {
+            out.push(b'"');
+            out.extend_from_slice(
+                id.hyphenated()
+                    .encode_lower(&mut Uuid::encode_buffer())
+                    .as_bytes(),
+            );
+            out.push(b'"');
+        }
+        None => out.extend_from_slice(b"null"),
+    }
+    out.push(b'}');
+    Bytes::from(out)
 }
 
 /// The body of `PUT /v1/sensors/{sensor_id}`.
@@ -319,4 +381,35 @@ pub async fn update(
     }
     tracing::info!(sensor_id = %sensor_id, sensor_type = %type_id, by = %principal.id, "sensor type assigned");
     Ok(Json(sensor(&state, &sensor_id).await?))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::store::CalibrationSummary;
+
+    /// A page built from kept renderings is, byte for byte, what serde
+    /// writes for the same summaries as a `Page` — empty, short, full and
+    /// overfetched.
+    #[test]
+    fn a_page_of_renderings_is_the_page_serde_writes() {
+        let all: Vec<CalibrationSummary> = (1..=4)
+            .map(|i| CalibrationSummary::for_test(i, "S", 1e-3 * i as f64, -1.2))
+            .collect();
+        for (n, limit) in [(0, 3), (2, 3), (3, 3), (4, 3), (2, 1)] {
+            let items = all[..n].to_vec();
+            let rendered = items
+                .iter()
+                .map(|c| (c.id, Bytes::from(serde_json::to_vec(c).unwrap())))
+                .collect();
+            let expected =
+                serde_json::to_vec(&Page::from_overfetch(items, limit, |c| c.id.to_string()))
+                    .unwrap();
+            assert_eq!(
+                page_of_rendered(rendered, limit),
+                Bytes::from(expected),
+                "{n} items, limit {limit}"
+            );
+        }
+    }
 }

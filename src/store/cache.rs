@@ -312,6 +312,13 @@ impl Store for CachedStore {
     ) -> Result<Vec<CalibrationSummary>, StoreError> {
         self.inner.history(sensor_id, q).await
     }
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        self.inner.history_ids(sensor_id, q).await
+    }
     async fn series(
         &self,
         sensor_id: String,

@@ -88,6 +88,21 @@ pub trait Store: Send + Sync + 'static {
         sensor_id: String,
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError>;
+    /// The ids of the calibrations [`Store::history`] answers for `q`, in
+    /// its order: what a reader needs when it keeps the summaries rendered
+    /// by id (a stored calibration never changes).
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        Ok(self
+            .history(sensor_id, q)
+            .await?
+            .into_iter()
+            .map(|c| c.id)
+            .collect())
+    }
     /// A sensor's calibrations performed within `from..=to`, oldest first
     /// (ties by id): the series of its stability.
     async fn series(

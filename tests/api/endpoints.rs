@@ -119,6 +119,7 @@ async fn sensors_are_listed_in_pages_with_their_latest_calibration() {
 async fn history_is_newest_first_filtered_and_paginated() {
     let app = TestApp::spawn().await;
     let mut ids = Vec::new();
+    let mut answers = Vec::new();
     for month in [3, 1, 5, 2, 4] {
         let r = app
             .submit(
@@ -127,6 +128,7 @@ async fn history_is_newest_first_filtered_and_paginated() {
             )
             .await;
         ids.push((month, r["id"].as_str().unwrap().to_owned()));
+        answers.push(r);
     }
     ids.sort();
     let newest_first: Vec<String> = ids.iter().rev().map(|(_, id)| id.clone()).collect();
@@ -141,6 +143,40 @@ async fn history_is_newest_first_filtered_and_paginated() {
     )
     .await;
     assert_eq!(pages.concat(), newest_first[1..4]);
+
+    // Read again — every summary now kept rendered — each item is still
+    // its submission's answer, and a newer calibration heads the next read.
+    let read = || async {
+        let res = app
+            .get("/v1/sensors/H-1/calibrations?limit=10", ADMIN)
+            .await;
+        assert_eq!(res.status(), StatusCode::OK);
+        assert_eq!(res.headers()["content-type"], "application/json");
+        res.bytes().await.unwrap()
+    };
+    let warm = read().await;
+    assert_eq!(read().await, warm, "a second read answers the same bytes");
+    let page: Value = serde_json::from_slice(&warm).unwrap();
+    assert_eq!(page["next"], Value::Null);
+    let items = page["items"].as_array().unwrap();
+    assert_eq!(items.len(), 5);
+    for item in items {
+        let answer = answers.iter().find(|a| a["id"] == item["id"]).unwrap();
+        assert_eq!(item["performed_at"], answer["performed_at"]);
+        assert_eq!(item["coefficients"], answer["fused"]["coefficients"]);
+        assert_eq!(item["std_errors"], answer["fused"]["std_errors"]);
+        assert_eq!(item["model"], answer["model"]);
+        assert_eq!(item["runs"], 4);
+        assert_eq!(item["sensor_id"], "H-1");
+    }
+    let newer = app
+        .submit(ADMIN, &submission("H-1", "2026-07-01T00:00:00Z", 4))
+        .await;
+    let page: Value = serde_json::from_slice(&read().await).unwrap();
+    let items = page["items"].as_array().unwrap();
+    assert_eq!(items.len(), 6);
+    assert_eq!(items[0]["id"], newer["id"]);
+    assert_eq!(items[1..], page_items(&warm)[..]);
 
     let res = app.get("/v1/sensors/NOPE/calibrations", ADMIN).await;
     problem(res, StatusCode::NOT_FOUND).await;
@@ -341,4 +377,10 @@ async fn probes_and_contract_are_public() {
     let spec = c.get(app.url("/openapi.yaml")).send().await.unwrap();
     assert_eq!(spec.headers()["content-type"], "application/yaml");
     assert!(spec.text().await.unwrap().starts_with("openapi: 3.1"));
+}
+
+/// The items of a page's JSON body.
+fn page_items(body: &[u8]) -> Vec<Value> {
+    let page: Value = serde_json::from_slice(body).unwrap();
+    page["items"].as_array().unwrap().clone()
 }

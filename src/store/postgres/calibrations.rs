@@ -320,17 +320,40 @@ pub async fn history(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 \
-         AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
-         AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-         AND ($4::uuid IS NULL OR (c.performed_at, c.id) < \
-              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = $4)) \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT $5"
-    );
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+    let sql = format!("SELECT {SUMMARY_COLUMNS} {HISTORY_PAGE}");
+    let found = page(client, &sql, sensor_id, q).await?;
+    found.iter().map(rows::summary).collect()
+}
+
+/// The ids of the page [`history`] answers for `q`, in its order.
+pub async fn history_ids(
+    client: &Object,
+    sensor_id: &str,
+    q: &HistoryQuery,
+) -> Result<Vec<Uuid>, StoreError> {
+    let sql = format!("SELECT c.id {HISTORY_PAGE}");
+    let found = page(client, &sql, sensor_id, q).await?;
+    found.iter().map(|r| rows::get(r, "id")).collect()
+}
+
+/// A page of a sensor's history: newest first, within `$2..=$3`, before the
+/// calibration `$4`, at most `$5` (after the selected columns).
+const HISTORY_PAGE: &str = "FROM calibrations c WHERE c.sensor_id = $1 \
+     AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
+     AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
+     AND ($4::uuid IS NULL OR (c.performed_at, c.id) < \
+          (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = $4)) \
+     ORDER BY c.performed_at DESC, c.id DESC LIMIT $5";
+
+async fn page(
+    client: &Object,
+    sql: &str,
+    sensor_id: &str,
+    q: &HistoryQuery,
+) -> Result<Vec<tokio_postgres::Row>, StoreError> {
+    let stmt = client.prepare_cached(sql).await.map_err(map)?;
     let limit = q.limit as i64;
-    let found = client
+    client
         .query(
             &stmt,
             &[
@@ -342,8 +365,7 @@ pub async fn history(
             ],
         )
         .await
-        .map_err(map)?;
-    found.iter().map(rows::summary).collect()
+        .map_err(map)
 }
 
 /// A sensor's calibrations within `from..=to`, oldest first.

@@ -251,6 +251,17 @@ impl Store for PostgresStore {
         .await)
     }
 
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        op!(self, "history_ids", |c| calibrations::history_ids(
+            &c, &sensor_id, &q
+        )
+        .await)
+    }
+
     async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
         op!(self, "insert_token", |c| tokens::insert(&c, &t).await)
     }

@@ -40,16 +40,19 @@ static SUMMARY: LazyLock<String> =
     LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = ?1"));
 
 /// A page of a sensor's history: newest first, within `?2..=?3`, before the
-/// calibration `?4`, at most `?5`.
-static HISTORY: LazyLock<String> = LazyLock::new(|| {
-    format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
-         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         AND (?4 IS NULL OR (c.performed_at, c.id) < \
-              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5"
-    )
-});
+/// calibration `?4`, at most `?5` (after the selected columns).
+const HISTORY_PAGE: &str = "FROM calibrations c WHERE c.sensor_id = ?1 \
+     AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+     AND (?4 IS NULL OR (c.performed_at, c.id) < \
+          (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+     ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5";
+
+/// The summaries of a page of a sensor's history.
+static HISTORY: LazyLock<String> =
+    LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} {HISTORY_PAGE}"));
+
+/// The ids of a page of a sensor's history.
+static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| format!("SELECT c.id {HISTORY_PAGE}"));
 
 /// A sensor's calibrations within `?2..=?3`, oldest first.
 static SERIES: LazyLock<String> = LazyLock::new(|| {
@@ -205,6 +208,22 @@ pub fn history(
         q.limit as i64
     ];
     rows::all(conn, &HISTORY, params, rows::summary)
+}
+
+/// The ids of the page [`history`] answers for `q`, in its order.
+pub fn history_ids(
+    conn: &Connection,
+    sensor_id: &str,
+    q: &HistoryQuery,
+) -> Result<Vec<Uuid>, StoreError> {
+    let params = params![
+        sensor_id,
+        q.from.map(|t| t.to_string()),
+        q.to.map(|t| t.to_string()),
+        q.before.map(|id| id.to_string()),
+        q.limit as i64
+    ];
+    rows::all(conn, &HISTORY_IDS, params, |row| rows::uuid(row, "id"))
 }
 
 /// A sensor's calibrations within `from..=to`, oldest first.

@@ -269,6 +269,17 @@ impl Store for SqliteStore {
         .await
     }
 
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        self.run("history_ids", move |conn| {
+            calibrations::history_ids(conn, &sensor_id, &q)
+        })
+        .await
+    }
+
     async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
         self.run("insert_token", move |conn| tokens::insert(conn, &t))
             .await

@@ -1,0 +1,90 @@
+//! Answers rendered once per stored calibration and kept by its id.
+//!
+//! A stored calibration never changes (both engines refuse an update of its
+//! row), so anything rendered from it alone — its coefficients document, its
+//! summary in a history page — cannot go stale, in this process or across
+//! replicas: an id means the same row everywhere. Which calibrations a read
+//! needs (the latest, a page) is still asked of the store on every read.
+
+use std::collections::HashMap;
+use std::sync::Mutex;
+
+use bytes::Bytes;
+use uuid::Uuid;
+
+/// Renderings by calibration id, at most `capacity`; when full, an arbitrary
+/// one makes room.
+#[derive(Debug)]
+pub struct ById {
+    map: Mutex<HashMap<Uuid, Bytes>>,
+    capacity: usize,
+}
+
+impl ById {
+    /// Empty, keeping at most `capacity` renderings.
+    pub fn new(capacity: usize) -> Self {
+        ById {
+            map: Mutex::new(HashMap::new()),
+            capacity,
+        }
+    }
+
+    /// The kept rendering of calibration `id`, if any.
+    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
+        self.lock().get(id).cloned()
+    }
+
+    /// Keeps `body` as the rendering of calibration `id`.
+    pub fn insert(&self, id: Uuid, body: Bytes) {
+        let mut map = self.lock();
+        if map.len() >= self.capacity
+            && !map.contains_key(&id)
+            && let Some(victim) = map.keys().next().copied()
+        {
+            map.remove(&victim);
+        }
+        map.insert(id, body);
+    }
+
+    /// Renderings kept now.
+    pub fn len(&self) -> usize {
+        self.lock().len()
+    }
+
+    /// Whether none is.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Whether calibration `id`'s rendering is kept.
+    pub fn contains(&self, id: &Uuid) -> bool {
+        self.lock().contains_key(id)
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, Bytes>> {
+        // Plain data: a panic elsewhere cannot leave it half-updated.
+        self.map.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn keeps_at_most_its_capacity_and_the_newest() {
+        let kept = ById::new(3);
+        assert!(kept.is_empty());
+        for id in 0..10u128 {
+            kept.insert(Uuid::from_u128(id), Bytes::from(id.to_string()));
+            assert!(kept.len() <= 3);
+        }
+        assert_eq!(kept.len(), 3);
+        assert_eq!(kept.get(&Uuid::from_u128(9)), Some(Bytes::from("9")));
+        // Putting one kept again evicts nothing.
+        kept.insert(Uuid::from_u128(9), Bytes::from("9"));
+        assert_eq!(kept.len(), 3);
+        assert!(kept.contains(&Uuid::from_u128(9)));
+        assert_eq!(kept.get(&Uuid::from_u128(100)), None);
+    }
+}
