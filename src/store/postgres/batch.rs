@@ -31,7 +31,7 @@ use deadpool_postgres::Transaction;
 use time::OffsetDateTime;
 use uuid::Uuid;
 
-use super::calibrations::Row;
+use super::calibrations::{Row, SENSOR_MERGE};
 use super::errors::map;
 use super::rows;
 use crate::store::{IdempotencyKey, StoreError, Stored};
@@ -283,28 +283,19 @@ async fn complete_keys(
         .map_err(map)
 }
 
-/// Applies each sensor's fold to its stored summary (or creates it); the
-/// same rules as one write's upsert, with `count` for `1`.
+/// Applies each sensor's fold to its stored summary (or creates it), by
+/// the rules of one write's upsert ([`SENSOR_MERGE`]).
 async fn upsert_sensors(
     tx: &Transaction<'_>,
     folds: &BTreeMap<&str, Fold<'_>>,
 ) -> Result<(), StoreError> {
-    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
-                 > (sensors.latest_performed_at, sensors.latest_calibration_id)";
     let upsert = tx
         .prepare_cached(&format!(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
              SELECT * FROM unnest($1::text[], $2::int8[], $3::timestamptz[], $4::timestamptz[], \
-               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) \
-             ON CONFLICT (sensor_id) DO UPDATE SET \
-               calibration_count = sensors.calibration_count + excluded.calibration_count, \
-               first_performed_at = least(sensors.first_performed_at, excluded.first_performed_at), \
-               latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE sensors.latest_calibration_id END, \
-               latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE sensors.latest_verdict END, \
-               latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE sensors.latest_due_at END, \
-               latest_performed_at = greatest(sensors.latest_performed_at, excluded.latest_performed_at), \
-               sensor_type = coalesce(excluded.sensor_type, sensors.sensor_type)"
+               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {}",
+            *SENSOR_MERGE
         ))
         .await
         .map_err(map)?;

@@ -200,14 +200,7 @@ pub fn history(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let params = params![
-        sensor_id,
-        q.from.map(|t| t.to_string()),
-        q.to.map(|t| t.to_string()),
-        q.before.map(|id| id.to_string()),
-        q.limit as i64
-    ];
-    rows::all(conn, &HISTORY, params, rows::summary)
+    page(conn, &HISTORY, sensor_id, q, rows::summary)
 }
 
 /// The ids of the page [`history`] answers for `q`, in its order.
@@ -216,6 +209,19 @@ pub fn history_ids(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<Uuid>, StoreError> {
+    page(conn, &HISTORY_IDS, sensor_id, q, |row| {
+        rows::uuid(row, "id")
+    })
+}
+
+/// One of the [`HISTORY_PAGE`] queries, bound to `q`.
+fn page<T>(
+    conn: &Connection,
+    sql: &str,
+    sensor_id: &str,
+    q: &HistoryQuery,
+    decode: impl Fn(&rusqlite::Row<'_>) -> Result<T, StoreError>,
+) -> Result<Vec<T>, StoreError> {
     let params = params![
         sensor_id,
         q.from.map(|t| t.to_string()),
@@ -223,7 +229,7 @@ pub fn history_ids(
         q.before.map(|id| id.to_string()),
         q.limit as i64
     ];
-    rows::all(conn, &HISTORY_IDS, params, |row| rows::uuid(row, "id"))
+    rows::all(conn, sql, params, decode)
 }
 
 /// A sensor's calibrations within `from..=to`, oldest first.
