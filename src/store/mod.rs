@@ -196,14 +196,7 @@ pub fn observe<T>(
 /// writes by other replicas reach it.
 pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
     if url.starts_with("postgres://") || url.starts_with("postgresql://") {
-        let inner = Arc::new(postgres::PostgresStore::open(url).await?);
-        let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, false));
-        let listener = postgres::listen::spawn(url.to_owned(), cache.clone());
-        return Ok(Arc::new(cache::CachedStore::new(
-            inner,
-            cache,
-            Some(listener),
-        )));
+        return Ok(Arc::new(postgres::PostgresStore::cached(url).await?));
     }
     let path = url
         .strip_prefix("sqlite://")

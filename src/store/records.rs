@@ -79,6 +79,28 @@ impl NewCalibration {
     }
 }
 
+impl From<&NewCalibration> for CalibrationSummary {
+    /// The summary every engine reads back for this record once stored.
+    fn from(n: &NewCalibration) -> Self {
+        CalibrationSummary {
+            id: n.id,
+            sensor_id: n.sensor_id.clone(),
+            station_id: n.station_id.clone(),
+            performed_at: n.performed_at,
+            received_at: n.received_at,
+            unit: n.unit.clone(),
+            model: n.model.clone(),
+            runs: n.runs,
+            coefficients: n.coefficients.clone(),
+            std_errors: n.std_errors.clone(),
+            sensor_type: n.sensor_type.clone(),
+            verdict: n.verdict,
+            due_at: n.due_at,
+            expanded: n.expanded.clone(),
+        }
+    }
+}
+
 /// A submitted body as stored.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct StoredSubmission {
@@ -179,6 +201,37 @@ pub struct SensorSummary {
     pub latest: CalibrationSummary,
 }
 
+impl SensorSummary {
+    /// The sensor as one more stored calibration `c` of it leaves it —
+    /// the rule every engine's write applies to the sensor's row:
+    ///
+    /// * `calibration_count + 1`;
+    /// * `first_performed_at = min(first_performed_at, c.performed_at)`;
+    /// * `c` becomes the latest when `(c.performed_at, c.id)` is greater
+    ///   than the latest's (the later id breaks a tie), and then the
+    ///   latest verdict and due date are `c`'s;
+    /// * `latest_performed_at = max(latest_performed_at, c.performed_at)`;
+    /// * the assigned type becomes `c.sensor_type` when `c` assigns one
+    ///   (`assigns_type`), and is kept otherwise.
+    ///
+    /// The status is left as it was: it depends on the time of a read.
+    pub fn after(&self, c: CalibrationSummary, assigns_type: bool) -> SensorSummary {
+        let mut s = self.clone();
+        s.calibration_count += 1;
+        s.first_performed_at = s.first_performed_at.min(c.performed_at);
+        s.latest_performed_at = s.latest_performed_at.max(c.performed_at);
+        if assigns_type && c.sensor_type.is_some() {
+            s.sensor_type = c.sensor_type.clone();
+        }
+        if (c.performed_at, c.id) > (s.latest.performed_at, s.latest.id) {
+            s.latest_verdict = c.verdict;
+            s.due_at = c.due_at;
+            s.latest = c;
+        }
+        s
+    }
+}
+
 /// Which sensors to list, in id order.
 #[derive(Debug, Clone)]
 pub struct SensorQuery {
@@ -258,4 +311,134 @@ pub enum Stored {
     /// A concurrent request with the same key stored this one first; nothing
     /// new was stored.
     Existing(Uuid),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::status::Status;
+
+    fn ts(s: &str) -> Timestamp {
+        Timestamp::parse(s).unwrap()
+    }
+
+    /// A calibration of `S` with id `id`, performed at `at`.
+    fn cal(id: u128, at: &str) -> CalibrationSummary {
+        CalibrationSummary {
+            performed_at: ts(at),
+            ..CalibrationSummary::for_test(id, "S", 0.0, 1.0)
+        }
+    }
+
+    /// Sensor `S` with two calibrations, 2026-02-01 and 2026-03-01 (id 50,
+    /// passed, due 2027-03-01), type `A` assigned.
+    fn sensor() -> SensorSummary {
+        let latest = CalibrationSummary {
+            verdict: Some(Verdict::Pass),
+            due_at: Some(ts("2027-03-01T00:00:00Z")),
+            sensor_type: Some("A".into()),
+            ..cal(50, "2026-03-01T00:00:00Z")
+        };
+        SensorSummary {
+            sensor_id: "S".into(),
+            calibration_count: 2,
+            first_performed_at: ts("2026-02-01T00:00:00Z"),
+            latest_performed_at: ts("2026-03-01T00:00:00Z"),
+            sensor_type: Some("A".into()),
+            latest_verdict: latest.verdict,
+            due_at: latest.due_at,
+            status: Status::Ok,
+            latest,
+        }
+    }
+
+    /// Each rule of [`SensorSummary::after`], the expected summary written
+    /// out by hand.
+    #[test]
+    fn one_more_calibration_by_the_rules_of_the_sensors_row() {
+        let before = sensor();
+
+        // Older than the first: the first date moves, nothing else.
+        let older = cal(60, "2026-01-01T00:00:00Z");
+        let mut want = sensor();
+        want.calibration_count = 3;
+        want.first_performed_at = ts("2026-01-01T00:00:00Z");
+        assert_eq!(before.after(older, false), want);
+
+        // Newer, untyped: the latest, its (absent) verdict and due date;
+        // the assigned type stays.
+        let newer = cal(40, "2026-04-01T00:00:00Z");
+        let mut want = sensor();
+        want.calibration_count = 3;
+        want.latest_performed_at = ts("2026-04-01T00:00:00Z");
+        want.latest_verdict = None;
+        want.due_at = None;
+        want.latest = newer.clone();
+        assert_eq!(before.after(newer.clone(), false), want);
+
+        // The same, assigning type B: the type changes too. Naming B
+        // without assigning it leaves A.
+        let typed = CalibrationSummary {
+            sensor_type: Some("B".into()),
+            verdict: Some(Verdict::Fail),
+            due_at: Some(ts("2026-10-01T00:00:00Z")),
+            ..newer.clone()
+        };
+        let got = before.after(typed.clone(), true);
+        assert_eq!(got.sensor_type.as_deref(), Some("B"));
+        assert_eq!(got.latest_verdict, Some(Verdict::Fail));
+        assert_eq!(got.due_at, Some(ts("2026-10-01T00:00:00Z")));
+        assert_eq!(before.after(typed, false).sensor_type.as_deref(), Some("A"));
+
+        // Performed at the latest's instant: the greater id is the latest.
+        let tie_above = cal(51, "2026-03-01T00:00:00Z");
+        let tie_below = cal(49, "2026-03-01T00:00:00Z");
+        assert_eq!(before.after(tie_above, false).latest.id.as_u128(), 51);
+        let got = before.after(tie_below, false);
+        assert_eq!(got.latest.id.as_u128(), 50);
+        assert_eq!(got.latest_verdict, Some(Verdict::Pass));
+        assert_eq!(got.calibration_count, 3);
+
+        // The status is not the rule's business.
+        assert_eq!(
+            before.after(cal(70, "2026-05-01T00:00:00Z"), false).status,
+            Status::Ok
+        );
+    }
+
+    /// A stored record's summary carries every field the record has.
+    #[test]
+    fn a_new_calibrations_summary_is_its_fields() {
+        let c = CalibrationSummary {
+            station_id: Some("LAB".into()),
+            sensor_type: Some("A".into()),
+            verdict: Some(Verdict::Conditional),
+            due_at: Some(ts("2027-01-01T00:00:00Z")),
+            expanded: Some(TermMap(vec![])),
+            received_at: ts("2026-01-02T00:00:00Z"),
+            ..cal(9, "2026-01-01T00:00:00Z")
+        };
+        let n = NewCalibration {
+            id: c.id,
+            sensor_id: c.sensor_id.clone(),
+            station_id: c.station_id.clone(),
+            performed_at: c.performed_at,
+            received_at: c.received_at,
+            unit: c.unit.clone(),
+            model: c.model.clone(),
+            runs: c.runs,
+            coefficients: c.coefficients.clone(),
+            std_errors: c.std_errors.clone(),
+            result: Bytes::from_static(b"{}"),
+            submission: Bytes::from_static(b"{}"),
+            content_type: "application/json".into(),
+            submitted_by: "x".into(),
+            sensor_type: c.sensor_type.clone(),
+            assigns_type: true,
+            verdict: c.verdict,
+            due_at: c.due_at,
+            expanded: c.expanded.clone(),
+        };
+        assert_eq!(CalibrationSummary::from(&n), c);
+    }
 }

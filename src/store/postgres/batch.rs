@@ -40,11 +40,21 @@ use crate::store::{IdempotencyKey, StoreError, Stored};
 #[derive(Debug)]
 pub enum Outcome {
     /// Each write's answer, in the batch's order (stored once the
-    /// transaction commits).
-    Stored(Vec<Stored>),
+    /// transaction commits), and the sensors whose rows changed.
+    Stored(Vec<Stored>, Option<Changed>),
     /// A key was named twice, or completed by another request meanwhile:
     /// the transaction must be rolled back.
     Raced,
+}
+
+/// The sensors a batch changed, and the backend process that changed them:
+/// what its commit will notify ([`super::listen::Echoes`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Changed {
+    /// The backend process id of the transaction's connection.
+    pub pid: i32,
+    /// The sensors upserted, each once.
+    pub sensors: Vec<String>,
 }
 
 /// One sensor's summary of the batch's writes of it, in the batch's order.
@@ -161,7 +171,7 @@ pub async fn write(
         .map(|a| a.unwrap_or(Stored::New))
         .collect();
     if to_write.is_empty() {
-        return Ok(Outcome::Stored(answers));
+        return Ok(Outcome::Stored(answers, None));
     }
 
     // 2. The calibrations.
@@ -178,8 +188,10 @@ pub async fn write(
     }
 
     // 4. The sensors' summaries.
-    upsert_sensors(tx, &fold(rows)).await?;
-    Ok(Outcome::Stored(answers))
+    let folds = fold(rows);
+    let pid = upsert_sensors(tx, &folds).await?;
+    let sensors = folds.keys().map(|s| (*s).to_owned()).collect();
+    Ok(Outcome::Stored(answers, Some(Changed { pid, sensors })))
 }
 
 async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Result<(), StoreError> {
@@ -284,17 +296,19 @@ async fn complete_keys(
 }
 
 /// Applies each sensor's fold to its stored summary (or creates it), by
-/// the rules of one write's upsert ([`SENSOR_MERGE`]).
+/// the rules of one write's upsert ([`SENSOR_MERGE`]); answers the
+/// connection's backend process id.
 async fn upsert_sensors(
     tx: &Transaction<'_>,
     folds: &BTreeMap<&str, Fold<'_>>,
-) -> Result<(), StoreError> {
+) -> Result<i32, StoreError> {
     let upsert = tx
         .prepare_cached(&format!(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
              SELECT * FROM unnest($1::text[], $2::int8[], $3::timestamptz[], $4::timestamptz[], \
-               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {}",
+               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {} \
+             RETURNING pg_backend_pid() AS pid",
             *SENSOR_MERGE
         ))
         .await
@@ -309,13 +323,20 @@ async fn upsert_sensors(
     let types: Vec<Option<&str>> = folds.values().map(|f| f.assigned).collect();
     let verdicts: Vec<Option<&str>> = folds.values().map(|f| f.verdict).collect();
     let due: Vec<Option<OffsetDateTime>> = folds.values().map(|f| f.due_at).collect();
-    tx.execute(
-        &upsert,
-        &[
-            &sensors, &counts, &first, &latest_at, &latest_id, &types, &verdicts, &due,
-        ],
-    )
-    .await
-    .map_err(map)?;
-    Ok(())
+    let upserted = tx
+        .query(
+            &upsert,
+            &[
+                &sensors, &counts, &first, &latest_at, &latest_id, &types, &verdicts, &due,
+            ],
+        )
+        .await
+        .map_err(map)?;
+    match upserted.first() {
+        Some(row) => rows::get(row, "pid"),
+        None => Err(StoreError::corrupt(
+            "the sensors' upsert",
+            "it answered no row",
+        )),
+    }
 }

@@ -45,6 +45,7 @@ use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
+use crate::store::cache::{CAPACITY, CachedStore, SensorCache};
 
 /// A PostgreSQL-backed [`Store`].
 #[derive(Clone)]
@@ -62,10 +63,31 @@ impl PostgresStore {
     /// As [`open`](Self::open), answering [`StoreError::Overloaded`] once
     /// `queue` calibrations are waiting for the [`writer`].
     pub async fn open_with_queue(url: &str, queue: usize) -> Result<Self, StoreError> {
+        Self::open_with(url, queue, None).await
+    }
+
+    /// As [`open_with_queue`](Self::open_with_queue), the writer recording
+    /// its batches' notifications in `echoes` for a cache's listener.
+    async fn open_with(
+        url: &str,
+        queue: usize,
+        echoes: Option<Arc<listen::Echoes>>,
+    ) -> Result<Self, StoreError> {
         let pool = connect::pool(url)?;
         migrations::migrate(&pool).await?;
-        let writer = Arc::new(writer::Writer::start(pool.clone(), queue));
+        let writer = Arc::new(writer::Writer::start(pool.clone(), queue, echoes));
         Ok(PostgresStore { pool, writer })
+    }
+
+    /// A replica as it serves: this engine behind a [`SensorCache`], which
+    /// a listener keeps in step with other replicas' writes (and which
+    /// ignores the echoes of this one's).
+    pub async fn cached(url: &str) -> Result<CachedStore, StoreError> {
+        let echoes = Arc::new(listen::Echoes::default());
+        let inner = Arc::new(Self::open_with(url, writer::QUEUE, Some(echoes.clone())).await?);
+        let cache = Arc::new(SensorCache::new(CAPACITY, false));
+        let listener = listen::spawn(url.to_owned(), cache.clone(), echoes);
+        Ok(CachedStore::new(inner, cache, Some(listener)))
     }
 
     /// The group-commit writer (how many writes wait, how many batches

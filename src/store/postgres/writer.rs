@@ -29,7 +29,10 @@
 //! * if the commit itself fails, every write of the batch is told so
 //!   (503): nothing of it is acknowledged;
 //! * when [`QUEUE`] writes are already waiting, a new one is refused at once
-//!   with [`StoreError::Overloaded`] (503, `Retry-After: 1`).
+//!   with [`StoreError::Overloaded`] (503, `Retry-After: 1`);
+//! * just before a batch commits, the sensors it changed are recorded as
+//!   echoes ([`Echoes`]): the cache's listener then knows that their
+//!   notifications are this replica's own, already applied.
 //!
 //! A batch holds at most 64 writes (SQLite's writer takes 256): a longer
 //! transaction would hold its sensors' row locks longer against other
@@ -45,6 +48,7 @@ use tokio::sync::{mpsc, oneshot};
 use super::batch::{self, Outcome};
 use super::calibrations::{self, Row};
 use super::errors;
+use super::listen::Echoes;
 use crate::store::{IdempotencyKey, StoreError, Stored};
 
 /// Writes waiting for the writer at most; one more is refused.
@@ -96,11 +100,12 @@ pub struct Writer {
 impl Writer {
     /// Starts the writer task over `pool` (on the current tokio runtime),
     /// refusing writes when `capacity` are waiting. The task ends when the
-    /// writer is dropped and its queue is empty.
-    pub fn start(pool: Pool, capacity: usize) -> Self {
+    /// writer is dropped and its queue is empty. With `echoes`, each batch
+    /// records there what its commit will notify.
+    pub fn start(pool: Pool, capacity: usize, echoes: Option<Arc<Echoes>>) -> Self {
         let (queue, rx) = mpsc::channel(capacity);
         let counts = Arc::new(Counts::default());
-        tokio::spawn(drain(pool, rx, counts.clone()));
+        tokio::spawn(drain(pool, rx, counts.clone(), echoes));
         Writer {
             queue,
             capacity,
@@ -140,7 +145,12 @@ fn stopped() -> StoreError {
 }
 
 /// The writer task: batch, write, commit, answer, until the queue closes.
-async fn drain(pool: Pool, mut rx: mpsc::Receiver<Pending>, counts: Arc<Counts>) {
+async fn drain(
+    pool: Pool,
+    mut rx: mpsc::Receiver<Pending>,
+    counts: Arc<Counts>,
+    echoes: Option<Arc<Echoes>>,
+) {
     while let Some(first) = rx.recv().await {
         let mut batch = vec![first];
         while batch.len() < MAX_BATCH {
@@ -150,7 +160,7 @@ async fn drain(pool: Pool, mut rx: mpsc::Receiver<Pending>, counts: Arc<Counts>)
             }
         }
         metrics::histogram!("accelcal_storage_write_batch_size").record(batch.len() as f64);
-        commit(&pool, batch, &counts).await;
+        commit(&pool, batch, &counts, echoes.as_deref()).await;
     }
 }
 
@@ -166,7 +176,7 @@ enum Failed {
 
 /// Stores one batch: in one transaction, or, when a write of it fails, each
 /// write in a transaction of its own.
-async fn commit(pool: &Pool, mut batch: Vec<Pending>, counts: &Counts) {
+async fn commit(pool: &Pool, mut batch: Vec<Pending>, counts: &Counts, echoes: Option<&Echoes>) {
     batch.sort_by(|a, b| a.row.sensor_id().cmp(b.row.sensor_id()));
     let mut client = match pool.get().await {
         Ok(c) => c,
@@ -179,7 +189,7 @@ async fn commit(pool: &Pool, mut batch: Vec<Pending>, counts: &Counts) {
             return;
         }
     };
-    match together(&mut client, &batch).await {
+    match together(&mut client, &batch, echoes).await {
         Ok(stored) => {
             counts.batches.fetch_add(1, Ordering::Relaxed);
             counts
@@ -210,21 +220,33 @@ async fn commit(pool: &Pool, mut batch: Vec<Pending>, counts: &Counts) {
     }
 }
 
-/// Writes every calibration of `batch` in one transaction and commits it.
-async fn together(client: &mut Object, batch: &[Pending]) -> Result<Vec<Stored>, Failed> {
+/// Writes every calibration of `batch` in one transaction and commits it;
+/// records in `echoes` what the commit will notify, just before it.
+async fn together(
+    client: &mut Object,
+    batch: &[Pending],
+    echoes: Option<&Echoes>,
+) -> Result<Vec<Stored>, Failed> {
     let tx = client
         .transaction()
         .await
         .map_err(|e| Failed::Write(Some(errors::map(e))))?;
     let writes: Vec<_> = batch.iter().map(|p| (&p.row, p.key.as_ref())).collect();
     // Returning early drops `tx`, which rolls the batch back.
-    let stored = match batch::write(&tx, &writes).await {
-        Ok(Outcome::Stored(stored)) => stored,
+    let (stored, changed) = match batch::write(&tx, &writes).await {
+        Ok(Outcome::Stored(stored, changed)) => (stored, changed),
         Ok(Outcome::Raced) => return Err(Failed::Write(None)),
         Err(e) => return Err(Failed::Write(Some(e))),
     };
-    tx.commit()
-        .await
-        .map_err(|e| Failed::Commit(errors::map(e)))?;
+    let echo = echoes.zip(changed.as_ref());
+    if let Some((e, c)) = echo {
+        e.expect(c.pid, &c.sensors);
+    }
+    if let Err(err) = tx.commit().await {
+        if let Some((e, c)) = echo {
+            e.forget(c.pid, &c.sensors);
+        }
+        return Err(Failed::Commit(errors::map(err)));
+    }
     Ok(stored)
 }

@@ -8,32 +8,41 @@
 //! computed again on every hit ([`Status::of`]). The rules that keep every
 //! read seeing every acknowledged write:
 //!
-//! * **Writes through this process** ([`Store::insert_calibration`],
-//!   [`Store::assign_sensor_type`]) drop the sensor's entry after the
-//!   database answered and before the caller can answer its client —
-//!   whatever the outcome, since a failed commit may still have landed.
+//! * **Writes through this process** ([`Store::insert_calibration`])
+//!   settle the sensor's entry after the database answered and before the
+//!   caller can answer its client: a calibration stored brings the cached
+//!   summary up to date by the rule the engines apply to the sensor's row
+//!   ([`SensorSummary::after`]); any other end — a failure, an unknown
+//!   outcome (a failed commit may still have landed), a write racing
+//!   another of the same sensor — drops it. So a station's next
+//!   submission of that sensor finds it cached. A type assigned
+//!   ([`Store::assign_sensor_type`]) drops the entry.
 //! * **A read racing a write** cannot put back what the write replaced:
-//!   every drop bumps an epoch, and a read fills the cache only if no drop
-//!   happened between its start and its end.
+//!   every change ticks a clock and stamps the sensor's stripe, and a read
+//!   fills the cache only if its stripe was not stamped between its start
+//!   and its end and no write of it is in flight ([`sensors`] has the
+//!   rules).
 //! * **Writes through other processes** (replicas sharing PostgreSQL) reach
 //!   this one as notifications: a trigger announces every change of a
 //!   sensor's row on commit (`pg_notify`), and a listener
-//!   ([`super::postgres::listen`]) drops the entry when it hears it. The
+//!   ([`super::postgres::listen`]) drops the entry when it hears it —
+//!   except the echoes of this replica's own batches, which the previous
+//!   rule already applied. The
 //!   cache is used only while that listener is connected; it is emptied when
 //!   the listener connects and bypassed while it is not, so a lost
 //!   notification cannot leave an entry stale. A replica reading just after
 //!   another replica's commit sees it once the notification has arrived
 //!   (a few milliseconds on one host: see BENCHMARKS.md);
 //!   in between it may answer the previous calibration — the same as a read
-//!   that arrived a moment earlier. SQLite has one serving process, so
-//!   there the first two rules are the whole story.
+//!   that arrived a moment earlier — and a write of its own of that sensor
+//!   in that moment may count on a summary without the other replica's
+//!   calibration, until the notification drops it. SQLite has one serving
+//!   process, so there the first two rules are the whole story.
 //! * **Bounded**: at most [`CAPACITY`] sensors; when full, an arbitrary
 //!   entry makes room.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicBool, Ordering};
 
 use async_trait::async_trait;
 use bytes::Bytes;
@@ -50,103 +59,9 @@ use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 use accelcal_core::decision::Verdict;
 
-/// Sensors cached at most (a summary is about 1 KiB).
-pub const CAPACITY: usize = 4096;
+mod sensors;
 
-/// The cached summaries and what guards them.
-#[derive(Debug)]
-pub struct SensorCache {
-    inner: Mutex<Entries>,
-    /// Whether the cache may be used: always for an engine no other process
-    /// writes to; for PostgreSQL, while the listener is connected.
-    live: AtomicBool,
-    capacity: usize,
-}
-
-#[derive(Debug, Default)]
-struct Entries {
-    map: HashMap<String, Arc<SensorSummary>>,
-    /// Bumped by every drop: a read that started before it must not fill.
-    epoch: u64,
-}
-
-impl SensorCache {
-    /// An empty cache of at most `capacity` sensors, live or not.
-    pub fn new(capacity: usize, live: bool) -> Self {
-        SensorCache {
-            inner: Mutex::new(Entries::default()),
-            live: AtomicBool::new(live),
-            capacity,
-        }
-    }
-
-    fn lock(&self) -> std::sync::MutexGuard<'_, Entries> {
-        // The lock guards plain data; a panic elsewhere cannot leave it
-        // half-updated in a way that matters, so a poisoned lock is used.
-        self.inner.lock().unwrap_or_else(|e| e.into_inner())
-    }
-
-    /// Drops what is cached of `sensor_id`.
-    pub fn invalidate(&self, sensor_id: &str) {
-        let mut e = self.lock();
-        e.epoch += 1;
-        e.map.remove(sensor_id);
-    }
-
-    /// Empties the cache and makes it usable (or not) from now on: what
-    /// was cached while notifications could be missed is gone.
-    pub fn reset(&self, live: bool) {
-        let mut e = self.lock();
-        e.epoch += 1;
-        e.map.clear();
-        self.live.store(live, Ordering::SeqCst);
-    }
-
-    /// The epoch a read starts at, or `None` when the cache is not live.
-    fn begin(&self) -> Option<u64> {
-        let e = self.lock();
-        self.live.load(Ordering::SeqCst).then_some(e.epoch)
-    }
-
-    fn get(&self, sensor_id: &str) -> Option<Arc<SensorSummary>> {
-        if !self.live.load(Ordering::SeqCst) {
-            return None;
-        }
-        self.lock().map.get(sensor_id).cloned()
-    }
-
-    /// Keeps what a read that began at `epoch` found, unless anything was
-    /// dropped since.
-    fn fill(&self, epoch: u64, summary: &SensorSummary) {
-        let mut e = self.lock();
-        if e.epoch != epoch || !self.live.load(Ordering::SeqCst) {
-            return;
-        }
-        if e.map.len() >= self.capacity
-            && !e.map.contains_key(&summary.sensor_id)
-            && let Some(victim) = e.map.keys().next().cloned()
-        {
-            e.map.remove(&victim);
-        }
-        e.map
-            .insert(summary.sensor_id.clone(), Arc::new(summary.clone()));
-    }
-
-    /// Whether reads may use the cache now.
-    pub fn is_live(&self) -> bool {
-        self.live.load(Ordering::SeqCst)
-    }
-
-    /// Sensors cached now.
-    pub fn len(&self) -> usize {
-        self.lock().map.len()
-    }
-
-    /// Whether nothing is cached.
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-}
+pub use sensors::{CAPACITY, STRIPES, SensorCache, Write};
 
 /// A cached summary as of `now`: its status computed again.
 fn at(summary: &SensorSummary, now: Timestamp) -> SensorSummary {
@@ -242,10 +157,19 @@ impl Store for CachedStore {
         c: NewCalibration,
         key: Option<IdempotencyKey>,
     ) -> Result<Stored, StoreError> {
-        let sensor_id = c.sensor_id.clone();
-        let out = self.inner.insert_calibration(c, key).await;
-        self.cache.invalidate(&sensor_id);
-        out
+        // A task of its own, so that the cache learns the write's end even
+        // when the request is cancelled meanwhile (its client gone): the
+        // write stands, and a read must not fill from before it.
+        let (inner, cache) = (self.inner.clone(), self.cache.clone());
+        tokio::spawn(async move {
+            let write = cache.write(&c.sensor_id);
+            let stored = (CalibrationSummary::from(&c), c.assigns_type);
+            let out = inner.insert_calibration(c, key).await;
+            write.settle(matches!(out, Ok(Stored::New)).then_some(stored));
+            out
+        })
+        .await
+        .map_err(|e| StoreError::Unavailable(Box::new(e)))?
     }
 
     async fn assign_sensor_type(
@@ -403,49 +327,6 @@ mod tests {
                 ..CalibrationSummary::for_test(7, sensor, 0.0, 1.0)
             },
         }
-    }
-
-    #[test]
-    fn a_read_that_raced_a_drop_does_not_fill() {
-        let c = SensorCache::new(8, true);
-        let epoch = c.begin().unwrap();
-        c.invalidate("S");
-        c.fill(epoch, &summary("S", None, None));
-        assert!(c.get("S").is_none(), "a fill from before the drop was kept");
-        let epoch = c.begin().unwrap();
-        c.fill(epoch, &summary("S", None, None));
-        assert!(c.get("S").is_some());
-        c.invalidate("S");
-        assert!(c.get("S").is_none());
-    }
-
-    #[test]
-    fn a_cache_that_is_not_live_neither_answers_nor_fills() {
-        let c = SensorCache::new(8, true);
-        c.fill(c.begin().unwrap(), &summary("S", None, None));
-        c.reset(false);
-        assert!(c.is_empty(), "reset empties");
-        assert!(c.begin().is_none());
-        assert!(c.get("S").is_none());
-        c.reset(true);
-        let epoch = c.begin().unwrap();
-        c.reset(false);
-        c.fill(epoch, &summary("S", None, None));
-        assert!(c.is_empty());
-    }
-
-    #[test]
-    fn the_cache_holds_at_most_its_capacity() {
-        let c = SensorCache::new(3, true);
-        for i in 0..10 {
-            c.fill(c.begin().unwrap(), &summary(&format!("S{i}"), None, None));
-            assert!(c.len() <= 3);
-        }
-        assert_eq!(c.len(), 3);
-        assert!(c.get("S9").is_some(), "the newest entry is kept");
-        // Refilling a present sensor evicts nothing.
-        c.fill(c.begin().unwrap(), &summary("S9", None, None));
-        assert_eq!(c.len(), 3);
     }
 
     /// The status is the domain rule at the time of the read, not at the
