@@ -98,6 +98,10 @@ fn describe() {
         "Reads of a sensor's latest state, answered from memory (hit) or from the database (miss)."
     );
     describe_counter!(
+        "accelcal_sensor_cache_writes_total",
+        "Writes of a sensor through this process: its cached state brought up to date (kept) or dropped for the next read to fill (dropped)."
+    );
+    describe_counter!(
         "accelcal_log_lines_dropped_total",
         "Log lines dropped because the log writer's queue was full (standard error not read fast enough)."
     );

@@ -99,6 +99,13 @@ async fn metrics_count_what_was_asked() {
             .unwrap();
         assert_eq!(r.status(), StatusCode::OK);
     }
+    // One more calibration of the now cached sensor: the write brings the
+    // cached state up to date (its submission's own read of the sensor is
+    // the third hit).
+    assert_eq!(
+        post(paper(), None).await.unwrap().status(),
+        StatusCode::CREATED
+    );
     let nowhere = c
         .get(format!("{}/no/such/path/{}", server.base, "x".repeat(40)))
         .send()
@@ -134,7 +141,7 @@ async fn metrics_count_what_was_asked() {
     };
     assert_eq!(
         get(r#"accelcal_submissions_total{outcome="stored",reason="none"}"#),
-        2.0
+        3.0
     );
     assert_eq!(
         get(r#"accelcal_submissions_total{outcome="replayed",reason="none"}"#),
@@ -151,7 +158,7 @@ async fn metrics_count_what_was_asked() {
     assert_eq!(get(r#"accelcal_verdicts_total{verdict="pass"}"#), 1.0);
     assert_eq!(
         get(r#"accelcal_http_requests_total{method="POST",route="/v1/calibrations",status="201"}"#),
-        3.0
+        4.0
     );
     assert_eq!(
         get(
@@ -186,9 +193,20 @@ async fn metrics_count_what_was_asked() {
         ) >= 2.0
     );
     // Three reads of one sensor after its last write: the first fills the
-    // cache, the other two are answered from it.
-    assert_eq!(get(r#"accelcal_sensor_cache_total{outcome="hit"}"#), 2.0);
+    // cache, the other two are answered from it; so is the next
+    // submission's read of it.
+    assert_eq!(get(r#"accelcal_sensor_cache_total{outcome="hit"}"#), 3.0);
     assert!(get(r#"accelcal_sensor_cache_total{outcome="miss"}"#) >= 1.0);
+    // The first two calibrations' sensors were not cached when they were
+    // written; the third's was, and stays.
+    assert_eq!(
+        get(r#"accelcal_sensor_cache_writes_total{outcome="dropped"}"#),
+        2.0
+    );
+    assert_eq!(
+        get(r#"accelcal_sensor_cache_writes_total{outcome="kept"}"#),
+        1.0
+    );
     // Group commit: at least the two stored calibrations and the key's
     // claim went through the writer, in at most as many batches.
     let batched = get("accelcal_storage_write_batch_size_sum");

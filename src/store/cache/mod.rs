@@ -59,7 +59,7 @@ use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 use accelcal_core::decision::Verdict;
 
-mod sensors;
+pub mod sensors;
 
 pub use sensors::{CAPACITY, STRIPES, SensorCache, Write};
 

@@ -177,6 +177,14 @@ impl SensorCache {
 
     /// Ends a write; see [`Write::settle`].
     fn end(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, bool)>) {
+        let kept = self.apply(w, stored);
+        let outcome = if kept { "kept" } else { "dropped" };
+        metrics::counter!("accelcal_sensor_cache_writes_total", "outcome" => outcome).increment(1);
+    }
+
+    /// [`end`](Self::end)'s work under the lock; whether the entry was
+    /// kept up to date.
+    fn apply(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, bool)>) -> bool {
         let mut e = self.lock();
         let alone = e.writing[w.stripe] == 1;
         e.writing[w.stripe] -= 1;
@@ -191,7 +199,9 @@ impl SensorCache {
             self.live.load(Ordering::SeqCst),
         ) {
             self.put(&mut e, Arc::new(s.after(c, assigns)));
+            return true;
         }
+        false
     }
 
     /// Whether reads may use the cache now.
