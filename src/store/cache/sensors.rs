@@ -191,17 +191,14 @@ impl SensorCache {
         let unchanged = e.unchanged_since(w.stripe, w.epoch);
         e.stamp(w.stripe);
         let cached = e.map.remove(&w.sensor_id);
-        if let (Some((c, assigns)), Some(s), true, true, true) = (
-            stored,
-            cached,
-            alone,
-            unchanged,
-            self.live.load(Ordering::SeqCst),
-        ) {
-            self.put(&mut e, Arc::new(s.after(c, assigns)));
-            return true;
+        let certain = alone && unchanged && self.live.load(Ordering::SeqCst);
+        match (stored, cached) {
+            (Some((c, assigns)), Some(s)) if certain => {
+                self.put(&mut e, Arc::new(s.after(c, assigns)));
+                true
+            }
+            _ => false,
         }
-        false
     }
 
     /// Whether reads may use the cache now.

@@ -94,7 +94,7 @@ impl Echoes {
     /// expected echo (then consumed).
     fn take(&self, pid: i32, sensor_id: &str) -> bool {
         let mut m = self.lock();
-        // The key is owned: a lookup allocates its id once per notification.
+        // A tuple key is looked up by value: one copy of the id per notification.
         let key = (pid, sensor_id.to_owned());
         match m.get_mut(&key) {
             None => false,
