@@ -6,6 +6,7 @@
 //! LOAD_SECONDS=8 LOAD_ENGINES=sqlite,postgres cargo bench --bench load
 //! LOAD_ROUTES=submit LOAD_CONNS=64 cargo bench --bench load   # one leg, e.g. to profile
 //! LOAD_LOG=info LOAD_METRICS=1 cargo bench --bench load   # observed as deployed
+//! LOAD_TOKEN=issued cargo bench --bench load   # with a token issued by the API
 //! ```
 //!
 //! The **bare stack** is a minimal axum server (this binary, started again
@@ -13,7 +14,9 @@
 //! with constant bodies of the same size as accelcal's answers: the ceiling
 //! this machine, runtime, HTTP stack and client reach with no application
 //! work. accelcal is the release binary (`accelcal serve`), with the admin
-//! token from the environment, so no token lookup. Legs alternate — bare,
+//! token from the environment, so no token lookup; with `LOAD_TOKEN=issued`
+//! every request carries instead an admin token issued by `POST /v1/tokens`,
+//! looked up as a station's or a dashboard's is. Legs alternate — bare,
 //! then accelcal — for every route and connection count:
 //!
 //! * `submit`: `POST /v1/calibrations` with the paper's Table 1 (six runs),
@@ -43,6 +46,14 @@ mod server;
 mod pg;
 
 use server::{ADMIN, Server};
+
+/// The token every measured request carries: [`ADMIN`], or the token issued
+/// by the engine's server when `LOAD_TOKEN=issued`.
+static TOKEN: Mutex<Option<&'static str>> = Mutex::new(None);
+
+fn token() -> &'static str {
+    TOKEN.lock().unwrap().unwrap_or(ADMIN)
+}
 
 /// The routes measured.
 const ROUTES: [&str; 4] = ["submit", "coefficients", "compensate", "history"];
@@ -175,7 +186,7 @@ async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, 
                         ),
                     };
                     let t = Instant::now();
-                    let res = req.bearer_auth(ADMIN).send().await.expect("request");
+                    let res = req.bearer_auth(token()).send().await.expect("request");
                     let status = res.status().as_u16();
                     let body = res.bytes().await.expect("body");
                     assert_eq!(
@@ -293,6 +304,19 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
     // bare stack copies.
     let bodies = rt.block_on(async {
         let client = reqwest::Client::new();
+        if std::env::var("LOAD_TOKEN").as_deref() == Ok("issued") {
+            let res = client
+                .post(format!("{base}/v1/tokens"))
+                .bearer_auth(ADMIN)
+                .json(&json!({"role": "admin", "label": "load"}))
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(res.status(), 201);
+            let issued: Value = res.json().await.unwrap();
+            let text = issued["token"].as_str().unwrap().to_owned();
+            *TOKEN.lock().unwrap() = Some(Box::leak(text.into_boxed_str()));
+        }
         let mut submit = String::new();
         for n in 0..20 {
             let res = client

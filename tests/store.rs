@@ -15,7 +15,7 @@ use accelcal::domain::sensor_types::SensorType;
 use accelcal::domain::status::Status;
 use accelcal::domain::timestamp::Timestamp;
 use accelcal::domain::tokens::TokenRecord;
-use accelcal::store::cache::{CAPACITY, CachedStore, SensorCache};
+use accelcal::store::cache::{CAPACITY, CachedStore, SensorCache, TokenCache};
 use accelcal::store::{
     Claim, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery, Store, StoreError, Stored,
     postgres::PostgresStore, sqlite::SqliteStore,
@@ -1265,7 +1265,8 @@ async fn sqlite_writes_keep_their_sensor_cached() {
     let dir = tempfile::tempdir().unwrap();
     let inner = Arc::new(SqliteStore::open(dir.path().join("kept.db")).unwrap());
     let cache = Arc::new(SensorCache::new(CAPACITY, true));
-    let store = CachedStore::new(inner.clone(), cache.clone(), None);
+    let tokens = Arc::new(TokenCache::new(CAPACITY, true));
+    let store = CachedStore::new(inner.clone(), cache.clone(), tokens, None);
     writes_keep_their_sensor_cached(&store, &*inner, &cache, std::time::Duration::ZERO).await;
 }
 
@@ -1291,6 +1292,111 @@ async fn postgres_writes_keep_their_sensor_cached() {
     .await;
     store.close().await;
     other.close().await;
+}
+
+/// Two replicas, each with its token cache: a token one revokes stops
+/// authenticating at the other once the notification arrives (the window
+/// is printed), at once at the one that revoked it; while the other's
+/// listener is gone it reads the database.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn postgres_replica_token_caches_follow_revocations() {
+    let db = pg::TestDb::create().await;
+    let replica = || async {
+        let s = PostgresStore::cached(&db.url).await.unwrap();
+        let tokens = s.tokens().clone();
+        until(
+            || tokens.is_live() && s.cache().is_live(),
+            "the listener to connect",
+        )
+        .await;
+        (s, tokens)
+    };
+    let (a, _) = replica().await;
+    let (b, b_tokens) = replica().await;
+    let token = |n: u128| TokenRecord {
+        id: Uuid::from_u128(n),
+        secret_hash: vec![7; 32],
+        role: Role::Reader,
+        station_id: None,
+        label: None,
+        created_at: t("2026-11-22T00:00:00Z"),
+        revoked_at: None,
+    };
+    for n in [1, 2] {
+        a.insert_token(token(n)).await.unwrap();
+        assert_eq!(b.token(Uuid::from_u128(n)).await.unwrap(), Some(token(n)));
+        assert!(
+            b_tokens.contains(Uuid::from_u128(n)),
+            "b's read filled its cache"
+        );
+    }
+    assert_eq!(b.token(Uuid::from_u128(3)).await.unwrap(), None);
+    assert!(
+        !b_tokens.contains(Uuid::from_u128(3)),
+        "an unknown id is not cached"
+    );
+
+    let at = t("2026-11-22T01:00:00Z");
+    assert!(a.revoke_token(Uuid::from_u128(1), at).await.unwrap());
+    assert_eq!(
+        a.token(Uuid::from_u128(1))
+            .await
+            .unwrap()
+            .unwrap()
+            .revoked_at,
+        Some(at),
+        "the replica that revoked it serves the revocation at once"
+    );
+    let started = std::time::Instant::now();
+    loop {
+        let seen = b.token(Uuid::from_u128(1)).await.unwrap().unwrap();
+        if seen.revoked_at == Some(at) {
+            eprintln!(
+                "replica b served a's revocation {:?} after it returned",
+                started.elapsed()
+            );
+            break;
+        }
+        assert!(
+            started.elapsed() < std::time::Duration::from_secs(10),
+            "replica b still serves the token as valid after 10 s"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(1)).await;
+    }
+    assert!(
+        b_tokens.contains(Uuid::from_u128(2)),
+        "the other token stays cached"
+    );
+
+    // b's listener is cut off: b reads the database until it is back.
+    let c = db.client().await;
+    c.execute(
+        "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
+         WHERE datname = $1 AND application_name = $2",
+        &[
+            &db.name,
+            &accelcal::store::postgres::listen::APPLICATION_NAME,
+        ],
+    )
+    .await
+    .unwrap();
+    until(|| !b_tokens.is_live(), "b to notice").await;
+    assert!(
+        b_tokens.is_empty(),
+        "a cache without its listener is emptied"
+    );
+    assert!(a.revoke_token(Uuid::from_u128(2), at).await.unwrap());
+    assert_eq!(
+        b.token(Uuid::from_u128(2))
+            .await
+            .unwrap()
+            .unwrap()
+            .revoked_at,
+        Some(at),
+        "a replica without its listener read a stale token"
+    );
+    a.close().await;
+    b.close().await;
 }
 
 #[tokio::test]

@@ -205,5 +205,8 @@ pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
     let inner = Arc::new(sqlite::SqliteStore::open(path)?);
     // One process serves a SQLite file: every write passes through here.
     let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, true));
-    Ok(Arc::new(cache::CachedStore::new(inner, cache, None)))
+    let tokens = Arc::new(cache::TokenCache::new(cache::tokens::CAPACITY, true));
+    Ok(Arc::new(cache::CachedStore::new(
+        inner, cache, tokens, None,
+    )))
 }

@@ -40,6 +40,8 @@
 //!   process, so there the first two rules are the whole story.
 //! * **Bounded**: at most [`CAPACITY`] sensors; when full, an arbitrary
 //!   entry makes room.
+//!
+//! Issued tokens are cached beside the sensors, by the rules of [`tokens`].
 
 use std::sync::Arc;
 use std::sync::Mutex;
@@ -60,8 +62,10 @@ use crate::domain::tokens::TokenRecord;
 use accelcal_core::decision::Verdict;
 
 pub mod sensors;
+pub mod tokens;
 
 pub use sensors::{CAPACITY, STRIPES, SensorCache, Write};
+pub use tokens::TokenCache;
 
 /// A cached summary as of `now`: its status computed again.
 fn at(summary: &SensorSummary, now: Timestamp) -> SensorSummary {
@@ -70,32 +74,41 @@ fn at(summary: &SensorSummary, now: Timestamp) -> SensorSummary {
     s
 }
 
-/// An engine with [`SensorCache`] in front of its sensor reads.
+/// An engine with [`SensorCache`] in front of its sensor reads and
+/// [`TokenCache`] in front of its token reads.
 pub struct CachedStore {
     inner: Arc<dyn Store>,
     cache: Arc<SensorCache>,
+    tokens: Arc<TokenCache>,
     /// Stopped at [`Store::close`] (the PostgreSQL listener).
     listener: Mutex<Option<tokio::task::JoinHandle<()>>>,
 }
 
 impl CachedStore {
-    /// `inner` behind `cache`; `listener` is the task that keeps the cache
-    /// in step with other processes, if any.
+    /// `inner` behind `cache` and `tokens`; `listener` is the task that
+    /// keeps both in step with other processes, if any.
     pub fn new(
         inner: Arc<dyn Store>,
         cache: Arc<SensorCache>,
+        tokens: Arc<TokenCache>,
         listener: Option<tokio::task::JoinHandle<()>>,
     ) -> Self {
         CachedStore {
             inner,
             cache,
+            tokens,
             listener: Mutex::new(listener),
         }
     }
 
-    /// The cache (for tests and metrics).
+    /// The sensor cache (for tests and metrics).
     pub fn cache(&self) -> &Arc<SensorCache> {
         &self.cache
+    }
+
+    /// The token cache (for tests).
+    pub fn tokens(&self) -> &Arc<TokenCache> {
+        &self.tokens
     }
 }
 
@@ -195,6 +208,7 @@ impl Store for CachedStore {
             l.abort();
         }
         self.cache.reset(false);
+        self.tokens.reset(false);
         self.inner.close().await;
     }
 
@@ -264,13 +278,31 @@ impl Store for CachedStore {
         self.inner.insert_token(t).await
     }
     async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
-        self.inner.token(id).await
+        if let Some(hit) = self.tokens.get(id) {
+            return Ok(Some(hit));
+        }
+        let epoch = self.tokens.begin();
+        let found = self.inner.token(id).await?;
+        if let (Some(epoch), Some(t)) = (epoch, &found) {
+            self.tokens.fill(epoch, t);
+        }
+        Ok(found)
     }
     async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
         self.inner.tokens().await
     }
+    /// Drops the token from the cache once the engine answered, whatever
+    /// it answered, in a task of its own so that a cancelled request cannot
+    /// skip the drop.
     async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
-        self.inner.revoke_token(id, at).await
+        let (inner, tokens) = (self.inner.clone(), self.tokens.clone());
+        tokio::spawn(async move {
+            let out = inner.revoke_token(id, at).await;
+            tokens.invalidate(id);
+            out
+        })
+        .await
+        .map_err(|e| StoreError::Unavailable(Box::new(e)))?
     }
     async fn has_admin_token(&self) -> Result<bool, StoreError> {
         self.inner.has_admin_token().await

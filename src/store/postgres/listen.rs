@@ -1,10 +1,13 @@
-//! The listener that keeps a replica's [`SensorCache`] in step with every
-//! other replica's writes.
+//! The listener that keeps a replica's [`SensorCache`] and [`TokenCache`]
+//! in step with every other replica's writes.
 //!
-//! One connection of its own runs `LISTEN accelcal_sensors`; the trigger of
-//! migration 0002 notifies that channel with a sensor's id whenever a
-//! transaction that changed the sensor's row commits, whichever process ran
-//! it. Each notification drops that sensor's entry. The cache is emptied and
+//! One connection of its own runs `LISTEN accelcal_sensors` and `LISTEN
+//! accelcal_tokens`; the trigger of migration 0002 notifies the first with
+//! a sensor's id whenever a transaction that changed the sensor's row
+//! commits, whichever process ran it, and that of migration 0004 the second
+//! with a token's id when a token changes (is revoked). Each notification
+//! drops that sensor's or token's entry. What follows about the cache holds
+//! for both. The cache is emptied and
 //! made live only once `LISTEN` has taken effect, and made not live (so
 //! bypassed) as soon as the connection fails or stops answering the
 //! heartbeat; the listener then reconnects with a growing pause (0.1 s to
@@ -35,7 +38,7 @@ use tokio_postgres::AsyncMessage;
 
 use super::connect;
 use crate::store::StoreError;
-use crate::store::cache::SensorCache;
+use crate::store::cache::{SensorCache, TokenCache, tokens};
 
 /// The channel the trigger notifies.
 pub const CHANNEL: &str = "accelcal_sensors";
@@ -46,6 +49,13 @@ pub const APPLICATION_NAME: &str = "accelcal-cache-listener";
 /// How often the listener checks that its connection still answers, and
 /// how long it waits for the answer.
 const HEARTBEAT: Duration = Duration::from_secs(2);
+
+/// One notification: the notifying backend, the channel's kind, the id.
+struct Note {
+    pid: i32,
+    token: bool,
+    id: String,
+}
 
 /// Echoes recorded at most; beyond, they are all cleared (their
 /// notifications then drop entries: a read each, never a stale answer).
@@ -127,13 +137,15 @@ impl Echoes {
 pub fn spawn(
     url: String,
     cache: Arc<SensorCache>,
+    tokens: Arc<TokenCache>,
     echoes: Arc<Echoes>,
 ) -> tokio::task::JoinHandle<()> {
     tokio::spawn(async move {
         let mut pause = Duration::from_millis(100);
         loop {
-            let outcome = listen(&url, &cache, &echoes).await;
+            let outcome = listen(&url, &cache, &tokens, &echoes).await;
             cache.reset(false);
+            tokens.reset(false);
             match outcome {
                 Ok(()) => pause = Duration::from_millis(100),
                 Err(e) => {
@@ -148,7 +160,12 @@ pub fn spawn(
 
 /// One connection's life: connect, `LISTEN`, go live, drop what is
 /// notified; returns when the connection ends or stops answering.
-async fn listen(url: &str, cache: &SensorCache, echoes: &Echoes) -> Result<(), StoreError> {
+async fn listen(
+    url: &str,
+    cache: &SensorCache,
+    tokens: &TokenCache,
+    echoes: &Echoes,
+) -> Result<(), StoreError> {
     let unavailable = |e: tokio_postgres::Error| StoreError::Unavailable(Box::new(e));
     let (mut config, tls) = connect::config(url)?;
     config.application_name(APPLICATION_NAME);
@@ -160,7 +177,12 @@ async fn listen(url: &str, cache: &SensorCache, echoes: &Echoes) -> Result<(), S
         loop {
             match std::future::poll_fn(|cx| connection.poll_message(cx)).await {
                 Some(Ok(AsyncMessage::Notification(n))) => {
-                    if tx.send((n.process_id(), n.payload().to_owned())).is_err() {
+                    let note = Note {
+                        pid: n.process_id(),
+                        token: n.channel() == tokens::CHANNEL,
+                        id: n.payload().to_owned(),
+                    };
+                    if tx.send(note).is_err() {
                         return Ok(());
                     }
                 }
@@ -172,21 +194,28 @@ async fn listen(url: &str, cache: &SensorCache, echoes: &Echoes) -> Result<(), S
     });
     let outcome = async {
         client
-            .batch_execute(&format!("LISTEN {CHANNEL}"))
+            .batch_execute(&format!("LISTEN {CHANNEL}; LISTEN {}", tokens::CHANNEL))
             .await
             .map_err(unavailable)?;
         // From here on every commit is notified: what was cached before
         // goes, and the cache may be used.
         echoes.clear();
         cache.reset(true);
+        tokens.reset(true);
         tracing::info!("the sensor cache listens to PostgreSQL");
         let mut beat = tokio::time::interval(HEARTBEAT);
         loop {
             tokio::select! {
                 note = notes.recv() => match note {
-                    Some((pid, sensor_id)) => {
-                        if !echoes.take(pid, &sensor_id) {
-                            cache.invalidate(&sensor_id);
+                    Some(Note { token: true, id, .. }) => match uuid::Uuid::try_parse(&id) {
+                        Ok(id) => tokens.invalidate(id),
+                        // Not a token's id: nothing cached can match it, but
+                        // be safe.
+                        Err(_) => tokens.reset(true),
+                    },
+                    Some(Note { pid, id, .. }) => {
+                        if !echoes.take(pid, &id) {
+                            cache.invalidate(&id);
                         }
                     }
                     None => return Ok(()),
@@ -207,6 +236,7 @@ async fn listen(url: &str, cache: &SensorCache, echoes: &Echoes) -> Result<(), S
     }
     .await;
     cache.reset(false);
+    tokens.reset(false);
     echoes.clear();
     driver.abort();
     outcome

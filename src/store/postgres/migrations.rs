@@ -14,6 +14,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0001_schema.sql"),
     include_str!("migrations/0002_sensor_notify.sql"),
     include_str!("migrations/0003_cheaper_writes.sql"),
+    include_str!("migrations/0004_token_notify.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

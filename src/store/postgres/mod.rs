@@ -45,7 +45,7 @@ use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
-use crate::store::cache::{CAPACITY, CachedStore, SensorCache};
+use crate::store::cache::{CAPACITY, CachedStore, SensorCache, TokenCache};
 
 /// A PostgreSQL-backed [`Store`].
 #[derive(Clone)]
@@ -79,15 +79,19 @@ impl PostgresStore {
         Ok(PostgresStore { pool, writer })
     }
 
-    /// A replica as it serves: this engine behind a [`SensorCache`], which
-    /// a listener keeps in step with other replicas' writes (and which
-    /// ignores the echoes of this one's).
+    /// A replica as it serves: this engine behind a [`SensorCache`] and a
+    /// [`TokenCache`], which a listener keeps in step with other replicas'
+    /// writes (ignoring the echoes of this one's batches).
     pub async fn cached(url: &str) -> Result<CachedStore, StoreError> {
         let echoes = Arc::new(listen::Echoes::default());
         let inner = Arc::new(Self::open_with(url, writer::QUEUE, Some(echoes.clone())).await?);
         let cache = Arc::new(SensorCache::new(CAPACITY, false));
-        let listener = listen::spawn(url.to_owned(), cache.clone(), echoes);
-        Ok(CachedStore::new(inner, cache, Some(listener)))
+        let tokens = Arc::new(TokenCache::new(
+            crate::store::cache::tokens::CAPACITY,
+            false,
+        ));
+        let listener = listen::spawn(url.to_owned(), cache.clone(), tokens.clone(), echoes);
+        Ok(CachedStore::new(inner, cache, tokens, Some(listener)))
     }
 
     /// The group-commit writer (how many writes wait, how many batches
