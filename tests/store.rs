@@ -918,7 +918,16 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1, 2, 3]);
+    assert_eq!(versions, [1, 2, 3, 4]);
+    // Version 4: tokens' changes are notified.
+    let triggers = c
+        .query(
+            "SELECT 1 FROM pg_trigger WHERE tgname = 'tokens_notify' AND NOT tgisinternal",
+            &[],
+        )
+        .await
+        .unwrap();
+    assert_eq!(triggers.len(), 1, "version 4's trigger");
     // Version 3: result documents and submissions compressed with lz4 (this
     // server, Debian's, is built with it).
     let compression: Vec<(String, i8)> = c
