@@ -1154,6 +1154,22 @@ async fn cached_replica(url: &str) -> (Arc<dyn Store>, Arc<SensorCache>) {
     (Arc::new(store), cache)
 }
 
+/// Ends every cache listener's connection to `db`; answers how many.
+async fn cut_listeners(db: &pg::TestDb) -> u64 {
+    db.client()
+        .await
+        .execute(
+            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
+             WHERE datname = $1 AND application_name = $2",
+            &[
+                &db.name,
+                &accelcal::store::postgres::listen::APPLICATION_NAME,
+            ],
+        )
+        .await
+        .unwrap()
+}
+
 /// Polls `done` every 2 ms for up to 10 s.
 async fn until(mut done: impl FnMut() -> bool, what: &str) {
     let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
@@ -1378,17 +1394,7 @@ async fn postgres_replica_token_caches_follow_revocations() {
     );
 
     // b's listener is cut off: b reads the database until it is back.
-    let c = db.client().await;
-    c.execute(
-        "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
-         WHERE datname = $1 AND application_name = $2",
-        &[
-            &db.name,
-            &accelcal::store::postgres::listen::APPLICATION_NAME,
-        ],
-    )
-    .await
-    .unwrap();
+    cut_listeners(&db).await;
     until(|| !b_tokens.is_live(), "b to notice").await;
     assert!(
         b_tokens.is_empty(),
@@ -1463,19 +1469,11 @@ async fn postgres_replica_caches_follow_each_others_writes() {
         assert_eq!(own.latest.id, newer.id);
     }
     // b's listener is cut off: b bypasses its cache until it is back.
-    let c = db.client().await;
-    let cut = c
-        .execute(
-            "SELECT pg_terminate_backend(pid) FROM pg_stat_activity \
-             WHERE datname = $1 AND application_name = $2",
-            &[
-                &db.name,
-                &accelcal::store::postgres::listen::APPLICATION_NAME,
-            ],
-        )
-        .await
-        .unwrap();
-    assert_eq!(cut, 2, "both replicas' listeners were connected");
+    assert_eq!(
+        cut_listeners(&db).await,
+        2,
+        "both replicas' listeners were connected"
+    );
     until(|| !b_cache.is_live(), "b to notice").await;
     let during = calibration("SHARED", "2026-02-01T00:00:00Z");
     a.insert_calibration(during.clone(), None).await.unwrap();

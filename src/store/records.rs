@@ -232,6 +232,26 @@ impl SensorSummary {
     }
 }
 
+#[cfg(test)]
+impl SensorSummary {
+    /// A sensor for tests: one calibration,
+    /// [`CalibrationSummary::for_test`]`(7, sensor, 0.0, 1.0)`, untyped.
+    pub(crate) fn for_test(sensor: &str) -> Self {
+        let latest = CalibrationSummary::for_test(7, sensor, 0.0, 1.0);
+        SensorSummary {
+            sensor_id: sensor.into(),
+            calibration_count: 1,
+            first_performed_at: latest.performed_at,
+            latest_performed_at: latest.performed_at,
+            sensor_type: None,
+            latest_verdict: None,
+            due_at: None,
+            status: Status::Unknown,
+            latest,
+        }
+    }
+}
+
 /// Which sensors to list, in id order.
 #[derive(Debug, Clone)]
 pub struct SensorQuery {
@@ -340,7 +360,6 @@ mod tests {
             ..cal(50, "2026-03-01T00:00:00Z")
         };
         SensorSummary {
-            sensor_id: "S".into(),
             calibration_count: 2,
             first_performed_at: ts("2026-02-01T00:00:00Z"),
             latest_performed_at: ts("2026-03-01T00:00:00Z"),
@@ -349,6 +368,7 @@ mod tests {
             due_at: latest.due_at,
             status: Status::Ok,
             latest,
+            ..SensorSummary::for_test("S")
         }
     }
 

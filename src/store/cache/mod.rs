@@ -343,21 +343,16 @@ mod tests {
     }
 
     fn summary(sensor: &str, due: Option<&str>, verdict: Option<Verdict>) -> SensorSummary {
-        let at = ts("2026-01-01T00:00:00Z");
+        let plain = SensorSummary::for_test(sensor);
         SensorSummary {
-            sensor_id: sensor.into(),
-            calibration_count: 1,
-            first_performed_at: at,
-            latest_performed_at: at,
-            sensor_type: None,
             latest_verdict: verdict,
             due_at: due.map(ts),
-            status: Status::Unknown,
             latest: CalibrationSummary {
                 verdict,
                 due_at: due.map(ts),
-                ..CalibrationSummary::for_test(7, sensor, 0.0, 1.0)
+                ..plain.latest.clone()
             },
+            ..plain
         }
     }
 

@@ -258,7 +258,6 @@ impl Drop for Write<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::domain::status::Status;
     use crate::domain::timestamp::Timestamp;
 
     pub(crate) fn ts(s: &str) -> Timestamp {
@@ -266,18 +265,7 @@ mod tests {
     }
 
     fn summary(sensor: &str) -> SensorSummary {
-        let at = ts("2026-01-01T00:00:00Z");
-        SensorSummary {
-            sensor_id: sensor.into(),
-            calibration_count: 1,
-            first_performed_at: at,
-            latest_performed_at: at,
-            sensor_type: None,
-            latest_verdict: None,
-            due_at: None,
-            status: Status::Unknown,
-            latest: CalibrationSummary::for_test(7, sensor, 0.0, 1.0),
-        }
+        SensorSummary::for_test(sensor)
     }
 
     /// A calibration of `sensor` performed on `day` of January 2026.
