@@ -14,7 +14,8 @@ import json, os, signal, subprocess, sys, tempfile, time, urllib.request
 binary = sys.argv[1]
 d = tempfile.mkdtemp(prefix='accelcal-pages-')
 here = os.path.dirname(os.path.abspath(__file__))
-tok = 'admin-token-for-page-counting-0123456789'
+import secrets
+tok = secrets.token_urlsafe(32)
 env = dict(os.environ, ACCELCAL_ADMIN_TOKEN=tok)
 srv = subprocess.Popen([binary, 'serve', '--database', d + '/p.db', '--listen', '127.0.0.1:18090'], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
 body = json.load(open(os.path.join(here, '..', 'examples', 'paper-table1.json')))

@@ -87,7 +87,8 @@ struct ServeArgs {
     /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
     #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
     database: String,
-    /// An admin token (at least 16 characters) accepted besides stored tokens.
+    /// An admin token accepted besides stored tokens: random, at least 128
+    /// bits (`head -c 32 /dev/urandom | base64`); a weaker one refuses the start.
     #[arg(long, env = "ACCELCAL_ADMIN_TOKEN", hide_env_values = true)]
     admin_token: Option<String>,
     /// Largest request body in bytes (after decompression).
@@ -100,6 +101,10 @@ struct ServeArgs {
     /// Requests handled at once; beyond it the service answers 503.
     #[arg(long, env = "ACCELCAL_MAX_CONCURRENT", default_value_t = 256)]
     max_concurrent: usize,
+    /// Failed authentications a client address may make in a burst before
+    /// it is answered 429 (one more is forgiven every 3 s).
+    #[arg(long, env = "ACCELCAL_AUTH_FAILURE_BURST", default_value_t = 20)]
+    auth_failure_burst: u32,
     /// Open connections at most.
     #[arg(long, env = "ACCELCAL_MAX_CONNECTIONS", default_value_t = 1024)]
     max_connections: usize,
@@ -247,6 +252,7 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
             body_timeout: Duration::from_secs(a.body_timeout),
             request_timeout: Duration::from_secs(a.request_timeout),
             max_concurrent: a.max_concurrent.max(1),
+            auth_failure_burst: a.auth_failure_burst.max(1),
             ..Limits::default()
         },
         header_timeout: Duration::from_secs(a.header_timeout),

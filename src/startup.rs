@@ -30,13 +30,11 @@ pub use crate::http::{Limits, Web};
 use crate::domain::auth::{self, Role};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::{TokenRequest, issue};
+use crate::http::auth::ClientAddr;
 use crate::http::connection::ProblemIo;
 use crate::http::{self, AppState};
 use crate::store::{self, Store};
 use metrics_exporter_prometheus::PrometheusHandle;
-
-/// Shortest accepted configured admin token.
-pub const MIN_ADMIN_TOKEN_CHARS: usize = 16;
 
 /// Everything `accelcal serve` needs.
 #[derive(Clone, Debug)]
@@ -78,6 +76,22 @@ impl Config {
     }
 }
 
+/// The hash of a configured admin token, if it is strong enough: at least
+/// [`auth::MIN_ADMIN_TOKEN_BITS`] by [`auth::estimated_bits`]. A weak one
+/// refuses the start, saying how to make a good one.
+pub fn strong_admin_token(token: &str) -> anyhow::Result<[u8; 32]> {
+    let bits = auth::estimated_bits(token);
+    if bits < auth::MIN_ADMIN_TOKEN_BITS {
+        anyhow::bail!(
+            "the configured admin token (ACCELCAL_ADMIN_TOKEN or --admin-token) is too weak: \
+             about {bits:.0} bits of entropy where {min:.0} are needed; make one with \
+             `head -c 32 /dev/urandom | base64`",
+            min = auth::MIN_ADMIN_TOKEN_BITS
+        );
+    }
+    Ok(auth::hash(token))
+}
+
 /// A bound, ready-to-run server.
 pub struct Application {
     listener: TcpListener,
@@ -89,18 +103,13 @@ pub struct Application {
 impl Application {
     /// Opens and migrates the database, sets up the admin token and binds.
     pub async fn build(config: Config) -> anyhow::Result<Self> {
+        let admin_token_hash = match &config.admin_token {
+            Some(t) => Some(strong_admin_token(t)?),
+            None => None,
+        };
         let store = store::open(&config.database)
             .await
             .with_context(|| format!("opening database {}", config.database))?;
-        let admin_token_hash = match &config.admin_token {
-            Some(t) if t.chars().count() < MIN_ADMIN_TOKEN_CHARS => {
-                anyhow::bail!(
-                    "the admin token must be at least {MIN_ADMIN_TOKEN_CHARS} characters long"
-                )
-            }
-            Some(t) => Some(auth::hash(t)),
-            None => None,
-        };
         if let Some(url) = &config.web.public_url
             && !(url.starts_with("http://") || url.starts_with("https://"))
         {
@@ -206,7 +215,14 @@ impl Application {
                 },
                 () = &mut shutdown => break,
             };
-            let service = TowerToHyperService::new(router.clone());
+            let client = ClientAddr(peer.ip());
+            let service = TowerToHyperService::new(tower::ServiceExt::map_request(
+                router.clone(),
+                move |mut req: axum::http::Request<hyper::body::Incoming>| {
+                    req.extensions_mut().insert(client);
+                    req
+                },
+            ));
             let mut builder = http1::Builder::new();
             builder
                 .timer(TokioTimer::new())

@@ -12,7 +12,7 @@ cd "$(dirname "$0")/.."
 WORK=$(mktemp -d)
 PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
 BASE=http://127.0.0.1:$PORT
-export ACCELCAL_ADMIN_TOKEN=walkthrough-admin-token-0123
+export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
 case $ENGINE in
   sqlite) DATABASE=$WORK/accelcal.db; DROP=: ;;
   postgres)

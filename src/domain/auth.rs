@@ -118,6 +118,39 @@ pub fn hash(secret: &str) -> [u8; 32] {
     Sha256::digest(secret.as_bytes()).into()
 }
 
+/// Least estimated entropy of a configured admin token, in bits.
+pub const MIN_ADMIN_TOKEN_BITS: f64 = 128.0;
+
+/// An estimate of the entropy of a configured token, in bits: its length
+/// times the empirical Shannon entropy of its characters,
+/// `n · Σ_c −(n_c/n) log2(n_c/n)` over the distinct characters `c` occurring
+/// `n_c` times.
+///
+/// It is an upper bound on what a person typed (a phrase scores high for
+/// its length) and close to the truth for random text: 32 random bytes in
+/// base64 (44 characters) score about 200 bits, in hex (64) about 240. A
+/// repeated character scores 0; the README's old example
+/// `change-me-to-something-long` scores about 99.
+pub fn estimated_bits(token: &str) -> f64 {
+    let mut counts = std::collections::HashMap::new();
+    for c in token.chars() {
+        *counts.entry(c).or_insert(0usize) += 1;
+    }
+    let n: usize = counts.values().sum();
+    if n == 0 {
+        return 0.0;
+    }
+    let nf = n as f64;
+    let per_char: f64 = counts
+        .values()
+        .map(|&k| {
+            let p = k as f64 / nf;
+            -p * p.log2()
+        })
+        .sum();
+    per_char * nf
+}
+
 /// Splits a presented token into its id and secret, if it has the form.
 pub fn parse(text: &str) -> Option<(Uuid, &str)> {
     let rest = text.strip_prefix(PREFIX)?;
@@ -190,6 +223,23 @@ pub fn redact(text: &str) -> std::borrow::Cow<'_, str> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The estimate against a computation written out by hand.
+    #[test]
+    fn entropy_is_length_times_shannon_entropy_of_the_characters() {
+        assert_eq!(estimated_bits(""), 0.0);
+        assert_eq!(estimated_bits(&"a".repeat(16)), 0.0);
+        // "abab": two characters at 1/2 each, 1 bit each, 4 characters.
+        assert!((estimated_bits("abab") - 4.0).abs() < 1e-12);
+        // "aab": -(2/3 log2 2/3 + 1/3 log2 1/3) = 0.918 295 834 bits, 3 characters.
+        assert!((estimated_bits("aab") - 3.0 * 0.918_295_834_054_489_6).abs() < 1e-12);
+        let example = estimated_bits("change-me-to-something-long");
+        assert!(example < MIN_ADMIN_TOKEN_BITS, "{example}");
+        assert!(estimated_bits("test-admin-token-0123456789") < MIN_ADMIN_TOKEN_BITS);
+        // 32 random bytes, base64: what the README tells operators to make.
+        let random = "q3Zb1tq0V8yHhJ+f0KXo4m9u2Rj7cLwAeGsTnP5dXiE=";
+        assert!(estimated_bits(random) > MIN_ADMIN_TOKEN_BITS);
+    }
 
     #[test]
     fn generated_tokens_parse_and_verify() {

@@ -32,9 +32,14 @@ pub const MAX_ANGLE_DEG: f64 = 3600.0;
 pub const MAX_GRAVITY_COMPONENT: f64 = 10.0;
 /// Accepted norm of explicit gravity components: a tumble in the 1 g field.
 pub const GRAVITY_NORM: RangeInclusive<f64> = 0.9..=1.1;
-/// How far in the future `performed_at` may lie (clock skew), in seconds;
-/// it may not lie before 1970 either.
-pub const MAX_FUTURE_SECONDS: i64 = 24 * 3600;
+/// How far ahead of the server's clock `performed_at` may lie, in seconds:
+/// the skew of a station's clock that is forgiven (NTP keeps clocks within
+/// milliseconds; five minutes covers a station that missed its sync for
+/// days). A forgiven time is recorded as the time the submission was
+/// received, so no calibration can be dated after its arrival and outrank,
+/// as a sensor's latest, one that arrives after it. It may not lie before
+/// 1970 either.
+pub const MAX_FUTURE_SECONDS: i64 = 5 * 60;
 /// Largest indexing error a stand may declare (1σ), in arcseconds.
 pub const MAX_ANGLE_STD_ARCSEC: f64 = 3600.0;
 /// Largest relative uncertainty of gravity a stand may declare.

@@ -11,7 +11,7 @@ use super::AppState;
 use super::auth::station;
 use super::body::Body;
 use super::problem::Problem;
-use crate::domain::auth::Principal;
+use crate::domain::auth::{Principal, Role};
 use crate::domain::field::{Invalid, Loc};
 use crate::domain::metrology::{Previous, assess_calibration};
 use crate::domain::sensor_types::SensorType;
@@ -31,32 +31,54 @@ pub struct Assessed {
 }
 
 /// The sensor type in force: the one the submission names (which must
-/// exist), else the sensor's.
+/// exist), else the sensor's. Only an admin may re-type a sensor through a
+/// submission: a station may name the sensor's current type, or any type
+/// while the sensor has none (403 otherwise), since its type decides how its
+/// calibrations are judged.
 async fn sensor_type(
     state: &AppState,
+    principal: &Principal,
     e: &Evaluated,
     now: Timestamp,
 ) -> Result<Option<SensorType>, Problem> {
     let s = &e.submission;
-    if let Some(named) = &s.sensor_type {
-        return match state.store.sensor_type(named.clone()).await? {
-            Some(t) => Ok(Some(t)),
-            None => Err(Problem::validation(Invalid::one(
-                Loc::Root.key("sensor_type"),
-                format!(
-                    "no sensor type `{}`; create it first with PUT /v1/sensor-types/{}",
-                    echo(named),
-                    echo(named)
-                ),
-            ))),
+    let current = state
+        .store
+        .sensor(s.sensor_id.clone(), now)
+        .await?
+        .and_then(|sensor| sensor.sensor_type);
+    let Some(named) = &s.sensor_type else {
+        return match current {
+            Some(t) => Ok(state.store.sensor_type(t).await?),
+            None => Ok(None),
         };
-    }
-    let Some(sensor) = state.store.sensor(s.sensor_id.clone(), now).await? else {
-        return Ok(None);
     };
-    match sensor.sensor_type {
-        Some(t) => Ok(state.store.sensor_type(t).await?),
-        None => Ok(None),
+    if let Some(current) = &current
+        && current != named
+        && principal.role < Role::Admin
+    {
+        let why = format!(
+            "sensor `{}` is of type `{}`; a {} token may name that type or none, not `{}` \
+             (an admin changes a sensor's type with PUT /v1/sensors/{})",
+            echo(&s.sensor_id),
+            echo(current),
+            principal.role,
+            echo(named),
+            echo(&s.sensor_id),
+        );
+        return Err(Problem::forbidden(why.clone())
+            .with_errors(Invalid::one(Loc::Root.key("sensor_type"), why)));
+    }
+    match state.store.sensor_type(named.clone()).await? {
+        Some(t) => Ok(Some(t)),
+        None => Err(Problem::validation(Invalid::one(
+            Loc::Root.key("sensor_type"),
+            format!(
+                "no sensor type `{}`; create it first with PUT /v1/sensor-types/{}",
+                echo(named),
+                echo(named)
+            ),
+        ))),
     }
 }
 
@@ -82,7 +104,7 @@ pub async fn assess(
             },
         )
         .await??;
-    let sensor_type = sensor_type(state, &evaluated, received_at).await?;
+    let sensor_type = sensor_type(state, principal, &evaluated, received_at).await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
     let previous = state
         .store

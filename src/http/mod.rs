@@ -24,6 +24,7 @@ pub mod sensor_types;
 pub mod sensors;
 pub mod stability;
 pub mod stack;
+pub mod throttle;
 pub mod tokens;
 pub mod ui;
 
@@ -39,7 +40,6 @@ use tower::ServiceBuilder;
 use tower::limit::GlobalConcurrencyLimitLayer;
 use tower::load_shed::LoadShedLayer;
 use tower_http::catch_panic::CatchPanicLayer;
-use tower_http::decompression::RequestDecompressionLayer;
 use tower_http::limit::RequestBodyLimitLayer;
 use tower_http::map_request_body::MapRequestBodyLayer;
 use tower_http::request_id::{PropagateRequestIdLayer, SetRequestIdLayer};
@@ -67,6 +67,9 @@ pub struct Limits {
     /// Submissions parsed and calibrated at once on the blocking pool
     /// (default: the number of CPUs); more wait their turn.
     pub compute_threads: usize,
+    /// Failed authentications a client address may make in a burst
+    /// ([`throttle`]).
+    pub auth_failure_burst: u32,
 }
 
 impl Default for Limits {
@@ -78,6 +81,7 @@ impl Default for Limits {
             request_timeout: Duration::from_secs(60),
             max_concurrent: 256,
             compute_threads: std::thread::available_parallelism().map_or(2, |n| n.get()),
+            auth_failure_burst: throttle::BURST,
         }
     }
 }
@@ -105,6 +109,8 @@ pub struct Shared {
     pub rendered: coefficients::Rendered,
     /// Calibration summaries (history pages' items) rendered once each.
     pub summaries: rendered::ById,
+    /// Failed authentications per client address.
+    pub throttle: throttle::Throttle,
 }
 
 impl std::ops::Deref for AppState {
@@ -154,12 +160,17 @@ impl AppState {
         AppState(Arc::new(Shared {
             store,
             admin_token_hash,
-            admission: Admission::new(limits.body_budget_bytes, limits.max_concurrent),
+            admission: Admission::new(
+                limits.body_budget_bytes,
+                limits.max_body_bytes,
+                limits.max_concurrent,
+            ),
             compute: Arc::new(Semaphore::new(limits.compute_threads.max(1))),
             web,
             limits,
             rendered: coefficients::Rendered::default(),
             summaries: rendered::ById::new(sensors::SUMMARIES),
+            throttle: throttle::Throttle::new(limits.auth_failure_burst),
         }))
     }
 
@@ -256,8 +267,8 @@ pub fn router(state: AppState) -> Router {
             "/ui/",
             get(|| async { axum::response::Redirect::to("/ui/sensors") }),
         )
-        .merge(admitted(v1, &state))
-        .nest("/ui", admitted(ui::router(), &state))
+        .merge(admitted(v1, &state, stack::Bodies::Api))
+        .nest("/ui", admitted(ui::router(), &state, stack::Bodies::Forms))
         .fallback(health::not_found);
     // One layer of the whole stack, not one `Router::layer` per middleware:
     // axum boxes each `layer` call's service separately and clones every
@@ -295,23 +306,18 @@ pub fn router(state: AppState) -> Router {
 }
 
 /// `routes` behind admission: transfer codings checked, the body size
-/// limited, gzip bodies decompressed, the body received whole within its
-/// deadline and budget, then a work slot or 503 (see [`stack`]).
-fn admitted(routes: Router<AppState>, state: &AppState) -> Router<AppState> {
+/// limited, the body received whole by `admit` (authenticated, within its
+/// deadline and budget, gzip decoded), then a work slot or 503 (see
+/// [`stack`]).
+fn admitted(routes: Router<AppState>, state: &AppState, bodies: stack::Bodies) -> Router<AppState> {
     let limits = state.limits;
     routes.layer(
         ServiceBuilder::new()
             .layer(axum::middleware::map_request(stack::reject_codings))
             .layer(RequestBodyLimitLayer::new(limits.max_body_bytes))
-            .layer(
-                RequestDecompressionLayer::new()
-                    .no_deflate()
-                    .no_br()
-                    .no_zstd(),
-            )
             .layer(MapRequestBodyLayer::new(axum::body::Body::new))
             .layer(axum::middleware::from_fn_with_state(
-                state.clone(),
+                (state.clone(), bodies),
                 stack::admit,
             ))
             .layer(HandleErrorLayer::new(stack::overloaded))

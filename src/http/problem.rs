@@ -50,6 +50,8 @@ pub enum Kind {
     InFlight,
     /// 413: the body is too large.
     TooLarge,
+    /// 429: too many failed authentications from the client's address.
+    TooManyRequests,
     /// 415: a Content-Type or Content-Encoding accelcal does not read.
     UnsupportedMediaType,
     /// 422: an Idempotency-Key reused with a different body.
@@ -64,7 +66,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 14] = [
+    pub const ALL: [Kind; 15] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -74,6 +76,7 @@ impl Kind {
         Kind::Timeout,
         Kind::InFlight,
         Kind::TooLarge,
+        Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
         Kind::IdempotencyKeyReused,
         Kind::NotImplemented,
@@ -93,6 +96,7 @@ impl Kind {
             Kind::Timeout => "timeout",
             Kind::InFlight => "in-flight",
             Kind::TooLarge => "too-large",
+            Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
             Kind::IdempotencyKeyReused => "idempotency-key-reused",
             Kind::NotImplemented => "not-implemented",
@@ -113,6 +117,7 @@ impl Kind {
             Kind::Timeout => "Request timeout",
             Kind::InFlight => "Request in progress",
             Kind::TooLarge => "Request body too large",
+            Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
             Kind::IdempotencyKeyReused => "Idempotency-Key reused",
             Kind::NotImplemented => "Not implemented",
@@ -133,6 +138,7 @@ impl Kind {
             Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
             Kind::InFlight => StatusCode::CONFLICT,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
+            Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             Kind::NotImplemented => StatusCode::NOT_IMPLEMENTED,
             Kind::Unavailable => StatusCode::SERVICE_UNAVAILABLE,
@@ -232,6 +238,15 @@ impl Problem {
         self
     }
 
+    /// The same problem listing the body's fields at fault (403 for a field
+    /// the caller may not set, say).
+    pub fn with_errors(mut self, invalid: Invalid) -> Self {
+        let fields = self.fields.get_or_insert_with(Default::default);
+        fields.errors = invalid.errors;
+        fields.errors_omitted = invalid.omitted;
+        self
+    }
+
     /// 400: the request is not well-formed (syntax, query, header).
     pub fn bad_request(detail: impl Into<String>) -> Self {
         Self::new(Kind::Malformed, detail)
@@ -296,6 +311,12 @@ impl Problem {
     /// 503 with `Retry-After`.
     pub fn unavailable(detail: impl Into<String>, retry_after: u32) -> Self {
         Self::new(Kind::Unavailable, detail).retry_after(retry_after)
+    }
+
+    /// 429 with `Retry-After`: too many failed attempts from this client.
+    pub fn too_many(detail: impl Into<String>, retry_after: u64) -> Self {
+        Self::new(Kind::TooManyRequests, detail)
+            .retry_after(u32::try_from(retry_after).unwrap_or(u32::MAX))
     }
 
     /// 500: a fault of accelcal's own; the detail stays in the log.

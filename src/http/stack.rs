@@ -14,14 +14,15 @@
 //! 7. [`reject_codings`]: transfer codings other than chunked are 501;
 //! 8. the size limit on the bytes as sent (tower-http `RequestBodyLimit`,
 //!    413 from `Content-Length` before reading);
-//! 9. gzip request bodies decompressed (tower-http `RequestDecompression`;
-//!    other encodings 415);
-//! 10. [`admit`]: the body is received whole — within its own deadline, the
-//!     size limit applied after decompression, and a budget of bytes being
-//!     received at once — before the request competes for a slot;
-//! 11. load shedding over a global concurrency limit (tower), 503 at once.
+//! 9. [`admit`]: the sender authenticated, then the body received whole —
+//!    within its own deadline, its sender's share of a budget of bytes being
+//!    received at once, gzip decoded (every member) and the size limit
+//!    applied after decoding — before the request competes for a slot
+//!    (the pages' forms: [`admit_form`]);
+//! 10. load shedding over a global concurrency limit (tower), 503 at once.
 
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use axum::body::Body;
@@ -29,11 +30,13 @@ use axum::extract::{MatchedPath, Request, State};
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
+use bytes::Bytes;
 use http_body_util::{BodyExt, LengthLimitError, Limited};
-use tokio::sync::Semaphore;
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tower_http::request_id::{MakeRequestId, RequestId};
 
 use super::AppState;
+use super::auth::{ClientAddr, bearer};
 use super::problem::{Kind, PROBLEM_JSON, Problem};
 use crate::domain::auth;
 use crate::domain::text::echo;
@@ -250,17 +253,46 @@ pub struct Admission {
     pub bodies: Arc<Semaphore>,
     /// The body budget in KiB (the semaphore's size).
     pub body_budget_kib: usize,
+    /// The most KiB of the budget one principal may hold at once.
+    pub share_kib: usize,
+    /// KiB held, by principal id.
+    held: Arc<Mutex<HashMap<String, usize>>>,
     /// Slots for requests being worked on (the concurrency limit).
     pub work: Arc<Semaphore>,
 }
 
+/// A principal's charge on the body budget, given back when dropped.
+struct Charge {
+    _permit: OwnedSemaphorePermit,
+    held: Arc<Mutex<HashMap<String, usize>>>,
+    who: String,
+    kib: usize,
+}
+
+impl Drop for Charge {
+    fn drop(&mut self) {
+        let mut held = self.held.lock().expect("admission lock");
+        if let Some(k) = held.get_mut(&self.who) {
+            *k = k.saturating_sub(self.kib);
+            if *k == 0 {
+                held.remove(&self.who);
+            }
+        }
+    }
+}
+
 impl Admission {
-    /// Budgets for `body_budget_bytes` of bodies and `max_concurrent` requests.
-    pub fn new(body_budget_bytes: usize, max_concurrent: usize) -> Self {
+    /// Budgets for `body_budget_bytes` of bodies, of which one principal may
+    /// hold a quarter or one largest body (`max_body_bytes`), whichever is
+    /// more, and `max_concurrent` requests.
+    pub fn new(body_budget_bytes: usize, max_body_bytes: usize, max_concurrent: usize) -> Self {
         let kib = body_budget_bytes.div_ceil(1024).max(1);
+        let share = (kib / 4).max(max_body_bytes.div_ceil(1024)).clamp(1, kib);
         Admission {
             bodies: Arc::new(Semaphore::new(kib)),
             body_budget_kib: kib,
+            share_kib: share,
+            held: Arc::default(),
             work: Arc::new(Semaphore::new(max_concurrent.max(1))),
         }
     }
@@ -275,69 +307,206 @@ impl Admission {
             None
         }
     }
+
+    /// Charges `kib` to `who`: 503 when that would pass the principal's
+    /// share or the budget is spent.
+    fn charge(&self, who: &str, kib: usize) -> Result<Charge, Problem> {
+        let mut held = self.held.lock().expect("admission lock");
+        let mine = held.get(who).copied().unwrap_or(0);
+        if mine + kib > self.share_kib {
+            return Err(Problem::unavailable(
+                format!(
+                    "this token already has {mine} KiB of request bodies in flight, and may \
+                     have at most {} KiB at once; retry when one has been answered",
+                    self.share_kib
+                ),
+                1,
+            ));
+        }
+        let permit = self
+            .bodies
+            .clone()
+            .try_acquire_many_owned(kib as u32)
+            .map_err(|_| {
+                Problem::unavailable(
+                    "the server is receiving as many request bodies as it holds at once; \
+                     retry shortly",
+                    1,
+                )
+            })?;
+        *held.entry(who.to_owned()).or_insert(0) += kib;
+        Ok(Charge {
+            _permit: permit,
+            held: self.held.clone(),
+            who: who.to_owned(),
+            kib,
+        })
+    }
 }
 
-/// Receives a request's body whole before the request competes for a work
-/// slot, so a client trickling its body holds only its own connection and
-/// its share of the body budget, never a slot that a ready request needs.
+/// Which bodies a group of routes receives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bodies {
+    /// The API's: authenticated by a bearer token ([`admit`]).
+    Api,
+    /// The pages' forms ([`admit_form`]).
+    Forms,
+}
+
+/// Receives the API's request bodies: the sender is authenticated first —
+/// nobody without a valid token holds any part of the shared budget — then
+/// the body's size (declared, or the limit when unknown) is charged to the
+/// budget of bytes in flight and to the principal's share of it (503 at
+/// once when either is spent), and the body is received whole before the
+/// request competes for a work slot, so a client trickling its body holds
+/// only its own connection and its share, never a slot that a ready request
+/// needs. The body must arrive within the body deadline (408) and, once
+/// decompressed, within the size limit (413). A gzip body is decoded whole:
+/// every member (RFC 1952 allows several), nothing after the last.
 ///
-/// The body's size (declared, or the limit when unknown) is taken from the
-/// budget of bytes in flight before reading, and given back when the answer
-/// is done; when the budget is spent the answer is 503 at once. The body must
-/// arrive within the body deadline (408) and, once decompressed, within the
-/// size limit (413).
-pub async fn admit(State(state): State<AppState>, req: Request, next: Next) -> Response {
+/// The authenticated principal goes in the request's extensions, so that the
+/// handler does not authenticate again.
+pub async fn admit(
+    State((state, bodies)): State<(AppState, Bodies)>,
+    req: Request,
+    next: Next,
+) -> Response {
     use http_body::Body as _;
+    if bodies == Bodies::Forms {
+        return admit_form(&state, req, next).await;
+    }
     let limits = state.limits;
-    // The size as known now: after decompression only an upper bound is.
     let hint = req.body().size_hint();
     if hint.exact() == Some(0) {
         return next.run(req).await;
     }
+    let client = req.extensions().get::<ClientAddr>().copied();
+    let principal = match bearer(&state, req.headers(), client).await {
+        Ok(p) => p,
+        Err(problem) => return problem.into_response(),
+    };
+    let gzipped = match coding(req.headers()) {
+        Ok(g) => g,
+        Err(problem) => return problem.into_response(),
+    };
     let weight = hint
         .exact()
         .map_or(limits.max_body_bytes, |n| n as usize)
         .min(limits.max_body_bytes)
         .div_ceil(1024)
         .clamp(1, state.admission.body_budget_kib);
-    let Ok(_budget) = state
-        .admission
-        .bodies
-        .clone()
-        .try_acquire_many_owned(weight as u32)
-    else {
-        return Problem::unavailable(
-            "the server is receiving as many request bodies as it holds at once; retry shortly",
-            1,
-        )
-        .into_response();
+    let _charge = match state.admission.charge(&principal.id, weight) {
+        Ok(c) => c,
+        Err(problem) => return problem.into_response(),
     };
     tracing::debug!(budget_kib = weight, "receiving a request body");
-    let (parts, body) = req.into_parts();
-    let read = Limited::new(body, limits.max_body_bytes).collect();
-    let bytes = match tokio::time::timeout(limits.body_timeout, read).await {
-        Err(_) => {
-            return Problem::request_timeout(format!(
-                "the body was not received within {} s",
-                limits.body_timeout.as_secs()
-            ))
-            .into_response();
-        }
-        Ok(Ok(collected)) => collected.to_bytes(),
-        Ok(Err(e)) if too_large(e.as_ref()) => {
-            return Problem::too_large(limits.max_body_bytes).into_response();
-        }
-        Ok(Err(e)) => {
-            tracing::debug!(error = %e, "a body could not be read");
-            return Problem::bad_request(
-                "the body could not be read: a malformed chunked encoding or gzip stream, \
-                 or the connection closed early",
-            )
-            .into_response();
-        }
+    let (mut parts, body) = req.into_parts();
+    let mut bytes = match receive(body, limits.max_body_bytes, limits.body_timeout).await {
+        Ok(b) => b,
+        Err(problem) => return problem.into_response(),
     };
+    if gzipped {
+        let max = limits.max_body_bytes;
+        let sent = bytes.len();
+        bytes = match state.compute_for(sent, move || gunzip(&bytes, max)).await {
+            Ok(Ok(b)) => b,
+            Ok(Err(problem)) | Err(problem) => return problem.into_response(),
+        };
+        parts.headers.remove(header::CONTENT_ENCODING);
+        parts.headers.remove(header::CONTENT_LENGTH);
+    }
+    parts.extensions.insert(principal);
     next.run(Request::from_parts(parts, Body::from(bytes)))
         .await
+}
+
+/// Largest body of a page's form (sign-in, sign-out): a few hundred bytes.
+pub const FORM_BYTES: usize = 16 * 1024;
+
+/// Receives the pages' form bodies: no token comes with them (the sign-in
+/// form carries one), so they take nothing of the shared budget and may be
+/// at most [`FORM_BYTES`], unencoded, within the body deadline.
+async fn admit_form(state: &AppState, req: Request, next: Next) -> Response {
+    use http_body::Body as _;
+    if req.body().size_hint().exact() == Some(0) {
+        return next.run(req).await;
+    }
+    if req.headers().contains_key(header::CONTENT_ENCODING) {
+        return Problem::unsupported_media("a form is sent without Content-Encoding")
+            .into_response();
+    }
+    let (parts, body) = req.into_parts();
+    match receive(body, FORM_BYTES, state.limits.body_timeout).await {
+        Ok(bytes) => {
+            next.run(Request::from_parts(parts, Body::from(bytes)))
+                .await
+        }
+        Err(problem) => problem.into_response(),
+    }
+}
+
+/// Whether the body is gzip-encoded: `gzip` (or `x-gzip`) and `identity`
+/// are read, anything else (another coding, or several) is 415.
+fn coding(headers: &axum::http::HeaderMap) -> Result<bool, Problem> {
+    let mut gzip = false;
+    for value in headers.get_all(header::CONTENT_ENCODING) {
+        let text = value.to_str().unwrap_or("?");
+        for c in text.split(',').map(str::trim).filter(|c| !c.is_empty()) {
+            if c.eq_ignore_ascii_case("identity") {
+                continue;
+            }
+            if (c.eq_ignore_ascii_case("gzip") || c.eq_ignore_ascii_case("x-gzip")) && !gzip {
+                gzip = true;
+                continue;
+            }
+            return Err(Problem::unsupported_media(format!(
+                "Content-Encoding `{}` is not accepted; send gzip (once) or no encoding",
+                echo(text)
+            )));
+        }
+    }
+    Ok(gzip)
+}
+
+/// A body received whole within `limit` bytes and `deadline`.
+async fn receive(body: Body, limit: usize, deadline: Duration) -> Result<Bytes, Problem> {
+    let read = Limited::new(body, limit).collect();
+    match tokio::time::timeout(deadline, read).await {
+        Err(_) => Err(Problem::request_timeout(format!(
+            "the body was not received within {} s",
+            deadline.as_secs()
+        ))),
+        Ok(Ok(collected)) => Ok(collected.to_bytes()),
+        Ok(Err(e)) if too_large(e.as_ref()) => Err(Problem::too_large(limit)),
+        Ok(Err(e)) => {
+            tracing::debug!(error = %e, "a body could not be read");
+            Err(Problem::bad_request(
+                "the body could not be read: a malformed chunked encoding, \
+                 or the connection closed early",
+            ))
+        }
+    }
+}
+
+/// A gzip body decoded whole: every member in turn (RFC 1952 §2.2: a gzip
+/// file is a series of members), at most `max` bytes (413 past it), and
+/// nothing after the last member — trailing bytes that are not a member are
+/// a 400, never silently dropped.
+pub fn gunzip(compressed: &[u8], max: usize) -> Result<Bytes, Problem> {
+    use std::io::Read as _;
+    let mut out = Vec::new();
+    let mut decoder = flate2::read::MultiGzDecoder::new(compressed).take(max as u64 + 1);
+    if let Err(e) = decoder.read_to_end(&mut out) {
+        tracing::debug!(error = %e, "a gzip body could not be decoded");
+        return Err(Problem::bad_request(
+            "the gzip body could not be decoded: a malformed or truncated member, or bytes \
+             after the last member that are not a gzip member",
+        ));
+    }
+    if out.len() > max {
+        return Err(Problem::too_large(max));
+    }
+    Ok(Bytes::from(out))
 }
 
 /// Whether a body error is (or wraps) the size limit's: the limit applies

@@ -13,7 +13,7 @@ use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
 /// The admin token every test server accepts.
-pub const ADMIN: &str = "test-admin-token-0123456789";
+pub const ADMIN: &str = "test-mFNzQPlRPKFPdbVaGHjUexynZqfxk07a7Fyxt0k4vls";
 
 /// The paper's six tests as a JSON submission.
 pub fn paper() -> Value {

@@ -13,7 +13,7 @@ EXAMPLES=${2:-100}
 ST=${SCHEMATHESIS:-schemathesis}
 WORK=$(mktemp -d)
 PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-export ACCELCAL_TOKEN=contract-admin-token-0123456
+export ACCELCAL_TOKEN="$(head -c 32 /dev/urandom | base64)"
 ACCELCAL_ADMIN_TOKEN=$ACCELCAL_TOKEN "$BIN" serve --listen 127.0.0.1:$PORT \
   --database "$WORK/accelcal.db" --log-format json >/dev/null 2>"$WORK/server.log" &
 PID=$!

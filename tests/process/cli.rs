@@ -163,24 +163,29 @@ fn health_exits_0_when_ready_and_1_when_not() {
     assert!(String::from_utf8_lossy(&down.stderr).contains("no answer"));
 }
 
+/// Finding 9 of hardening round three: a guessable configured admin token
+/// (the README's old example, sixteen `a`s) refuses the start and says how
+/// to make a good one.
 #[test]
-fn a_short_admin_token_is_refused_at_start() {
+fn a_weak_admin_token_is_refused_at_start() {
     let dir = tempfile::tempdir().unwrap();
-    let out = accelcal()
-        .args([
-            "serve",
-            "--listen",
-            "127.0.0.1:0",
-            "--admin-token",
-            "fifteen-chars-x",
-        ])
-        .arg("--database")
-        .arg(dir.path().join("short.db"))
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("at least 16 characters"), "{err}");
+    for weak in [
+        "change-me-to-something-long",
+        "aaaaaaaaaaaaaaaa",
+        "fifteen-chars-x",
+    ] {
+        let out = accelcal()
+            .args(["serve", "--listen", "127.0.0.1:0"])
+            .env("ACCELCAL_ADMIN_TOKEN", weak)
+            .arg("--database")
+            .arg(dir.path().join("weak.db"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{weak}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("too weak"), "{err}");
+        assert!(err.contains("head -c 32 /dev/urandom | base64"), "{err}");
+    }
 }
 
 /// Starts `serve` with no admin token configured; gives the token line it

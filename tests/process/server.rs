@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex, mpsc};
 use std::time::Duration;
 
 /// The admin token the processes accept.
-pub const ADMIN: &str = "process-admin-token-0123456789";
+pub const ADMIN: &str = "process-NJ8jG8uhd77gq4gmAqCmcXBKONroNBXNc-aSb0rumWw";
 
 /// A running `accelcal serve`.
 pub struct Server {

@@ -230,11 +230,13 @@ async fn the_body_budget_is_bounded_and_reported() {
         c.limits.body_timeout = Duration::from_secs(5);
     })
     .await;
+    // Two token holders, each within its share (one largest body here).
     let mut hogs = Vec::new();
     for _ in 0..2 {
+        let hog = app.token("reader", None).await;
         let mut s = connect(&app).await;
         let head = format!(
-            "POST /v1/identify HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {ADMIN}\r\n\
+            "POST /v1/identify HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {hog}\r\n\
              Content-Type: application/json\r\nContent-Length: 4096\r\n\r\n{{"
         );
         s.write_all(head.as_bytes()).await.unwrap();

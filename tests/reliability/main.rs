@@ -18,5 +18,6 @@ mod hardening;
 mod idempotency;
 mod limits;
 mod outage;
+mod round_three;
 mod storage;
 mod traceability;

@@ -13,7 +13,7 @@ cd "$(dirname "$0")/../.."
 WORK=$(mktemp -d)
 free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 PORT=$(free_port); SHORT_PORT=$(free_port); METRICS_PORT=$(free_port)
-export ACCELCAL_ADMIN_TOKEN=ui-admin-token-0123456789
+export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
 "$BIN" serve --listen 127.0.0.1:$PORT --database "$WORK/accelcal.db" \
   --metrics-listen 127.0.0.1:$METRICS_PORT --log-format json >"$WORK/server.log" 2>&1 &
 PID=$!

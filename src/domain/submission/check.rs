@@ -13,6 +13,16 @@ use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::limits::{DEFAULT_BATCHES, MAX_FUTURE_SECONDS};
 use crate::domain::timestamp::Timestamp;
 
+/// How far `t` lies after `now`, in words (`3 h 20 min`, `7 min`).
+fn ahead(t: Timestamp, now: Timestamp) -> String {
+    let minutes = (t.unix_micros() - now.unix_micros()) / 60_000_000;
+    match (minutes / 1440, minutes % 1440 / 60, minutes % 60) {
+        (0, 0, m) => format!("{m} min"),
+        (0, h, m) => format!("{h} h {m} min"),
+        (d, h, _) => format!("{d} d {h} h"),
+    }
+}
+
 /// Which optional fields a submission gave: where a core refusal points.
 #[derive(Debug, Clone, Copy)]
 pub struct Hints {
@@ -169,7 +179,12 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         Slot::Value(t) if t > now.plus_seconds(MAX_FUTURE_SECONDS) => {
             errors.add(
                 root.key("performed_at"),
-                "lies more than a day in the future; check the station's clock",
+                format!(
+                    "lies {} ahead of the server's clock ({now}); at most {} minutes of \
+                     clock skew are forgiven: check the station's clock",
+                    ahead(t, now),
+                    MAX_FUTURE_SECONDS / 60
+                ),
             );
             None
         }
@@ -180,7 +195,8 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             );
             None
         }
-        Slot::Value(t) => Some(t),
+        // Within the forgiven skew: recorded as the time received.
+        Slot::Value(t) => Some(t.min(now)),
         _ => None,
     };
     let mount = match mount {

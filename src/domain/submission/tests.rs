@@ -116,8 +116,20 @@ fn future_and_malformed_times_are_refused() {
     assert_eq!(pointers(&b), ["/performed_at"]);
     b["performed_at"] = json!("1969-12-31T23:59:59Z");
     assert_eq!(pointers(&b), ["/performed_at"]);
-    b["performed_at"] = json!("2026-11-22T12:00:00+02:00");
-    assert!(pointers(&b).is_empty());
+    // Six minutes ahead of the clock: past the five forgiven.
+    b["performed_at"] = json!("2026-11-22T02:06:00+02:00");
+    assert_eq!(pointers(&b), ["/performed_at"]);
+    // Four minutes ahead: forgiven, and recorded as the time received.
+    b["performed_at"] = json!("2026-11-22T02:04:00+02:00");
+    let e = run(&b).unwrap();
+    assert_eq!(e.submission.performed_at, Some(now()));
+    // In the past: kept as sent.
+    b["performed_at"] = json!("2026-11-21T23:00:00+02:00");
+    let e = run(&b).unwrap();
+    assert_eq!(
+        e.submission.performed_at,
+        Some(Timestamp::parse("2026-11-21T21:00:00Z").unwrap())
+    );
 }
 
 #[test]

@@ -17,7 +17,7 @@
 //!
 //! Form posts announced by the browser as cross-site are refused outright.
 
-use axum::extract::{FromRequestParts, OriginalUri, RawQuery, State};
+use axum::extract::{Extension, FromRequestParts, OriginalUri, RawQuery, State};
 use axum::http::request::Parts;
 use axum::http::{HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Redirect, Response};
@@ -31,7 +31,7 @@ use crate::domain::auth::{self, Principal};
 use crate::domain::session::{self, same_secret};
 use crate::domain::timestamp::Timestamp;
 use crate::http::AppState;
-use crate::http::auth::{authenticate, still_valid};
+use crate::http::auth::{ClientAddr, authenticate, still_valid};
 use crate::http::problem::Problem;
 
 /// The session cookie.
@@ -240,6 +240,7 @@ fn cross_site(headers: &HeaderMap) -> bool {
 /// `POST /ui/login`.
 pub async fn login(
     State(state): State<AppState>,
+    client: Option<Extension<ClientAddr>>,
     headers: HeaderMap,
     body: Bytes,
 ) -> Result<Response, UiError> {
@@ -263,20 +264,20 @@ pub async fn login(
             StatusCode::FORBIDDEN,
         );
     }
-    let (principal, credential) = match authenticate(&state, f.token.trim()).await {
-        Ok(ok) => ok,
-        Err(p) if p.status == StatusCode::UNAUTHORIZED => {
-            let why = format!("That token was not accepted: {}.", p.detail);
-            return form(
-                &state,
-                &headers,
-                &next,
-                Some(("error", &why)),
-                StatusCode::UNAUTHORIZED,
-            );
-        }
-        Err(p) => return Err(p.into()),
-    };
+    let (principal, credential) =
+        match authenticate(&state, f.token.trim(), client.map(|c| c.0)).await {
+            Ok(ok) => ok,
+            Err(p)
+                if matches!(
+                    p.status,
+                    StatusCode::UNAUTHORIZED | StatusCode::TOO_MANY_REQUESTS
+                ) =>
+            {
+                let why = format!("That token was not accepted: {}.", p.detail);
+                return form(&state, &headers, &next, Some(("error", &why)), p.status);
+            }
+            Err(p) => return Err(p.into()),
+        };
     let ttl = state.web.session_ttl.as_secs().max(1) as i64;
     let (record, id) = session::open(principal.id.clone(), credential, Timestamp::now(), ttl)
         .map_err(|_| Problem::internal())?;
