@@ -13,3 +13,4 @@ mod migrate;
 mod replicas;
 mod server;
 mod shutdown;
+mod sqlite_file;

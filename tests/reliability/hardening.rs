@@ -510,11 +510,14 @@ async fn the_database_is_private() {
     use std::os::unix::fs::PermissionsExt;
     let app = TestApp::spawn().await;
     app.submit(ADMIN, &paper()).await;
-    for suffix in ["", "-wal", "-shm"] {
+    for suffix in ["", "-wal"] {
         let path = format!("{}{suffix}", app.db_path().display());
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_eq!(mode, 0o600, "{path}");
     }
+    // The WAL's index is in the server's memory, never in a shared file.
+    let shm = format!("{}-shm", app.db_path().display());
+    assert!(!std::path::Path::new(&shm).exists(), "{shm}");
 }
 
 /// Timing guard for the quadratic finding: 40 000 new-run rows are refused

@@ -21,6 +21,14 @@ pub fn map(e: rusqlite::Error) -> StoreError {
     }
 }
 
+/// Whether a store error is SQLite's "database is locked" (`SQLITE_BUSY`).
+pub fn is_busy(e: &StoreError) -> bool {
+    std::error::Error::source(e)
+        .and_then(|s| s.downcast_ref::<rusqlite::Error>())
+        .and_then(rusqlite::Error::sqlite_error_code)
+        == Some(ErrorCode::DatabaseBusy)
+}
+
 #[cfg(test)]
 mod tests {
     use rusqlite::ffi;

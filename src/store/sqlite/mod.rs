@@ -12,6 +12,7 @@
 
 mod calibrations;
 mod errors;
+mod holder;
 mod idempotency;
 mod migrations;
 mod pool;
@@ -63,7 +64,13 @@ impl SqliteStore {
     /// [`StoreError::Overloaded`] once `queue` are waiting for the writer.
     pub fn open_with_queue(path: impl Into<PathBuf>, queue: usize) -> Result<Self, StoreError> {
         let pool = Arc::new(Pool::create(path.into())?);
-        let first = pool.checkout()?;
+        let first = pool.checkout().map_err(|e| {
+            if errors::is_busy(&e) {
+                holder::in_use(pool.path())
+            } else {
+                e
+            }
+        })?;
         idempotency::free_leases(&first.conn)?;
         pool.checkin(first);
         let writer = Arc::new(Writer::start(pool.clone(), queue)?);

@@ -20,6 +20,16 @@ use super::errors::map;
 use super::migrations::migrate;
 use crate::store::StoreError;
 
+/// SQLite's `unix-excl` VFS: the first read takes a lock on the file that
+/// no other process can share while this one has it open, and the WAL's
+/// index lives in this process's heap instead of a memory-mapped `-shm`
+/// file. So a second server (or any other program) cannot open a file one
+/// serves — each would keep its own caches — and no page of a mapped file
+/// can vanish under a write (a `-shm` made unwritable or truncated behind
+/// SQLite's back is a SIGBUS). Connections of this process share the file
+/// as usual.
+const VFS: &std::ffi::CStr = c"unix-excl";
+
 /// How long a statement waits for a lock held by another connection.
 const BUSY_TIMEOUT: Duration = Duration::from_secs(5);
 
@@ -92,7 +102,7 @@ impl Pool {
         let flags = OpenFlags::SQLITE_OPEN_READ_WRITE
             | OpenFlags::SQLITE_OPEN_NO_MUTEX
             | OpenFlags::SQLITE_OPEN_URI;
-        let mut conn = Connection::open_with_flags(&self.path, flags).map_err(map)?;
+        let mut conn = Connection::open_with_flags_and_vfs(&self.path, flags, VFS).map_err(map)?;
         conn.busy_timeout(BUSY_TIMEOUT).map_err(map)?;
         conn.pragma_update_and_check(None, "journal_mode", "WAL", |r| r.get::<_, String>(0))
             .map_err(map)?;
@@ -242,13 +252,38 @@ mod tests {
         c.conn
             .execute_batch("CREATE TABLE t (x); INSERT INTO t VALUES (1);")
             .unwrap();
-        for file in [
-            path.clone(),
-            path.with_extension("db-wal"),
-            path.with_extension("db-shm"),
-        ] {
+        for file in [path.clone(), path.with_extension("db-wal")] {
             let mode = std::fs::metadata(&file).unwrap().permissions().mode() & 0o777;
             assert_eq!(mode, 0o600, "{}", file.display());
         }
+        // `unix-excl`: the WAL's index is in this process's heap.
+        assert!(!path.with_extension("db-shm").exists());
+    }
+
+    /// Another process cannot open a file this one serves: a second
+    /// `accelcal` (here: a child `sqlite3`-like open through Python's
+    /// sqlite3, a separate process) finds it locked.
+    #[test]
+    fn another_process_cannot_read_a_served_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("excl.db");
+        let pool = Pool::create(path.clone()).unwrap();
+        let c = pool.checkout().unwrap();
+        c.conn
+            .execute_batch("CREATE TABLE t (x); INSERT INTO t VALUES (1);")
+            .unwrap();
+        pool.checkin(c);
+        let out = std::process::Command::new("python3")
+            .arg("-c")
+            .arg(
+                "import sqlite3, sys\n\
+                 try:\n    sqlite3.connect(sys.argv[1], timeout=0.2).execute('SELECT * FROM t').fetchall(); print('read')\n\
+                 except sqlite3.OperationalError as e:\n    print('refused:', e)",
+            )
+            .arg(&path)
+            .output()
+            .unwrap();
+        let said = String::from_utf8_lossy(&out.stdout);
+        assert!(said.starts_with("refused: database is locked"), "{said}");
     }
 }
