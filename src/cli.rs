@@ -105,6 +105,9 @@ struct ServeArgs {
     /// it is answered 429 (one more is forgiven every 3 s).
     #[arg(long, env = "ACCELCAL_AUTH_FAILURE_BURST", default_value_t = 20)]
     auth_failure_burst: u32,
+    /// Free MiB a SQLite database's disk must keep for `/readyz` to pass.
+    #[arg(long, env = "ACCELCAL_MIN_FREE_DISK_MIB", default_value_t = 64)]
+    min_free_disk_mib: u64,
     /// Open connections at most.
     #[arg(long, env = "ACCELCAL_MAX_CONNECTIONS", default_value_t = 1024)]
     max_connections: usize,
@@ -263,6 +266,7 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
             session_ttl: Duration::from_secs(a.session_ttl.max(1)),
         },
         metrics_listen: a.metrics_listen.filter(|m| !m.is_empty()),
+        min_free_disk_bytes: a.min_free_disk_mib.saturating_mul(1024 * 1024),
     };
     let app = Application::build(config).await?;
     app.run_until_stopped(shutdown_signal()).await?;

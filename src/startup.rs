@@ -57,6 +57,8 @@ pub struct Config {
     pub web: Web,
     /// Where to serve Prometheus metrics, if anywhere.
     pub metrics_listen: Option<String>,
+    /// Free bytes a SQLite database's disk must have for `/readyz` to pass.
+    pub min_free_disk_bytes: u64,
 }
 
 impl Config {
@@ -72,6 +74,7 @@ impl Config {
             shutdown_grace: Duration::from_secs(30),
             web: Web::default(),
             metrics_listen: None,
+            min_free_disk_bytes: store::sqlite::MIN_FREE_BYTES,
         }
     }
 }
@@ -107,7 +110,7 @@ impl Application {
             Some(t) => Some(strong_admin_token(t)?),
             None => None,
         };
-        let store = store::open(&config.database)
+        let store = store::open_with(&config.database, config.min_free_disk_bytes)
             .await
             .with_context(|| format!("opening database {}", config.database))?;
         if let Some(url) = &config.web.public_url

@@ -6,6 +6,7 @@
 //! line in [`openapi`]'s list of paths.
 
 pub mod auth;
+pub mod backup;
 pub mod body;
 pub mod calibrations;
 pub mod coefficients;
@@ -254,7 +255,8 @@ pub fn router(state: AppState) -> Router {
         .route("/v1/identify", post(compute::identify))
         .route("/v1/fuse", post(compute::fuse))
         .route("/v1/tokens", post(tokens::create).get(tokens::list))
-        .route("/v1/tokens/{id}", delete(tokens::revoke));
+        .route("/v1/tokens/{id}", delete(tokens::revoke))
+        .route("/v1/backup", get(backup::backup));
     let app = Router::new()
         .route("/healthz", get(health::healthz))
         .route("/readyz", get(health::readyz))

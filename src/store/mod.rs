@@ -160,6 +160,13 @@ pub trait Store: Send + Sync + 'static {
     async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError>;
     /// Stores a completed idempotency key (its calibration stored first).
     async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError>;
+    /// A consistent copy of the whole database as one SQLite file, written
+    /// into a new temporary file beside the database (removed when the
+    /// handle is dropped); `None` for an engine with its own tools
+    /// (PostgreSQL: `pg_dump`).
+    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
+        Ok(None)
+    }
     /// Flushes and closes (at shutdown).
     async fn close(&self);
 }
@@ -195,6 +202,12 @@ pub fn observe<T>(
 /// ([`cache`]) in front of it: for PostgreSQL with its listener, so that
 /// writes by other replicas reach it.
 pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
+    open_with(url, sqlite::MIN_FREE_BYTES).await
+}
+
+/// [`open`], a SQLite database ready only while its disk has `min_free`
+/// bytes free.
+pub async fn open_with(url: &str, min_free: u64) -> Result<Arc<dyn Store>, StoreError> {
     if url.starts_with("postgres://") || url.starts_with("postgresql://") {
         return Ok(Arc::new(postgres::PostgresStore::cached(url).await?));
     }
@@ -202,11 +215,12 @@ pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
         .strip_prefix("sqlite://")
         .or_else(|| url.strip_prefix("sqlite:"))
         .unwrap_or(url);
-    let inner = Arc::new(sqlite::SqliteStore::open(path)?);
+    let inner = Arc::new(sqlite::SqliteStore::open(path)?.with_min_free(min_free));
     // One process serves a SQLite file: every write passes through here.
     let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, true));
     let tokens = Arc::new(cache::TokenCache::new(cache::tokens::CAPACITY, true));
-    Ok(Arc::new(cache::CachedStore::new(
-        inner, cache, tokens, None,
-    )))
+    let watch = cache::FileWatch::new(inner.path().to_path_buf());
+    Ok(Arc::new(
+        cache::CachedStore::new(inner, cache, tokens, None).watching(watch),
+    ))
 }

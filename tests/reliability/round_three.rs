@@ -317,3 +317,124 @@ async fn a_station_cannot_retype_a_sensor_through_a_submission() {
         .unwrap();
     assert_eq!(sensor["sensor_type"], "LENIENT", "{sensor}");
 }
+
+/// Finding 3: a backup moved over the live SQLite file is not served by the
+/// running service — nothing of either file is answered from memory: the
+/// coefficients, a token, a submission and readiness are all 503 naming the
+/// replacement — and, restarted, the service serves the restored file
+/// (its counts, its latest calibration, its tokens). The backup itself is
+/// taken through the service (`GET /v1/backup`), the only way while it runs.
+#[tokio::test]
+async fn a_replaced_database_file_is_refused_until_restart() {
+    let mut app = TestApp::spawn().await;
+    let station = app.token("station", None).await;
+    let first = app
+        .submit(&station, &submission("SWAP-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let res = app.get("/v1/backup", &station).await;
+    problem(res, StatusCode::FORBIDDEN).await;
+    let res = app.get("/v1/backup", ADMIN).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.headers()["content-type"], "application/vnd.sqlite3");
+    let copy = res.bytes().await.unwrap();
+    assert!(copy.starts_with(b"SQLite format 3\0"));
+    let backup = format!("{}.backup", app.db_path().display());
+    std::fs::write(&backup, &copy).unwrap();
+    let leftovers = std::fs::read_dir(app.db_path().parent().unwrap())
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with(".accelcal-backup-")
+        })
+        .count();
+    assert_eq!(leftovers, 0, "the copy taken for the answer is removed");
+    // After the backup: a second calibration and a new token, both cached.
+    let second = app
+        .submit(&station, &submission("SWAP-1", "2026-02-01T00:00:00Z", 4))
+        .await;
+    let late = app.token("reader", None).await;
+    let coefficients: Value = app
+        .get("/v1/sensors/SWAP-1/coefficients", &late)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(coefficients["calibration_id"], second["id"]);
+    // The backup is moved over the live file.
+    std::fs::rename(&backup, app.db_path()).unwrap();
+    for (path, token) in [
+        ("/v1/sensors/SWAP-1/coefficients", station.as_str()),
+        ("/v1/sensors/SWAP-1", station.as_str()),
+        ("/v1/sensors", late.as_str()),
+    ] {
+        let p = problem(app.get(path, token).await, StatusCode::SERVICE_UNAVAILABLE).await;
+        assert!(p["detail"].as_str().is_some(), "{path}: {p}");
+    }
+    let res = app
+        .post(
+            "/v1/calibrations",
+            &station,
+            &submission("SWAP-1", "2026-03-01T00:00:00Z", 4),
+        )
+        .await;
+    problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+    let ready = app.client.get(app.url("/readyz")).send().await.unwrap();
+    let p = problem(ready, StatusCode::SERVICE_UNAVAILABLE).await;
+    assert!(p["detail"].as_str().unwrap().contains("unavailable"), "{p}");
+    // Restarted on the restored file: its state, whole.
+    let db = app.take_database().unwrap();
+    app.stop().await;
+    // A stale WAL of the replaced file must not be paired with the backup.
+    let _ = std::fs::remove_file(format!("{}-wal", db.url));
+    let app = TestApp::spawn_on(&db.url).await;
+    let sensor: Value = app
+        .get("/v1/sensors/SWAP-1", &station)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(sensor["calibration_count"], 1, "{sensor}");
+    let coefficients: Value = app
+        .get("/v1/sensors/SWAP-1/coefficients", &station)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(coefficients["calibration_id"], first["id"]);
+    problem(
+        app.get("/v1/sensors", &late).await,
+        StatusCode::UNAUTHORIZED,
+    )
+    .await;
+    let third = app
+        .submit(&station, &submission("SWAP-1", "2026-03-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(third["as_found"]["previous_calibration_id"], first["id"]);
+    drop(db);
+}
+
+/// Finding 11: readiness reflects whether the service can accept work — a
+/// SQLite database whose disk has less than the configured free space
+/// fails `/readyz` (saying so), while the process stays up; with room, it
+/// passes. Judged against the disk's real free space (`statvfs`).
+#[tokio::test]
+async fn readiness_fails_when_the_disk_has_no_room() {
+    let dir = tempfile::tempdir().unwrap();
+    let st = rustix::fs::statvfs(dir.path()).unwrap();
+    let free = st.f_bavail * st.f_frsize;
+    for (min_free, ready) in [(free + (1 << 30), false), (free / 2, true)] {
+        let app = TestApp::configured(|c| c.min_free_disk_bytes = min_free).await;
+        let res = app.client.get(app.url("/readyz")).send().await.unwrap();
+        if ready {
+            assert_eq!(res.status(), StatusCode::OK);
+        } else {
+            let p = problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+            assert!(p["detail"].as_str().unwrap().contains("unavailable"), "{p}");
+            let health = app.client.get(app.url("/healthz")).send().await.unwrap();
+            assert_eq!(health.status(), StatusCode::OK);
+        }
+    }
+}

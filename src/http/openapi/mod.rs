@@ -20,7 +20,7 @@ use utoipa::{Modify, OpenApi};
 pub use self::responses::*;
 pub use self::schemas::*;
 use super::{
-    calibrations, coefficients, compute, health, sensor_types, sensors, stability, tokens,
+    backup, calibrations, coefficients, compute, health, sensor_types, sensors, stability, tokens,
 };
 use crate::domain::schema::{
     CoefficientMap, GravitySchema, Identifier, ModelSchema, NullableCoefficientMap, TermSchema,
@@ -54,7 +54,7 @@ impl Modify for Bearer {
     ),
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
-    tags((name = "calibrations"), (name = "sensors"), (name = "sensor-types"), (name = "compute"), (name = "tokens"), (name = "health")),
+    tags((name = "calibrations"), (name = "sensors"), (name = "sensor-types"), (name = "compute"), (name = "tokens"), (name = "operations"), (name = "health")),
     paths(
         health::healthz, health::readyz, health::openapi,
         calibrations::submit, calibrations::get, calibrations::submission, calibrations::certificate,
@@ -63,6 +63,7 @@ impl Modify for Bearer {
         sensor_types::put, sensor_types::list, sensor_types::get,
         compute::identify, compute::fuse,
         tokens::create, tokens::list, tokens::revoke,
+        backup::backup,
     ),
     components(
         schemas(

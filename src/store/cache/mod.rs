@@ -82,6 +82,43 @@ pub struct CachedStore {
     tokens: Arc<TokenCache>,
     /// Stopped at [`Store::close`] (the PostgreSQL listener).
     listener: Mutex<Option<tokio::task::JoinHandle<()>>>,
+    /// The SQLite file behind the engine, if that is what it is.
+    file: Option<FileWatch>,
+}
+
+/// The SQLite file a cached engine serves: the one at its path when the
+/// service started. When a backup is moved over it, or it is removed, what
+/// is cached of it is not served: every cached read answers as the engine
+/// does then (503 — see the engine's pool), so nothing of a file that is no
+/// longer there is answered, and nothing is answered from a cache that the
+/// file at the path does not back.
+pub struct FileWatch {
+    path: std::path::PathBuf,
+    origin: Option<(u64, u64)>,
+}
+
+impl FileWatch {
+    /// Watches the file at `path`, as it is now.
+    pub fn new(path: std::path::PathBuf) -> Self {
+        let origin = Self::identity(&path);
+        FileWatch { path, origin }
+    }
+
+    fn identity(path: &std::path::Path) -> Option<(u64, u64)> {
+        use std::os::unix::fs::MetadataExt;
+        std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
+    }
+
+    /// 503 unless the file at the path is the one served.
+    fn check(&self) -> Result<(), StoreError> {
+        match Self::identity(&self.path) {
+            None => Err(StoreError::Unavailable(
+                format!("database file {} is missing", self.path.display()).into(),
+            )),
+            now if now == self.origin => Ok(()),
+            _ => Err(super::sqlite::replaced(&self.path)),
+        }
+    }
 }
 
 impl CachedStore {
@@ -98,7 +135,14 @@ impl CachedStore {
             cache,
             tokens,
             listener: Mutex::new(listener),
+            file: None,
         }
+    }
+
+    /// The same, for an engine serving the SQLite file `watch` watches.
+    pub fn watching(mut self, watch: FileWatch) -> Self {
+        self.file = Some(watch);
+        self
     }
 
     /// The sensor cache (for tests and metrics).
@@ -110,6 +154,14 @@ impl CachedStore {
     pub fn tokens(&self) -> &Arc<TokenCache> {
         &self.tokens
     }
+
+    /// 503 when the database file is not the one served (SQLite).
+    fn follow_the_file(&self) -> Result<(), StoreError> {
+        match &self.file {
+            Some(w) => w.check(),
+            None => Ok(()),
+        }
+    }
 }
 
 #[async_trait]
@@ -119,6 +171,7 @@ impl Store for CachedStore {
         sensor_id: String,
         now: Timestamp,
     ) -> Result<Option<SensorSummary>, StoreError> {
+        self.follow_the_file()?;
         if let Some(hit) = self.cache.get(&sensor_id) {
             metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
             return Ok(Some(at(&hit, now)));
@@ -135,6 +188,7 @@ impl Store for CachedStore {
     /// From the cached summary when there is one (no copy of it); else
     /// read, and cached, as [`Store::sensor`] does.
     async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
+        self.follow_the_file()?;
         if let Some(hit) = self.cache.get(&sensor_id) {
             metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
             return Ok(Some(hit.latest.id));
@@ -157,6 +211,7 @@ impl Store for CachedStore {
         sensor_id: String,
         before: Timestamp,
     ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.follow_the_file()?;
         if let Some(hit) = self.cache.get(&sensor_id)
             && hit.latest.performed_at < before
         {
@@ -170,6 +225,7 @@ impl Store for CachedStore {
         c: NewCalibration,
         key: Option<IdempotencyKey>,
     ) -> Result<Stored, StoreError> {
+        self.follow_the_file()?;
         // A task of its own, so that the cache learns the write's end even
         // when the request is cancelled meanwhile (its client gone): the
         // write stands, and a read must not fill from before it.
@@ -190,6 +246,7 @@ impl Store for CachedStore {
         sensor_id: String,
         type_id: String,
     ) -> Result<bool, StoreError> {
+        self.follow_the_file()?;
         let out = self
             .inner
             .assign_sensor_type(sensor_id.clone(), type_id)
@@ -278,6 +335,7 @@ impl Store for CachedStore {
         self.inner.insert_token(t).await
     }
     async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
+        self.follow_the_file()?;
         if let Some(hit) = self.tokens.get(id) {
             return Ok(Some(hit));
         }
@@ -295,6 +353,7 @@ impl Store for CachedStore {
     /// it answered, in a task of its own so that a cancelled request cannot
     /// skip the drop.
     async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+        self.follow_the_file()?;
         let (inner, tokens) = (self.inner.clone(), self.tokens.clone());
         tokio::spawn(async move {
             let out = inner.revoke_token(id, at).await;
@@ -331,6 +390,10 @@ impl Store for CachedStore {
     }
     async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
         self.inner.put_done_key(k).await
+    }
+    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
+        self.follow_the_file()?;
+        self.inner.backup().await
     }
 }
 

@@ -21,12 +21,21 @@ pub fn map(e: rusqlite::Error) -> StoreError {
     }
 }
 
-/// Whether a store error is SQLite's "database is locked" (`SQLITE_BUSY`).
-pub fn is_busy(e: &StoreError) -> bool {
+/// SQLite's error code beneath a store error, if there is one.
+fn code(e: &StoreError) -> Option<ErrorCode> {
     std::error::Error::source(e)
         .and_then(|s| s.downcast_ref::<rusqlite::Error>())
         .and_then(rusqlite::Error::sqlite_error_code)
-        == Some(ErrorCode::DatabaseBusy)
+}
+
+/// Whether a store error is SQLite's "database is locked" (`SQLITE_BUSY`).
+pub fn is_busy(e: &StoreError) -> bool {
+    code(e) == Some(ErrorCode::DatabaseBusy)
+}
+
+/// Whether a store error is SQLite's "database or disk is full".
+pub fn is_full(e: &StoreError) -> bool {
+    code(e) == Some(ErrorCode::DiskFull)
 }
 
 #[cfg(test)]

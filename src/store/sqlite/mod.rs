@@ -23,7 +23,7 @@ mod sessions;
 mod tokens;
 pub mod writer;
 
-pub use self::pool::READERS;
+pub use self::pool::{READERS, replaced};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -44,9 +44,43 @@ use crate::domain::session::SessionRecord;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 
+/// Free bytes the database's disk must have for the service to be ready,
+/// by default: room for thousands of submissions and a checkpoint.
+pub const MIN_FREE_BYTES: u64 = 64 * 1024 * 1024;
+
+/// How long readiness fails after a write found the disk full (then it is
+/// tried again, whatever `statvfs` says: quotas and reserved blocks are not
+/// all visible to it).
+pub const FULL_HOLD: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// 503 when the file system holding `path` has less than `min` bytes free
+/// for unprivileged use.
+fn room(path: &Path, min: u64) -> Result<(), StoreError> {
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let st = rustix::fs::statvfs(dir).map_err(|e| StoreError::Unavailable(Box::new(e)))?;
+    let free = st.f_bavail.saturating_mul(st.f_frsize);
+    if free < min {
+        return Err(StoreError::Unavailable(
+            format!(
+                "only {} MiB free on the disk of {} (at least {} MiB are kept for work)",
+                free / (1024 * 1024),
+                path.display(),
+                min.div_ceil(1024 * 1024)
+            )
+            .into(),
+        ));
+    }
+    Ok(())
+}
+
 /// A SQLite-backed [`Store`].
 #[derive(Clone)]
 pub struct SqliteStore {
+    /// Free bytes the disk must keep for readiness ([`MIN_FREE_BYTES`]).
+    min_free: u64,
     pool: Arc<Pool>,
     writer: Arc<Writer>,
     /// One permit per reader connection ([`READERS`]).
@@ -75,10 +109,17 @@ impl SqliteStore {
         pool.checkin(first);
         let writer = Arc::new(Writer::start(pool.clone(), queue)?);
         Ok(SqliteStore {
+            min_free: MIN_FREE_BYTES,
             pool,
             writer,
             readers: Arc::new(tokio::sync::Semaphore::new(pool::READERS)),
         })
+    }
+
+    /// The same store, ready only while its disk has `bytes` free.
+    pub fn with_min_free(mut self, bytes: u64) -> Self {
+        self.min_free = bytes;
+        self
     }
 
     /// Connections opened so far (reads reuse at most [`READERS`]).
@@ -138,7 +179,27 @@ impl SqliteStore {
 
 #[async_trait]
 impl Store for SqliteStore {
+    /// The database answers, and its disk has room for work: at least
+    /// [`MIN_FREE_BYTES`] free (`statvfs`), and no write found it full in
+    /// the last [`FULL_HOLD`].
     async fn ping(&self) -> Result<(), StoreError> {
+        room(self.path(), self.min_free)?;
+        if let Some(at) = *self
+            .writer
+            .full_at
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            && at.elapsed() < FULL_HOLD
+        {
+            return Err(StoreError::Unavailable(
+                format!(
+                    "a write found the disk of {} full {} s ago",
+                    self.path().display(),
+                    at.elapsed().as_secs()
+                )
+                .into(),
+            ));
+        }
         self.run("ping", |conn| {
             conn.query_row("SELECT count(*) FROM sensors", [], |r| r.get::<_, i64>(0))
                 .map_err(errors::map)?;
@@ -351,6 +412,35 @@ impl Store for SqliteStore {
     async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
         self.run("put_done_key", move |conn| idempotency::put_done(conn, &k))
             .await
+    }
+
+    /// `VACUUM INTO` a new file beside the database: one read transaction,
+    /// so a consistent snapshot, while writes go on.
+    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
+        let dir = self
+            .path()
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."))
+            .to_path_buf();
+        self.run("backup", move |conn| {
+            let file = tempfile::Builder::new()
+                .prefix(".accelcal-backup-")
+                .suffix(".db")
+                .tempfile_in(&dir)
+                .map_err(|e| StoreError::Unavailable(Box::new(e)))?;
+            // VACUUM INTO needs a path with no database in it.
+            std::fs::remove_file(file.path()).map_err(|e| StoreError::Unavailable(Box::new(e)))?;
+            let target = file
+                .path()
+                .to_str()
+                .ok_or_else(|| StoreError::Unavailable("a backup path that is not UTF-8".into()))?
+                .to_owned();
+            conn.execute("VACUUM INTO ?1", [target])
+                .map_err(errors::map)?;
+            Ok(Some(file))
+        })
+        .await
     }
 
     async fn close(&self) {

@@ -2,10 +2,12 @@
 //! file it opened.
 //!
 //! A connection that reported an error is dropped rather than reused, and
-//! every checkout checks that the database file is still the one the
-//! connection opened, so the service recovers by itself when a missing,
-//! replaced or read-only database is put right. (r2d2 and deadpool pool
-//! connections, but neither can tell that the file behind one was replaced.)
+//! every checkout checks that the file at the path is still the one the
+//! pool was created on: a missing file is an outage until it is put back,
+//! and another file moved over it (a backup restored) is refused until the
+//! service restarts — a running service must not pair the new file with the
+//! old one's WAL. (r2d2 and deadpool pool connections, but neither can tell
+//! that the file behind one was replaced.)
 
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
@@ -44,16 +46,17 @@ const POOL_SIZE: usize = READERS + 1;
 /// Identity of the database file a connection opened (device, inode).
 type FileId = (u64, u64);
 
-/// A connection and the file it opened.
+/// A pooled connection.
 pub struct Pooled {
     /// The connection.
     pub conn: Connection,
-    file: FileId,
 }
 
 /// The pool.
 pub struct Pool {
     path: PathBuf,
+    /// The file the pool serves: the one at `path` when it was created.
+    origin: FileId,
     idle: Mutex<Vec<Pooled>>,
     /// Connections opened so far.
     opened: AtomicUsize,
@@ -64,6 +67,19 @@ fn file_id(path: &Path) -> Result<FileId, StoreError> {
         StoreError::Unavailable(format!("database file {}: {e}", path.display()).into())
     })?;
     Ok((meta.dev(), meta.ino()))
+}
+
+/// The error once the file at the path is another file than the one served.
+pub fn replaced(path: &Path) -> StoreError {
+    StoreError::Unavailable(
+        format!(
+            "the database file {} was replaced while the service was running; restart \
+             accelcal to serve the new file (a running service never switches files: \
+             its WAL would be paired with the wrong database)",
+            path.display()
+        )
+        .into(),
+    )
 }
 
 impl Pool {
@@ -82,8 +98,10 @@ impl Pool {
                     StoreError::Unavailable(format!("creating {}: {e}", path.display()).into())
                 })?;
         }
+        let origin = file_id(&path)?;
         Ok(Pool {
             path,
+            origin,
             idle: Mutex::new(Vec::new()),
             opened: AtomicUsize::new(0),
         })
@@ -98,7 +116,6 @@ impl Pool {
     /// `-shm` files the database file's permissions), `synchronous=FULL`,
     /// foreign keys on, migrated.
     fn connect(&self) -> Result<Pooled, StoreError> {
-        let file = file_id(&self.path)?;
         let flags = OpenFlags::SQLITE_OPEN_READ_WRITE
             | OpenFlags::SQLITE_OPEN_NO_MUTEX
             | OpenFlags::SQLITE_OPEN_URI;
@@ -119,25 +136,26 @@ impl Pool {
             .map_err(map)?;
         migrate(&mut conn).map_err(map)?;
         self.opened.fetch_add(1, Ordering::Relaxed);
-        Ok(Pooled { conn, file })
+        Ok(Pooled { conn })
     }
 
-    /// A connection to the current database file.
+    /// A connection to the database file: 503 while the file is missing
+    /// (it may be put back) or is another file than the one served.
     pub fn checkout(&self) -> Result<Pooled, StoreError> {
-        let current = file_id(&self.path);
-        let mut idle = self.idle.lock().expect("pool lock");
-        match current {
-            Err(e) => {
-                idle.clear();
-                return Err(e);
-            }
-            Ok(id) => idle.retain(|p| p.file == id),
-        }
-        let pooled = idle.pop();
-        drop(idle);
+        self.check()?;
+        let pooled = self.idle.lock().expect("pool lock").pop();
         match pooled {
             Some(p) => Ok(p),
             None => self.connect(),
+        }
+    }
+
+    /// Whether the file at the path is the one served (see [`replaced`]).
+    pub fn check(&self) -> Result<(), StoreError> {
+        if file_id(&self.path)? == self.origin {
+            Ok(())
+        } else {
+            Err(replaced(&self.path))
         }
     }
 

@@ -98,6 +98,8 @@ enum Msg {
 
 /// The queue and the thread that drains it.
 pub struct Writer {
+    /// When a batch last failed because the disk was full.
+    pub full_at: std::sync::Arc<Mutex<Option<std::time::Instant>>>,
     queue: mpsc::Sender<Msg>,
     capacity: usize,
     thread: Mutex<Option<JoinHandle<()>>>,
@@ -108,11 +110,14 @@ impl Writer {
     /// `capacity` are waiting.
     pub fn start(pool: std::sync::Arc<Pool>, capacity: usize) -> Result<Self, StoreError> {
         let (queue, rx) = mpsc::channel(capacity);
+        let full_at = std::sync::Arc::new(Mutex::new(None));
+        let full = full_at.clone();
         let thread = std::thread::Builder::new()
             .name("accelcal-sqlite-writer".into())
-            .spawn(move || drain(&pool, rx))
+            .spawn(move || drain(&pool, &full, rx))
             .map_err(|e| StoreError::Unavailable(Box::new(e)))?;
         Ok(Writer {
+            full_at,
             queue,
             capacity,
             thread: Mutex::new(Some(thread)),
@@ -153,7 +158,7 @@ impl Writer {
 }
 
 /// The writer thread: batch, run, commit, answer, until told to stop.
-fn drain(pool: &Pool, mut rx: mpsc::Receiver<Msg>) {
+fn drain(pool: &Pool, full: &Mutex<Option<std::time::Instant>>, mut rx: mpsc::Receiver<Msg>) {
     let mut stop = false;
     while !stop {
         let Some(first) = rx.blocking_recv() else {
@@ -172,16 +177,23 @@ fn drain(pool: &Pool, mut rx: mpsc::Receiver<Msg>) {
         }
         if !batch.is_empty() {
             metrics::histogram!("accelcal_storage_write_batch_size").record(batch.len() as f64);
-            commit(pool, batch);
+            if let Err(e) = commit(pool, batch)
+                && super::errors::is_full(&e)
+            {
+                *full.lock().unwrap_or_else(|e| e.into_inner()) = Some(std::time::Instant::now());
+            }
         }
     }
 }
 
 /// Runs one batch in one transaction; answers every write after the commit.
-fn commit(pool: &Pool, batch: Vec<Box<dyn Job>>) {
+fn commit(pool: &Pool, batch: Vec<Box<dyn Job>>) -> Result<(), StoreError> {
     let mut p = match pool.checkout() {
         Ok(p) => p,
-        Err(e) => return fail_all(batch, &e),
+        Err(e) => {
+            fail_all(batch, &e);
+            return Err(e);
+        }
     };
     let mut ran = Vec::with_capacity(batch.len());
     let mut jobs = batch.into_iter();
@@ -214,6 +226,9 @@ fn commit(pool: &Pool, batch: Vec<Box<dyn Job>>) {
                 ));
             }
         }
+        // A file replaced or removed meanwhile: the batch would commit
+        // into the old, unlinked file and be lost with it.
+        pool.check()?;
         tx.commit().map_err(map)
     })();
     // A transaction that did not commit was rolled back when dropped.
@@ -227,8 +242,14 @@ fn commit(pool: &Pool, batch: Vec<Box<dyn Job>>) {
         ));
     }
     match outcome {
-        Ok(()) => pool.checkin(p),
-        Err(e) => tracing::warn!(error = %e.chain(), "a batch of writes did not commit"),
+        Ok(()) => {
+            pool.checkin(p);
+            Ok(())
+        }
+        Err(e) => {
+            tracing::warn!(error = %e.chain(), "a batch of writes did not commit");
+            Err(e)
+        }
     }
 }
 
