@@ -379,8 +379,14 @@ async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Resu
     let target = crate::store::open(&to)
         .await
         .with_context(|| format!("opening {to}"))?;
+    // Named without credentials: the description is stored in the target.
+    let described = match from.split_once("://") {
+        Some((scheme, rest)) => format!("{scheme}://{}", rest.rsplit('@').next().unwrap_or(rest)),
+        None => from.clone(),
+    };
     let copied = crate::store::copy::copy(
         source.as_ref(),
+        &described,
         target.as_ref(),
         into_non_empty,
         Timestamp::now(),

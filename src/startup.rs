@@ -113,6 +113,7 @@ impl Application {
         let store = store::open_with(&config.database, config.min_free_disk_bytes)
             .await
             .with_context(|| format!("opening database {}", config.database))?;
+        store::copy::refuse_unfinished(store.as_ref()).await?;
         if let Some(url) = &config.web.public_url
             && !(url.starts_with("http://") || url.starts_with("https://"))
         {

@@ -9,10 +9,20 @@
 //! summaries are rebuilt by the same inserts that built them. Web sessions
 //! and in-flight leases are not copied: people sign in again, and a request
 //! in flight at the move had its process stopped.
+//!
+//! **Interrupted, resumed, never silent.** The target is marked as being
+//! imported into before the first row is copied, and the mark is removed
+//! only after the last: a service refuses to start on a marked database
+//! ([`refuse_unfinished`]), so a migrate killed half-way is never served as
+//! complete. Running the same migrate again resumes: it skips every row the
+//! target already holds *identically* and copies the rest. A row the target
+//! holds differently — a sensor type, token, calibration, sensor's type or
+//! idempotency key of the same id with other content — stops the copy with
+//! [`CopyError::Conflict`] naming it: nothing is overwritten.
 
 use serde::Serialize;
 
-use super::{IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Store, StoreError};
+use super::{DoneKey, IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Store, StoreError};
 use crate::domain::timestamp::Timestamp;
 
 /// Calibrations read and written per round trip.
@@ -31,6 +41,8 @@ pub struct Copied {
     pub typed_sensors: usize,
     /// Completed idempotency keys.
     pub idempotency_keys: usize,
+    /// Rows the target already held identically (a resumed copy).
+    pub already_there: usize,
 }
 
 /// Why a copy did not happen.
@@ -41,28 +53,75 @@ pub enum CopyError {
         "the target database is not empty; copy into an empty database, or pass --into-non-empty to add to it"
     )]
     NotEmpty,
+    /// The target holds a row of the same id with other content.
+    #[error(
+        "the target already holds {0} with other content; nothing of it was overwritten \
+         (the copy stopped there: resolve it, then run the same migrate again to resume)"
+    )]
+    Conflict(String),
     /// A database failed.
     #[error(transparent)]
     Store(#[from] StoreError),
 }
 
-/// Copies everything from `from` into `to` (which must be empty unless
-/// `into_non_empty`), as of `now`.
+/// Refuses (with what to do) a database an `accelcal migrate` did not finish
+/// copying into: the service must not serve part of a database as the whole.
+pub async fn refuse_unfinished(store: &dyn Store) -> anyhow::Result<()> {
+    if let Some(what) = store.import_in_progress().await? {
+        anyhow::bail!(
+            "this database is the target of an `accelcal migrate` that did not finish ({what}); \
+             run the same migrate again to finish it (it resumes where it stopped)"
+        );
+    }
+    Ok(())
+}
+
+/// Whether `existing` (the target's row, if any) is `wanted`: `Ok(true)` to
+/// skip it, `Ok(false)` to copy it, a conflict when it differs.
+fn present<T: PartialEq>(
+    existing: Option<T>,
+    wanted: &T,
+    what: impl FnOnce() -> String,
+) -> Result<bool, CopyError> {
+    match existing {
+        None => Ok(false),
+        Some(e) if e == *wanted => Ok(true),
+        Some(_) => Err(CopyError::Conflict(what())),
+    }
+}
+
+/// Copies everything from `from` (described as `source`) into `to` (which
+/// must be empty unless `into_non_empty`, or the target of an unfinished
+/// copy), as of `now`.
 pub async fn copy(
     from: &dyn Store,
+    source: &str,
     to: &dyn Store,
     into_non_empty: bool,
     now: Timestamp,
 ) -> Result<Copied, CopyError> {
-    if !into_non_empty && !to.is_empty().await? {
+    let resuming = to.import_in_progress().await?.is_some();
+    if !resuming && !into_non_empty && !to.is_empty().await? {
         return Err(CopyError::NotEmpty);
     }
+    to.set_import_in_progress(Some(format!("from {source}, started {now}")))
+        .await?;
     let mut copied = Copied::default();
     for t in from.sensor_types().await? {
+        let existing = to.sensor_type(t.type_id.clone()).await?;
+        if present(existing, &t, || format!("sensor type `{}`", t.type_id))? {
+            copied.already_there += 1;
+            continue;
+        }
         to.put_sensor_type(t).await?;
         copied.sensor_types += 1;
     }
     for t in from.tokens().await? {
+        let existing = to.token(t.id).await?;
+        if present(existing, &t, || format!("token `{}`", t.id))? {
+            copied.already_there += 1;
+            continue;
+        }
         to.insert_token(t).await?;
         copied.tokens += 1;
     }
@@ -72,6 +131,11 @@ pub async fn copy(
         let Some(last) = page.last() else { break };
         after = Some(last.id);
         for c in page {
+            let existing = to.calibration_result(c.id).await?;
+            if present(existing, &c.result, || format!("calibration `{}`", c.id))? {
+                copied.already_there += 1;
+                continue;
+            }
             to.insert_calibration(c, None).await?;
             copied.calibrations += 1;
         }
@@ -90,18 +154,35 @@ pub async fn copy(
         let Some(last) = page.last() else { break };
         after = Some(last.sensor_id.clone());
         for s in page {
-            if let Some(t) = s.sensor_type {
-                to.assign_sensor_type(s.sensor_id, t).await?;
-                copied.typed_sensors += 1;
+            let Some(t) = s.sensor_type else { continue };
+            let existing = to
+                .sensor(s.sensor_id.clone(), now)
+                .await?
+                .and_then(|there| there.sensor_type);
+            if present(existing, &t, || format!("sensor `{}`'s type", s.sensor_id))? {
+                copied.already_there += 1;
+                continue;
             }
+            to.assign_sensor_type(s.sensor_id, t).await?;
+            copied.typed_sensors += 1;
         }
     }
-    for k in from
-        .done_keys(now.plus_seconds(-IDEMPOTENCY_RETENTION_SECONDS))
+    let since = now.plus_seconds(-IDEMPOTENCY_RETENTION_SECONDS);
+    let there: std::collections::HashMap<(String, String), DoneKey> = to
+        .done_keys(since)
         .await?
-    {
+        .into_iter()
+        .map(|k| ((k.principal.clone(), k.key.clone()), k))
+        .collect();
+    for k in from.done_keys(since).await? {
+        let existing = there.get(&(k.principal.clone(), k.key.clone())).cloned();
+        if present(existing, &k, || format!("idempotency key `{}`", k.key))? {
+            copied.already_there += 1;
+            continue;
+        }
         to.put_done_key(k).await?;
         copied.idempotency_keys += 1;
     }
+    to.set_import_in_progress(None).await?;
     Ok(copied)
 }

@@ -150,6 +150,12 @@ pub trait Store: Send + Sync + 'static {
     async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError>;
     /// Whether the database holds no calibration, token or sensor type.
     async fn is_empty(&self) -> Result<bool, StoreError>;
+    /// The description of an `accelcal migrate` into this database that has
+    /// not finished, if there is one.
+    async fn import_in_progress(&self) -> Result<Option<String>, StoreError>;
+    /// Marks an import into this database as under way (`Some`, described)
+    /// or finished (`None`).
+    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError>;
     /// Whole calibrations in id order, after `after` (for `accelcal migrate`).
     async fn export_calibrations(
         &self,

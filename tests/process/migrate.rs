@@ -142,7 +142,7 @@ async fn a_migrated_database_answers_every_get_identically() {
     let copied: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(
         copied,
-        json!({"sensor_types": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1})
+        json!({"sensor_types": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
     );
     let again = migrate(&from, &pg.url);
     assert_eq!(again.status.code(), Some(1));
@@ -213,4 +213,186 @@ async fn a_migrated_database_answers_every_get_identically() {
     .await;
     assert_eq!(retry.status(), StatusCode::CREATED);
     assert_eq!(retry.headers()["idempotent-replayed"], "true");
+}
+
+/// A SQLite database holding `n` calibrations of a few sensors, made through
+/// a server; returns its path.
+async fn source_with(dir: &std::path::Path, n: usize) -> std::path::PathBuf {
+    let db = dir.join("source.db");
+    let s = Server::start_with(&db, &[], "info");
+    let c = reqwest::Client::new();
+    let paper: Value =
+        serde_json::from_slice(&std::fs::read("examples/paper-table1.json").unwrap()).unwrap();
+    let mut tasks = tokio::task::JoinSet::new();
+    for lane in 0..8 {
+        let (c, base, paper) = (c.clone(), s.base.clone(), paper.clone());
+        tasks.spawn(async move {
+            for k in (lane..n).step_by(8) {
+                let mut body = paper.clone();
+                body["sensor_id"] = json!(format!("MOVE-{}", k % 10));
+                body["performed_at"] = json!(format!("2020-01-01T00:00:{:02}.{k:06}Z", k % 60));
+                let r = call(
+                    &c,
+                    reqwest::Method::POST,
+                    format!("{base}/v1/calibrations"),
+                    Some(("application/json", body.to_string().into_bytes())),
+                    None,
+                )
+                .await;
+                assert_eq!(r.status(), StatusCode::CREATED);
+            }
+        });
+    }
+    while let Some(t) = tasks.join_next().await {
+        t.unwrap();
+    }
+    s.terminate();
+    let mut s = s;
+    assert!(s.child.wait().unwrap().success());
+    db
+}
+
+fn serve_refused(db: &str) -> String {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["serve", "--listen", "127.0.0.1:0", "--database", db])
+        .env("ACCELCAL_ADMIN_TOKEN", ADMIN)
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "the service must refuse to start"
+    );
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Hardening round three, finding 8: a migrate killed half-way leaves its
+/// target marked — the service refuses to start on it, saying what to do —
+/// and the same migrate run again resumes: it skips what is there, copies
+/// the rest, and the result holds every calibration exactly once.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_killed_migrate_is_refused_by_the_service_and_resumed() {
+    const N: usize = 1200;
+    let dir = tempfile::tempdir().unwrap();
+    let sqlite = source_with(dir.path(), N).await;
+    let pg = crate::pg::TestDb::create().await;
+    let from = format!("sqlite:{}", sqlite.display());
+    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["migrate", "--from", &from, "--to", &pg.url])
+        .stdout(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let client = pg.client().await;
+    let count = |sql: &'static str| {
+        let client = &client;
+        async move {
+            client
+                .query_one(sql, &[])
+                .await
+                .map_or(0, |r| r.get::<_, i64>(0))
+        }
+    };
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while count("SELECT count(*) FROM calibrations").await < 50 {
+        assert!(
+            std::time::Instant::now() < deadline,
+            "the copy never started"
+        );
+        tokio::time::sleep(std::time::Duration::from_millis(5)).await;
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let partial = count("SELECT count(*) FROM calibrations").await;
+    assert!(
+        partial < N as i64,
+        "the copy finished before it was killed ({partial})"
+    );
+    assert_eq!(count("SELECT count(*) FROM import_in_progress").await, 1);
+    let err = serve_refused(&pg.url);
+    assert!(err.contains("did not finish"), "{err}");
+    assert!(err.contains("run the same migrate again"), "{err}");
+    assert!(err.contains(&sqlite.display().to_string()), "{err}");
+
+    let out = migrate(&from, &pg.url);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let copied: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(
+        copied["calibrations"].as_i64().unwrap() + copied["already_there"].as_i64().unwrap(),
+        N as i64,
+        "{copied}: every calibration exactly once"
+    );
+    assert_eq!(count("SELECT count(*) FROM calibrations").await, N as i64);
+    assert_eq!(
+        count("SELECT CAST(sum(calibration_count) AS bigint) FROM sensors").await,
+        N as i64
+    );
+    assert_eq!(count("SELECT count(*) FROM import_in_progress").await, 0);
+    let s = Server::start_with(&pg.url, &[], "info");
+    let sensors: Value = reqwest::Client::new()
+        .get(format!("{}/v1/sensors", s.base))
+        .bearer_auth(ADMIN)
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(sensors["items"].as_array().unwrap().len(), 10);
+}
+
+/// Finding 8: `--into-non-empty` never replaces what the target holds: a
+/// sensor type of the same id with other content stops the copy, naming it,
+/// and leaves the target's type as it was (and the target marked until a
+/// re-run finishes).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_migrate_never_overwrites_the_targets_rows() {
+    let dir = tempfile::tempdir().unwrap();
+    let sqlite = dir.path().join("types.db");
+    let target = dir.path().join("target.db");
+    let c = reqwest::Client::new();
+    let nav: Value =
+        serde_json::from_slice(&std::fs::read("examples/sensor-type-nav.json").unwrap()).unwrap();
+    let mut lenient = nav.clone();
+    lenient["interval_days"] = json!(3650);
+    for (db, t) in [(&sqlite, &nav), (&target, &lenient)] {
+        let s = Server::start_with(db, &[], "info");
+        let r = call(
+            &c,
+            reqwest::Method::PUT,
+            format!("{}/v1/sensor-types/NAV", s.base),
+            Some(("application/json", t.to_string().into_bytes())),
+            None,
+        )
+        .await;
+        assert_eq!(r.status(), StatusCode::CREATED);
+        s.terminate();
+        let mut s = s;
+        assert!(s.child.wait().unwrap().success());
+    }
+    let from = format!("sqlite:{}", sqlite.display());
+    let to = target.display().to_string();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        .args(["migrate", "--from", &from, "--to", &to, "--into-non-empty"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("sensor type `NAV` with other content"),
+        "{err}"
+    );
+    assert!(serve_refused(&to).contains("did not finish"));
+    let conn = rusqlite::Connection::open(&target).unwrap();
+    let interval: i64 = conn
+        .query_row(
+            "SELECT json_extract(definition, '$.interval_days') FROM sensor_types WHERE type_id = 'NAV'",
+            [],
+            |r| r.get(0),
+        )
+        .unwrap();
+    assert_eq!(interval, 3650, "the target's type is untouched");
 }

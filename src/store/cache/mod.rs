@@ -388,6 +388,12 @@ impl Store for CachedStore {
     async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
         self.inner.done_keys(since).await
     }
+    async fn import_in_progress(&self) -> Result<Option<String>, StoreError> {
+        self.inner.import_in_progress().await
+    }
+    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError> {
+        self.inner.set_import_in_progress(import).await
+    }
     async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
         self.inner.put_done_key(k).await
     }

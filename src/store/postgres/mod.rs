@@ -304,6 +304,33 @@ impl Store for PostgresStore {
         op!(self, "revoke_token", |c| tokens::revoke(&c, id, at).await)
     }
 
+    async fn import_in_progress(&self) -> Result<Option<String>, StoreError> {
+        op!(self, "import_in_progress", |c| {
+            let row = c
+                .query_opt("SELECT description FROM import_in_progress", &[])
+                .await
+                .map_err(errors::map)?;
+            Ok(row.map(|r| r.get(0)))
+        })
+    }
+
+    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError> {
+        op!(self, "set_import_in_progress", |c| {
+            let done = match &import {
+                Some(d) => {
+                    c.execute(
+                        "INSERT INTO import_in_progress (singleton, description) VALUES (1, $1) \
+                         ON CONFLICT (singleton) DO UPDATE SET description = excluded.description",
+                        &[d],
+                    )
+                    .await
+                }
+                None => c.execute("DELETE FROM import_in_progress", &[]).await,
+            };
+            done.map(|_| ()).map_err(errors::map)
+        })
+    }
+
     async fn has_admin_token(&self) -> Result<bool, StoreError> {
         op!(self, "has_admin_token", |c| tokens::has_admin(&c).await)
     }

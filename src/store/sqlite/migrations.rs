@@ -19,6 +19,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0005_sessions.sql"),
     include_str!("migrations/0006_lease_holders.sql"),
     include_str!("migrations/0007_large_columns_last.sql"),
+    include_str!("migrations/0008_imports.sql"),
 ];
 
 /// Brings the database to the latest schema.

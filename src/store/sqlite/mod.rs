@@ -30,7 +30,7 @@ use std::sync::Arc;
 
 use async_trait::async_trait;
 use bytes::Bytes;
-use rusqlite::Connection;
+use rusqlite::{Connection, OptionalExtension};
 use uuid::Uuid;
 
 use self::pool::Pool;
@@ -400,6 +400,33 @@ impl Store for SqliteStore {
     ) -> Result<Vec<NewCalibration>, StoreError> {
         self.run("export_calibrations", move |conn| {
             calibrations::export(conn, after, limit)
+        })
+        .await
+    }
+
+    async fn import_in_progress(&self) -> Result<Option<String>, StoreError> {
+        self.run("import_in_progress", |conn| {
+            conn.query_row("SELECT description FROM import_in_progress", [], |r| {
+                r.get(0)
+            })
+            .optional()
+            .map_err(errors::map)
+        })
+        .await
+    }
+
+    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError> {
+        self.run("set_import_in_progress", move |conn| {
+            match import {
+                Some(d) => conn.execute(
+                    "INSERT INTO import_in_progress (singleton, description) VALUES (1, ?1) \
+                     ON CONFLICT (singleton) DO UPDATE SET description = excluded.description",
+                    [d],
+                ),
+                None => conn.execute("DELETE FROM import_in_progress", []),
+            }
+            .map(|_| ())
+            .map_err(errors::map)
         })
         .await
     }

@@ -1,0 +1,7 @@
+-- Version 5: an `accelcal migrate` into this database that has not finished
+-- (at most one row): the service refuses to start on the database until a
+-- re-run of the same migrate finishes it (src/store/copy.rs).
+CREATE TABLE import_in_progress (
+    singleton integer PRIMARY KEY CHECK (singleton = 1),
+    description text NOT NULL
+);
