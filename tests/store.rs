@@ -613,29 +613,36 @@ async fn series_and_previous(s: &dyn Store) {
     for x in [&c, &a, &b] {
         s.insert_calibration(x.clone(), None).await.unwrap();
     }
-    let ids = |v: Vec<accelcal::store::CalibrationSummary>| {
-        v.into_iter().map(|x| x.id).collect::<Vec<_>>()
+    let ids = |v: accelcal::store::Series| {
+        (
+            v.items.into_iter().map(|x| x.id).collect::<Vec<_>>(),
+            v.in_window,
+        )
     };
     assert_eq!(
-        ids(s.series("SER".into(), None, None).await.unwrap()),
-        [a.id, b.id, c.id]
+        ids(s.series("SER".into(), None, None, 10).await.unwrap()),
+        (vec![a.id, b.id, c.id], 3)
     );
     assert_eq!(
         ids(s
             .series(
                 "SER".into(),
                 Some(t("2026-01-15T00:00:00Z")),
-                Some(t("2026-03-01T00:00:00Z"))
+                Some(t("2026-03-01T00:00:00Z")),
+                10
             )
             .await
             .unwrap()),
-        [b.id, c.id]
+        (vec![b.id, c.id], 2)
     );
-    assert!(
-        s.series("NONE".into(), None, None)
-            .await
-            .unwrap()
-            .is_empty()
+    // The limit keeps the latest, oldest first, and counts the window.
+    assert_eq!(
+        ids(s.series("SER".into(), None, None, 2).await.unwrap()),
+        (vec![b.id, c.id], 3)
+    );
+    assert_eq!(
+        ids(s.series("NONE".into(), None, None, 10).await.unwrap()),
+        (vec![], 0)
     );
     let prev = |at: &'static str| async move {
         s.previous_calibration("SER".into(), t(at))

@@ -32,13 +32,21 @@ pub struct StabilityParams {
     to: Option<String>,
 }
 
+/// The most calibrations a stability report (and a sensor's page) covers:
+/// the latest of the window. Decades of yearly, or years of monthly,
+/// calibrations; a longer history is seen a window at a time.
+pub const MAX_SERIES: usize = 250;
+
 /// A sensor's stability over a window of its history.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct Stability {
     /// The sensor.
     pub sensor_id: String,
-    /// Calibrations in the window.
+    /// Calibrations covered: the window's latest, at most 250.
     pub calibrations: usize,
+    /// Earlier calibrations of the window left out by the cap of 250
+    /// (narrow `from`/`to` to cover them).
+    pub omitted: usize,
     /// The first one's `performed_at`.
     pub first_performed_at: Option<Timestamp>,
     /// The last one's `performed_at`.
@@ -77,7 +85,12 @@ pub async fn report_of(
             .map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor),
         None => DEFAULT_COVERAGE_FACTOR,
     };
-    let series = state.store.series(sensor_id.to_owned(), from, to).await?;
+    let found = state
+        .store
+        .series(sensor_id.to_owned(), from, to, MAX_SERIES)
+        .await?;
+    let omitted = found.in_window.saturating_sub(found.items.len());
+    let series = found.items;
     let points: Vec<Point> = series
         .iter()
         .map(|c| Point {
@@ -90,6 +103,7 @@ pub async fn report_of(
     let stability = Stability {
         sensor_id: sensor_id.to_owned(),
         calibrations: series.len(),
+        omitted,
         first_performed_at: series.first().map(|c| c.performed_at),
         last_performed_at: series.last().map(|c| c.performed_at),
         coverage_factor,

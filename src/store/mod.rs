@@ -103,14 +103,16 @@ pub trait Store: Send + Sync + 'static {
             .map(|c| c.id)
             .collect())
     }
-    /// A sensor's calibrations performed within `from..=to`, oldest first
-    /// (ties by id): the series of its stability.
+    /// A sensor's latest `limit` calibrations performed within `from..=to`,
+    /// oldest first (ties by id), and how many the window holds: the series
+    /// of its stability.
     async fn series(
         &self,
         sensor_id: String,
         from: Option<Timestamp>,
         to: Option<Timestamp>,
-    ) -> Result<Vec<CalibrationSummary>, StoreError>;
+        limit: usize,
+    ) -> Result<Series, StoreError>;
     /// The sensor's calibration with the latest `performed_at` strictly
     /// before `before` (ties: the larger id).
     async fn previous_calibration(

@@ -295,6 +295,16 @@ pub struct IdempotencyKey {
     pub holder: Uuid,
 }
 
+/// The latest calibrations of a sensor within a window, oldest first, and
+/// how many the window holds (more than `items` when the limit cut it).
+#[derive(Debug, Clone, Default)]
+pub struct Series {
+    /// The calibrations, oldest first.
+    pub items: Vec<CalibrationSummary>,
+    /// Calibrations in the window.
+    pub in_window: usize,
+}
+
 /// A completed idempotency key, as copied from one database to another.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct DoneKey {

@@ -420,3 +420,121 @@ async fn the_certificate_is_verifiable() {
     .unwrap();
     assert!(from_ui.contains(&hex::encode(Sha256::digest(&body))));
 }
+
+/// A submission at the documented input limits: 1 000 runs of 200 positions,
+/// one sample each (200 000 samples, about 2 MiB of JSON).
+fn at_the_limits() -> Value {
+    let positions: Vec<Value> = (0..200)
+        .map(|i| {
+            let th = i as f64 * std::f64::consts::TAU / 200.0;
+            let r = |x: f64| (x * 1e9).round() / 1e9;
+            serde_json::json!({"a": [r(th.cos()), r(th.sin()), 0.0]})
+        })
+        .collect();
+    let runs: Vec<Value> = (0..1000)
+        .map(|j| {
+            let readings: Vec<Value> = (0..200)
+                .map(|i| {
+                    let th = i as f64 * std::f64::consts::TAU / 200.0;
+                    let noise = 1e-6 * ((i * 7 + j * 13) as f64).sin();
+                    let u = 1e-3 + 1.2 * th.cos() + 6e-3 * th.sin() + noise;
+                    serde_json::json!([(u * 1e8).round() / 1e8])
+                })
+                .collect();
+            serde_json::json!({ "readings": readings })
+        })
+        .collect();
+    serde_json::json!({"sensor_id": "LIMITS-1", "positions": positions, "runs": runs})
+}
+
+/// Hardening round three, finding 7: every page is bounded whatever the
+/// history's length or the submission's size. A sensor with 600
+/// calibrations: its stability covers the latest 250 and counts the 350 it
+/// leaves out, its page says so and stays small; a calibration at the input
+/// limits (1 000 runs × 200 positions) gives a page of bounded size that
+/// says what it does not show.
+#[tokio::test]
+async fn pages_are_bounded_whatever_the_history() {
+    let app = TestApp::spawn().await;
+    let station = app.token("station", None).await;
+    let mut lanes = tokio::task::JoinSet::new();
+    for lane in 0..8 {
+        let (client, url, station) = (
+            app.client.clone(),
+            app.url("/v1/calibrations"),
+            station.clone(),
+        );
+        lanes.spawn(async move {
+            for k in (lane..600).step_by(8) {
+                let mut body = crate::helpers::submission("LONG-1", "2020-01-01T00:00:00Z", 4);
+                body["performed_at"] = serde_json::json!(format!(
+                    "{}-{:02}-{:02}T00:00:{:02}Z",
+                    2000 + k / 300,
+                    1 + (k / 25) % 12,
+                    1 + k % 25,
+                    k % 60
+                ));
+                let res = client
+                    .post(&url)
+                    .bearer_auth(&station)
+                    .json(&body)
+                    .send()
+                    .await
+                    .unwrap();
+                assert_eq!(res.status(), StatusCode::CREATED);
+            }
+        });
+    }
+    while let Some(done) = lanes.join_next().await {
+        done.unwrap();
+    }
+    let stability: Value = app
+        .get("/v1/sensors/LONG-1/stability", &station)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(stability["calibrations"], 250, "{stability}");
+    assert_eq!(stability["omitted"], 350, "{stability}");
+    let (session, _) = sign_in(&app, &station).await;
+    let res = page(&app, "/ui/sensors/LONG-1", &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let html = res.text().await.unwrap();
+    assert!(
+        html.contains("the latest 250 of the window's 600 calibrations"),
+        "no cap notice"
+    );
+    eprintln!("sensor page with 600 calibrations: {} bytes", html.len());
+    assert!(html.len() < 800_000, "{} bytes", html.len());
+
+    let limits = at_the_limits();
+    let body = serde_json::to_vec(&limits).unwrap();
+    assert!(body.len() < 4 * 1024 * 1024);
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(&station)
+        .header("content-type", "application/json")
+        .body(body)
+        .send()
+        .await
+        .unwrap();
+    let status = res.status();
+    let stored: Value = res.json().await.unwrap();
+    assert_eq!(status, StatusCode::CREATED, "{stored}");
+    let id = stored["id"].as_str().unwrap();
+    let res = page(&app, &format!("/ui/calibrations/{id}"), &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let html = res.text().await.unwrap();
+    eprintln!("calibration page at the input limits: {} bytes", html.len());
+    assert!(html.len() < 800_000, "{} bytes", html.len());
+    assert!(
+        html.contains("Runs 25–1000 are not shown here"),
+        "per-run table note"
+    );
+    assert!(
+        html.contains("Runs 11–1000 are not shown here"),
+        "residuals note"
+    );
+    assert!(!html.contains(r#"data-run="24""#));
+}

@@ -310,7 +310,7 @@ try {
 
   const brief = await newContext();
   const bp = await brief.newPage();
-  await signIn(bp, reader, SHORT);
+  await signIn(bp, ADMIN, SHORT);
   assert.match(bp.url(), /\/ui\/sensors$/);
   await new Promise((r) => setTimeout(r, 2500));
   await bp.goto(`${SHORT}/ui/sensors`);

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # accelcal's pages in a real browser, and its metrics through promtool.
-# Starts accelcal (and a second process on the same database with one-second
+# Starts accelcal (and a second process on a database of its own, one-second
 # sessions, for the expiry check) with metrics on, runs tests/ui/browser.mjs
 # in Debian's chromium, then checks the scraped metrics with
 # `promtool check metrics`. Needs chromium, node/npm and promtool (.ci/run
@@ -19,7 +19,7 @@ export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
 PID=$!
 trap 'kill $PID ${SHORT_PID:-} 2>/dev/null; wait 2>/dev/null; rm -rf "$WORK"' EXIT
 for _ in $(seq 100); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && break; sleep 0.1; done
-"$BIN" serve --listen 127.0.0.1:$SHORT_PORT --database "$WORK/accelcal.db" --session-ttl 1 \
+"$BIN" serve --listen 127.0.0.1:$SHORT_PORT --database "$WORK/short.db" --session-ttl 1 \
   --log-format json >"$WORK/short.log" 2>&1 &
 SHORT_PID=$!
 for _ in $(seq 100); do curl -sf http://127.0.0.1:$SHORT_PORT/healthz >/dev/null && break; sleep 0.1; done

@@ -5,6 +5,12 @@
 //! and quality flags when present, and links to the submission and the
 //! certificate. `GET /ui/calibrations/{id}/submission` downloads the stored
 //! body, byte for byte.
+//!
+//! Bounded at any submission the limits allow (1 000 runs, 360 positions):
+//! the per-run table shows the first [`RUNS_SHOWN`] runs, and the residual
+//! chart and table the first runs that keep them within [`RESIDUALS_SHOWN`]
+//! values (at least one run, at most [`RUNS_SHOWN`]); each says what it left
+//! out, and the result document (`/v1/calibrations/{id}`) has everything.
 
 use axum::extract::{Path, State};
 use axum::http::{HeaderValue, header};
@@ -39,6 +45,30 @@ pub fn when(text: &str) -> String {
     Timestamp::parse(text).map_or_else(|_| text.to_owned(), |t| instant(&t))
 }
 
+/// Runs listed in the per-run table.
+pub const RUNS_SHOWN: usize = 24;
+
+/// Residuals drawn and tabulated at most (runs × positions).
+pub const RESIDUALS_SHOWN: usize = 2_000;
+
+/// How many runs the residual chart and table show.
+fn residual_runs(d: &ResultDoc) -> usize {
+    (RESIDUALS_SHOWN / d.positions.len().max(1)).clamp(1, RUNS_SHOWN)
+}
+
+/// A note of what a table leaves out of `total` runs, showing `shown`.
+fn left_out(shown: usize, total: usize, id: &str) -> Markup {
+    html! {
+        @if total > shown {
+            p.notice.left-out {
+                "Runs " (shown + 1) "–" (total) " are not shown here; the "
+                a href={"/v1/calibrations/" (id)} { "result document" }
+                " has every run."
+            }
+        }
+    }
+}
+
 fn terms(d: &ResultDoc) -> Vec<accelcal_core::Term> {
     d.fused.coefficients.iter().map(|(t, _)| t).collect()
 }
@@ -58,7 +88,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                     @if d.temperatures_c.is_some() { th scope="col" .num { "°C" } }
                 } }
                 tbody {
-                    @for (j, r) in d.runs.iter().enumerate() {
+                    @for (j, r) in d.runs.iter().enumerate().take(RUNS_SHOWN) {
                         tr data-run=(j) {
                             th scope="row" { "Run " (j + 1) }
                             @for t in &terms { td.num { (opt(v(&r.coefficients, *t), num)) } }
@@ -95,6 +125,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                 }
             }
         }
+        (left_out(RUNS_SHOWN.min(d.runs.len()), d.runs.len(), &d.id.to_string()))
         p.muted {
             "Batches: "
             @for (k, b) in d.fused.batches.iter().enumerate() {
@@ -113,6 +144,7 @@ fn residuals(d: &ResultDoc) -> Markup {
         .enumerate()
         .map(|(i, p)| p.name(i))
         .collect();
+    let shown = residual_runs(d);
     let chart = Chart {
         id: "residuals".into(),
         title: "Residuals of each run at each position".into(),
@@ -121,6 +153,7 @@ fn residuals(d: &ResultDoc) -> Markup {
         series: d
             .runs
             .iter()
+            .take(shown)
             .enumerate()
             .map(|(j, r)| Series {
                 name: format!("run {}", j + 1),
@@ -150,18 +183,19 @@ fn residuals(d: &ResultDoc) -> Markup {
                     caption { "Residual of each run at each position (" (d.unit) ")" }
                     thead { tr {
                         th scope="col" { "Position" }
-                        @for j in 0..d.runs.len() { th scope="col" .num { "Run " (j + 1) } }
+                        @for j in 0..shown.min(d.runs.len()) { th scope="col" .num { "Run " (j + 1) } }
                     } }
                     tbody {
                         @for (i, name) in names.iter().enumerate() {
                             tr data-position=(i) {
                                 th scope="row" { (name) }
-                                @for r in &d.runs { td.num { (opt(r.residuals.get(i).copied(), unc)) } }
+                                @for r in d.runs.iter().take(shown) { td.num { (opt(r.residuals.get(i).copied(), unc)) } }
                             }
                         }
                     }
                 }
             }
+            (left_out(shown.min(d.runs.len()), d.runs.len(), &d.id.to_string()))
         }
     }
 }

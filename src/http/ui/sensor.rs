@@ -3,7 +3,10 @@
 //! errors for calibrations stored without a budget), the individuals-chart
 //! control limits and the fitted drift line; the stability numbers; the list
 //! of calibrations. `from` and `to` (dates or RFC 3339) narrow the window,
-//! `after` pages the list.
+//! `after` pages the list. Bounded whatever the history's length: the charts,
+//! their tables and the stability cover the window's latest
+//! [`MAX_SERIES`](crate::http::stability::MAX_SERIES) calibrations (saying
+//! so when the window holds more), the list 50 a page.
 
 use accelcal_core::Term;
 use accelcal_core::history::TermStability;
@@ -354,6 +357,13 @@ pub async fn page(
             @if q.from.is_some() || q.to.is_some() { a href={"/ui/sensors/" (s.sensor_id)} { "Whole history" } }
         }
         h2 { "Coefficients over time" }
+        @if report.stability.omitted > 0 {
+            p.notice #capped {
+                "The charts and the stability cover the latest " (report.series.len())
+                " of the window's " (report.series.len() + report.stability.omitted)
+                " calibrations; choose a window (From, To) to see earlier ones. The list below has them all."
+            }
+        }
         @if report.series.is_empty() {
             p.notice { "No calibration in this window." }
         } @else {

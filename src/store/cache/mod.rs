@@ -52,7 +52,7 @@ use uuid::Uuid;
 
 use super::{
     CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
-    SensorSummary, Store, StoreError, Stored, StoredSubmission,
+    SensorSummary, Series, Store, StoreError, Stored, StoredSubmission,
 };
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
@@ -319,8 +319,9 @@ impl Store for CachedStore {
         sensor_id: String,
         from: Option<Timestamp>,
         to: Option<Timestamp>,
-    ) -> Result<Vec<CalibrationSummary>, StoreError> {
-        self.inner.series(sensor_id, from, to).await
+        limit: usize,
+    ) -> Result<Series, StoreError> {
+        self.inner.series(sensor_id, from, to, limit).await
     }
     async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
         self.inner.put_sensor_type(t).await

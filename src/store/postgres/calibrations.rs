@@ -22,7 +22,7 @@ use super::errors::map;
 use super::rows::{self, RECORD_COLUMNS, SUMMARY_COLUMNS};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, StoreError, Stored,
+    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
     StoredSubmission,
 };
 
@@ -379,18 +379,21 @@ async fn page(
         .map_err(map)
 }
 
-/// A sensor's calibrations within `from..=to`, oldest first.
+/// A sensor's latest `limit` calibrations within `from..=to`, oldest first,
+/// and how many the window holds.
 pub async fn series(
     client: &Object,
     sensor_id: &str,
     from: Option<Timestamp>,
     to: Option<Timestamp>,
-) -> Result<Vec<CalibrationSummary>, StoreError> {
+    limit: usize,
+) -> Result<Series, StoreError> {
     let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 \
+        "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
+         WHERE c.sensor_id = $1 \
          AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
          AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-         ORDER BY c.performed_at, c.id"
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT $4"
     );
     let stmt = client.prepare_cached(&sql).await.map_err(map)?;
     let found = client
@@ -400,11 +403,20 @@ pub async fn series(
                 &sensor_id,
                 &from.map(|t| t.datetime()),
                 &to.map(|t| t.datetime()),
+                &(limit as i64),
             ],
         )
         .await
         .map_err(map)?;
-    found.iter().map(rows::summary).collect()
+    let in_window = found
+        .first()
+        .map_or(0, |r| r.get::<_, i64>("in_window") as usize);
+    let mut items = found
+        .iter()
+        .map(rows::summary)
+        .collect::<Result<Vec<_>, _>>()?;
+    items.reverse();
+    Ok(Series { items, in_window })
 }
 
 /// The latest calibration of a sensor performed strictly before `before`.

@@ -39,7 +39,7 @@ use uuid::Uuid;
 
 use super::{
     CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
-    SensorSummary, Store, StoreError, Stored, StoredSubmission, observe,
+    SensorSummary, Series, Store, StoreError, Stored, StoredSubmission, observe,
 };
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
@@ -224,9 +224,10 @@ impl Store for PostgresStore {
         sensor_id: String,
         from: Option<Timestamp>,
         to: Option<Timestamp>,
-    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        limit: usize,
+    ) -> Result<Series, StoreError> {
         op!(self, "series", |c| calibrations::series(
-            &c, &sensor_id, from, to
+            &c, &sensor_id, from, to, limit
         )
         .await)
     }

@@ -10,7 +10,7 @@ use uuid::Uuid;
 use super::errors::map;
 use super::rows::{self, SUMMARY_COLUMNS};
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, StoreError, Stored,
+    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
     StoredSubmission,
 };
 
@@ -57,9 +57,10 @@ static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| format!("SELECT c.id {HI
 /// A sensor's calibrations within `?2..=?3`, oldest first.
 static SERIES: LazyLock<String> = LazyLock::new(|| {
     format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 \
+        "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
+         WHERE c.sensor_id = ?1 \
          AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         ORDER BY c.performed_at, c.id"
+         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?4"
     )
 });
 
@@ -232,23 +233,32 @@ fn page<T>(
     rows::all(conn, sql, params, decode)
 }
 
-/// A sensor's calibrations within `from..=to`, oldest first.
+/// A sensor's latest `limit` calibrations within `from..=to`, oldest first,
+/// and how many the window holds.
 pub fn series(
     conn: &Connection,
     sensor_id: &str,
     from: Option<crate::domain::timestamp::Timestamp>,
     to: Option<crate::domain::timestamp::Timestamp>,
-) -> Result<Vec<CalibrationSummary>, StoreError> {
-    rows::all(
+    limit: usize,
+) -> Result<Series, StoreError> {
+    let mut in_window = 0usize;
+    let mut items = rows::all(
         conn,
         &SERIES,
         params![
             sensor_id,
             from.map(|t| t.to_string()),
-            to.map(|t| t.to_string())
+            to.map(|t| t.to_string()),
+            limit as i64
         ],
-        rows::summary,
-    )
+        |row| {
+            in_window = row.get::<_, i64>("in_window").map_err(map)? as usize;
+            rows::summary(row)
+        },
+    )?;
+    items.reverse();
+    Ok(Series { items, in_window })
 }
 
 /// The latest calibration of a sensor performed strictly before `before`.

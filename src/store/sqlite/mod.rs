@@ -37,7 +37,7 @@ use self::pool::Pool;
 use self::writer::Writer;
 use super::{
     CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
-    SensorSummary, Store, StoreError, Stored, StoredSubmission,
+    SensorSummary, Series, Store, StoreError, Stored, StoredSubmission,
 };
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
@@ -282,9 +282,10 @@ impl Store for SqliteStore {
         sensor_id: String,
         from: Option<Timestamp>,
         to: Option<Timestamp>,
-    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        limit: usize,
+    ) -> Result<Series, StoreError> {
         self.run("series", move |conn| {
-            calibrations::series(conn, &sensor_id, from, to)
+            calibrations::series(conn, &sensor_id, from, to, limit)
         })
         .await
     }

@@ -296,7 +296,7 @@ pub fn all<T>(
     conn: &Connection,
     sql: &str,
     params: impl rusqlite::Params,
-    decode: impl Fn(&Row<'_>) -> Result<T, StoreError>,
+    mut decode: impl FnMut(&Row<'_>) -> Result<T, StoreError>,
 ) -> Result<Vec<T>, StoreError> {
     let mut stmt = conn.prepare_cached(sql).map_err(map)?;
     let mut rows = stmt.query(params).map_err(map)?;
