@@ -6,8 +6,10 @@
 //! ```
 //!
 //! The submission is the largest the limits allow in samples: 360 positions ×
-//! 555 runs × 1 sample = 199 800 samples, about 2.5 MB of JSON. Prints a
-//! markdown table (pasted unedited into BENCHMARKS.md). Measured, never judged.
+//! 555 runs × 1 sample = 199 800 samples, about 2.5 MB of JSON. Then the
+//! pages: that calibration's page, and the page of a sensor with 2 000
+//! calibrations, one view and six at once. Prints a markdown table (pasted
+//! unedited into BENCHMARKS.md). Measured, never judged.
 
 use std::time::Instant;
 
@@ -48,6 +50,41 @@ fn largest(sensor: &str) -> Value {
         })
         .collect();
     json!({"sensor_id": sensor, "unit": "mA", "positions": positions, "runs": runs, "batches": 2})
+}
+
+/// Signs in to the pages with the admin token; the session cookie's value.
+async fn sign_in(base: &str) -> String {
+    let c = reqwest::Client::builder()
+        .redirect(reqwest::redirect::Policy::none())
+        .build()
+        .unwrap();
+    let cookie = |res: &reqwest::Response, name: &str| {
+        res.headers()
+            .get_all("set-cookie")
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .find_map(|v| {
+                v.strip_prefix(&format!("{name}="))?
+                    .split(';')
+                    .next()
+                    .map(str::to_owned)
+            })
+            .unwrap()
+    };
+    let form = c.get(format!("{base}/ui/login")).send().await.unwrap();
+    let login = cookie(&form, "accelcal_login");
+    let res = c
+        .post(format!("{base}/ui/login"))
+        .header("cookie", format!("accelcal_login={login}"))
+        .form(&[
+            ("token", ADMIN),
+            ("csrf", login.as_str()),
+            ("next", "/ui/sensors"),
+        ])
+        .send()
+        .await
+        .unwrap();
+    cookie(&res, "accelcal_session")
 }
 
 fn mib(kib: u64) -> f64 {
@@ -127,6 +164,90 @@ fn main() {
             let peak = status_kib(pid, "VmHWM:");
             rows.push(format!(
                 "| {label} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} |",
+                mib(before_rss),
+                mib(peak),
+                mib(peak.saturating_sub(before_peak.max(before_rss))),
+                answer as f64 / 1e6,
+                elapsed.as_secs_f64() * 1e3,
+            ));
+        }
+        // The pages, signed in with the admin token.
+        let session = sign_in(&server.base).await;
+        let history = &server.base;
+        let mut lanes = Vec::new();
+        for lane in 0..8 {
+            let (client, base) = (client.clone(), history.clone());
+            lanes.push(tokio::spawn(async move {
+                for k in (lane..2000).step_by(8) {
+                    let body = json!({"sensor_id": "LONG-1", "unit": "mA",
+                        "performed_at": format!("{}-01-01T00:{:02}:{:02}Z", 1990 + k / 60, k % 60, k % 60),
+                        "positions": [{"angle_deg": 0}, {"angle_deg": 90}, {"angle_deg": 180}, {"angle_deg": 270}],
+                        "runs": (0..4).map(|j| {
+                            let readings: Vec<Value> = [(0.0, 1.0), (-1.0, 0.0), (0.0, -1.0), (1.0, 0.0)]
+                                .iter()
+                                .enumerate()
+                                .map(|(p, (ai, ap))| {
+                                    let noise = 1e-6 * (f64::from(j) * 1.7 + p as f64 * 2.9 + k as f64).sin();
+                                    let u = -8.4e-4 - 1.216 * ai + 6.2e-3 * ap + noise;
+                                    json!([u, u + 1e-7])
+                                })
+                                .collect();
+                            json!({"readings": readings})
+                        }).collect::<Vec<_>>()});
+                    let res = client
+                        .post(format!("{base}/v1/calibrations"))
+                        .bearer_auth(ADMIN)
+                        .json(&body)
+                        .send()
+                        .await
+                        .unwrap();
+                    assert!(res.status().is_success(), "{}", res.status());
+                }
+            }));
+        }
+        for l in lanes {
+            l.await.unwrap();
+        }
+        let largest_id: serde_json::Value = client
+            .get(format!("{}/v1/sensors/MEM-submitstored1request-0/calibrations", server.base))
+            .bearer_auth(ADMIN)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap_or_default();
+        let largest_id = largest_id["items"][0]["id"].as_str().unwrap_or_default().to_owned();
+        for (label, path, concurrent) in [
+            ("calibration page at the limits, 1 view", format!("/ui/calibrations/{largest_id}"), 1),
+            ("calibration page at the limits, 6 at once", format!("/ui/calibrations/{largest_id}"), 6),
+            ("sensor page, 2 000 calibrations, 1 view", "/ui/sensors/LONG-1".to_owned(), 1),
+            ("sensor page, 2 000 calibrations, 6 at once", "/ui/sensors/LONG-1".to_owned(), 6),
+        ] {
+            let before_rss = status_kib(pid, "VmRSS:");
+            let before_peak = status_kib(pid, "VmHWM:");
+            let start = Instant::now();
+            let mut tasks = Vec::new();
+            for _ in 0..concurrent {
+                let (client, url, cookie) = (
+                    client.clone(),
+                    format!("{}{path}", server.base),
+                    format!("accelcal_session={session}"),
+                );
+                tasks.push(tokio::spawn(async move {
+                    let res = client.get(url).header("cookie", cookie).send().await.unwrap();
+                    assert!(res.status().is_success(), "{}", res.status());
+                    res.bytes().await.unwrap().len()
+                }));
+            }
+            let mut answer = 0;
+            for t in tasks {
+                answer = t.await.unwrap();
+            }
+            let elapsed = start.elapsed();
+            let peak = status_kib(pid, "VmHWM:");
+            rows.push(format!(
+                "| {label} | {:.1} | {:.1} | {:.1} | {:.2} | {:.0} |",
                 mib(before_rss),
                 mib(peak),
                 mib(peak.saturating_sub(before_peak.max(before_rss))),
