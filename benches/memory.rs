@@ -52,6 +52,33 @@ fn largest(sensor: &str) -> Value {
     json!({"sensor_id": sensor, "unit": "mA", "positions": positions, "runs": runs, "batches": 2})
 }
 
+/// Starts the tasks (at once) and measures the server's memory around
+/// them: one markdown row.
+async fn measured(
+    pid: u32,
+    label: &str,
+    start_tasks: impl FnOnce() -> Vec<tokio::task::JoinHandle<usize>>,
+) -> String {
+    let before_rss = status_kib(pid, "VmRSS:");
+    let before_peak = status_kib(pid, "VmHWM:");
+    let start = Instant::now();
+    let tasks = start_tasks();
+    let mut answer = 0;
+    for t in tasks {
+        answer = t.await.unwrap();
+    }
+    let elapsed = start.elapsed();
+    let peak = status_kib(pid, "VmHWM:");
+    format!(
+        "| {label} | {:.1} | {:.1} | {:.1} | {:.2} | {:.0} |",
+        mib(before_rss),
+        mib(peak),
+        mib(peak.saturating_sub(before_peak.max(before_rss))),
+        answer as f64 / 1e6,
+        elapsed.as_secs_f64() * 1e3,
+    )
+}
+
 /// Signs in to the pages with the admin token; the session cookie's value.
 async fn sign_in(base: &str) -> String {
     let c = reqwest::Client::builder()
@@ -126,11 +153,7 @@ fn main() {
             ("submit (stored), 1 request", "/v1/calibrations", 1),
             ("submit (stored), 8 at once", "/v1/calibrations", 8),
         ] {
-            let before_rss = status_kib(pid, "VmRSS:");
-            let before_peak = status_kib(pid, "VmHWM:");
-            let start = Instant::now();
-            let mut tasks = Vec::new();
-            for n in 0..concurrent {
+            let tasks = (0..concurrent).map(|n| {
                 let client = client.clone();
                 let url = format!("{}{path}", server.base);
                 let body = if path == "/v1/calibrations" {
@@ -141,7 +164,7 @@ fn main() {
                 } else {
                     body.clone()
                 };
-                tasks.push(tokio::spawn(async move {
+                tokio::spawn(async move {
                     let res = client
                         .post(url)
                         .bearer_auth(ADMIN)
@@ -154,22 +177,9 @@ fn main() {
                     let answer = res.bytes().await.unwrap().len();
                     assert!(status.is_success(), "{status}");
                     answer
-                }));
-            }
-            let mut answer = 0;
-            for t in tasks {
-                answer = t.await.unwrap();
-            }
-            let elapsed = start.elapsed();
-            let peak = status_kib(pid, "VmHWM:");
-            rows.push(format!(
-                "| {label} | {:.1} | {:.1} | {:.1} | {:.1} | {:.0} |",
-                mib(before_rss),
-                mib(peak),
-                mib(peak.saturating_sub(before_peak.max(before_rss))),
-                answer as f64 / 1e6,
-                elapsed.as_secs_f64() * 1e3,
-            ));
+                })
+            });
+            rows.push(measured(pid, label, || tasks.collect()).await);
         }
         // The pages, signed in with the admin token.
         let session = sign_in(&server.base).await;
@@ -208,15 +218,9 @@ fn main() {
         for l in lanes {
             l.await.unwrap();
         }
-        let largest_id: serde_json::Value = client
-            .get(format!("{}/v1/sensors/MEM-submitstored1request-0/calibrations", server.base))
-            .bearer_auth(ADMIN)
-            .send()
-            .await
-            .unwrap()
-            .json()
-            .await
-            .unwrap_or_default();
+        let largest_id = server
+            .get_json("/v1/sensors/MEM-submitstored1request-0/calibrations")
+            .await;
         let largest_id = largest_id["items"][0]["id"].as_str().unwrap_or_default().to_owned();
         for (label, path, concurrent) in [
             ("calibration page at the limits, 1 view", format!("/ui/calibrations/{largest_id}"), 1),
@@ -224,36 +228,19 @@ fn main() {
             ("sensor page, 2 000 calibrations, 1 view", "/ui/sensors/LONG-1".to_owned(), 1),
             ("sensor page, 2 000 calibrations, 6 at once", "/ui/sensors/LONG-1".to_owned(), 6),
         ] {
-            let before_rss = status_kib(pid, "VmRSS:");
-            let before_peak = status_kib(pid, "VmHWM:");
-            let start = Instant::now();
-            let mut tasks = Vec::new();
-            for _ in 0..concurrent {
+            let tasks = (0..concurrent).map(|_| {
                 let (client, url, cookie) = (
                     client.clone(),
                     format!("{}{path}", server.base),
                     format!("accelcal_session={session}"),
                 );
-                tasks.push(tokio::spawn(async move {
+                tokio::spawn(async move {
                     let res = client.get(url).header("cookie", cookie).send().await.unwrap();
                     assert!(res.status().is_success(), "{}", res.status());
                     res.bytes().await.unwrap().len()
-                }));
-            }
-            let mut answer = 0;
-            for t in tasks {
-                answer = t.await.unwrap();
-            }
-            let elapsed = start.elapsed();
-            let peak = status_kib(pid, "VmHWM:");
-            rows.push(format!(
-                "| {label} | {:.1} | {:.1} | {:.1} | {:.2} | {:.0} |",
-                mib(before_rss),
-                mib(peak),
-                mib(peak.saturating_sub(before_peak.max(before_rss))),
-                answer as f64 / 1e6,
-                elapsed.as_secs_f64() * 1e3,
-            ));
+                })
+            });
+            rows.push(measured(pid, label, || tasks.collect()).await);
         }
     });
     println!();

@@ -223,6 +223,11 @@ impl TestApp {
             .unwrap()
     }
 
+    /// GET with a token; the JSON answer.
+    pub async fn get_json(&self, path: &str, token: &str) -> Value {
+        self.get(path, token).await.json().await.unwrap()
+    }
+
     /// POST JSON with a token.
     pub async fn post(&self, path: &str, token: &str, body: &Value) -> Response {
         self.client

@@ -31,6 +31,17 @@ fn migrate(from: &str, to: &str) -> std::process::Output {
         .unwrap()
 }
 
+/// Migrates, expecting success; what it says it copied.
+fn migrated(from: &str, to: &str) -> Value {
+    let out = migrate(from, to);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_migrated_database_answers_every_get_identically() {
     let dir = tempfile::tempdir().unwrap();
@@ -133,13 +144,7 @@ async fn a_migrated_database_answers_every_get_identically() {
 
     let pg = crate::pg::TestDb::create().await;
     let from = format!("sqlite:{}", sqlite.display());
-    let out = migrate(&from, &pg.url);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let copied: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied,
         json!({"sensor_types": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
@@ -313,13 +318,7 @@ async fn a_killed_migrate_is_refused_by_the_service_and_resumed() {
     assert!(err.contains("run the same migrate again"), "{err}");
     assert!(err.contains(&sqlite.display().to_string()), "{err}");
 
-    let out = migrate(&from, &pg.url);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let copied: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied["calibrations"].as_i64().unwrap() + copied["already_there"].as_i64().unwrap(),
         N as i64,
@@ -332,15 +331,7 @@ async fn a_killed_migrate_is_refused_by_the_service_and_resumed() {
     );
     assert_eq!(count("SELECT count(*) FROM import_in_progress").await, 0);
     let s = Server::start_with(&pg.url, &[], "info");
-    let sensors: Value = reqwest::Client::new()
-        .get(format!("{}/v1/sensors", s.base))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let sensors = s.get_json("/v1/sensors").await;
     assert_eq!(sensors["items"].as_array().unwrap().len(), 10);
 }
 

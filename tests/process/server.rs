@@ -70,6 +70,19 @@ impl Server {
         self.log.lock().unwrap().join("\n")
     }
 
+    /// GET `path` with the admin token; the JSON answer.
+    pub async fn get_json(&self, path: &str) -> serde_json::Value {
+        reqwest::Client::new()
+            .get(format!("{}{path}", self.base))
+            .bearer_auth(ADMIN)
+            .send()
+            .await
+            .unwrap()
+            .json()
+            .await
+            .unwrap()
+    }
+
     /// SIGKILL, no warning.
     pub fn kill9(&mut self) {
         self.child.kill().unwrap();

@@ -53,15 +53,7 @@ async fn a_served_file_is_refused_to_a_second_server_and_offline_commands() {
     assert_ne!(migrate.status.code(), Some(0));
     assert!(String::from_utf8_lossy(&migrate.stderr).contains("in use by process"));
     // The first server serves on, and no token was added behind its back.
-    let tokens: Value = reqwest::Client::new()
-        .get(format!("{}/v1/tokens", server.base))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let tokens = server.get_json("/v1/tokens").await;
     assert_eq!(tokens["items"].as_array().unwrap().len(), 0, "{tokens}");
     // Once it has stopped, the offline command works.
     drop(server);
@@ -112,15 +104,7 @@ async fn an_unwritable_shm_file_cannot_kill_the_server() {
             .unwrap();
         assert_eq!(res.status(), StatusCode::CREATED);
     }
-    let sensor: Value = client
-        .get(format!("{}/v1/sensors/PAPER-2005", server.base))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap()
-        .json()
-        .await
-        .unwrap();
+    let sensor = server.get_json("/v1/sensors/PAPER-2005").await;
     assert_eq!(sensor["calibration_count"], 20);
     assert_eq!(
         std::fs::metadata(&shm).unwrap().len(),

@@ -250,12 +250,9 @@ async fn a_calibration_from_the_future_cannot_pin_the_coefficients() {
     let honest = app
         .submit(&station, &submission("FUTURE-1", &now_plus(0), 4))
         .await;
-    let served: Value = app
-        .get("/v1/sensors/FUTURE-1/coefficients", &station)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let served = app
+        .get_json("/v1/sensors/FUTURE-1/coefficients", &station)
+        .await;
     assert_eq!(served["calibration_id"], honest["id"], "{served}");
 }
 
@@ -299,22 +296,12 @@ async fn a_station_cannot_retype_a_sensor_through_a_submission() {
     }
     app.submit(&station, &typed("2026-03-01T00:00:00Z", "NAV"))
         .await;
-    let sensor: Value = app
-        .get("/v1/sensors/TYPED-1", &station)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let sensor = app.get_json("/v1/sensors/TYPED-1", &station).await;
     assert_eq!(sensor["sensor_type"], "NAV", "{sensor}");
     assert_eq!(sensor["calibration_count"], 2, "{sensor}");
     app.submit(ADMIN, &typed("2026-04-01T00:00:00Z", "LENIENT"))
         .await;
-    let sensor: Value = app
-        .get("/v1/sensors/TYPED-1", &station)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let sensor = app.get_json("/v1/sensors/TYPED-1", &station).await;
     assert_eq!(sensor["sensor_type"], "LENIENT", "{sensor}");
 }
 
@@ -356,12 +343,7 @@ async fn a_replaced_database_file_is_refused_until_restart() {
         .submit(&station, &submission("SWAP-1", "2026-02-01T00:00:00Z", 4))
         .await;
     let late = app.token("reader", None).await;
-    let coefficients: Value = app
-        .get("/v1/sensors/SWAP-1/coefficients", &late)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let coefficients = app.get_json("/v1/sensors/SWAP-1/coefficients", &late).await;
     assert_eq!(coefficients["calibration_id"], second["id"]);
     // The backup is moved over the live file.
     std::fs::rename(&backup, app.db_path()).unwrap();
@@ -390,19 +372,11 @@ async fn a_replaced_database_file_is_refused_until_restart() {
     // A stale WAL of the replaced file must not be paired with the backup.
     let _ = std::fs::remove_file(format!("{}-wal", db.url));
     let app = TestApp::spawn_on(&db.url).await;
-    let sensor: Value = app
-        .get("/v1/sensors/SWAP-1", &station)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let sensor = app.get_json("/v1/sensors/SWAP-1", &station).await;
     assert_eq!(sensor["calibration_count"], 1, "{sensor}");
-    let coefficients: Value = app
-        .get("/v1/sensors/SWAP-1/coefficients", &station)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let coefficients = app
+        .get_json("/v1/sensors/SWAP-1/coefficients", &station)
+        .await;
     assert_eq!(coefficients["calibration_id"], first["id"]);
     problem(
         app.get("/v1/sensors", &late).await,
