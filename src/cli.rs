@@ -36,12 +36,15 @@ enum Command {
     Serve(ServeArgs),
     /// Compute a submission file offline and print the result JSON.
     ///
-    /// FILE is a JSON submission, or CSV when it ends in `.csv` (see README).
-    /// On bad input, prints the problem document the service would answer
-    /// and exits with status 1.
+    /// FILE is a JSON or CSV submission (see README), told apart by its
+    /// content (`--format` to say). On bad input, prints the problem
+    /// document the service would answer and exits with status 1.
     Identify {
         /// The submission file.
         file: PathBuf,
+        /// The file's format, when its content should not decide.
+        #[arg(long, value_enum)]
+        format: Option<Format>,
     },
     /// Upload a submission file to a running service, retrying safely.
     ///
@@ -139,10 +142,22 @@ struct ServeArgs {
     log_format: LogFormat,
 }
 
+/// A submission file's format.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Format {
+    /// A JSON document.
+    Json,
+    /// CSV (README, "CSV layout").
+    Csv,
+}
+
 #[derive(Debug, Args)]
 struct SubmitArgs {
-    /// The submission file (JSON, or CSV when it ends in `.csv`).
+    /// The submission file (JSON or CSV, told apart by its content).
     file: PathBuf,
+    /// The file's format, when its content should not decide.
+    #[arg(long, value_enum)]
+    format: Option<Format>,
     /// Base URL of the service.
     #[arg(long, env = "ACCELCAL_URL", default_value = "http://127.0.0.1:8080")]
     url: String,
@@ -170,6 +185,11 @@ enum TokenCommand {
         /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
         #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
         database: String,
+        /// Create the SQLite database when there is none at --database
+        /// (without it, a missing file is an error: a wrong directory would
+        /// otherwise get a new, empty database whose token no server knows).
+        #[arg(long)]
+        create: bool,
     },
 }
 
@@ -177,7 +197,7 @@ enum TokenCommand {
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
     match cli.command {
-        Command::Identify { file } => identify(&file),
+        Command::Identify { file, format } => identify(&file, format),
         Command::Serve(args) => {
             // Held until the server has stopped: dropping it writes what is queued.
             let _logs = telemetry::init(args.log_format);
@@ -192,17 +212,21 @@ pub fn main() -> ExitCode {
             station,
             label,
             database,
-        }) => run_async(create_token(role, station, label, database)),
+            create,
+        }) => match existing(&database, create) {
+            Ok(()) => run_async(create_token(role, station, label, database)),
+            Err(e) => {
+                eprintln!("accelcal: {e}");
+                ExitCode::from(2)
+            }
+        },
         Command::Health { url } => run_async(health(url)),
         Command::Migrate {
             from,
             to,
             into_non_empty,
         } => run_async(migrate(from, to, into_non_empty)),
-        Command::Openapi => {
-            print!("{}", openapi_document());
-            ExitCode::SUCCESS
-        }
+        Command::Openapi => out(&openapi_document()),
     }
 }
 
@@ -288,18 +312,61 @@ fn flags(invalid: &Invalid) -> String {
         .join("; ")
 }
 
-fn media_of(path: &Path) -> (Media, &'static str) {
-    let csv = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("csv"));
-    if csv {
-        (Media::Csv, "text/csv")
-    } else {
-        (Media::Json, "application/json")
+/// Writes `text` and a line break to standard output. A reader that went
+/// away (`accelcal identify … | head`) ends the command quietly, as any
+/// Unix filter does; another write error is an error.
+fn out(text: &str) -> ExitCode {
+    use std::io::Write as _;
+    let mut stdout = std::io::stdout().lock();
+    match writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("accelcal: cannot write the output: {e}");
+            ExitCode::from(2)
+        }
     }
 }
 
-fn identify(file: &Path) -> ExitCode {
+/// A SQLite database named by `database` must exist unless `create`
+/// (PostgreSQL databases are created by their server's administrator).
+fn existing(database: &str, create: bool) -> anyhow::Result<()> {
+    if create || database.starts_with("postgres://") || database.starts_with("postgresql://") {
+        return Ok(());
+    }
+    let path = database
+        .strip_prefix("sqlite://")
+        .or_else(|| database.strip_prefix("sqlite:"))
+        .unwrap_or(database);
+    if Path::new(path).exists() {
+        return Ok(());
+    }
+    let cwd = std::env::current_dir().map_or_else(|_| "?".into(), |d| d.display().to_string());
+    anyhow::bail!(
+        "no database at {path} (in {cwd}); point --database (ACCELCAL_DATABASE_URL) at the \
+         service's database, or pass --create to make a new one"
+    )
+}
+
+/// The format of a submission: `format` when given, else by content — a
+/// JSON submission is an object, so a body whose first character (after
+/// white space and a byte-order mark) is `{` is JSON, anything else CSV.
+fn media_of(bytes: &[u8], format: Option<Format>) -> (Media, &'static str) {
+    let json = match format {
+        Some(f) => f == Format::Json,
+        None => {
+            let text = bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes);
+            text.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'{')
+        }
+    };
+    if json {
+        (Media::Json, "application/json")
+    } else {
+        (Media::Csv, "text/csv")
+    }
+}
+
+fn identify(file: &Path, format: Option<Format>) -> ExitCode {
     let bytes = match std::fs::read(file) {
         Ok(b) => b,
         Err(e) => {
@@ -308,7 +375,7 @@ fn identify(file: &Path) -> ExitCode {
         }
     };
     let now = Timestamp::now();
-    match evaluate(media_of(file).0, &bytes, now) {
+    match evaluate(media_of(&bytes, format).0, &bytes, now) {
         Ok(e) => {
             // Offline: no sensor type, no previous calibration.
             let performed_at = e.submission.performed_at.unwrap_or(now);
@@ -323,10 +390,7 @@ fn identify(file: &Path) -> ExitCode {
             let station = e.submission.station_id.as_deref();
             let view = ResultView::new(&e, None, station, now, None, &metrology);
             match serde_json::to_string_pretty(&view) {
-                Ok(text) => {
-                    println!("{text}");
-                    ExitCode::SUCCESS
-                }
+                Ok(text) => out(&text),
                 Err(e) => {
                     eprintln!("accelcal: {e}");
                     ExitCode::from(2)
@@ -345,11 +409,12 @@ fn identify(file: &Path) -> ExitCode {
 async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
     let body = std::fs::read(&a.file)
         .map_err(|e| anyhow::anyhow!("cannot read {}: {e}", a.file.display()))?;
+    let content_type = media_of(&body, a.format).1;
     let upload = crate::client::Upload {
         url: a.url,
         token: a.token,
         body,
-        content_type: media_of(&a.file).1,
+        content_type,
         attempts: a.attempts.max(1),
         backoff: Duration::from_millis(500),
         on_retry: Some(std::sync::Arc::new(|r: &crate::client::Retry| {
@@ -363,8 +428,7 @@ async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
     };
     let answer = crate::client::submit(&upload).await?;
     if answer.status.is_success() {
-        println!("{}", answer.body);
-        Ok(ExitCode::SUCCESS)
+        Ok(out(&answer.body))
     } else {
         eprintln!("{}", answer.body);
         Ok(ExitCode::FAILURE)
@@ -373,6 +437,7 @@ async fn submit(a: SubmitArgs) -> anyhow::Result<ExitCode> {
 
 async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Result<ExitCode> {
     use anyhow::Context;
+    existing(&from, false).context("--from")?;
     let source = crate::store::open(&from)
         .await
         .with_context(|| format!("opening {from}"))?;
@@ -395,10 +460,7 @@ async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Resu
     source.close().await;
     target.close().await;
     match copied {
-        Ok(c) => {
-            println!("{}", serde_json::to_string_pretty(&c)?);
-            Ok(ExitCode::SUCCESS)
-        }
+        Ok(c) => Ok(out(&serde_json::to_string_pretty(&c)?)),
         Err(e) => {
             eprintln!("accelcal: {e}");
             Ok(ExitCode::FAILURE)
@@ -425,6 +487,5 @@ async fn create_token(
     let (record, created) = issue(request, Timestamp::now())?;
     store.insert_token(record).await?;
     store.close().await;
-    println!("{}", serde_json::to_string_pretty(&created)?);
-    Ok(ExitCode::SUCCESS)
+    Ok(out(&serde_json::to_string_pretty(&created)?))
 }

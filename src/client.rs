@@ -4,8 +4,12 @@
 //! (`SHA-256`), so however often an upload is retried — after a timeout, a
 //! dropped connection or a 503 — the server stores it at most once and
 //! answers every retry with the original result. Transient failures
-//! (connection errors, 408, 409 in flight, 429, 502, 503, 504) are retried
-//! with exponential backoff, honouring `Retry-After`.
+//! (408, 409 in flight, 429, 502, 503, 504, and a connection lost or timed
+//! out) are retried with exponential backoff, honouring `Retry-After`. A
+//! connection refused (or a host not found) before any attempt reached the
+//! server fails at once, saying so: nothing is listening there, and waiting
+//! will not change that; once the server has answered, a refusal is a
+//! restart, and is retried.
 
 use std::fmt;
 use std::sync::Arc;
@@ -74,6 +78,16 @@ pub fn idempotency_key(body: &[u8]) -> String {
     format!("sha256-{}", hex::encode(Sha256::digest(body)))
 }
 
+/// The innermost cause of a request error (`Connection refused (os error
+/// 111)`), not reqwest's wrapper text.
+fn cause(e: &reqwest::Error) -> String {
+    let mut inner: &dyn std::error::Error = e;
+    while let Some(next) = inner.source() {
+        inner = next;
+    }
+    inner.to_string()
+}
+
 fn transient(status: StatusCode) -> bool {
     matches!(status.as_u16(), 408 | 409 | 429 | 502 | 503 | 504)
 }
@@ -88,6 +102,8 @@ pub async fn submit(u: &Upload) -> anyhow::Result<Answer> {
     let key = idempotency_key(&u.body);
     let mut delay = u.backoff;
     let mut attempt = 0;
+    // Whether any attempt got an HTTP answer.
+    let mut reached = false;
     loop {
         attempt += 1;
         let sent = client
@@ -117,14 +133,23 @@ pub async fn submit(u: &Upload) -> anyhow::Result<Answer> {
                     attempts: attempt,
                 });
             }
-            Err(e) if attempt < u.attempts => (delay, format!("no answer: {e}")),
+            Err(e) if e.is_connect() && !reached => {
+                return Err(anyhow::anyhow!(
+                    "cannot connect to {}: {} — is the service running there? Start it with \
+                     `accelcal serve`, or give its address with --url (ACCELCAL_URL)",
+                    u.url.trim_end_matches('/'),
+                    cause(&e)
+                ));
+            }
+            Err(e) if attempt < u.attempts => (delay, format!("no answer: {}", cause(&e))),
             Err(e) => {
                 return Err(anyhow::anyhow!(
-                    "no answer from {url} after {attempt} attempts: {e}"
+                    "no answer from {url} after {attempt} attempts: {}",
+                    cause(&e)
                 ));
             }
         };
-        tracing::warn!(attempt, %reason, wait_ms = wait.as_millis() as u64, "upload failed; retrying");
+        reached |= !reason.starts_with("no answer");
         if let Some(tell) = &u.on_retry {
             tell(&Retry {
                 attempt,

@@ -89,6 +89,7 @@ async fn token_create_issues_a_token_the_server_accepts() {
             "LAB-7",
             "--label",
             "bench 7",
+            "--create",
         ])
         .arg("--database")
         .arg(&db)
@@ -243,5 +244,133 @@ async fn the_first_start_prints_an_admin_token_once() {
     assert_eq!(
         tokens["items"][0]["label"],
         "first admin (created at start)"
+    );
+}
+
+/// Issue 31: `submit` to an address nothing listens on fails at once — one
+/// line naming the URL, the refusal and what to do — instead of retrying.
+#[test]
+fn submit_to_nothing_fails_fast_and_says_why() {
+    let probe = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let url = format!("http://{}", probe.local_addr().unwrap());
+    drop(probe);
+    let start = std::time::Instant::now();
+    let out = accelcal()
+        .args([
+            "submit",
+            "examples/paper-table1.json",
+            "--token",
+            "x",
+            "--url",
+            &url,
+        ])
+        .output()
+        .unwrap();
+    assert!(start.elapsed() < std::time::Duration::from_secs(2));
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.lines().count(), 1, "{err}");
+    for says in [
+        url.as_str(),
+        "Connection refused",
+        "accelcal serve",
+        "--url",
+    ] {
+        assert!(err.contains(says), "{says}: {err}");
+    }
+}
+
+/// Issue 31: a reader that goes away (`| head`) ends the command quietly.
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    use std::io::Read as _;
+    let mut child = accelcal()
+        .args(["identify", "examples/paper-table1.json"])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut first = [0u8; 1];
+    child.stdout.take().unwrap().read_exact(&mut first).unwrap();
+    // The pipe's reading end is closed here, before the output is whole.
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    assert!(
+        out.stderr.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Issue 31: `token create` refuses a database file that does not exist
+/// (the wrong directory) unless told to create it, and creates nothing.
+#[test]
+fn token_create_needs_an_existing_database_or_create() {
+    let dir = tempfile::tempdir().unwrap();
+    let db = dir.path().join("absent.db");
+    let out = accelcal()
+        .args(["token", "create", "--role", "station", "--database"])
+        .arg(&db)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("no database at") && err.contains("--create"),
+        "{err}"
+    );
+    assert!(!db.exists());
+    let out = accelcal()
+        .args([
+            "token",
+            "create",
+            "--role",
+            "station",
+            "--create",
+            "--database",
+        ])
+        .arg(&db)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(db.exists());
+}
+
+/// Issue 31: the format of a file is decided by its content (a CSV named
+/// `.txt`), or by `--format`.
+#[test]
+fn the_format_comes_from_the_content() {
+    let dir = tempfile::tempdir().unwrap();
+    let txt = dir.path().join("table1.txt");
+    std::fs::write(
+        &txt,
+        format!(
+            "# sensor_id: TXT-1\n{}",
+            std::fs::read_to_string("core/tests/data/table1.csv").unwrap()
+        ),
+    )
+    .unwrap();
+    let out = accelcal().arg("identify").arg(&txt).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let result: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(result["sensor_id"], "TXT-1");
+    let forced = accelcal()
+        .arg("identify")
+        .arg(&txt)
+        .args(["--format", "json"])
+        .output()
+        .unwrap();
+    assert_eq!(
+        forced.status.code(),
+        Some(1),
+        "read as JSON, it is not JSON"
     );
 }

@@ -25,6 +25,10 @@ struct Header {
 }
 
 fn header(cols: &[String], line: usize, errors: &mut Errors) -> Option<Header> {
+    if let Some(hint) = separator_hint(cols) {
+        at_line(errors, line, hint);
+        return None;
+    }
     let find = |c: &str| cols.iter().position(|x| x == c);
     let mut ok = true;
     let mut fail = |errors: &mut Errors, why: String| {
@@ -80,14 +84,48 @@ fn header(cols: &[String], line: usize, errors: &mut Errors) -> Option<Header> {
     .filter(|_| ok)
 }
 
-/// A finite number of magnitude at most `bound` from a cell.
-fn number(cell: &str, column: &str, bound: f64) -> Result<f64, String> {
+/// A finite number of magnitude at most `bound` from the cell in column
+/// `k` (0-based) named `column`; the error names the column by position
+/// and name and shows the value.
+fn number(cell: &str, k: usize, column: &str, bound: f64) -> Result<f64, String> {
     match cell.parse::<f64>() {
         Ok(x) if x.is_finite() && x.abs() <= bound => Ok(x),
-        _ => Err(format!(
-            "`{column}` must be a finite number of magnitude at most {bound:e}"
+        Ok(_) => Err(format!(
+            "column {} (`{column}`): `{}` is not a finite number of magnitude at most {bound:e}",
+            k + 1,
+            echo(cell)
         )),
+        Err(_) => {
+            let unit = cell
+                .split_once(char::is_whitespace)
+                .filter(|(n, _)| n.parse::<f64>().is_ok());
+            let hint = if unit.is_some() {
+                " (a number alone: the unit goes in a `# unit: …` line)"
+            } else {
+                ""
+            };
+            Err(format!(
+                "column {} (`{column}`): `{}` is not a number{hint}",
+                k + 1,
+                echo(cell)
+            ))
+        }
     }
+}
+
+/// A hint when a header of one column looks separated by something else
+/// than commas (`;` or a tab, as spreadsheets in many locales write).
+fn separator_hint(cols: &[String]) -> Option<String> {
+    let [only] = cols else { return None };
+    [(';', "`;`"), ('\t', "tabs")]
+        .into_iter()
+        .find(|(c, _)| only.contains(*c))
+        .map(|(_, name)| {
+            format!(
+                "the header is one column separated by {name}; separate the columns with commas \
+                 (export the spreadsheet as CSV with `,` as the separator)"
+            )
+        })
 }
 
 /// One sample as read: run, position and value.
@@ -119,11 +157,17 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
         }
     };
     let cols: Vec<String> = head.iter().map(str::to_ascii_lowercase).collect();
+    // Whatever goes wrong below has been said of its line: the positions
+    // and runs the rows make up are not also "required".
+    draft.positions = Slot::Invalid;
+    draft.runs = Slot::Invalid;
     let Some(h) = header(&cols, header_line, &mut draft.errors) else {
         return;
     };
 
     let mut positions: Vec<PositionDraft> = Vec::new();
+    // The line each position first appears on.
+    let mut first_line: Vec<usize> = Vec::new();
     let mut position_index: HashMap<String, u32> = HashMap::new();
     let mut run_names: Vec<String> = Vec::new();
     let mut run_temperatures: Vec<Option<f64>> = Vec::new();
@@ -158,7 +202,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
             at_line(&mut draft.errors, line, "the run is empty");
             continue;
         }
-        let value = match number(&record[h.output], "output", MAX_READING) {
+        let value = match number(&record[h.output], h.output, "output", MAX_READING) {
             Ok(x) => x,
             Err(why) => {
                 at_line(&mut draft.errors, line, why);
@@ -168,7 +212,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
         let mut p = PositionDraft::default();
         let mut key = String::new();
         if let Some(k) = h.angle {
-            match number(&record[k], "angle_deg", MAX_ANGLE_DEG) {
+            match number(&record[k], k, "angle_deg", MAX_ANGLE_DEG) {
                 Ok(deg) => {
                     key += &format!("{deg}|");
                     p.angle_deg = Some(deg);
@@ -183,7 +227,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
             let a: Result<Vec<f64>, String> = cols
                 .iter()
                 .zip(["a_i", "a_p", "a_o"])
-                .map(|(k, name)| number(&record[*k], name, MAX_GRAVITY_COMPONENT))
+                .map(|(k, name)| number(&record[*k], *k, name, MAX_GRAVITY_COMPONENT))
                 .collect();
             match a.and_then(|a| gravity([a[0], a[1], a[2]])) {
                 Ok(g) => {
@@ -216,6 +260,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                     return;
                 }
                 positions.push(p);
+                first_line.push(line);
                 *e.insert(positions.len() as u32 - 1)
             }
         };
@@ -315,6 +360,15 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
     for s in samples {
         runs[s.run as usize][s.position as usize].push(s.value);
     }
+    if lonely(
+        &positions,
+        &first_line,
+        &run_names,
+        &runs,
+        &mut draft.errors,
+    ) {
+        return;
+    }
     for (name, readings) in run_names.iter().zip(&runs) {
         for (p, cell) in readings.iter().enumerate() {
             if cell.is_empty() {
@@ -341,6 +395,56 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
             })
             .collect(),
     );
+}
+
+/// With three runs or more, a position that only one run has — among
+/// positions the runs mostly share — is most likely a typo in that line (89
+/// for 90): blamed on the line it first appears on,
+/// with the nearest position the other runs share — not on every other run
+/// for lacking it. True when any was found.
+fn lonely(
+    positions: &[PositionDraft],
+    first_line: &[usize],
+    run_names: &[String],
+    runs: &[Vec<Vec<f64>>],
+    errors: &mut Errors,
+) -> bool {
+    if run_names.len() < 3 {
+        return false;
+    }
+    let holders = |p: usize| runs.iter().filter(|r| !r[p].is_empty()).count();
+    let shared: Vec<usize> = (0..positions.len()).filter(|&p| holders(p) > 1).collect();
+    let alone: Vec<usize> = (0..positions.len()).filter(|&p| holders(p) == 1).collect();
+    // Typos are the exception: when most positions are one run's alone, the
+    // runs simply do not share positions, and each missing cell is said.
+    if alone.is_empty() || alone.len() > shared.len() {
+        return false;
+    }
+    let mut found = false;
+    for p in alone {
+        let Some(run) = runs.iter().position(|r| !r[p].is_empty()) else {
+            continue;
+        };
+        let nearest = positions[p].angle_deg.and_then(|a| {
+            shared
+                .iter()
+                .filter_map(|&q| positions[q].angle_deg)
+                .min_by(|x, y| (x - a).abs().total_cmp(&(y - a).abs()))
+        });
+        let near = nearest.map_or(String::new(), |n| format!(" — {n}°, as in the others?"));
+        at_line(
+            errors,
+            first_line[p],
+            format!(
+                "position ({}) appears in run `{}` only; every run must have the same \
+                 positions{near}",
+                describe(&positions[p]),
+                echo(&run_names[run])
+            ),
+        );
+        found = true;
+    }
+    found
 }
 
 fn describe(position: &PositionDraft) -> String {

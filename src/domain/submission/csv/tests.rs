@@ -308,3 +308,65 @@ fn notes_are_read_and_checked_like_the_json_member() {
     assert_eq!(e.len(), 1, "{e:?}");
     assert_eq!(e[0].pointer, "/notes", "{e:?}");
 }
+
+/// Issue 31: a bad cell is one error naming its line, column and value —
+/// not also "positions/runs are required" — with a hint for a unit typed
+/// into the cell.
+#[test]
+fn a_bad_cell_is_one_error_with_its_line_column_and_value() {
+    let text = paper("# sensor_id: C-1\n").replacen(",0.005341914", ",0.005341914 mA", 1);
+    let e = errors(&text);
+    assert_eq!(
+        e,
+        [
+            "CSV line 3: column 7 (`output`): `0.005341914 mA` is not a number \
+          (a number alone: the unit goes in a `# unit: …` line)"
+        ]
+    );
+    let text = paper("").replacen("\n1,90,", "\n1,ninety,", 1);
+    let e = errors(&text);
+    assert_eq!(
+        e,
+        ["CSV line 4: column 2 (`angle_deg`): `ninety` is not a number"]
+    );
+    let d = read(text.as_bytes()).unwrap();
+    assert_eq!(d.positions, Slot::Invalid);
+    assert_eq!(d.runs, Slot::Invalid);
+}
+
+/// Issue 31: a file separated by `;` or tabs is told to use commas.
+#[test]
+fn semicolons_and_tabs_are_told_to_be_commas() {
+    for (sep, name) in [(";", "`;`"), ("\t", "tabs")] {
+        let e = errors(&paper("").replace(',', sep));
+        assert_eq!(e.len(), 1, "{e:?}");
+        assert!(
+            e[0].starts_with("CSV line 1: the header is one column separated by "),
+            "{e:?}"
+        );
+        assert!(e[0].contains(name) && e[0].contains("commas"), "{e:?}");
+    }
+}
+
+/// Issue 31: an angle that matches no other run's (89 for 90 in run 4)
+/// blames its own line and names the position it probably meant, instead
+/// of every other run for lacking it.
+#[test]
+fn a_mistyped_angle_blames_its_own_line() {
+    let text = paper("").replace("\n4,90,", "\n4,89,");
+    let e = errors(&text);
+    let line = text
+        .lines()
+        .position(|l| l.starts_with("4,89,"))
+        .map(|i| i + 1)
+        .unwrap();
+    assert_eq!(e.len(), 1, "{e:?}");
+    assert!(
+        e[0].starts_with(&format!("CSV line {line}: position (angle_deg 89")),
+        "{e:?}"
+    );
+    assert!(
+        e[0].contains("run `4` only") && e[0].contains("90°"),
+        "{e:?}"
+    );
+}
