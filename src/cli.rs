@@ -312,13 +312,14 @@ fn flags(invalid: &Invalid) -> String {
         .join("; ")
 }
 
-/// Writes `text` and a line break to standard output. A reader that went
+/// Writes `text` to standard output, ending with a line break. A reader that went
 /// away (`accelcal identify … | head`) ends the command quietly, as any
 /// Unix filter does; another write error is an error.
 fn out(text: &str) -> ExitCode {
     use std::io::Write as _;
     let mut stdout = std::io::stdout().lock();
-    match writeln!(stdout, "{text}").and_then(|()| stdout.flush()) {
+    let end = if text.ends_with('\n') { "" } else { "\n" };
+    match write!(stdout, "{text}{end}").and_then(|()| stdout.flush()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => ExitCode::SUCCESS,
         Err(e) => {

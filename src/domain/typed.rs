@@ -94,10 +94,7 @@ pub fn from_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, BodyError> {
                 format!("duplicate key `{}`: given more than once", echo(name))
             } else if let Some(name) = quoted_member(&msg, "unknown term `") {
                 loc_text(name);
-                format!(
-                    "unknown term `{}`; expected one of k0, ki, kp, ko, kio, kop, kpi, kii, kpp, koo, kiii",
-                    echo(name)
-                )
+                crate::domain::submission::json::unknown_term(name)
             } else {
                 msg
             };

@@ -28,6 +28,14 @@ fn ahead(t: Timestamp, now: Timestamp) -> String {
 pub struct Hints {
     model_given: bool,
     batches_given: bool,
+    /// Axes (i, p, o) whose gravity component is 0 at every position.
+    still: [bool; 3],
+}
+
+/// The axes (i, p, o) whose gravity component is 0 at every position.
+fn still_axes(positions: &[PositionIn]) -> [bool; 3] {
+    let zero = |f: fn(&PositionIn) -> f64| positions.iter().all(|p| f(p) == 0.0);
+    [zero(|p| p.a.i), zero(|p| p.a.p), zero(|p| p.a.o)]
 }
 
 impl Hints {
@@ -70,11 +78,38 @@ impl Hints {
     /// What to say about a core refusal: the refusal and what to do.
     pub fn detail_of(&self, e: &CoreError) -> String {
         match e {
-            CoreError::RankDeficient { terms, .. } => {
+            CoreError::RankDeficient {
+                terms,
+                columns,
+                rank,
+                ..
+            } => {
                 let names: Vec<&str> = terms.iter().map(|t| t.name()).collect();
+                let surplus = columns.saturating_sub(*rank).max(1);
+                // A term in an axis no position tilts is never seen.
+                let why = [
+                    ('i', "a_i", "the input axis"),
+                    ('p', "a_p", "the pendulous axis (as a gate mount does)"),
+                    ('o', "a_o", "the output axis (as a pendulum mount does)"),
+                ]
+                .iter()
+                .zip(self.still)
+                .find(|((axis, ..), still)| *still && names.iter().any(|n| n[1..].contains(*axis)))
+                .map_or(String::new(), |((_, comp, axis), _)| {
+                    format!(
+                        "; {comp} = 0 at every position — the tumble never tilts {axis} — so \
+                         no term in {comp} can be seen"
+                    )
+                });
+                let drop = if surplus >= names.len() {
+                    names.join(" and ")
+                } else {
+                    format!("{surplus} of {}", names.join(", "))
+                };
                 format!(
-                    "{e}: drop one of {} from the model or add positions that excite them",
-                    names.join(", ")
+                    "{e}{why}: drop {drop} from the model (it has {surplus} term{} more than the \
+                     tumble can separate) or add positions that excite them",
+                    if surplus == 1 { "" } else { "s" }
                 )
             }
             CoreError::Fusion {
@@ -162,9 +197,10 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         return Err(errors.into_invalid());
     }
     let root = Loc::Root;
-    let hints = Hints {
+    let mut hints = Hints {
         model_given: model.given(),
         batches_given: batches.given(),
+        still: [false; 3],
     };
     for (name, given) in [
         ("sensor_id", sensor_id.given()),
@@ -282,6 +318,7 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             label: p.label.clone(),
         })
         .collect();
+    hints.still = still_axes(&positions);
     let test = TumbleTest::new(model, core_positions, runs)
         .map_err(|e| Invalid::one(hints.pointer_of(&e), hints.detail_of(&e)))?;
     let value = |s: Slot<String>| match s {

@@ -264,3 +264,58 @@ fn components_may_differ_from_the_angle_by_up_to_a_milli_g() {
     b["positions"][0] = json!({"angle_deg": 0, "a": [0.0011, 1, 0]});
     assert_eq!(pointers(&b), ["/positions/0/a"]);
 }
+
+/// Issue 31: a refused model explains why its terms cannot be separated in
+/// this mount and says how many to drop.
+#[test]
+fn model_refusals_say_why_and_how_many_terms_to_drop() {
+    let detail = |model: Value| {
+        let mut b = paper();
+        b["model"] = model;
+        match run(&b) {
+            Err(Refused::Invalid(i)) => i.errors[0].detail.clone(),
+            other => panic!("{other:?}"),
+        }
+    };
+    let one = detail(json!(["k0", "ki", "kp", "ko"]));
+    assert!(one.contains("a_o = 0 at every position"), "{one}");
+    assert!(one.contains("pendulum mount"), "{one}");
+    assert!(
+        one.contains("drop ko from the model (it has 1 term more"),
+        "{one}"
+    );
+    let two = detail(json!(["k0", "ki", "kp", "ko", "kio"]));
+    assert!(
+        two.contains("drop ko and kio from the model (it has 2 terms more"),
+        "{two}"
+    );
+}
+
+/// Issue 31: near-miss term names and kelvin-looking temperatures get a hint.
+#[test]
+fn near_misses_get_a_hint() {
+    let mut b = paper();
+    b["model"] = json!(["K0", "ki", "kp"]);
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert!(
+        i.errors[0].detail.contains("did you mean `k0`?"),
+        "{:?}",
+        i.errors
+    );
+    let mut b = paper();
+    for r in b["runs"].as_array_mut().unwrap() {
+        r["temperature_c"] = json!(296.15);
+    }
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert!(
+        i.errors[0]
+            .detail
+            .ends_with("296.15 looks like kelvin: send degrees Celsius (23.00 °C)"),
+        "{:?}",
+        i.errors
+    );
+}

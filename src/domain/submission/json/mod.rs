@@ -144,25 +144,44 @@ pub fn term(v: Scalar, terms: &[Term]) -> Result<Term, String> {
     match name.parse::<Term>() {
         Ok(t) if terms.contains(&t) => Err(format!("term `{t}` is listed twice")),
         Ok(t) => Ok(t),
-        Err(_) => Err(format!(
-            "unknown term `{}`; expected one of k0, ki, kp, ko, kio, kop, kpi, kii, kpp, koo, kiii",
-            echo(&name)
-        )),
+        Err(_) => Err(unknown_term(&name)),
     }
+}
+
+/// The refusal of an unknown term name, with a hint for a near miss: the
+/// paper's capitals (`K0`, `Ki`) or a stray space.
+pub fn unknown_term(name: &str) -> String {
+    let near = name.trim().to_ascii_lowercase();
+    let hint = match near.parse::<Term>() {
+        Ok(t) => format!("; did you mean `{t}`? term names are lower case, as in the README"),
+        Err(_) => String::new(),
+    };
+    format!(
+        "unknown term `{}`; expected one of k0, ki, kp, ko, kio, kop, kpi, kii, kpp, koo, kiii{hint}",
+        echo(name)
+    )
 }
 
 /// A run temperature, °C.
 pub fn temperature(v: &Scalar) -> Result<f64, String> {
     let t = v.number(f64::MAX)?;
     if TEMPERATURE_C.contains(&t) {
-        Ok(t)
-    } else {
-        Err(format!(
-            "must be a temperature from {} to {} °C",
-            TEMPERATURE_C.start(),
-            TEMPERATURE_C.end()
-        ))
+        return Ok(t);
     }
+    // 223.15–473.15 K are −50–200 °C: a station reporting kelvin.
+    let kelvin = if (223.15..=473.15).contains(&t) {
+        format!(
+            "; {t} looks like kelvin: send degrees Celsius ({:.2} °C)",
+            t - 273.15
+        )
+    } else {
+        String::new()
+    };
+    Err(format!(
+        "must be a temperature from {} to {} °C{kelvin}",
+        TEMPERATURE_C.start(),
+        TEMPERATURE_C.end()
+    ))
 }
 
 /// `stand.angle_std_arcsec`.
