@@ -7,6 +7,7 @@
 //! LOAD_ROUTES=submit LOAD_CONNS=64 cargo bench --bench load   # one leg, e.g. to profile
 //! LOAD_LOG=info LOAD_METRICS=1 cargo bench --bench load   # observed as deployed
 //! LOAD_TOKEN=issued cargo bench --bench load   # with a token issued by the API
+//! ACCELCAL_BENCH_BIN=/path/to/older/accelcal cargo bench --bench load   # another build
 //! ```
 //!
 //! The **bare stack** is a minimal axum server (this binary, started again

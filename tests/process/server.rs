@@ -29,7 +29,10 @@ impl Server {
     /// Starts the binary on `db` with extra `serve` flags and a `RUST_LOG`
     /// filter, and waits until it listens.
     pub fn start_with(db: impl AsRef<std::ffi::OsStr>, flags: &[&str], rust_log: &str) -> Server {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_accelcal"))
+        // `ACCELCAL_BENCH_BIN` runs another build (a benchmark's "before").
+        let bin = std::env::var_os("ACCELCAL_BENCH_BIN")
+            .unwrap_or_else(|| env!("CARGO_BIN_EXE_accelcal").into());
+        let mut child = Command::new(bin)
             .args(["serve", "--listen", "127.0.0.1:0", "--log-format", "json"])
             .args(["--shutdown-grace", "10"])
             .args(flags)
