@@ -154,7 +154,7 @@ async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
     params(super::openapi::IdempotencyKeyHeader),
     request_body(content(
         (super::openapi::SubmissionSchema = "application/json"),
-        (String = "text/csv"),
+        (super::openapi::RawBodySchema = "text/csv"),
     )),
     responses(
         (status = 201, description = "Stored (or, for a retried Idempotency-Key, stored before).",
@@ -280,7 +280,7 @@ pub async fn get(
     params(super::openapi::CalibrationIdPath),
     responses(
         (status = 200, description = "The body as submitted (decompressed, if it was sent gzip-encoded).",
-            content((serde_json::Value = "application/json"), (String = "text/csv"))),
+            content((super::openapi::RawBodySchema = "text/csv"), (serde_json::Value = "application/json"))),
         (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
         (status = 503, response = super::openapi::Unavailable),

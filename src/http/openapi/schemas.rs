@@ -32,21 +32,42 @@ fn closed(o: ObjectBuilder) -> ObjectBuilder {
         .additional_properties(Some(AdditionalProperties::<Schema>::FreeForm(false)))
 }
 
+/// A position's members, closed, with `required` one of them.
+fn position_with(required: &str) -> ObjectBuilder {
+    closed(ObjectBuilder::new())
+        .property("angle_deg", number(MAX_ANGLE_DEG))
+        .property(
+            "a",
+            array(number(MAX_GRAVITY_COMPONENT))
+                .min_items(Some(3))
+                .max_items(Some(3)),
+        )
+        .property("label", nullable(text(MAX_LABEL_CHARS).into()))
+        .required(required)
+}
+
 marker_schema!(
-    /// A position by angle or by gravity components.
-    PositionInSchema => RefOr::T(Schema::AllOf(AllOfBuilder::new()
+    /// A position by angle or by gravity components: two closed shapes,
+    /// each naming every member, so that generated clients type a position
+    /// literal as one of them (a bare `required` beside the members is read
+    /// by some generators as an object with no members at all).
+    PositionInSchema => RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
         .description(Some(
             "A position by dividing-head angle (with the mount) or by explicit gravity \
              components (norm 0.9–1.1 g); with both, they must agree.",
         ))
-        .item(closed(ObjectBuilder::new())
-            .property("angle_deg", number(MAX_ANGLE_DEG))
-            .property("a", array(number(MAX_GRAVITY_COMPONENT)).min_items(Some(3)).max_items(Some(3)))
-            .property("label", nullable(text(MAX_LABEL_CHARS).into())))
-        .item(Schema::AnyOf(AnyOfBuilder::new()
-            .item(ObjectBuilder::new().required("angle_deg"))
-            .item(ObjectBuilder::new().required("a")).build()))
+        .item(position_with("angle_deg"))
+        .item(position_with("a"))
         .build()))
+);
+
+marker_schema!(
+    /// A body passed as it is (a CSV submission, a stored submission):
+    /// bytes, so that generated clients neither parse nor re-encode it.
+    RawBodySchema => of_type(Type::String)
+        .format(Some(SchemaFormat::KnownFormat(KnownFormat::Binary)))
+        .build()
+        .into()
 );
 
 marker_schema!(
@@ -395,7 +416,9 @@ marker_schema!(
     /// A stored calibration: a result with its id.
     StoredCalibrationSchema => RefOr::T(Schema::AllOf(AllOfBuilder::new()
         .item(reference("CalibrationResult"))
-        .item(ObjectBuilder::new().required("id"))
+        .item(ObjectBuilder::new()
+            .property("id", of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::Uuid))))
+            .required("id"))
         .build()))
 );
 
