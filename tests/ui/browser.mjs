@@ -274,6 +274,13 @@ try {
       if (variant !== 'phone') await axe(p, `${name} (${variant})`);
       const overflow = await p.evaluate(() => document.documentElement.scrollWidth - window.innerWidth);
       assert.ok(overflow <= 1, `${name} (${variant}) scrolls sideways by ${overflow}px`);
+      // Chart labels stay legible at every width: their drawn size, the
+      // SVG's font size scaled as the chart is, at least 10 CSS px.
+      const smallest = await p.evaluate(() => Math.min(...[...document.querySelectorAll('figure.chart svg')].flatMap((svg) => {
+        const scale = svg.getBoundingClientRect().width / svg.viewBox.baseVal.width;
+        return [...svg.querySelectorAll('text')].map((t) => parseFloat(getComputedStyle(t).fontSize) * scale);
+      })));
+      assert.ok(!Number.isFinite(smallest) || smallest >= 10, `${name} (${variant}): chart labels drawn at ${smallest.toFixed(1)} px`);
       await p.screenshot({ path: path.join(SHOTS, `${name}-${variant}.png`), fullPage: true });
     }
     await ctx.close();
@@ -281,7 +288,7 @@ try {
   // The README's picture (docs/ui-sensor.jpg is a copy of this one).
   await page.goto('/ui/sensors/SYN-001');
   await page.screenshot({ path: path.join(SHOTS, 'readme.jpg'), type: 'jpeg', quality: 70 });
-  ok('axe-core: no serious or critical violation, light and dark; no page wider than the screen; screenshots saved');
+  ok('axe-core: no serious or critical violation, light and dark; no page wider than the screen, chart labels ≥ 10 px, at 1280 and 390 px; screenshots saved');
 
   // -------------------------------------------------------- refusals
   const anon = await newContext();

@@ -17,7 +17,7 @@ use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use maud::{Markup, html};
 
-use super::format::{instant, num, opt, unc};
+use super::format::{Notation, given, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Series, XAxis};
 use super::result::{ResultDoc, WarningDoc};
 use super::session::Viewer;
@@ -76,9 +76,46 @@ fn terms(d: &ResultDoc) -> Vec<accelcal_core::Term> {
 fn runs_table(d: &ResultDoc) -> Markup {
     let terms = terms(d);
     let v = |m: &accelcal_core::TermMap<f64>, t| m.get(t).copied();
+    // One notation per column and kind: the coefficients of a term's column
+    // (runs, mean, fused) share one, its spreads (dispersions, standard
+    // error) another, each decided by every number of that kind it shows.
+    let of = |t: accelcal_core::Term, maps: &[&accelcal_core::TermMap<f64>], runs: bool| {
+        let shown = d.runs.iter().take(RUNS_SHOWN).filter(|_| runs);
+        Notation::of(
+            shown
+                .filter_map(|r| v(&r.coefficients, t))
+                .chain(maps.iter().filter_map(|m| v(m, t))),
+        )
+    };
+    let notation: Vec<(accelcal_core::Term, Notation, Notation)> = terms
+        .iter()
+        .map(|&t| {
+            (
+                t,
+                of(t, &[&d.mean.coefficients, &d.fused.coefficients], true),
+                of(
+                    t,
+                    &[&d.mean.dispersion, &d.fused.std_errors, &d.fused.dispersion],
+                    false,
+                ),
+            )
+        })
+        .collect();
+    let col = |t: &accelcal_core::Term| {
+        notation
+            .iter()
+            .find(|(u, ..)| u == t)
+            .map_or(Notation::Scientific, |(_, n, _)| *n)
+    };
+    let spread = |t: &accelcal_core::Term| {
+        notation
+            .iter()
+            .find(|(u, ..)| u == t)
+            .map_or(Notation::Scientific, |(.., n)| *n)
+    };
     html! {
         div.table-wrap tabindex="0" role="region" aria-label="Coefficients per run, mean and fused" {
-            table #estimates {
+            table #estimates .cards {
                 caption { "Per run and fused (as the paper's Table 2); coefficients in " (d.unit) }
                 thead { tr {
                     th scope="col" { "" }
@@ -91,35 +128,35 @@ fn runs_table(d: &ResultDoc) -> Markup {
                     @for (j, r) in d.runs.iter().enumerate().take(RUNS_SHOWN) {
                         tr data-run=(j) {
                             th scope="row" { "Run " (j + 1) }
-                            @for t in &terms { td.num { (opt(v(&r.coefficients, *t), num)) } }
-                            td.num { (unc(r.residual_rms)) }
-                            td.num { (r.dof) }
-                            @if let Some(temps) = &d.temperatures_c { td.num { (opt(temps.get(j).copied(), |x| format!("{x}"))) } }
+                            @for t in &terms { td.num data-label=(t.name()) { (v(&r.coefficients, *t).map_or("—".into(), |x| col(t).num(x))) } }
+                            td.num data-label="Residual RMS" { (unc(r.residual_rms)) }
+                            td.num data-label="dof" { (r.dof) }
+                            @if let Some(temps) = &d.temperatures_c { td.num data-label="°C" { (opt(temps.get(j).copied(), |x| format!("{x}"))) } }
                         }
                     }
                     tr.summary data-row="mean" {
                         th scope="row" { "Mean (eq. 1)" }
-                        @for t in &terms { td.num { (opt(v(&d.mean.coefficients, *t), num)) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.mean.coefficients, *t).map_or("—".into(), |x| col(t).num(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                     tr data-row="mean-dispersion" {
                         th scope="row" { "Dispersion about the mean (eq. 8)" }
-                        @for t in &terms { td.num { (opt(v(&d.mean.dispersion, *t), unc)) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.mean.dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                     tr.summary data-row="fused" {
                         th scope="row" { "Fused (batch estimate)" }
-                        @for t in &terms { td.num { (opt(v(&d.fused.coefficients, *t), num)) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.fused.coefficients, *t).map_or("—".into(), |x| col(t).num(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                     tr data-row="fused-std-error" {
                         th scope="row" { "Fused standard error" }
-                        @for t in &terms { td.num { (opt(v(&d.fused.std_errors, *t), unc)) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.fused.std_errors, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                     tr data-row="fused-dispersion" {
                         th scope="row" { "Dispersion about the fused value (eq. 8)" }
-                        @for t in &terms { td.num { (opt(v(&d.fused.dispersion, *t), unc)) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.fused.dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                 }
@@ -176,10 +213,10 @@ fn residuals(d: &ResultDoc) -> Markup {
         segments: vec![],
     };
     html! {
-        section.chart-block aria-label="Residuals" {
+        section.chart-block.stacked aria-label="Residuals" {
             (plot::render(&chart))
             div.table-wrap tabindex="0" role="region" aria-label="Residuals per run and position" {
-                table #residuals-table {
+                table #residuals-table .cards {
                     caption { "Residual of each run at each position (" (d.unit) ")" }
                     thead { tr {
                         th scope="col" { "Position" }
@@ -189,7 +226,7 @@ fn residuals(d: &ResultDoc) -> Markup {
                         @for (i, name) in names.iter().enumerate() {
                             tr data-position=(i) {
                                 th scope="row" { (name) }
-                                @for r in d.runs.iter().take(shown) { td.num { (opt(r.residuals.get(i).copied(), unc)) } }
+                                @for (j, r) in d.runs.iter().take(shown).enumerate() { td.num data-label={"Run " (j + 1)} { (opt(r.residuals.get(i).copied(), unc)) } }
                             }
                         }
                     }
@@ -205,7 +242,7 @@ pub fn budget(d: &ResultDoc) -> Markup {
     html! {
         @if let Some(u) = &d.uncertainty {
             div.table-wrap tabindex="0" role="region" aria-label="Uncertainty budget" {
-                table #budget {
+                table #budget .cards {
                     caption { "Uncertainty budget (" (d.unit) "); expanded with k = " (u.coverage_factor) }
                     thead { tr {
                         th scope="col" { "Term" }
@@ -219,11 +256,11 @@ pub fn budget(d: &ResultDoc) -> Markup {
                         @for (t, b) in u.terms.iter() {
                             tr data-term=(t.name()) {
                                 th scope="row" { (t.name()) }
-                                td.num { (unc(b.statistical)) }
-                                td.num { (unc(b.indexing)) }
-                                td.num { (unc(b.gravity)) }
-                                td.num { (unc(b.combined)) }
-                                td.num { (unc(b.expanded)) }
+                                td.num data-label="Statistical" { (unc(b.statistical)) }
+                                td.num data-label="Indexing" { (unc(b.indexing)) }
+                                td.num data-label="Gravity" { (unc(b.gravity)) }
+                                td.num data-label="Combined" { (unc(b.combined)) }
+                                td.num data-label="Expanded U" { (unc(b.expanded)) }
                             }
                         }
                     }
@@ -239,7 +276,7 @@ pub fn decision(d: &ResultDoc) -> Markup {
         @if let Some(dec) = &d.decision {
             p { "Rule " strong { (dec.rule) } " (ILAC-G8); verdict " (badge(&dec.verdict, &dec.verdict)) }
             div.table-wrap tabindex="0" role="region" aria-label="Decision" {
-                table #decision {
+                table #decision .cards {
                     caption { "Each limited coefficient against its limits (" (d.unit) ")" }
                     thead { tr {
                         th scope="col" { "Term" }
@@ -253,11 +290,11 @@ pub fn decision(d: &ResultDoc) -> Markup {
                         @for (t, x) in dec.terms.iter() {
                             tr data-term=(t.name()) {
                                 th scope="row" { (t.name()) }
-                                td.num { (num(x.value)) }
-                                td.num { (opt(x.min, num)) }
-                                td.num { (opt(x.max, num)) }
-                                td.num { (unc(x.expanded)) }
-                                td { (badge(&x.verdict, &x.verdict)) }
+                                td.num data-label="Value" { (num(x.value)) }
+                                td.num data-label="Min" { (opt(x.min, given)) }
+                                td.num data-label="Max" { (opt(x.max, given)) }
+                                td.num data-label="U" { (unc(x.expanded)) }
+                                td data-label="Verdict" { (badge(&x.verdict, &x.verdict)) }
                             }
                         }
                     }
@@ -277,7 +314,7 @@ pub fn as_found(d: &ResultDoc) -> Markup {
                 ": largest error " strong { (unc(a.max_abs_error_g)) " g" } "."
             }
             div.table-wrap tabindex="0" role="region" aria-label="As found" {
-                table #as-found {
+                table #as-found .cards {
                     caption { "Error of the previous coefficients at each position" }
                     thead { tr {
                         th scope="col" { "Position" }
@@ -288,8 +325,8 @@ pub fn as_found(d: &ResultDoc) -> Markup {
                         @for (i, e) in a.positions.iter().enumerate() {
                             tr data-position=(i) {
                                 th scope="row" { (d.positions.get(i).map_or_else(|| format!("#{}", i + 1), |p| p.name(i))) }
-                                td.num { (unc(e.error_output)) }
-                                td.num { (unc(e.error_g)) }
+                                td.num data-label={"Error (" (d.unit) ")"} { (unc(e.error_output)) }
+                                td.num data-label="Error (g)" { (unc(e.error_g)) }
                             }
                         }
                     }
@@ -304,7 +341,7 @@ fn temperature(d: &ResultDoc) -> Markup {
         @if let Some(t) = &d.temperature {
             h2 { "Temperature" }
             div.table-wrap tabindex="0" role="region" aria-label="Temperature sensitivity" {
-                table #temperature {
+                table #temperature .cards {
                     caption { "Per-run coefficients against run temperature (least squares)" }
                     thead { tr {
                         th scope="col" { "Term" }
@@ -317,10 +354,10 @@ fn temperature(d: &ResultDoc) -> Markup {
                         @for (term, s) in t.iter() {
                             tr data-term=(term.name()) {
                                 th scope="row" { (term.name()) }
-                                td.num { (unc(s.per_kelvin)) }
-                                td.num { (opt(s.std_error, unc)) }
-                                td.num { (format!("{:.2}", s.reference_c)) }
-                                td.num { (num(s.value_at_reference)) }
+                                td.num data-label="Per kelvin" { (unc(s.per_kelvin)) }
+                                td.num data-label="SE" { (opt(s.std_error, unc)) }
+                                td.num data-label="Reference °C" { (format!("{:.2}", s.reference_c)) }
+                                td.num data-label="Value there" { (num(s.value_at_reference)) }
                             }
                         }
                     }

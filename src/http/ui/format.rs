@@ -21,6 +21,71 @@ pub fn sig(v: f64, digits: usize) -> String {
     }
 }
 
+/// How a column prints its numbers: one notation for every row, so that a
+/// column never mixes `-9.77e-4` with `-0.00126`. Fixed when every nonzero
+/// value of the column is within 1e-3 ≤ |v| < 1e5, scientific otherwise.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Notation {
+    /// `-0.00126`.
+    Fixed,
+    /// `-1.26e-3`.
+    Scientific,
+}
+
+impl Notation {
+    /// The notation of a column holding `values`.
+    pub fn of(values: impl IntoIterator<Item = f64>) -> Notation {
+        let fixed = values
+            .into_iter()
+            .filter(|v| v.is_finite() && *v != 0.0)
+            .all(|v| (-3..5).contains(&(v.abs().log10().floor() as i32)));
+        if fixed {
+            Notation::Fixed
+        } else {
+            Notation::Scientific
+        }
+    }
+
+    /// `v` to `digits` significant digits in this notation.
+    pub fn sig(self, v: f64, digits: usize) -> String {
+        if !v.is_finite() {
+            return "—".into();
+        }
+        if v == 0.0 {
+            return "0".into();
+        }
+        let digits = digits.max(1);
+        match self {
+            Notation::Fixed => {
+                let magnitude = v.abs().log10().floor() as i32;
+                let decimals = (digits as i32 - 1 - magnitude).max(0) as usize;
+                format!("{v:.decimals$}")
+            }
+            Notation::Scientific => format!("{v:.*e}", digits - 1),
+        }
+    }
+
+    /// A coefficient in this notation (as [`num`]).
+    pub fn num(self, v: f64) -> String {
+        self.sig(v, 9)
+    }
+
+    /// An uncertainty in this notation (as [`unc`]).
+    pub fn unc(self, v: f64) -> String {
+        self.sig(v, 5)
+    }
+}
+
+/// A value as it was given (a limit from a sensor type): the shortest text
+/// that reads back as the same number (`-0.001`, not `-0.00100000000`).
+pub fn given(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v}")
+    } else {
+        "—".into()
+    }
+}
+
 /// A coefficient as the tables print it (9 significant digits, as the paper).
 pub fn num(v: f64) -> String {
     sig(v, 9)
@@ -70,6 +135,23 @@ mod tests {
         assert_eq!(sig(0.0, 3), "0");
         assert_eq!(sig(f64::NAN, 3), "—");
         assert_eq!(opt(None, num), "—");
+    }
+
+    /// Issue 31: a column keeps one notation, decided by all its values.
+    #[test]
+    fn a_column_keeps_one_notation() {
+        let k0 = [-9.77e-4, -0.00126];
+        let n = Notation::of(k0);
+        assert_eq!(n, Notation::Scientific);
+        assert_eq!(k0.map(|v| n.sig(v, 3)), ["-9.77e-4", "-1.26e-3"]);
+        let ki = [-1.216154, -1.216198];
+        let n = Notation::of(ki);
+        assert_eq!(n, Notation::Fixed);
+        assert_eq!(ki.map(|v| n.sig(v, 7)), ["-1.216154", "-1.216198"]);
+        assert_eq!(Notation::of([0.0, f64::NAN, 2.5]), Notation::Fixed);
+        assert_eq!(Notation::Fixed.sig(0.0, 3), "0");
+        assert_eq!(given(-0.001), "-0.001");
+        assert_eq!(given(-1.217), "-1.217");
     }
 
     #[test]

@@ -172,6 +172,78 @@ fn seconds_to_date(x: f64) -> String {
     Timestamp::from_unix_micros((x * 1e6) as i64).map_or_else(String::new, |t| date(&t))
 }
 
+/// Time-axis ticks on round dates between `lo` and `hi` (seconds since the
+/// epoch), about `count` of them: the first of a year (every 1, 2, 5, 10… years,
+/// labelled `2019`), of a month (every 1, 3 or 6 months, `2019-04`), or a day
+/// (every 1, 2, 7 or 14 days, `2019-04-14`) — whichever step gives no more
+/// than `count + 1` ticks, the finest first.
+pub fn date_ticks(lo: f64, hi: f64, count: usize) -> Vec<(f64, String)> {
+    use time::{Date, Month, OffsetDateTime};
+    let at = |d: Date| d.midnight().assume_utc().unix_timestamp() as f64;
+    let (Ok(a), Ok(b)) = (
+        OffsetDateTime::from_unix_timestamp(lo.floor() as i64),
+        OffsetDateTime::from_unix_timestamp(hi.ceil() as i64),
+    ) else {
+        return vec![];
+    };
+    let (a, b) = (a.date(), b.date());
+    let fits = |n: usize| n <= count + 1;
+    for days in [1i64, 2, 7, 14] {
+        let first = (at(a) / 86_400.0).ceil() as i64;
+        let first = first + (days - first.rem_euclid(days)) % days;
+        let ticks: Vec<f64> = (0..)
+            .map(|k| (first + k * days) as f64 * 86_400.0)
+            .take_while(|x| *x <= hi)
+            .filter(|x| *x >= lo)
+            .collect();
+        if fits(ticks.len()) && !ticks.is_empty() {
+            return ticks.into_iter().map(|x| (x, seconds_to_date(x))).collect();
+        }
+    }
+    let months_of = |d: Date| d.year() * 12 + i32::from(u8::from(d.month())) - 1;
+    for step in [1i32, 3, 6] {
+        let start = months_of(a) + 1;
+        let start = start + (step - start.rem_euclid(step)) % step;
+        let ticks: Vec<(f64, String)> = (0..)
+            .map(|k| start + k * step)
+            .take_while(|m| *m <= months_of(b))
+            .filter_map(|m| {
+                let month = Month::try_from((m.rem_euclid(12) + 1) as u8).ok()?;
+                let d = Date::from_calendar_date(m.div_euclid(12), month, 1).ok()?;
+                Some((at(d), format!("{}-{:02}", d.year(), u8::from(d.month()))))
+            })
+            .filter(|(x, _)| *x >= lo && *x <= hi)
+            .collect();
+        if fits(ticks.len()) && !ticks.is_empty() {
+            return ticks;
+        }
+    }
+    let mut step = 1i32;
+    loop {
+        let first = a.year() + 1;
+        let first = first + (step - first.rem_euclid(step)) % step;
+        let ticks: Vec<(f64, String)> = (0..)
+            .map(|k| first + k * step)
+            .take_while(|y| *y <= b.year())
+            .filter_map(|y| {
+                Some((
+                    at(Date::from_calendar_date(y, Month::January, 1).ok()?),
+                    y.to_string(),
+                ))
+            })
+            .filter(|(x, _)| *x >= lo && *x <= hi)
+            .collect();
+        if fits(ticks.len()) || step > 10_000 {
+            return ticks;
+        }
+        step = match step.to_string().as_bytes()[0] {
+            b'1' => step * 2,
+            b'2' => step * 5 / 2,
+            _ => step * 2,
+        };
+    }
+}
+
 /// The chart as an inline SVG figure with its legend.
 pub fn render(c: &Chart) -> Markup {
     let points = || c.series.iter().flat_map(|s| s.points.iter());
@@ -200,12 +272,7 @@ pub fn render(c: &Chart) -> Markup {
                 .map(|(i, n)| (i as f64, n.clone()))
                 .collect()
         }
-        XAxis::Time => {
-            let (days, _) = ticks(x_lo / 86_400.0, x_hi / 86_400.0, 4);
-            days.into_iter()
-                .map(|d| (d.round() * 86_400.0, seconds_to_date(d.round() * 86_400.0)))
-                .collect()
-        }
+        XAxis::Time => date_ticks(x_lo, x_hi, 4),
     };
     let title_id = format!("{}-title", c.id);
     html! {
@@ -296,6 +363,29 @@ mod tests {
     use super::*;
 
     #[test]
+    fn time_ticks_fall_on_round_dates() {
+        let t = |s: &str| Timestamp::parse(s).unwrap().unix_micros() as f64 / 1e6;
+        // Seven years: yearly or two-yearly, on 1 January.
+        let years = date_ticks(t("2018-03-10T00:00:00Z"), t("2025-08-20T00:00:00Z"), 4);
+        let labels: Vec<&str> = years.iter().map(|(_, l)| l.as_str()).collect();
+        assert_eq!(labels, ["2020", "2022", "2024"]);
+        assert_eq!(years[0].0, t("2020-01-01T00:00:00Z"));
+        // Ten months: quarterly, on the first of the month.
+        let months = date_ticks(t("2019-02-14T00:00:00Z"), t("2019-12-20T00:00:00Z"), 4);
+        let labels: Vec<&str> = months.iter().map(|(_, l)| l.as_str()).collect();
+        assert_eq!(labels, ["2019-04", "2019-07", "2019-10"]);
+        assert_eq!(months[0].0, t("2019-04-01T00:00:00Z"));
+        // Three weeks: weekly, on whole days.
+        let days = date_ticks(t("2019-04-03T12:00:00Z"), t("2019-04-24T00:00:00Z"), 4);
+        assert!(days.len() <= 5 && days.len() >= 2, "{days:?}");
+        assert!(days.iter().all(|(x, _)| x % 86_400.0 == 0.0));
+        // Every tick within the range.
+        for (x, _) in years.iter().chain(&months).chain(&days) {
+            assert!(*x >= t("2018-03-10T00:00:00Z") && *x <= t("2025-08-20T00:00:00Z"));
+        }
+    }
+
+    #[test]
     fn ticks_are_round_and_cover_the_range() {
         let (t, step) = ticks(-1.21620, -1.21610, 5);
         assert!((step - 2e-5).abs() < 1e-18, "{step}");
@@ -363,8 +453,12 @@ mod tests {
         let dates = svg
             .split("text-anchor=\"middle\">")
             .skip(1)
-            .filter(|t| t.len() > 10 && t.as_bytes()[4] == b'-' && t.as_bytes()[7] == b'-')
+            .filter_map(|t| t.split('<').next())
+            .filter(|l| l.len() == 7 && l.as_bytes()[4] == b'-' && l[..4].parse::<i32>().is_ok())
             .count();
-        assert!(dates >= 3, "dates on the time axis: {svg}");
+        assert!(
+            dates >= 3,
+            "round dates (year-month) on the time axis: {svg}"
+        );
     }
 }

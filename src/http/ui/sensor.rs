@@ -14,7 +14,7 @@ use axum::extract::{Path, RawQuery, State};
 use maud::{Markup, html};
 use uuid::Uuid;
 
-use super::format::{date, instant, num, opt, unc};
+use super::format::{Notation, date, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Rule, Segment, Series, XAxis};
 use super::session::Viewer;
 use super::{Html, UiError, badge, layout};
@@ -198,10 +198,16 @@ fn chart(r: &Report, term: Term, unit: &str) -> Chart {
 /// The table beside a term's chart: the same points.
 fn chart_table(r: &Report, term: Term) -> Markup {
     let s = r.stability.terms.get(term);
+    let values = Notation::of(
+        r.series
+            .iter()
+            .filter_map(|c| c.coefficients.get(term).copied()),
+    );
+    let bars = Notation::of(r.series.iter().filter_map(|c| bar(c, term).map(|(e, _)| e)));
     html! {
         div.table-wrap tabindex="0" role="region" aria-label={(term.name()) " per calibration"} {
-            table data-term=(term.name()) {
-                caption { (term.name()) " per calibration (error bar: expanded uncertainty U, or 2σ)" }
+            table data-term=(term.name()) .cards {
+                caption { (term.name()) " per calibration, newest first (error bar: expanded uncertainty U, or 2σ)" }
                 thead { tr {
                     th scope="col" { "Performed" }
                     th scope="col" .num { (term.name()) }
@@ -209,17 +215,18 @@ fn chart_table(r: &Report, term: Term) -> Markup {
                     th scope="col" { "" }
                 } }
                 tbody {
-                    @for c in &r.series {
+                    // Newest first: the rows a scrolled-off box shows are the latest.
+                    @for c in r.series.iter().rev() {
                         @if let Some(v) = c.coefficients.get(term) {
                             tr data-calibration-id=(c.id) {
-                                td { a href={"/ui/calibrations/" (c.id)} { (date(&c.performed_at)) } }
-                                td.num data-value=(v) { (num(*v)) }
-                                td.num { @match bar(c, term) {
-                                    Some((e, true)) => { (unc(e)) " (U)" },
-                                    Some((e, false)) => { (unc(e)) " (2σ)" },
+                                td data-label="Performed" { a href={"/ui/calibrations/" (c.id)} { (date(&c.performed_at)) } }
+                                td.num data-label=(term.name()) data-value=(v) { (values.num(*v)) }
+                                td.num data-label="±" { @match bar(c, term) {
+                                    Some((e, true)) => { (bars.unc(e)) " (U)" },
+                                    Some((e, false)) => { (bars.unc(e)) " (2σ)" },
                                     None => "—",
                                 } }
-                                td { @if s.is_some_and(|s| s.control.out_of_control.contains(&c.id.to_string())) {
+                                td data-label="Control" { @if s.is_some_and(|s| s.control.out_of_control.contains(&c.id.to_string())) {
                                     span.badge.fail title="outside the control limits" { "out" }
                                 } }
                             }
@@ -238,7 +245,7 @@ fn stability_table(r: &Report) -> Markup {
             p.muted { "No coefficient is present in every calibration of the window." }
         } @else {
             div.table-wrap tabindex="0" role="region" aria-label="Stability" {
-                table #stability {
+                table #stability .cards {
                     caption {
                         (r.stability.calibrations) " calibrations; drift by least squares over years of 365.25 days; "
                         "latest change judged with k = " (r.stability.coverage_factor)
@@ -261,20 +268,20 @@ fn stability_table(r: &Report) -> Markup {
                         @for (t, s) in &rows {
                             tr data-term=(t.name()) {
                                 th scope="row" { (t.name()) }
-                                td.num { (num(s.mean)) }
-                                td.num { (opt(s.std, unc)) }
-                                td.num { (num(s.min)) }
-                                td.num { (num(s.max)) }
-                                td.num { (opt(s.drift_per_year, unc)) }
-                                td.num { (opt(s.drift_std_error, unc)) }
-                                td.num { (opt(s.drift_t, |v| format!("{v:.2}"))) }
-                                td.num { @match (s.control.lower, s.control.upper) {
+                                td.num data-label="Mean" { (num(s.mean)) }
+                                td.num data-label="Std" { (opt(s.std, unc)) }
+                                td.num data-label="Min" { (num(s.min)) }
+                                td.num data-label="Max" { (num(s.max)) }
+                                td.num data-label="Drift / year" { (opt(s.drift_per_year, unc)) }
+                                td.num data-label="SE" { (opt(s.drift_std_error, unc)) }
+                                td.num data-label="t" { (opt(s.drift_t, |v| format!("{v:.2}"))) }
+                                td.num data-label="Control limits" { @match (s.control.lower, s.control.upper) {
                                     (Some(lo), Some(hi)) => { (num(lo)) " … " (num(hi)) },
                                     _ => "—",
                                 } }
-                                td.num { (opt(s.latest_change, unc)) }
-                                td.num { (opt(s.latest_change_expanded, unc)) }
-                                td { @match s.latest_change_significant {
+                                td.num data-label="Latest change" { (opt(s.latest_change, unc)) }
+                                td.num data-label="U of change" { (opt(s.latest_change_expanded, unc)) }
+                                td data-label="Significant" { @match s.latest_change_significant {
                                     Some(true) => (badge("fail", "yes")),
                                     Some(false) => (badge("pass", "no")),
                                     None => span.muted { "—" },
@@ -380,7 +387,7 @@ pub async fn page(
         (stability_table(&report))
         h2 #calibrations { "Calibrations" }
         div.table-wrap tabindex="0" role="region" aria-label="Calibrations" {
-            table #history {
+            table #history .cards {
                 caption { "Newest performed first" }
                 thead { tr {
                     th scope="col" { "Performed" }
@@ -395,14 +402,14 @@ pub async fn page(
                 tbody {
                     @for c in &history.items {
                         tr data-calibration-id=(c.id) {
-                            td { (instant(&c.performed_at)) }
-                            td { a href={"/ui/calibrations/" (c.id)} { code { (c.id.to_string().get(..13).unwrap_or_default()) "…" } } }
-                            td { (c.station_id.as_deref().unwrap_or("—")) }
-                            td.num { (c.runs) }
-                            td { (c.sensor_type.as_deref().unwrap_or("—")) }
-                            td { @match c.verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } }
-                            td { @match &c.due_at { Some(d) => (date(d)), None => "—" } }
-                            td { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
+                            td data-label="Performed" { (instant(&c.performed_at)) }
+                            td data-label="Calibration" { a href={"/ui/calibrations/" (c.id)} { code { (c.id.to_string().get(..13).unwrap_or_default()) "…" } } }
+                            td data-label="Station" { (c.station_id.as_deref().unwrap_or("—")) }
+                            td.num data-label="Runs" { (c.runs) }
+                            td data-label="Type" { (c.sensor_type.as_deref().unwrap_or("—")) }
+                            td data-label="Verdict" { @match c.verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } }
+                            td data-label="Due" { @match &c.due_at { Some(d) => (date(d)), None => "—" } }
+                            td data-label="Certificate" { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
                         }
                     }
                 }
