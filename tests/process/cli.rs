@@ -18,6 +18,15 @@ fn accelcal() -> Command {
     c
 }
 
+/// Asserts a command succeeded, showing what it said when it did not.
+fn succeeded(out: &std::process::Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 fn reference() -> Value {
     serde_json::from_str(include_str!("../../core/tests/data/reference.json")).unwrap()
 }
@@ -28,11 +37,7 @@ fn identify_prints_the_result_or_the_problem() {
         .args(["identify", "examples/paper-table1.json"])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let r: Value = serde_json::from_slice(&out.stdout).unwrap();
     let want = reference()["table1"]["fused"]["kp"].as_f64().unwrap();
     let got = r["fused"]["coefficients"]["kp"].as_f64().unwrap();
@@ -95,11 +100,7 @@ async fn token_create_issues_a_token_the_server_accepts() {
         .arg(&db)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let created: Value = serde_json::from_slice(&out.stdout).unwrap();
     let token = created["token"].as_str().unwrap().to_owned();
     assert_eq!(created["role"], "station");
@@ -332,11 +333,7 @@ fn token_create_needs_an_existing_database_or_create() {
         .arg(&db)
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     assert!(db.exists());
 }
 
@@ -355,11 +352,7 @@ fn the_format_comes_from_the_content() {
     )
     .unwrap();
     let out = accelcal().arg("identify").arg(&txt).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeded(&out);
     let result: Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(result["sensor_id"], "TXT-1");
     let forced = accelcal()
