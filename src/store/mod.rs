@@ -227,7 +227,7 @@ pub async fn open_with(url: &str, min_free: u64) -> Result<Arc<dyn Store>, Store
     // One process serves a SQLite file: every write passes through here.
     let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, true));
     let tokens = Arc::new(cache::TokenCache::new(cache::tokens::CAPACITY, true));
-    let watch = cache::FileWatch::new(inner.path().to_path_buf());
+    let watch = inner.file_check();
     Ok(Arc::new(
         cache::CachedStore::new(inner, cache, tokens, None).watching(watch),
     ))

@@ -82,44 +82,16 @@ pub struct CachedStore {
     tokens: Arc<TokenCache>,
     /// Stopped at [`Store::close`] (the PostgreSQL listener).
     listener: Mutex<Option<tokio::task::JoinHandle<()>>>,
-    /// The SQLite file behind the engine, if that is what it is.
-    file: Option<FileWatch>,
+    /// The engine's check of its file (SQLite), if it has one.
+    file: Option<FileCheck>,
 }
 
-/// The SQLite file a cached engine serves: the one at its path when the
-/// service started. When a backup is moved over it, or it is removed, what
-/// is cached of it is not served: every cached read answers as the engine
-/// does then (503 — see the engine's pool), so nothing of a file that is no
-/// longer there is answered, and nothing is answered from a cache that the
-/// file at the path does not back.
-pub struct FileWatch {
-    path: std::path::PathBuf,
-    origin: Option<(u64, u64)>,
-}
-
-impl FileWatch {
-    /// Watches the file at `path`, as it is now.
-    pub fn new(path: std::path::PathBuf) -> Self {
-        let origin = Self::identity(&path);
-        FileWatch { path, origin }
-    }
-
-    fn identity(path: &std::path::Path) -> Option<(u64, u64)> {
-        use std::os::unix::fs::MetadataExt;
-        std::fs::metadata(path).ok().map(|m| (m.dev(), m.ino()))
-    }
-
-    /// 503 unless the file at the path is the one served.
-    fn check(&self) -> Result<(), StoreError> {
-        match Self::identity(&self.path) {
-            None => Err(StoreError::Unavailable(
-                format!("database file {} is missing", self.path.display()).into(),
-            )),
-            now if now == self.origin => Ok(()),
-            _ => Err(super::sqlite::replaced(&self.path)),
-        }
-    }
-}
+/// The engine's own check that the database it serves is still there (the
+/// SQLite pool's: the file at its path is the one it opened). Cached answers
+/// run it first, so nothing is answered from memory that the database no
+/// longer backs — a file removed, or a backup moved over it (503, as the
+/// engine answers then).
+pub type FileCheck = Arc<dyn Fn() -> Result<(), StoreError> + Send + Sync>;
 
 impl CachedStore {
     /// `inner` behind `cache` and `tokens`; `listener` is the task that
@@ -139,9 +111,9 @@ impl CachedStore {
         }
     }
 
-    /// The same, for an engine serving the SQLite file `watch` watches.
-    pub fn watching(mut self, watch: FileWatch) -> Self {
-        self.file = Some(watch);
+    /// The same, for an engine whose file `check` checks.
+    pub fn watching(mut self, check: FileCheck) -> Self {
+        self.file = Some(check);
         self
     }
 
@@ -158,7 +130,7 @@ impl CachedStore {
     /// 503 when the database file is not the one served (SQLite).
     fn follow_the_file(&self) -> Result<(), StoreError> {
         match &self.file {
-            Some(w) => w.check(),
+            Some(check) => check(),
             None => Ok(()),
         }
     }

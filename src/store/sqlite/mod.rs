@@ -23,7 +23,7 @@ mod sessions;
 mod tokens;
 pub mod writer;
 
-pub use self::pool::{READERS, replaced};
+pub use self::pool::READERS;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -125,6 +125,13 @@ impl SqliteStore {
     /// Connections opened so far (reads reuse at most [`READERS`]).
     pub fn connections_opened(&self) -> usize {
         self.pool.opened()
+    }
+
+    /// The pool's check that the file at the path is the one it serves,
+    /// for what answers without the pool (the caches in front of it).
+    pub fn file_check(&self) -> crate::store::cache::FileCheck {
+        let pool = self.pool.clone();
+        Arc::new(move || pool.check())
     }
 
     /// The database file.

@@ -70,7 +70,7 @@ fn file_id(path: &Path) -> Result<FileId, StoreError> {
 }
 
 /// The error once the file at the path is another file than the one served.
-pub fn replaced(path: &Path) -> StoreError {
+fn replaced(path: &Path) -> StoreError {
     StoreError::Unavailable(
         format!(
             "the database file {} was replaced while the service was running; restart \
