@@ -6,6 +6,7 @@ FROM rust:1.95-slim-bookworm AS builder
 WORKDIR /src
 COPY Cargo.toml Cargo.lock ./
 COPY core ./core
+COPY testkit ./testkit
 COPY src ./src
 COPY benches ./benches
 COPY openapi.yaml ./

@@ -24,7 +24,9 @@
 //!   durable (every 201 after the commit), a new `performed_at` each time;
 //! * `coefficients`: `GET /v1/sensors/{id}/coefficients`;
 //! * `compensate`: `POST /v1/sensors/{id}/compensate` with 100 outputs;
-//! * `history`: `GET /v1/sensors/{id}/calibrations?limit=20`.
+//! * `history`: `GET /v1/sensors/{id}/calibrations?limit=20`;
+//! * `page`: `GET /ui/sensors/{id}`, the sensor's page, in a session
+//!   opened by signing in with the token.
 //!
 //! Prints req/s, p50, p99 and p99.9 latency, the ratio of accelcal's req/s
 //! to the bare stack's, both servers' peak RSS during the leg and their CPU
@@ -40,11 +42,9 @@ use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-#[path = "../tests/process/server.rs"]
-mod server;
+use accelcal_testkit::process as server;
 
-#[path = "../tests/common/pg.rs"]
-mod pg;
+use accelcal_testkit::pg;
 
 use server::{ADMIN, Server};
 
@@ -56,8 +56,12 @@ fn token() -> &'static str {
     TOKEN.lock().unwrap().unwrap_or(ADMIN)
 }
 
+/// The `Cookie` header of a session opened with [`token`] (the `page`
+/// route's credential), once the run has signed in.
+static SESSION: Mutex<Option<&'static str>> = Mutex::new(None);
+
 /// The routes measured.
-const ROUTES: [&str; 4] = ["submit", "coefficients", "compensate", "history"];
+const ROUTES: [&str; 5] = ["submit", "coefficients", "compensate", "history", "page"];
 
 /// Connection counts.
 const CONNECTIONS: [usize; 3] = [1, 16, 64];
@@ -181,13 +185,24 @@ async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, 
                                 .json(&body_out),
                             200,
                         ),
+                        "page" => (
+                            client
+                                .get(format!("{base}/ui/sensors/{SENSOR}"))
+                                .header("cookie", SESSION.lock().unwrap().expect("signed in")),
+                            200,
+                        ),
                         _ => (
                             client.get(format!("{base}/v1/sensors/{SENSOR}/calibrations?limit=20")),
                             200,
                         ),
                     };
+                    let req = if route == "page" {
+                        req
+                    } else {
+                        req.bearer_auth(token())
+                    };
                     let t = Instant::now();
-                    let res = req.bearer_auth(token()).send().await.expect("request");
+                    let res = req.send().await.expect("request");
                     let status = res.status().as_u16();
                     let body = res.bytes().await.expect("body");
                     assert_eq!(
@@ -230,11 +245,12 @@ async fn serve_bare(bodies: Value) {
     use axum::http::{StatusCode, header};
     use axum::routing::{get, post};
     let text = |k: &str| bytes::Bytes::from(bodies[k].as_str().unwrap().to_owned());
-    let (submit, coefficients, compensate, history) = (
+    let (submit, coefficients, compensate, history, page) = (
         text("submit"),
         text("coefficients"),
         text("compensate"),
         text("history"),
+        text("page"),
     );
     let json = || [(header::CONTENT_TYPE, "application/json")];
     let app = axum::Router::new()
@@ -253,6 +269,12 @@ async fn serve_bare(bodies: Value) {
         .route(
             "/v1/sensors/{id}/calibrations",
             get(move || async move { (json(), history) }),
+        )
+        .route(
+            "/ui/sensors/{id}",
+            get(
+                move || async move { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page) },
+            ),
         );
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     println!("http://{}", listener.local_addr().unwrap());
@@ -349,7 +371,22 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
             .unwrap();
         assert_eq!(res.status(), 200);
         let compensate = res.text().await.unwrap();
-        json!({"submit": submit, "coefficients": coefficients, "compensate": compensate, "history": history})
+        let session = server::sign_in(&base, token()).await;
+        let page = client
+            .get(format!("{base}/ui/sensors/{SENSOR}"))
+            .header("cookie", &session)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(page.status(), 200);
+        let page = page.text().await.unwrap();
+        assert!(
+            page.contains(SENSOR),
+            "the sensor's page, not the sign-in form"
+        );
+        *SESSION.lock().unwrap() = Some(Box::leak(session.into_boxed_str()));
+        json!({"submit": submit, "coefficients": coefficients, "compensate": compensate,
+               "history": history, "page": page})
     });
     let (mut bare, bare_base) = start_bare(&bodies);
     let bare_pid = bare.id();

@@ -15,8 +15,7 @@ use std::time::Instant;
 
 use serde_json::{Value, json};
 
-#[path = "../tests/process/server.rs"]
-mod server;
+use accelcal_testkit::process as server;
 
 use server::{ADMIN, Server};
 
@@ -77,41 +76,6 @@ async fn measured(
         answer as f64 / 1e6,
         elapsed.as_secs_f64() * 1e3,
     )
-}
-
-/// Signs in to the pages with the admin token; the session cookie's value.
-async fn sign_in(base: &str) -> String {
-    let c = reqwest::Client::builder()
-        .redirect(reqwest::redirect::Policy::none())
-        .build()
-        .unwrap();
-    let cookie = |res: &reqwest::Response, name: &str| {
-        res.headers()
-            .get_all("set-cookie")
-            .iter()
-            .filter_map(|v| v.to_str().ok())
-            .find_map(|v| {
-                v.strip_prefix(&format!("{name}="))?
-                    .split(';')
-                    .next()
-                    .map(str::to_owned)
-            })
-            .unwrap()
-    };
-    let form = c.get(format!("{base}/ui/login")).send().await.unwrap();
-    let login = cookie(&form, "accelcal_login");
-    let res = c
-        .post(format!("{base}/ui/login"))
-        .header("cookie", format!("accelcal_login={login}"))
-        .form(&[
-            ("token", ADMIN),
-            ("csrf", login.as_str()),
-            ("next", "/ui/sensors"),
-        ])
-        .send()
-        .await
-        .unwrap();
-    cookie(&res, "accelcal_session")
 }
 
 fn mib(kib: u64) -> f64 {
@@ -182,7 +146,7 @@ fn main() {
             rows.push(measured(pid, label, || tasks.collect()).await);
         }
         // The pages, signed in with the admin token.
-        let session = sign_in(&server.base).await;
+        let session = server::sign_in(&server.base, ADMIN).await;
         let history = &server.base;
         let mut lanes = Vec::new();
         for lane in 0..8 {
@@ -232,7 +196,7 @@ fn main() {
                 let (client, url, cookie) = (
                     client.clone(),
                     format!("{}{path}", server.base),
-                    format!("accelcal_session={session}"),
+                    session.clone(),
                 );
                 tokio::spawn(async move {
                     let res = client.get(url).header("cookie", cookie).send().await.unwrap();

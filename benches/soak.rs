@@ -34,11 +34,9 @@ use std::time::{Duration, Instant};
 use serde_json::{Value, json};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 
-#[path = "../tests/process/server.rs"]
-mod server;
+use accelcal_testkit::process as server;
 
-#[path = "../tests/common/pg.rs"]
-mod pg;
+use accelcal_testkit::pg;
 
 use server::{ADMIN, Server};
 

@@ -3,17 +3,24 @@
 //! A calibration service for pendulous accelerometers: test stations submit
 //! tumble tests; accelcal identifies the static model of every run, fuses the
 //! runs by batch estimation ([`accelcal_core`]), stores the raw submission and
-//! the results, and serves coefficients, history and compensation over HTTP.
+//! the results, and serves coefficients, uncertainty, decisions, history,
+//! stability and compensation over HTTP, with web pages and certificates.
 //!
 //! The layers, each importing only from those before it:
 //!
 //! * [`accelcal_core`]: the maths (pure, its own crate);
 //! * [`domain`]: submissions and their JSON and CSV formats, limits, tokens
 //!   and roles, request bodies — checked values, no I/O;
-//! * [`store`]: storage behind one trait (SQLite);
-//! * [`http`]: the API (routes, middleware, problem documents, OpenAPI);
+//! * [`store`]: storage behind one trait — SQLite, or PostgreSQL for
+//!   several replicas — with the sensor and token caches in front;
+//! * [`http`]: the API (routes, middleware, problem documents, OpenAPI,
+//!   metrics) and the web pages;
 //! * [`startup`]: configuration, the accept loop, shutdown;
-//! * [`cli`] (with [`client`]): the `accelcal` command line.
+//! * [`cli`] (with [`client`]): the `accelcal` command line;
+//! * [`telemetry`], logging.
+//!
+//! `docs/developers.md` says what a new endpoint, query or stored field
+//! touches.
 
 pub mod cli;
 pub mod client;

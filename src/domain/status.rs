@@ -7,6 +7,10 @@
 //! * otherwise `overdue` — the due date has passed;
 //! * otherwise `due_soon` — it falls within [`DUE_SOON_DAYS`];
 //! * otherwise `ok`.
+//!
+//! The rule is written once, as [`RULE`]: [`Status::of`] applies it to a
+//! summary in memory, and [`Status::sql`] renders the same table as the SQL
+//! `CASE` both engines filter by.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -60,18 +64,66 @@ impl Status {
     }
 
     /// The status of a sensor whose latest calibration had verdict
-    /// `verdict_failed` and due date `due_at`, at `now`. (The stores compute
-    /// the same in SQL, to filter; the conformance suite checks they agree.)
+    /// `verdict_failed` and due date `due_at`, at `now`: the first line of
+    /// [`RULE`] that holds.
     pub fn of(verdict_failed: bool, due_at: Option<Timestamp>, now: Timestamp) -> Status {
-        match due_at {
-            _ if verdict_failed => Status::Failed,
-            None => Status::Unknown,
-            Some(due) if due < now => Status::Overdue,
-            Some(due) if due < now.plus_seconds(DUE_SOON_DAYS * 86_400) => Status::DueSoon,
-            Some(_) => Status::Ok,
+        let soon = now.plus_seconds(DUE_SOON_DAYS * 86_400);
+        let holds = |c: When| match c {
+            When::Failed => verdict_failed,
+            When::NoDueDate => due_at.is_none(),
+            When::DueBeforeNow => due_at.is_some_and(|d| d < now),
+            When::DueBeforeSoon => due_at.is_some_and(|d| d < soon),
+            When::Otherwise => true,
+        };
+        RULE.iter()
+            .find(|(c, _)| holds(*c))
+            .map_or(Status::Ok, |(_, s)| *s)
+    }
+
+    /// [`RULE`] as an SQL `CASE` over the sensors row `s` (its
+    /// `latest_verdict` and `latest_due_at`), `now` and `soon` being the
+    /// query's placeholders for the time of the read and 30 days later.
+    pub fn sql(now: &str, soon: &str) -> String {
+        let mut case = String::from("CASE");
+        for (when, status) in RULE {
+            let condition = match when {
+                When::Failed => "s.latest_verdict = 'fail'".to_owned(),
+                When::NoDueDate => "s.latest_due_at IS NULL".to_owned(),
+                When::DueBeforeNow => format!("s.latest_due_at < {now}"),
+                When::DueBeforeSoon => format!("s.latest_due_at < {soon}"),
+                When::Otherwise => "TRUE".to_owned(),
+            };
+            case.push_str(&format!(" WHEN {condition} THEN '{}'", status.as_str()));
         }
+        case.push_str(" END");
+        case
     }
 }
+
+/// A condition of the rule, on the latest calibration's verdict and due
+/// date and the time of the read.
+#[derive(Clone, Copy, Debug)]
+pub enum When {
+    /// The verdict is fail.
+    Failed,
+    /// There is no due date.
+    NoDueDate,
+    /// The due date is before now.
+    DueBeforeNow,
+    /// The due date is before now + [`DUE_SOON_DAYS`].
+    DueBeforeSoon,
+    /// Always.
+    Otherwise,
+}
+
+/// The status rule: the first condition that holds gives the status.
+pub const RULE: [(When, Status); 5] = [
+    (When::Failed, Status::Failed),
+    (When::NoDueDate, Status::Unknown),
+    (When::DueBeforeNow, Status::Overdue),
+    (When::DueBeforeSoon, Status::DueSoon),
+    (When::Otherwise, Status::Ok),
+];
 
 #[cfg(test)]
 mod tests {
@@ -93,5 +145,19 @@ mod tests {
         assert_eq!(Status::of(false, later(30 * day - 1), now), Status::DueSoon);
         assert_eq!(Status::of(false, later(30 * day), now), Status::Ok);
         assert_eq!(Status::of(false, later(365 * day), now), Status::Ok);
+    }
+
+    /// The SQL is the rule's table, in order (the store conformance suite
+    /// runs it on both engines against [`Status::of`]).
+    #[test]
+    fn the_sql_is_the_table() {
+        assert_eq!(
+            Status::sql("$1", "$2"),
+            "CASE WHEN s.latest_verdict = 'fail' THEN 'failed' \
+             WHEN s.latest_due_at IS NULL THEN 'unknown' \
+             WHEN s.latest_due_at < $1 THEN 'overdue' \
+             WHEN s.latest_due_at < $2 THEN 'due_soon' \
+             WHEN TRUE THEN 'ok' END"
+        );
     }
 }

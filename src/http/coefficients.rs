@@ -1,7 +1,7 @@
 //! What control systems use: the latest coefficients, and compensation of
 //! raw outputs with them.
 
-use super::json::{APPLICATION_JSON, Json};
+use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
@@ -14,7 +14,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
-use super::rendered::ById;
+use super::rendered::{APPLICATION_JSON, ById};
 use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
@@ -93,8 +93,7 @@ pub async fn coefficients(
 }
 
 /// The answers of `GET /v1/sensors/{sensor_id}/coefficients`, rendered once
-/// per calibration ([`super::rendered`]). Rendering was a sixth of the
-/// route's instructions (BENCHMARKS.md, "Observed as deployed").
+/// per calibration ([`super::rendered`]).
 #[derive(Debug)]
 pub struct Rendered(ById);
 

@@ -1,7 +1,7 @@
 //! Computations that store nothing: `POST /v1/identify` and `POST /v1/fuse`.
 
-use super::json::Json;
 use accelcal_core::Estimates;
+use axum::Json;
 use axum::extract::State;
 use axum::response::{IntoResponse, Response};
 

@@ -1,6 +1,6 @@
 //! Probes, the OpenAPI document and the fallback.
 
-use super::json::Json;
+use axum::Json;
 use axum::extract::State;
 use axum::http::header;
 use axum::response::IntoResponse;

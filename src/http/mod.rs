@@ -14,7 +14,6 @@ pub mod compute;
 pub mod connection;
 pub mod evaluation;
 pub mod health;
-pub mod json;
 pub mod metrics;
 pub mod openapi;
 pub mod page;
@@ -216,8 +215,7 @@ pub fn router(state: AppState) -> Router {
     let limits = state.limits;
     // The API's routes with their `/v1` written out, merged rather than
     // nested: a nested router strips its prefix from every request's URI
-    // (a new `Uri` each time), measurable on the read path (BENCHMARKS.md,
-    // "Then: PostgreSQL's batches in four statements, …").
+    // (a new `Uri` each time).
     let v1 = Router::new()
         .route("/v1/calibrations", post(calibrations::submit))
         .route("/v1/calibrations/{id}", get(calibrations::get))
@@ -274,9 +272,7 @@ pub fn router(state: AppState) -> Router {
         .fallback(health::not_found);
     // One layer of the whole stack, not one `Router::layer` per middleware:
     // axum boxes each `layer` call's service separately and clones every
-    // box on every request, which the read path's profile showed (a fifth
-    // of its samples in those clones, their allocations and the moves of
-    // the nested futures). Outermost first.
+    // box on every request. Outermost first.
     app.layer(
         ServiceBuilder::new()
             .layer(axum::middleware::map_request(stack::sanitize_request_id))
@@ -297,7 +293,12 @@ pub fn router(state: AppState) -> Router {
                 state.clone(),
                 stack::finalize,
             ))
-            .layer(axum::middleware::map_response(stack::security_headers))
+            .layer(stack::security_header(0))
+            .layer(stack::security_header(1))
+            .layer(stack::security_header(2))
+            .layer(stack::security_header(3))
+            .layer(stack::security_header(4))
+            .layer(stack::security_header(5))
             .layer(CatchPanicLayer::custom(stack::panic_response))
             .layer(TimeoutLayer::with_status_code(
                 StatusCode::SERVICE_UNAVAILABLE,

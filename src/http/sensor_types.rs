@@ -1,6 +1,6 @@
 //! Sensor types: `PUT` (admin), and reading them.
 
-use super::json::Json;
+use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde::Serialize;

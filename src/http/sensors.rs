@@ -1,6 +1,6 @@
 //! Sensors: listing (by status), one sensor, assigning its type, history.
 
-use super::json::{APPLICATION_JSON, Json};
+use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
@@ -15,6 +15,7 @@ use super::body::Body;
 use super::page::Page;
 use super::problem::Problem;
 use super::query::{Params, instant, limit};
+use super::rendered::APPLICATION_JSON;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::status::Status;

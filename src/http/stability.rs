@@ -2,9 +2,9 @@
 //! history — spread, drift, control chart and the latest change (definitions
 //! in `accelcal_core::history`).
 
-use super::json::Json;
 use accelcal_core::TermMap;
 use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, stability};
+use axum::Json;
 use axum::extract::{Path, State};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};

@@ -5,7 +5,8 @@
 //! 2. one log line per request (tower-http `Trace`);
 //! 3. [`finalize`]: every error becomes a problem document carrying the
 //!    request id;
-//! 4. security headers ([`security_headers`], each kept where the answer set its own);
+//! 4. the [`SECURITY_HEADERS`] (tower-http `SetResponseHeader`, each kept
+//!    where the answer set its own);
 //! 5. a panic becomes a 500 problem (tower-http `CatchPanic`);
 //! 6. the whole-request deadline (tower-http `Timeout`, 503);
 //!
@@ -34,6 +35,7 @@ use bytes::Bytes;
 use http_body_util::{BodyExt, LengthLimitError, Limited};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 use tower_http::request_id::{MakeRequestId, RequestId};
+use tower_http::set_header::SetResponseHeaderLayer;
 
 use super::AppState;
 use super::auth::{ClientAddr, bearer};
@@ -122,26 +124,14 @@ pub const SECURITY_HEADERS: [(&str, &str); 6] = [
     ("cache-control", "no-store"),
 ];
 
-/// [`SECURITY_HEADERS`] as header names and values, parsed once.
-static SECURITY_HEADER_VALUES: std::sync::LazyLock<[(header::HeaderName, HeaderValue); 6]> =
-    std::sync::LazyLock::new(|| {
-        SECURITY_HEADERS.map(|(name, value)| {
-            (
-                header::HeaderName::from_static(name),
-                HeaderValue::from_static(value),
-            )
-        })
-    });
-
-/// Sets each of [`SECURITY_HEADERS`] the response does not set itself. One
-/// layer for all six: a layer each nested six more futures in every
-/// request's (BENCHMARKS.md, "Where the coefficients route's time goes").
-pub async fn security_headers<B>(mut res: Response<B>) -> Response<B> {
-    let headers = res.headers_mut();
-    for (name, value) in SECURITY_HEADER_VALUES.iter() {
-        headers.entry(name).or_insert_with(|| value.clone());
-    }
-    res
+/// The layer setting `SECURITY_HEADERS[i]` where the answer does not set
+/// it itself (tower-http `SetResponseHeader`).
+pub fn security_header(i: usize) -> SetResponseHeaderLayer<HeaderValue> {
+    let (name, value) = SECURITY_HEADERS[i];
+    SetResponseHeaderLayer::if_not_present(
+        header::HeaderName::from_static(name),
+        HeaderValue::from_static(value),
+    )
 }
 
 /// Gives every error response a problem body with the request id: handler

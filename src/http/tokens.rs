@@ -1,6 +1,6 @@
 //! Token management (admin only): create, list without secrets, revoke.
 
-use super::json::Json;
+use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::StatusCode;
 use serde::Serialize;

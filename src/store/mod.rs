@@ -3,7 +3,7 @@
 //!
 //! Handlers see only [`Store`]; each engine (PostgreSQL, and SQLite, see
 //! [`sqlite::SqliteStore`]) implements it and runs the shared conformance
-//! tests in `tests/store.rs`; [`open`] puts the sensor cache ([`cache`]) in
+//! tests in `tests/store/`; [`open`] puts the sensor cache ([`cache`]) in
 //! front of it. Failures of the database itself — locked, gone,
 //! read-only, full — are [`StoreError::Unavailable`], which the HTTP layer
 //! answers with a retryable 503. A new engine goes in a folder of its own

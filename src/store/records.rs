@@ -201,9 +201,31 @@ pub struct SensorSummary {
     pub latest: CalibrationSummary,
 }
 
+/// How a sensor's upsert merges into its stored row (`sensors`) what
+/// `excluded` holds of its new calibrations (one, or several of a batch
+/// folded into one row): the rule of [`SensorSummary::after`], in SQL that
+/// both engines run as it is.
+pub const SENSOR_MERGE: &str = "ON CONFLICT (sensor_id) DO UPDATE SET \
+     calibration_count = sensors.calibration_count + excluded.calibration_count, \
+     first_performed_at = CASE WHEN excluded.first_performed_at < sensors.first_performed_at \
+       THEN excluded.first_performed_at ELSE sensors.first_performed_at END, \
+     latest_calibration_id = CASE WHEN (excluded.latest_performed_at, excluded.latest_calibration_id) \
+       > (sensors.latest_performed_at, sensors.latest_calibration_id) \
+       THEN excluded.latest_calibration_id ELSE sensors.latest_calibration_id END, \
+     latest_verdict = CASE WHEN (excluded.latest_performed_at, excluded.latest_calibration_id) \
+       > (sensors.latest_performed_at, sensors.latest_calibration_id) \
+       THEN excluded.latest_verdict ELSE sensors.latest_verdict END, \
+     latest_due_at = CASE WHEN (excluded.latest_performed_at, excluded.latest_calibration_id) \
+       > (sensors.latest_performed_at, sensors.latest_calibration_id) \
+       THEN excluded.latest_due_at ELSE sensors.latest_due_at END, \
+     latest_performed_at = CASE WHEN excluded.latest_performed_at > sensors.latest_performed_at \
+       THEN excluded.latest_performed_at ELSE sensors.latest_performed_at END, \
+     sensor_type = coalesce(excluded.sensor_type, sensors.sensor_type)";
+
 impl SensorSummary {
     /// The sensor as one more stored calibration `c` of it leaves it —
-    /// the rule every engine's write applies to the sensor's row:
+    /// the rule every engine's write applies to the sensor's row
+    /// ([`SENSOR_MERGE`]), applied here to the sensor cache's entry:
     ///
     /// * `calibration_count + 1`;
     /// * `first_performed_at = min(first_performed_at, c.performed_at)`;

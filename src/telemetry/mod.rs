@@ -5,10 +5,8 @@
 //!
 //! Lines are written **off the request path**: a request formats its line
 //! and queues it; one thread writes the queue to standard error, many lines
-//! per system call, flushing whenever the queue runs empty. Writing each
-//! line in the request that logged it cost a fifth of the server's CPU on
-//! the coefficients read at `info` (BENCHMARKS.md, "Observed as deployed"),
-//! and a log reader that stalled (a full pipe) stalled every request.
+//! per system call, flushing whenever the queue runs empty, so a log reader
+//! that stalls (a full pipe) never stalls a request.
 //! The queue holds at most [`QUEUE_LINES`] lines; past that, lines are
 //! dropped rather than the service blocked, and counted
 //! ([`dropped_lines`], the metric `accelcal_log_lines_dropped_total`).

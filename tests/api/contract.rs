@@ -3,7 +3,9 @@
 
 use reqwest::StatusCode;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 const COMMITTED: &str = include_str!("../../openapi.yaml");
 
@@ -22,9 +24,10 @@ fn the_committed_contract_is_what_the_code_generates() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn the_server_serves_the_committed_contract() {
-    let app = TestApp::spawn().await;
+async fn the_server_serves_the_committed_contract(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let res = app
         .client
         .get(app.url("/openapi.yaml"))

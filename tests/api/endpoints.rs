@@ -4,7 +4,9 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 async fn page_through(app: &TestApp, first: &str) -> Vec<Vec<String>> {
     let mut pages = Vec::new();
@@ -41,9 +43,10 @@ async fn page_through(app: &TestApp, first: &str) -> Vec<Vec<String>> {
 /// The coefficients answer (rendered once per calibration) always names
 /// the sensor's latest calibration: a newer one replaces it at once, an
 /// older one does not.
+#[rstest]
 #[tokio::test]
-async fn coefficients_follow_the_latest_calibration() {
-    let app = TestApp::spawn().await;
+async fn coefficients_follow_the_latest_calibration(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let get = || async {
         let res = app.get("/v1/sensors/S-C/coefficients", ADMIN).await;
         assert_eq!(res.status(), StatusCode::OK);
@@ -81,9 +84,12 @@ async fn coefficients_follow_the_latest_calibration() {
     check(&get().await, &newer);
 }
 
+#[rstest]
 #[tokio::test]
-async fn sensors_are_listed_in_pages_with_their_latest_calibration() {
-    let app = TestApp::spawn().await;
+async fn sensors_are_listed_in_pages_with_their_latest_calibration(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     for s in ["S-5", "S-1", "S-3", "S-2", "S-4"] {
         app.submit(ADMIN, &submission(s, "2026-01-01T00:00:00Z", 4))
             .await;
@@ -115,9 +121,12 @@ async fn sensors_are_listed_in_pages_with_their_latest_calibration() {
     problem(missing, StatusCode::NOT_FOUND).await;
 }
 
+#[rstest]
 #[tokio::test]
-async fn history_is_newest_first_filtered_and_paginated() {
-    let app = TestApp::spawn().await;
+async fn history_is_newest_first_filtered_and_paginated(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let mut ids = Vec::new();
     let mut answers = Vec::new();
     for month in [3, 1, 5, 2, 4] {
@@ -182,9 +191,10 @@ async fn history_is_newest_first_filtered_and_paginated() {
     problem(res, StatusCode::NOT_FOUND).await;
 }
 
+#[rstest]
 #[tokio::test]
-async fn compensation_inverts_the_stored_model() {
-    let app = TestApp::spawn().await;
+async fn compensation_inverts_the_stored_model(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let first = app
         .submit(ADMIN, &submission("C-1", "2026-01-01T00:00:00Z", 4))
         .await;
@@ -266,9 +276,10 @@ async fn compensation_inverts_the_stored_model() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn identify_computes_without_storing() {
-    let app = TestApp::spawn().await;
+async fn identify_computes_without_storing(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let res = app.post("/v1/identify", ADMIN, &paper()).await;
     assert_eq!(res.status(), StatusCode::OK);
     let r: Value = res.json().await.unwrap();
@@ -278,9 +289,12 @@ async fn identify_computes_without_storing() {
     assert_eq!(sensors["items"], json!([]));
 }
 
+#[rstest]
 #[tokio::test]
-async fn tokens_are_created_listed_without_secrets_and_revoked() {
-    let app = TestApp::spawn().await;
+async fn tokens_are_created_listed_without_secrets_and_revoked(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let res = app
         .post(
             "/v1/tokens",
@@ -347,9 +361,10 @@ async fn tokens_are_created_listed_without_secrets_and_revoked() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn station_tokens_record_and_guard_their_station() {
-    let app = TestApp::spawn().await;
+async fn station_tokens_record_and_guard_their_station(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let st1 = app.token("station", Some("ST-1")).await;
     let r = app
         .submit(&st1, &submission("B-1", "2026-01-01T00:00:00Z", 4))
@@ -366,9 +381,10 @@ async fn station_tokens_record_and_guard_their_station() {
     assert_eq!(app.submit(&free, &claimed).await["station_id"], "ST-2");
 }
 
+#[rstest]
 #[tokio::test]
-async fn probes_and_contract_are_public() {
-    let app = TestApp::spawn().await;
+async fn probes_and_contract_are_public(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let c = &app.client;
     let ok = c.get(app.url("/healthz")).send().await.unwrap();
     assert_eq!(ok.json::<Value>().await.unwrap(), json!({"status": "ok"}));

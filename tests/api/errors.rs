@@ -4,7 +4,9 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 async fn post_raw(
     app: &TestApp,
@@ -19,9 +21,10 @@ async fn post_raw(
     req.send().await.unwrap()
 }
 
+#[rstest]
 #[tokio::test]
-async fn malformed_and_mistyped_bodies() {
-    let app = TestApp::spawn().await;
+async fn malformed_and_mistyped_bodies(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let p = problem(
         post_raw(
             &app,
@@ -70,9 +73,10 @@ async fn malformed_and_mistyped_bodies() {
     assert_eq!(p["errors"][0]["pointer"], "/sensor_id");
 }
 
+#[rstest]
 #[tokio::test]
-async fn validation_lists_every_field() {
-    let app = TestApp::spawn().await;
+async fn validation_lists_every_field(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let mut body = paper();
     body["batchs"] = json!(2);
     body["mount"] = json!("upside-down");
@@ -169,9 +173,10 @@ async fn validation_lists_every_field() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn parameters_paths_and_methods() {
-    let app = TestApp::spawn().await;
+async fn parameters_paths_and_methods(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     for (query, parameter) in [
         ("limit=0", "limit"),
         ("limit=501", "limit"),
@@ -221,9 +226,10 @@ async fn parameters_paths_and_methods() {
     problem(res, StatusCode::METHOD_NOT_ALLOWED).await;
 }
 
+#[rstest]
 #[tokio::test]
-async fn credentials() {
-    let app = TestApp::spawn().await;
+async fn credentials(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let res = app.client.get(app.url("/v1/sensors")).send().await.unwrap();
     assert_eq!(
         res.headers()["www-authenticate"],
@@ -252,10 +258,11 @@ async fn credentials() {
 
 /// Over raw TCP, so that it can tell: the 413 arrives while the client has
 /// sent only the head, not one byte of the declared body.
+#[rstest]
 #[tokio::test]
-async fn oversized_bodies_are_refused_before_reading() {
+async fn oversized_bodies_are_refused_before_reading(#[values(Sqlite, Postgres)] engine: Engine) {
     use tokio::io::{AsyncReadExt, AsyncWriteExt};
-    let app = TestApp::configured(|c| c.limits.max_body_bytes = 1024).await;
+    let app = TestApp::configured(engine, |c| c.limits.max_body_bytes = 1024).await;
     let mut s = tokio::net::TcpStream::connect(app.base.trim_start_matches("http://"))
         .await
         .unwrap();

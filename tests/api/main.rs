@@ -1,16 +1,24 @@
-//! API tests over real HTTP against a server bound to a free port.
+//! The service over real HTTP, in the test's own process: the paper end to
+//! end, every endpoint, errors, the pages, restarts, idempotency, limits,
+//! hardening, storage outages, request ids, the access matrix and the
+//! bad-input corpus. Tests taking an `engine` run on SQLite and on
+//! PostgreSQL (`#[values(Sqlite, Postgres)]`, rstest); the others test
+//! what does not depend on the engine, on SQLite.
 
-#[path = "../common/pg.rs"]
-mod pg;
-
-/// These tests run on SQLite (`tests/api_postgres/` runs them on PostgreSQL).
-const ENGINE: helpers::Engine = helpers::Engine::Sqlite;
-
+mod access;
+mod client;
 mod contract;
+mod corpus;
 mod endpoints;
 mod errors;
-mod helpers;
+mod hardening;
+mod idempotency;
+mod limits;
 mod metrology;
+mod outage;
 mod paper;
 mod restart;
+mod round_three;
+mod storage;
+mod traceability;
 mod ui;

@@ -5,7 +5,9 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
 
@@ -33,9 +35,12 @@ fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("not a number: {v}"))
 }
 
+#[rstest]
 #[tokio::test]
-async fn sensor_types_are_written_by_admins_and_checked() {
-    let app = TestApp::spawn().await;
+async fn sensor_types_are_written_by_admins_and_checked(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let res = put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
     assert_eq!(res.status(), StatusCode::CREATED);
     let t: Value = res.json().await.unwrap();
@@ -99,9 +104,12 @@ async fn sensor_types_are_written_by_admins_and_checked() {
 /// (indexing(k0) = σ·√(ki² + kp²)/(2√2), indexing(ki) = σ·|kp|/√2,
 /// indexing(kp) = σ·|ki|/√2; gravity = u·|k| on ki and kp), the guarded
 /// decision follows ILAC-G8, and the due date is 180 days on.
+#[rstest]
 #[tokio::test]
-async fn a_typed_calibration_carries_its_budget_decision_and_due_date() {
-    let app = TestApp::spawn().await;
+async fn a_typed_calibration_carries_its_budget_decision_and_due_date(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
     let mut body = paper();
     body["sensor_type"] = json!("NAV");
@@ -222,9 +230,10 @@ async fn a_typed_calibration_carries_its_budget_decision_and_due_date() {
 
 /// A type changed later never rewrites a stored decision; a submission
 /// naming an unknown type, or a type limiting a term the model lacks, is 422.
+#[rstest]
 #[tokio::test]
-async fn decisions_are_immutable_and_types_must_fit() {
-    let app = TestApp::spawn().await;
+async fn decisions_are_immutable_and_types_must_fit(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
     let mut body = submission("IMM-1", "2026-01-01T00:00:00Z", 4);
     body["sensor_type"] = json!("NAV");
@@ -268,9 +277,12 @@ async fn decisions_are_immutable_and_types_must_fit() {
 
 /// As found: the second calibration's position means against the first
 /// calibration's model, computed here from the submitted readings.
+#[rstest]
 #[tokio::test]
-async fn a_later_calibration_is_found_against_the_previous_one() {
-    let app = TestApp::spawn().await;
+async fn a_later_calibration_is_found_against_the_previous_one(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let first = app
         .submit(ADMIN, &submission("AF-1", "2026-01-01T00:00:00Z", 4))
         .await;
@@ -315,9 +327,10 @@ async fn a_later_calibration_is_found_against_the_previous_one() {
 
 /// Stability over four calibrations, against statistics computed here from
 /// the fused values the calibrations returned.
+#[rstest]
 #[tokio::test]
-async fn stability_summarises_the_history() {
-    let app = TestApp::spawn().await;
+async fn stability_summarises_the_history(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let days = ["2026-01-01", "2026-04-01", "2026-07-01", "2026-10-01"];
     let mut values = Vec::new();
     let mut times = Vec::new();
@@ -398,9 +411,12 @@ async fn stability_summarises_the_history() {
 
 /// Runs at three temperatures: the sensitivity is the least-squares slope
 /// of the per-run coefficients on temperature, computed here.
+#[rstest]
 #[tokio::test]
-async fn runs_at_several_temperatures_give_sensitivities() {
-    let app = TestApp::spawn().await;
+async fn runs_at_several_temperatures_give_sensitivities(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let mut body = submission("TMP-1", "2026-01-01T00:00:00Z", 6);
     let temps = [15.0, 15.0, 25.0, 25.0, 35.0, 35.0];
     for (run, t) in body["runs"].as_array_mut().unwrap().iter_mut().zip(temps) {
@@ -453,9 +469,10 @@ async fn runs_at_several_temperatures_give_sensitivities() {
 
 /// Assigning a type to a sensor (admin): it applies to the next
 /// calibrations.
+#[rstest]
 #[tokio::test]
-async fn a_sensor_can_be_given_a_type() {
-    let app = TestApp::spawn().await;
+async fn a_sensor_can_be_given_a_type(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
     app.submit(ADMIN, &submission("AS-1", "2026-01-01T00:00:00Z", 4))
         .await;
@@ -516,9 +533,10 @@ async fn a_sensor_can_be_given_a_type() {
 
 /// Quality flags: a noisy run is named, and the numbers are those of the
 /// same submission without flags (flags never change a number).
+#[rstest]
 #[tokio::test]
-async fn a_noisy_run_is_flagged() {
-    let app = TestApp::spawn().await;
+async fn a_noisy_run_is_flagged(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let mut body = submission("Q-1", "2026-01-01T00:00:00Z", 6);
     body["positions"] =
         json!([0, 45, 90, 135, 180, 225, 270, 315].map(|d| json!({"angle_deg": d})));

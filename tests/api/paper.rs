@@ -3,7 +3,9 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 const TABLE2_ALPHA: [f64; 6] = [
     0.006091826,
@@ -107,9 +109,10 @@ fn check_paper_result(r: &Value) {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn paper_submission_end_to_end() {
-    let app = TestApp::spawn().await;
+async fn paper_submission_end_to_end(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let body = include_str!("../../examples/paper-table1.json");
     let res = app
         .client
@@ -154,9 +157,10 @@ async fn paper_submission_end_to_end() {
     assert_eq!(c["model"], json!(["k0", "ki", "kp"]));
 }
 
+#[rstest]
 #[tokio::test]
-async fn paper_table_as_csv_gives_the_same_numbers() {
-    let app = TestApp::spawn().await;
+async fn paper_table_as_csv_gives_the_same_numbers(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let csv = paper_csv();
     let res = app
         .client
@@ -181,9 +185,10 @@ async fn paper_table_as_csv_gives_the_same_numbers() {
     assert_eq!(res.text().await.unwrap(), csv);
 }
 
+#[rstest]
 #[tokio::test]
-async fn table_2_fusion_over_http() {
-    let app = TestApp::spawn().await;
+async fn table_2_fusion_over_http(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let body = json!({
         "values": {
             "ki": [-1.216171962, -1.216049106, -1.216196948, -1.216195816, -1.216184389, -1.216080200],
@@ -240,4 +245,38 @@ async fn table_2_fusion_over_http() {
             1e-9,
         );
     }
+}
+
+/// The whole documents a client reads after submitting the paper's Table 1,
+/// as snapshots (`tests/api/snapshots/`): the result, the sensor, its
+/// coefficients, and the problem a misspelt field gets. Ids and times of
+/// receipt are redacted; every number is kept to its last digit, and both
+/// engines must answer the same snapshot.
+#[rstest]
+#[tokio::test]
+async fn the_paper_documents_are_their_snapshots(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let result = app.submit(ADMIN, &paper()).await;
+    insta::assert_json_snapshot!("paper_result", result, {
+        ".id" => "[id]",
+        ".received_at" => "[received_at]",
+    });
+    let sensor = app.get_json("/v1/sensors/PAPER-2005", ADMIN).await;
+    insta::assert_json_snapshot!("paper_sensor", sensor, {
+        ".latest.id" => "[id]",
+        ".latest.received_at" => "[received_at]",
+    });
+    let coefficients = app
+        .get_json("/v1/sensors/PAPER-2005/coefficients", ADMIN)
+        .await;
+    insta::assert_json_snapshot!("paper_coefficients", coefficients, {
+        ".calibration_id" => "[id]",
+    });
+    let mut misspelt = paper();
+    misspelt["batchs"] = json!(2);
+    let res = app.post("/v1/calibrations", ADMIN, &misspelt).await;
+    let problem = problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
+    insta::assert_json_snapshot!("misspelt_field_problem", problem, {
+        ".request_id" => "[request_id]",
+    });
 }

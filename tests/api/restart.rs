@@ -3,11 +3,14 @@
 use reqwest::StatusCode;
 use serde_json::Value;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
+#[rstest]
 #[tokio::test]
-async fn restart_keeps_calibrations_and_tokens() {
-    let mut app = TestApp::spawn().await;
+async fn restart_keeps_calibrations_and_tokens(#[values(Sqlite, Postgres)] engine: Engine) {
+    let mut app = TestApp::spawn(engine).await;
     let created = app.submit(ADMIN, &paper()).await;
     let reader = app.token("reader", None).await;
     let db = app.take_database().unwrap();

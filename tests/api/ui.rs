@@ -11,7 +11,9 @@ use reqwest::{Client, StatusCode};
 use serde_json::{Value, json};
 use sha2::{Digest, Sha256};
 
-use crate::helpers::{ADMIN, TestApp, paper};
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::{ADMIN, TestApp, paper};
+use rstest::rstest;
 
 fn browser() -> Client {
     Client::builder().redirect(Policy::none()).build().unwrap()
@@ -68,9 +70,10 @@ async fn page(app: &TestApp, path: &str, session: &str) -> reqwest::Response {
         .unwrap()
 }
 
+#[rstest]
 #[tokio::test]
-async fn pages_ask_to_sign_in_and_come_back() {
-    let app = TestApp::spawn().await;
+async fn pages_ask_to_sign_in_and_come_back(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let res = browser()
         .get(app.url("/ui/sensors?status=ok"))
         .send()
@@ -138,9 +141,12 @@ async fn pages_ask_to_sign_in_and_come_back() {
     assert_eq!(css.headers()[CONTENT_TYPE], "text/css; charset=utf-8");
 }
 
+#[rstest]
 #[tokio::test]
-async fn a_wrong_token_or_a_forged_form_gets_the_form_again() {
-    let app = TestApp::spawn().await;
+async fn a_wrong_token_or_a_forged_form_gets_the_form_again(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let c = browser();
     let form = c.get(app.url("/ui/login")).send().await.unwrap();
     let (login, _) = set_cookie(&form, "accelcal_login").unwrap();
@@ -192,9 +198,10 @@ async fn a_wrong_token_or_a_forged_form_gets_the_form_again() {
     assert_eq!(cross.status(), StatusCode::FORBIDDEN);
 }
 
+#[rstest]
 #[tokio::test]
-async fn only_pages_of_the_site_are_returned_to() {
-    let app = TestApp::spawn().await;
+async fn only_pages_of_the_site_are_returned_to(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let c = browser();
     for next in [
         "https://evil.example/",
@@ -215,9 +222,12 @@ async fn only_pages_of_the_site_are_returned_to() {
     }
 }
 
+#[rstest]
 #[tokio::test]
-async fn sessions_end_on_expiry_revocation_and_sign_out() {
-    let app = TestApp::configured(|c| {
+async fn sessions_end_on_expiry_revocation_and_sign_out(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::configured(engine, |c| {
         c.web = Web {
             public_url: Some("https://cal.example.com".into()),
             session_ttl: Duration::from_secs(1),
@@ -321,9 +331,12 @@ async fn sessions_end_on_expiry_revocation_and_sign_out() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn unknown_pages_and_calibrations_are_pages_not_problems() {
-    let app = TestApp::spawn().await;
+async fn unknown_pages_and_calibrations_are_pages_not_problems(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let (session, _) = sign_in(&app, ADMIN).await;
     for path in [
         "/ui/nowhere",
@@ -344,10 +357,13 @@ async fn unknown_pages_and_calibrations_are_pages_not_problems() {
     assert!(res.text().await.unwrap().contains("status"));
 }
 
+#[rstest]
 #[tokio::test]
-async fn the_certificate_is_verifiable() {
-    let app =
-        TestApp::configured(|c| c.web.public_url = Some("https://cal.example.com/".into())).await;
+async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::configured(engine, |c| {
+        c.web.public_url = Some("https://cal.example.com/".into())
+    })
+    .await;
     let body = serde_json::to_vec(&paper()).unwrap();
     let res = app
         .client
@@ -453,9 +469,10 @@ fn at_the_limits() -> Value {
 /// leaves out, its page says so and stays small; a calibration at the input
 /// limits (1 000 runs × 200 positions) gives a page of bounded size that
 /// says what it does not show.
+#[rstest]
 #[tokio::test]
-async fn pages_are_bounded_whatever_the_history() {
-    let app = TestApp::spawn().await;
+async fn pages_are_bounded_whatever_the_history(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let station = app.token("station", None).await;
     let mut lanes = tokio::task::JoinSet::new();
     for lane in 0..8 {
@@ -466,7 +483,7 @@ async fn pages_are_bounded_whatever_the_history() {
         );
         lanes.spawn(async move {
             for k in (lane..600).step_by(8) {
-                let mut body = crate::helpers::submission("LONG-1", "2020-01-01T00:00:00Z", 4);
+                let mut body = accelcal_testkit::submission("LONG-1", "2020-01-01T00:00:00Z", 4);
                 body["performed_at"] = serde_json::json!(format!(
                     "{}-{:02}-{:02}T00:00:{:02}Z",
                     2000 + k / 300,

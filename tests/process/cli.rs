@@ -1,13 +1,13 @@
 //! The command line's promises, run as a user runs them: `identify`,
 //! `token create`, `health`, `serve`'s admin-token rules and first start.
-//! (`submit` is exercised by the walkthrough and `tests/reliability/client.rs`.)
+//! (`submit` is exercised by the walkthrough and `tests/api/client.rs`.)
 
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 
 use serde_json::Value;
 
-use crate::server::Server;
+use accelcal_testkit::process::Server;
 
 fn accelcal() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_accelcal"));

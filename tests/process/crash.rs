@@ -9,7 +9,7 @@ use reqwest::StatusCode;
 use serde_json::{Value, json};
 
 use crate::db::Db;
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 /// A deterministic xorshift, so a failing round can be replayed.
 struct Rng(u64);
@@ -96,7 +96,7 @@ async fn acknowledged_submissions_survive_kill_9() {
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn acknowledged_submissions_survive_kill_9_on_postgres() {
     crash_rounds(
-        Db::Postgres(crate::pg::TestDb::create().await),
+        Db::Postgres(accelcal_testkit::pg::TestDb::create().await),
         &["--request-timeout", "2"],
     )
     .await;

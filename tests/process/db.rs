@@ -8,7 +8,7 @@ pub enum Db {
     /// A SQLite file in this directory.
     Sqlite(tempfile::TempDir),
     /// A PostgreSQL database of its own.
-    Postgres(crate::pg::TestDb),
+    Postgres(accelcal_testkit::pg::TestDb),
 }
 
 impl Db {

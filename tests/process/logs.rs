@@ -8,7 +8,7 @@ use std::time::Duration;
 
 use serde_json::Value;
 
-use crate::server::ADMIN;
+use accelcal_testkit::process::ADMIN;
 
 /// Requests sent while nobody reads the log: more than the pipe (64 KiB),
 /// the writer's buffer (64 KiB) and the queue (16 384 lines) hold, since

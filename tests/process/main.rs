@@ -1,9 +1,6 @@
 //! The real `accelcal` binary as a process: kill -9 at random moments,
 //! SIGTERM with a request in flight, and what it writes to its log.
 
-#[path = "../common/pg.rs"]
-mod pg;
-
 mod cli;
 mod crash;
 mod db;
@@ -11,6 +8,5 @@ mod logs;
 mod metrics;
 mod migrate;
 mod replicas;
-mod server;
 mod shutdown;
 mod sqlite_file;

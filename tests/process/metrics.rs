@@ -6,7 +6,7 @@ use std::collections::HashMap;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 fn paper() -> Value {
     serde_json::from_str(include_str!("../../examples/paper-table1.json")).unwrap()

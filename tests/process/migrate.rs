@@ -5,7 +5,7 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 async fn call(
     c: &reqwest::Client,
@@ -142,7 +142,7 @@ async fn a_migrated_database_answers_every_get_identically() {
         assert!(s.child.wait().unwrap().success());
     }
 
-    let pg = crate::pg::TestDb::create().await;
+    let pg = accelcal_testkit::pg::TestDb::create().await;
     let from = format!("sqlite:{}", sqlite.display());
     let copied = migrated(&from, &pg.url);
     assert_eq!(
@@ -280,7 +280,7 @@ async fn a_killed_migrate_is_refused_by_the_service_and_resumed() {
     const N: usize = 1200;
     let dir = tempfile::tempdir().unwrap();
     let sqlite = source_with(dir.path(), N).await;
-    let pg = crate::pg::TestDb::create().await;
+    let pg = accelcal_testkit::pg::TestDb::create().await;
     let from = format!("sqlite:{}", sqlite.display());
     let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(["migrate", "--from", &from, "--to", &pg.url])

@@ -14,7 +14,7 @@ use reqwest::StatusCode;
 use serde_json::{Value, json};
 
 use crate::db::Db;
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 fn submission(sensor: &str, n: u64) -> Value {
     let runs: Vec<Value> = (0..4u64)
@@ -122,7 +122,7 @@ async fn submitter(
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn three_replicas_share_one_database_through_a_kill() {
-    let db = Db::Postgres(crate::pg::TestDb::create().await);
+    let db = Db::Postgres(accelcal_testkit::pg::TestDb::create().await);
     let flags = ["--request-timeout", "2"];
     let mut servers: Vec<Server> = Vec::new();
     for _ in 0..3 {

@@ -7,7 +7,7 @@ use serde_json::Value;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 #[tokio::test]
 async fn sigterm_finishes_in_flight_requests_and_exits_0() {

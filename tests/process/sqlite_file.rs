@@ -8,7 +8,7 @@ use std::process::Command;
 use reqwest::StatusCode;
 use serde_json::Value;
 
-use crate::server::{ADMIN, Server};
+use accelcal_testkit::process::{ADMIN, Server};
 
 fn accelcal() -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_accelcal"));

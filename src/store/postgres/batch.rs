@@ -31,10 +31,10 @@ use deadpool_postgres::Transaction;
 use time::OffsetDateTime;
 use uuid::Uuid;
 
-use super::calibrations::{Row, SENSOR_MERGE};
+use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
-use crate::store::{IdempotencyKey, StoreError, Stored};
+use crate::store::{IdempotencyKey, SENSOR_MERGE, StoreError, Stored};
 
 /// What writing a batch inside an open transaction came to.
 #[derive(Debug)]
@@ -307,9 +307,8 @@ async fn upsert_sensors(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
              SELECT * FROM unnest($1::text[], $2::int8[], $3::timestamptz[], $4::timestamptz[], \
-               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {} \
-             RETURNING pg_backend_pid() AS pid",
-            *SENSOR_MERGE
+               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {SENSOR_MERGE} \
+             RETURNING pg_backend_pid() AS pid"
         ))
         .await
         .map_err(map)?;

@@ -12,8 +12,6 @@
 //! of two requests completing one key at once, the second waits for the
 //! first's lock and finds the key completed, so it writes nothing.
 
-use std::sync::LazyLock;
-
 use bytes::Bytes;
 use deadpool_postgres::{Object, Transaction};
 use uuid::Uuid;
@@ -22,8 +20,8 @@ use super::errors::map;
 use super::rows::{self, RECORD_COLUMNS, SUMMARY_COLUMNS};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
-    StoredSubmission,
+    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, SENSOR_MERGE, Series,
+    StoreError, Stored, StoredSubmission,
 };
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
@@ -107,26 +105,6 @@ pub enum Written {
     /// must be rolled back.
     Raced,
 }
-
-/// How a sensor's upsert merges into its stored row what `excluded` holds
-/// of its new calibrations (one, or a batch's fold of several: see
-/// [`super::batch::fold`]): counts add; the first date is the least; the
-/// latest calibration (with its verdict and due date) is the newer by
-/// `(performed_at, id)`; a type assigned becomes the sensor's.
-pub(super) static SENSOR_MERGE: LazyLock<String> = LazyLock::new(|| {
-    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
-                 > (sensors.latest_performed_at, sensors.latest_calibration_id)";
-    format!(
-        "ON CONFLICT (sensor_id) DO UPDATE SET \
-           calibration_count = sensors.calibration_count + excluded.calibration_count, \
-           first_performed_at = least(sensors.first_performed_at, excluded.first_performed_at), \
-           latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE sensors.latest_calibration_id END, \
-           latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE sensors.latest_verdict END, \
-           latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE sensors.latest_due_at END, \
-           latest_performed_at = greatest(sensors.latest_performed_at, excluded.latest_performed_at), \
-           sensor_type = coalesce(excluded.sensor_type, sensors.sensor_type)"
-    )
-});
 
 /// Writes a calibration, its key and its sensor's summary in `tx`.
 ///
@@ -229,8 +207,7 @@ pub async fn write(
         .prepare_cached(&format!(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-             VALUES ($1, 1, $2, $2, $3, $4, $5, $6) {}",
-            *SENSOR_MERGE
+             VALUES ($1, 1, $2, $2, $3, $4, $5, $6) {SENSOR_MERGE}"
         ))
         .await
         .map_err(map)?;

@@ -114,17 +114,6 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
     })
 }
 
-/// A sensor's status (domain rule [`Status::of`]) in SQL, at `$now` and
-/// `$soon` (now plus 30 days), given as the placeholders named.
-pub fn status(now: &str, soon: &str) -> String {
-    format!(
-        "CASE WHEN s.latest_verdict = 'fail' THEN 'failed' \
-         WHEN s.latest_due_at IS NULL THEN 'unknown' \
-         WHEN s.latest_due_at < {now} THEN 'overdue' \
-         WHEN s.latest_due_at < {soon} THEN 'due_soon' ELSE 'ok' END"
-    )
-}
-
 /// The sensor columns beside [`SUMMARY_COLUMNS`] of its latest calibration,
 /// with the status computed at `$1` (now) and `$2` (now + 30 days).
 pub fn sensor_query(filter: &str) -> String {
@@ -133,7 +122,7 @@ pub fn sensor_query(filter: &str) -> String {
          s.sensor_type AS assigned_type, s.latest_verdict, s.latest_due_at, {} AS status, \
          {SUMMARY_COLUMNS} \
          FROM sensors s JOIN calibrations c ON c.id = s.latest_calibration_id {filter}",
-        status("$1", "$2")
+        Status::sql("$1", "$2")
     )
 }
 

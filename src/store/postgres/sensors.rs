@@ -5,7 +5,7 @@ use deadpool_postgres::Object;
 
 use super::errors::map;
 use super::rows;
-use crate::domain::status::DUE_SOON_DAYS;
+use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{SensorQuery, SensorSummary, StoreError};
 
@@ -17,7 +17,7 @@ pub async fn list(client: &Object, q: &SensorQuery) -> Result<Vec<SensorSummary>
          AND ($4::text IS NULL OR {} = $4) \
          AND ($5::text IS NULL OR strpos(lower(s.sensor_id), lower($5)) > 0) \
          ORDER BY s.sensor_id LIMIT $6",
-        rows::status("$1", "$2")
+        Status::sql("$1", "$2")
     ));
     let stmt = client.prepare_cached(&sql).await.map_err(map)?;
     let soon = q.now.plus_seconds(DUE_SOON_DAYS * 86_400);

@@ -4,8 +4,10 @@
 //! Each submission committing on its own costs PostgreSQL a transaction
 //! start and end, a commit record and a WAL flush, and costs accelcal a
 //! pooled connection for the time of four round trips; at 64 connections
-//! the measured submissions were two thirds PostgreSQL's CPU, spread thin
-//! over sixteen backends. Here requests hand their calibrations to a
+//! submissions cost PostgreSQL most of its CPU, spread thin over sixteen
+//! backends. Kept because it pays: with batches of one, 64 connections
+//! stored 0.11× the submissions per second (`benches/load.rs`, side by
+//! side). Here requests hand their calibrations to a
 //! bounded queue; the writer takes everything waiting (up to
 //! [`MAX_BATCH`]), writes them with [`batch::write`] — four statements for
 //! the whole batch, not two to four per calibration — in one transaction on

@@ -9,29 +9,18 @@ use uuid::Uuid;
 
 use super::errors::map;
 use super::rows::{self, SUMMARY_COLUMNS};
+use crate::store::SENSOR_MERGE;
 use crate::store::{
     CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
     StoredSubmission,
 };
 
-/// The sensor's row after a calibration is stored: counted, and the new
-/// calibration becomes the latest when it is newer (performed_at, then id); a
-/// type named by the submission becomes the sensor's. Formatted once.
+/// The sensor's row after a calibration is stored, by [`SENSOR_MERGE`].
 static UPSERT_SENSOR: LazyLock<String> = LazyLock::new(|| {
-    let newer = "(excluded.latest_performed_at, excluded.latest_calibration_id) \
-                 > (latest_performed_at, latest_calibration_id)";
     format!(
         "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
          latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-         VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) \
-         ON CONFLICT (sensor_id) DO UPDATE SET \
-           calibration_count = calibration_count + 1, \
-           first_performed_at = min(first_performed_at, excluded.first_performed_at), \
-           latest_calibration_id = CASE WHEN {newer} THEN excluded.latest_calibration_id ELSE latest_calibration_id END, \
-           latest_verdict = CASE WHEN {newer} THEN excluded.latest_verdict ELSE latest_verdict END, \
-           latest_due_at = CASE WHEN {newer} THEN excluded.latest_due_at ELSE latest_due_at END, \
-           latest_performed_at = max(latest_performed_at, excluded.latest_performed_at), \
-           sensor_type = coalesce(excluded.sensor_type, sensor_type)"
+         VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) {SENSOR_MERGE}"
     )
 });
 

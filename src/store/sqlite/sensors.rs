@@ -5,7 +5,7 @@ use rusqlite::{Connection, named_params};
 
 use super::errors::map;
 use super::rows;
-use crate::domain::status::DUE_SOON_DAYS;
+use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{SensorQuery, SensorSummary, StoreError};
 
@@ -16,7 +16,7 @@ pub fn list(conn: &Connection, q: &SensorQuery) -> Result<Vec<SensorSummary>, St
          AND (:status IS NULL OR {} = :status) \
          AND (:search IS NULL OR instr(lower(s.sensor_id), lower(:search)) > 0) \
          ORDER BY s.sensor_id LIMIT :limit",
-        rows::STATUS
+        Status::sql(":now", ":soon")
     ));
     let mut stmt = conn.prepare_cached(&sql).map_err(map)?;
     let mut found = stmt

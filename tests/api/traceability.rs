@@ -3,11 +3,12 @@
 use reqwest::StatusCode;
 use serde_json::Value;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 #[tokio::test]
 async fn a_client_request_id_is_kept_and_shown_in_problems() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let res = app
         .client
         .get(app.url("/v1/calibrations/nope"))
@@ -23,7 +24,7 @@ async fn a_client_request_id_is_kept_and_shown_in_problems() {
 
 #[tokio::test]
 async fn unusable_request_ids_are_replaced() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     for bad in ["has space", &"x".repeat(200)] {
         let res = app
             .client
@@ -42,7 +43,7 @@ async fn unusable_request_ids_are_replaced() {
 
 #[tokio::test]
 async fn responses_carry_security_headers() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     for res in [
         app.client.get(app.url("/healthz")).send().await.unwrap(),
         app.get("/v1/sensors", ADMIN).await,
@@ -58,6 +59,11 @@ async fn responses_carry_security_headers() {
         );
         assert_eq!(h["cross-origin-resource-policy"], "same-origin");
         assert_eq!(h["cache-control"], "no-store");
+        // Every header of the list, so that one added to it without its
+        // layer is noticed.
+        for (name, value) in accelcal::http::stack::SECURITY_HEADERS {
+            assert_eq!(h[name], value, "{name}");
+        }
         for name in [
             "x-frame-options",
             "content-security-policy",

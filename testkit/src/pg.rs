@@ -4,8 +4,6 @@
 //! and dropped when the test is done. When the server is not there the test
 //! fails, saying how to start it — it never skips.
 
-#![allow(dead_code)]
-
 use tokio_postgres::NoTls;
 
 /// The server tests use, as an administrator's URL.

@@ -10,7 +10,8 @@ use serde_json::{Value, json};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 async fn connect(app: &TestApp) -> TcpStream {
     TcpStream::connect(app.base.trim_start_matches("http://"))
@@ -48,7 +49,7 @@ fn idle_head(path: &str, token: Option<&str>) -> String {
 /// readiness stay green.
 #[tokio::test]
 async fn bodies_without_a_token_hold_no_budget_and_one_token_only_its_share() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let station = app.token("station", None).await;
     let mut idle = Vec::new();
     for path in ["/v1/calibrations", "/v1/fuse"].repeat(8) {
@@ -122,7 +123,7 @@ async fn post_gzip(app: &TestApp, path: &str, ct: &str, body: Vec<u8>) -> reqwes
 /// text — and bytes after the last member are refused, not dropped.
 #[tokio::test]
 async fn every_gzip_member_is_decoded_and_trailing_bytes_are_refused() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let csv = paper_csv();
     // Cut before run 5's first row: runs 1–4 in one member, 5–6 in another.
     let cut = csv
@@ -171,7 +172,7 @@ async fn every_gzip_member_is_decoded_and_trailing_bytes_are_refused() {
 /// are still judged and served.
 #[tokio::test]
 async fn failed_authentications_are_throttled_without_locking_out_holders() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let reader = app.token("reader", None).await;
     assert_eq!(
         app.get("/v1/sensors", &reader).await.status(),
@@ -223,7 +224,7 @@ fn now_plus(seconds: i64) -> String {
 /// after it as the sensor's latest.
 #[tokio::test]
 async fn a_calibration_from_the_future_cannot_pin_the_coefficients() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let station = app.token("station", None).await;
     for ahead in [10 * 60, 23 * 3600] {
         let res = app
@@ -261,7 +262,7 @@ async fn a_calibration_from_the_future_cannot_pin_the_coefficients() {
 /// submission; an admin may.
 #[tokio::test]
 async fn a_station_cannot_retype_a_sensor_through_a_submission() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let nav: Value =
         serde_json::from_str(include_str!("../../examples/sensor-type-nav.json")).unwrap();
     let mut lenient = nav.clone();
@@ -313,7 +314,7 @@ async fn a_station_cannot_retype_a_sensor_through_a_submission() {
 /// taken through the service (`GET /v1/backup`), the only way while it runs.
 #[tokio::test]
 async fn a_replaced_database_file_is_refused_until_restart() {
-    let mut app = TestApp::spawn().await;
+    let mut app = TestApp::spawn(Sqlite).await;
     let station = app.token("station", None).await;
     let first = app
         .submit(&station, &submission("SWAP-1", "2026-01-01T00:00:00Z", 4))
@@ -400,7 +401,7 @@ async fn readiness_fails_when_the_disk_has_no_room() {
     let st = rustix::fs::statvfs(dir.path()).unwrap();
     let free = st.f_bavail * st.f_frsize;
     for (min_free, ready) in [(free + (1 << 30), false), (free / 2, true)] {
-        let app = TestApp::configured(|c| c.min_free_disk_bytes = min_free).await;
+        let app = TestApp::configured(Sqlite, |c| c.min_free_disk_bytes = min_free).await;
         let res = app.client.get(app.url("/readyz")).send().await.unwrap();
         if ready {
             assert_eq!(res.status(), StatusCode::OK);

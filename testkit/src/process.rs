@@ -1,6 +1,5 @@
-//! Starting and stopping the real binary (also used by `benches/soak.rs`).
-
-#![allow(dead_code)]
+//! Starting and stopping the real `accelcal` binary, as the process tests
+//! and the benchmarks do.
 
 use std::io::{BufRead, BufReader};
 use std::process::{Child, Command, Stdio};
@@ -9,6 +8,29 @@ use std::time::Duration;
 
 /// The admin token the processes accept.
 pub const ADMIN: &str = "process-NJ8jG8uhd77gq4gmAqCmcXBKONroNBXNc-aSb0rumWw";
+
+/// The `accelcal` binary cargo built beside the running test or benchmark
+/// (`target/<profile>/accelcal`, the parent of its `deps/`), or the one
+/// `ACCELCAL_BENCH_BIN` names (a benchmark's "before").
+pub fn binary() -> std::path::PathBuf {
+    if let Some(bin) = std::env::var_os("ACCELCAL_BENCH_BIN") {
+        return bin.into();
+    }
+    let exe = std::env::current_exe().expect("the test's own path");
+    let deps = exe.parent().expect("the test's directory");
+    let profile = if deps.ends_with("deps") {
+        deps.parent().expect("the profile's directory")
+    } else {
+        deps
+    };
+    let bin = profile.join("accelcal");
+    assert!(
+        bin.exists(),
+        "{} is not built: cargo builds it for the accelcal package's own tests and benchmarks",
+        bin.display()
+    );
+    bin
+}
 
 /// A running `accelcal serve`.
 pub struct Server {
@@ -29,9 +51,7 @@ impl Server {
     /// Starts the binary on `db` with extra `serve` flags and a `RUST_LOG`
     /// filter, and waits until it listens.
     pub fn start_with(db: impl AsRef<std::ffi::OsStr>, flags: &[&str], rust_log: &str) -> Server {
-        // `ACCELCAL_BENCH_BIN` runs another build (a benchmark's "before").
-        let bin = std::env::var_os("ACCELCAL_BENCH_BIN")
-            .unwrap_or_else(|| env!("CARGO_BIN_EXE_accelcal").into());
+        let bin = binary();
         let mut child = Command::new(bin)
             .args(["serve", "--listen", "127.0.0.1:0", "--log-format", "json"])
             .args(["--shutdown-grace", "10"])
@@ -106,4 +126,38 @@ impl Drop for Server {
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
+}
+
+/// Signs in to the pages with `token` as a browser does (the sign-in
+/// form's cookie and CSRF value, then the form), and returns the `Cookie`
+/// header of the session opened.
+pub async fn sign_in(base: &str, token: &str) -> String {
+    let client = reqwest::Client::builder()
+        .redirect(reqwest::redirect::Policy::none())
+        .build()
+        .unwrap();
+    let cookie = |res: &reqwest::Response, name: &str| {
+        res.headers()
+            .get_all("set-cookie")
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .find_map(|v| {
+                v.split(';')
+                    .next()?
+                    .strip_prefix(&format!("{name}="))
+                    .map(str::to_owned)
+            })
+            .unwrap_or_else(|| panic!("no {name} cookie"))
+    };
+    let form = client.get(format!("{base}/ui/login")).send().await.unwrap();
+    let csrf = cookie(&form, "accelcal_login");
+    let res = client
+        .post(format!("{base}/ui/login"))
+        .header("cookie", format!("accelcal_login={csrf}"))
+        .form(&[("token", token), ("csrf", &csrf), ("next", "/ui/sensors")])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), 303, "signed in");
+    format!("accelcal_session={}", cookie(&res, "accelcal_session"))
 }

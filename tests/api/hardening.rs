@@ -10,7 +10,8 @@ use serde_json::{Value, json};
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 async fn post_body(
     app: &TestApp,
@@ -50,7 +51,7 @@ fn body_of(answer: &str) -> Value {
 /// error — not an answer growing with the square of the input.
 #[tokio::test]
 async fn csv_with_every_row_new_is_refused_small_and_fast() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     for rows in [700usize, 40_000] {
         let mut csv = String::from("run,angle_deg,output\n");
         for k in 0..rows {
@@ -75,7 +76,7 @@ async fn csv_with_every_row_new_is_refused_small_and_fast() {
 /// answers while two 4 MB CSVs are converted.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn health_answers_while_heavy_bodies_are_converted() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let mut csv = String::from("run,angle_deg,output\n");
     while csv.len() < 3_900_000 {
         let k = csv.len();
@@ -117,7 +118,7 @@ async fn health_answers_while_heavy_bodies_are_converted() {
 /// count, in an answer of a few kilobytes.
 #[tokio::test]
 async fn error_lists_are_capped_and_counted() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let positions: Vec<Value> = (0..360).map(|k| json!({"angle_deg": k})).collect();
     let samples = format!("[{}]", vec!["\"\""; 1000].join(","));
     let readings = format!("[{}]", vec![samples.as_str(); 360].join(","));
@@ -161,7 +162,7 @@ async fn error_lists_are_capped_and_counted() {
 /// fusion of tiny given values works.
 #[tokio::test]
 async fn tiny_outputs_calibrate_and_fuse_instead_of_overflowing() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let mut body = paper();
     let base = app
         .post("/v1/identify", ADMIN, &body)
@@ -231,7 +232,7 @@ async fn tiny_outputs_calibrate_and_fuse_instead_of_overflowing() {
 /// starting with `#` is kept — and an unknown metadata key is refused.
 #[tokio::test]
 async fn csv_rows_starting_with_a_hash_are_data() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let plain = paper_csv();
     let mut hashed = String::new();
     for (n, line) in plain.lines().enumerate() {
@@ -274,7 +275,7 @@ async fn csv_rows_starting_with_a_hash_are_data() {
 /// Finding 7: what the HTTP library refuses before routing is a problem.
 #[tokio::test]
 async fn errors_before_routing_are_problems() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let huge = format!(
         "GET /healthz HTTP/1.1\r\nHost: x\r\nX-Big: {}\r\n\r\n",
         "a".repeat(300_000)
@@ -318,7 +319,7 @@ fn gzip(bytes: &[u8]) -> Vec<u8> {
 /// encodings are 415, transfer codings other than chunked 501.
 #[tokio::test]
 async fn gzip_bodies_are_accepted_and_bounded() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let plain = serde_json::to_vec(&paper()).unwrap();
     let res = app
         .client
@@ -390,7 +391,7 @@ async fn gzip_bodies_are_accepted_and_bounded() {
 /// Finding 9: two Authorization headers are refused, not resolved.
 #[tokio::test]
 async fn two_authorization_headers_are_refused() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let reader = app.token("reader", None).await;
     let answer = raw(
         &app,
@@ -409,7 +410,7 @@ async fn two_authorization_headers_are_refused() {
 /// of the client's input is bounded.
 #[tokio::test]
 async fn pasted_tokens_are_redacted_and_echoes_bounded() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let token = app.token("reader", None).await;
     // `acc_<id>_<secret>`: the base64url secret may itself hold `_`.
     let secret = token.splitn(3, '_').nth(2).unwrap().to_owned();
@@ -450,7 +451,7 @@ async fn pasted_tokens_are_redacted_and_echoes_bounded() {
 /// on identify as on submit; an unbound one may name any.
 #[tokio::test]
 async fn identify_and_submit_agree_on_bound_stations() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let bound = app.token("station", Some("LAB-1")).await;
     let unbound = app.token("station", None).await;
     let mut body = paper();
@@ -479,7 +480,7 @@ async fn identify_and_submit_agree_on_bound_stations() {
 /// accepted and stored as sent.
 #[tokio::test]
 async fn spreadsheet_csv_is_accepted() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let csv = format!("\u{feff}{}", paper_csv().replace('\n', "\r"));
     let res = post_body(
         &app,
@@ -508,7 +509,7 @@ async fn spreadsheet_csv_is_accepted() {
 #[tokio::test]
 async fn the_database_is_private() {
     use std::os::unix::fs::PermissionsExt;
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     app.submit(ADMIN, &paper()).await;
     for suffix in ["", "-wal"] {
         let path = format!("{}{suffix}", app.db_path().display());
@@ -525,7 +526,7 @@ async fn the_database_is_private() {
 /// bound: the old conversion took minutes here).
 #[tokio::test]
 async fn refusal_of_a_hostile_csv_does_not_wait_for_the_deadline() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let mut csv = String::from("run,angle_deg,output\n");
     for k in 0..100_000 {
         csv += &format!("r{k},{k}.5,1\n");

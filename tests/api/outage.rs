@@ -9,11 +9,16 @@ use std::time::Duration;
 use reqwest::StatusCode;
 use serde_json::Value;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
+#[rstest]
 #[tokio::test]
-async fn an_unavailable_database_is_503_and_the_service_recovers_by_itself() {
-    let app = TestApp::spawn().await;
+async fn an_unavailable_database_is_503_and_the_service_recovers_by_itself(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
     let reader = app.token("reader", None).await;
     let first = app
         .submit(ADMIN, &submission("OUT-1", "2026-01-01T00:00:00Z", 4))

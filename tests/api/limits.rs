@@ -9,10 +9,11 @@ use reqwest::StatusCode;
 use tokio::io::{AsyncReadExt, AsyncWriteExt};
 use tokio::net::TcpStream;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 async fn strict_app(edit: impl FnOnce(&mut Config)) -> (TestApp, ()) {
-    let app = TestApp::configured(|config| {
+    let app = TestApp::configured(Sqlite, |config| {
         config.header_timeout = Duration::from_secs(1);
         config.limits.body_timeout = Duration::from_secs(1);
         config.limits.max_body_bytes = 1024;

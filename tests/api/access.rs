@@ -4,7 +4,9 @@
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Who {
@@ -50,12 +52,13 @@ fn expected(who: Who, needs: Needs, ok: StatusCode) -> StatusCode {
     }
 }
 
+#[rstest]
 #[tokio::test]
-async fn every_endpoint_against_every_kind_of_caller() {
+async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)] engine: Engine) {
     // Every kind of bad credential, many times over, from one address: the
     // throttle of failed authentications (tested in `round_three`) is
     // widened so that each answer here is the one the credential earns.
-    let app = TestApp::configured(|c| c.limits.auth_failure_burst = 10_000).await;
+    let app = TestApp::configured(engine, |c| c.limits.auth_failure_burst = 10_000).await;
     let revoked: Value = app
         .post("/v1/tokens", ADMIN, &json!({"role": "admin"}))
         .await

@@ -3,7 +3,9 @@
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+use rstest::rstest;
 
 async fn post_with_key(app: &TestApp, token: &str, key: &str, body: &Value) -> reqwest::Response {
     app.client
@@ -26,9 +28,10 @@ async fn count(app: &TestApp, sensor: &str) -> u64 {
         .unwrap()
 }
 
+#[rstest]
 #[tokio::test]
-async fn same_key_same_body_replays_the_original() {
-    let app = TestApp::spawn().await;
+async fn same_key_same_body_replays_the_original(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let body = submission("I-1", "2026-01-01T00:00:00Z", 4);
     let first = post_with_key(&app, ADMIN, "k-1", &body).await;
     assert_eq!(first.status(), StatusCode::CREATED);
@@ -47,9 +50,10 @@ async fn same_key_same_body_replays_the_original() {
     assert_eq!(count(&app, "I-1").await, 1);
 }
 
+#[rstest]
 #[tokio::test]
-async fn same_key_different_body_is_refused() {
-    let app = TestApp::spawn().await;
+async fn same_key_different_body_is_refused(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let body = submission("I-2", "2026-01-01T00:00:00Z", 4);
     assert_eq!(
         post_with_key(&app, ADMIN, "k-2", &body).await.status(),
@@ -65,9 +69,10 @@ async fn same_key_different_body_is_refused() {
     assert_eq!(count(&app, "I-2").await, 1);
 }
 
+#[rstest]
 #[tokio::test]
-async fn keys_are_scoped_to_the_token() {
-    let app = TestApp::spawn().await;
+async fn keys_are_scoped_to_the_token(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let a = app.token("station", None).await;
     let b = app.token("station", None).await;
     let body = submission("I-3", "2026-01-01T00:00:00Z", 4);
@@ -85,9 +90,10 @@ async fn keys_are_scoped_to_the_token() {
     assert_eq!(count(&app, "I-3").await, 2);
 }
 
+#[rstest]
 #[tokio::test]
-async fn a_refused_request_does_not_burn_its_key() {
-    let app = TestApp::spawn().await;
+async fn a_refused_request_does_not_burn_its_key(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let mut bad = submission("I-4", "2026-01-01T00:00:00Z", 4);
     bad["batchs"] = json!(2);
     let res = post_with_key(&app, ADMIN, "k-4", &bad).await;
@@ -100,9 +106,10 @@ async fn a_refused_request_does_not_burn_its_key() {
     );
 }
 
+#[rstest]
 #[tokio::test]
-async fn malformed_keys_are_refused() {
-    let app = TestApp::spawn().await;
+async fn malformed_keys_are_refused(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
     let body = submission("I-5", "2026-01-01T00:00:00Z", 4);
     for key in ["has space", &"x".repeat(256)] {
         let p = problem(
@@ -117,9 +124,10 @@ async fn malformed_keys_are_refused() {
 
 /// Concurrent retries of one key: exactly one record, every answer either
 /// that record or "in flight" (409, retry).
+#[rstest]
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
-async fn concurrent_retries_store_exactly_one_record() {
-    let app = std::sync::Arc::new(TestApp::spawn().await);
+async fn concurrent_retries_store_exactly_one_record(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = std::sync::Arc::new(TestApp::spawn(engine).await);
     for round in 0..5 {
         let key = format!("burst-{round}");
         let body = submission(&format!("IC-{round}"), "2026-01-01T00:00:00Z", 6);
@@ -165,11 +173,14 @@ async fn concurrent_retries_store_exactly_one_record() {
 /// `accelcal submit`'s client rides out an outage: it retries the 503s and,
 /// thanks to the content-derived key, stores the upload once however many
 /// copies run.
+#[rstest]
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn the_submit_client_retries_through_an_outage_without_duplicates() {
+async fn the_submit_client_retries_through_an_outage_without_duplicates(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
     use std::sync::Arc;
     use std::sync::atomic::{AtomicU32, Ordering};
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(engine).await;
     app.db().cut();
     let retried: Vec<Arc<AtomicU32>> = (0..3).map(|_| Arc::new(AtomicU32::new(0))).collect();
     let uploads: Vec<_> = retried

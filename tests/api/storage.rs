@@ -4,11 +4,12 @@ use std::time::Duration;
 
 use reqwest::StatusCode;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 #[tokio::test]
 async fn a_missing_database_is_503_until_it_returns() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     app.submit(ADMIN, &submission("D-1", "2026-01-01T00:00:00Z", 4))
         .await;
     let aside = app.db_path().with_extension("aside");
@@ -55,7 +56,7 @@ async fn a_missing_database_is_503_until_it_returns() {
 
 #[tokio::test]
 async fn a_locked_database_is_503_until_the_lock_is_released() {
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     let locker = rusqlite::Connection::open(app.db_path()).unwrap();
     locker.execute_batch("BEGIN EXCLUSIVE").unwrap();
 

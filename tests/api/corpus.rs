@@ -6,7 +6,8 @@ use reqwest::{Method, StatusCode};
 use rusqlite::{Connection, OpenFlags};
 use serde_json::Value;
 
-use crate::helpers::*;
+use accelcal_testkit::Engine::Sqlite;
+use accelcal_testkit::*;
 
 /// Sets (creating object members) or removes the value at a JSON pointer.
 fn patch(doc: &mut Value, pointer: &str, value: Option<Value>) {
@@ -98,7 +99,7 @@ async fn every_bad_input_gets_a_precise_4xx_and_changes_nothing() {
     let cases: Vec<Value> =
         serde_json::from_str(include_str!("../corpus/bad_inputs.json")).unwrap();
     assert!(cases.len() >= 60, "the corpus must hold at least 60 cases");
-    let app = TestApp::spawn().await;
+    let app = TestApp::spawn(Sqlite).await;
     app.submit(ADMIN, &paper()).await;
     let reader = app.token("reader", None).await;
     let before = snapshot(&app.db_path());

@@ -11,7 +11,7 @@ use accelcal::client::{Retry, Upload, idempotency_key, submit};
 use axum::http::{HeaderMap, StatusCode};
 use axum::routing::post;
 
-use crate::helpers::eventually;
+use accelcal_testkit::eventually;
 
 /// A server answering each attempt with the next status of `script`
 /// (`Retry-After: 1` on 429), recording the keys it saw.

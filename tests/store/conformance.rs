@@ -1,0 +1,693 @@
+//! The conformance suite every engine runs, bare and behind the cache.
+
+use super::*;
+
+async fn calibrations_and_sensors(s: &dyn Store) {
+    let a = calibration("S-1", "2026-01-01T00:00:00Z");
+    let b = calibration("S-1", "2026-03-01T00:00:00Z");
+    let c = calibration("S-1", "2026-02-01T00:00:00Z");
+    let d = calibration("S-2", "2026-01-01T00:00:00Z");
+    for n in [&a, &b, &c, &d] {
+        assert_eq!(
+            s.insert_calibration(n.clone(), None).await.unwrap(),
+            Stored::New
+        );
+    }
+    assert_eq!(s.calibration_result(a.id).await.unwrap().unwrap(), a.result);
+    let sub = s.submission(a.id).await.unwrap().unwrap();
+    assert_eq!(
+        (sub.content_type.as_str(), &sub.body[..]),
+        ("application/json", &a.submission[..])
+    );
+    assert!(
+        s.calibration_result(Uuid::now_v7())
+            .await
+            .unwrap()
+            .is_none()
+    );
+
+    let s1 = s.sensor("S-1".into(), now()).await.unwrap().unwrap();
+    assert_eq!(s1.calibration_count, 3);
+    assert_eq!(
+        s1.latest.id, b.id,
+        "latest is by performed_at, not by arrival"
+    );
+    assert_eq!(s1.first_performed_at, t("2026-01-01T00:00:00Z"));
+    assert_eq!(s1.latest.coefficients, b.coefficients);
+    assert_eq!(s1.latest.std_errors, b.std_errors);
+    assert_eq!(s1.latest.model, b.model);
+    assert_eq!(s1.latest.performed_at, b.performed_at);
+    assert!(s.sensor("S-9".into(), now()).await.unwrap().is_none());
+
+    let page = s.sensors(all_sensors(None, 1)).await.unwrap();
+    assert_eq!(
+        page.iter()
+            .map(|x| x.sensor_id.as_str())
+            .collect::<Vec<_>>(),
+        ["S-1"]
+    );
+    let page = s
+        .sensors(all_sensors(Some("S-1".into()), 10))
+        .await
+        .unwrap();
+    assert_eq!(
+        page.iter()
+            .map(|x| x.sensor_id.as_str())
+            .collect::<Vec<_>>(),
+        ["S-2"]
+    );
+
+    let all = |q: HistoryQuery| async move {
+        s.history("S-1".into(), q)
+            .await
+            .unwrap()
+            .into_iter()
+            .map(|c| c.id)
+            .collect::<Vec<_>>()
+    };
+    let q = |before, from: Option<&str>, to: Option<&str>| HistoryQuery {
+        from: from.map(t),
+        to: to.map(t),
+        before,
+        limit: 10,
+    };
+    assert_eq!(all(q(None, None, None)).await, [b.id, c.id, a.id]);
+    assert_eq!(all(q(Some(b.id), None, None)).await, [c.id, a.id]);
+    assert_eq!(
+        all(q(
+            None,
+            Some("2026-01-15T00:00:00Z"),
+            Some("2026-02-01T00:00:00Z")
+        ))
+        .await,
+        [c.id]
+    );
+    assert_eq!(
+        s.calibration_summary(d.id)
+            .await
+            .unwrap()
+            .unwrap()
+            .sensor_id,
+        "S-2"
+    );
+}
+
+async fn tokens(s: &dyn Store) {
+    assert!(!s.has_admin_token().await.unwrap());
+    let record = TokenRecord {
+        id: Uuid::now_v7(),
+        secret_hash: vec![7; 32],
+        role: Role::Admin,
+        station_id: None,
+        label: Some("ops".into()),
+        created_at: t("2026-11-22T00:00:00Z"),
+        revoked_at: None,
+    };
+    s.insert_token(record.clone()).await.unwrap();
+    assert_eq!(s.token(record.id).await.unwrap().unwrap(), record);
+    assert!(s.has_admin_token().await.unwrap());
+    assert_eq!(s.tokens().await.unwrap(), vec![record.clone()]);
+    assert!(
+        s.revoke_token(record.id, t("2026-11-22T01:00:00Z"))
+            .await
+            .unwrap()
+    );
+    assert!(
+        !s.revoke_token(record.id, t("2026-11-22T02:00:00Z"))
+            .await
+            .unwrap(),
+        "revoked once only"
+    );
+    assert_eq!(
+        s.token(record.id).await.unwrap().unwrap().revoked_at,
+        Some(t("2026-11-22T01:00:00Z"))
+    );
+    assert!(!s.has_admin_token().await.unwrap());
+}
+
+async fn idempotency(s: &dyn Store) {
+    let now = t("2026-11-22T00:00:00Z");
+    let lease = now.plus_seconds(90);
+    // A new key is fresh, then in flight for the same request, a mismatch for another.
+    assert_eq!(
+        s.claim_key(key("k", 1), now, lease).await.unwrap(),
+        Claim::Fresh
+    );
+    assert_eq!(
+        s.claim_key(key("k", 1), now, lease).await.unwrap(),
+        Claim::InFlight
+    );
+    assert_eq!(
+        s.claim_key(key("k", 2), now, lease).await.unwrap(),
+        Claim::Mismatch
+    );
+    // An expired lease may be taken over.
+    let later = now.plus_seconds(120);
+    assert_eq!(
+        s.claim_key(key("k", 1), later, later.plus_seconds(90))
+            .await
+            .unwrap(),
+        Claim::Fresh
+    );
+    // Completing the key records it; retries replay it.
+    let c = calibration("S-K", "2026-01-01T00:00:00Z");
+    assert_eq!(
+        s.insert_calibration(c.clone(), Some(key("k", 1)))
+            .await
+            .unwrap(),
+        Stored::New
+    );
+    assert_eq!(
+        s.claim_key(key("k", 1), later, later).await.unwrap(),
+        Claim::Done(c.id)
+    );
+    // A second completion of the same key stores nothing and names the first.
+    let twin = calibration("S-K", "2026-01-01T00:00:00Z");
+    assert_eq!(
+        s.insert_calibration(twin.clone(), Some(key("k", 1)))
+            .await
+            .unwrap(),
+        Stored::Existing(c.id)
+    );
+    assert!(s.calibration_result(twin.id).await.unwrap().is_none());
+    assert_eq!(
+        s.sensor("S-K".into(), now)
+            .await
+            .unwrap()
+            .unwrap()
+            .calibration_count,
+        1
+    );
+    // A released key is forgotten; a completed one is not.
+    assert_eq!(
+        s.claim_key(key("r", 3), now, lease).await.unwrap(),
+        Claim::Fresh
+    );
+    s.release_key(key("r", 3)).await.unwrap();
+    assert_eq!(
+        s.claim_key(key("r", 4), now, lease).await.unwrap(),
+        Claim::Fresh
+    );
+    s.release_key(key("k", 1)).await.unwrap();
+    assert_eq!(
+        s.claim_key(key("k", 1), later, later).await.unwrap(),
+        Claim::Done(c.id)
+    );
+    // A request whose lease expired and was taken over cannot free the key:
+    // it belongs to the request that holds it now.
+    let first = IdempotencyKey {
+        holder: Uuid::from_u128(7),
+        ..key("t", 5)
+    };
+    let second = IdempotencyKey {
+        holder: Uuid::from_u128(8),
+        ..key("t", 5)
+    };
+    assert_eq!(
+        s.claim_key(first.clone(), now, lease).await.unwrap(),
+        Claim::Fresh
+    );
+    assert_eq!(
+        s.claim_key(second.clone(), later, later.plus_seconds(90))
+            .await
+            .unwrap(),
+        Claim::Fresh
+    );
+    s.release_key(first).await.unwrap();
+    assert_eq!(
+        s.claim_key(key("t", 5), later, later.plus_seconds(90))
+            .await
+            .unwrap(),
+        Claim::InFlight,
+        "the live lease survives a late release by its former holder"
+    );
+    s.release_key(second).await.unwrap();
+    assert_eq!(
+        s.claim_key(key("t", 5), later, later.plus_seconds(90))
+            .await
+            .unwrap(),
+        Claim::Fresh,
+        "its holder may release it"
+    );
+    // Keys are per principal.
+    let other = IdempotencyKey {
+        principal: "p-2".into(),
+        ..key("k", 9)
+    };
+    assert_eq!(s.claim_key(other, now, lease).await.unwrap(), Claim::Fresh);
+    // Keys are kept 48 hours, then forgotten.
+    let day = now.plus_seconds(24 * 3600);
+    assert_eq!(
+        s.claim_key(key("k", 1), day, day).await.unwrap(),
+        Claim::Done(c.id)
+    );
+    let gone = now.plus_seconds(49 * 3600);
+    assert_eq!(
+        s.claim_key(key("k", 1), gone, gone.plus_seconds(90))
+            .await
+            .unwrap(),
+        Claim::Fresh
+    );
+}
+
+/// Nothing non-finite is ever stored: a record holding NaN or infinity is
+/// refused before anything is written, and the sensor is left untouched.
+async fn non_finite_values_are_refused(s: &dyn Store) {
+    for bad in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+        let mut c = calibration("S-NAN", "2026-01-01T00:00:00Z");
+        c.coefficients = TermMap(vec![(Term::K0, bad), (Term::Ki, -1.2)]);
+        let err = s.insert_calibration(c.clone(), None).await.unwrap_err();
+        assert!(matches!(err, StoreError::Refused(_)), "{err:?}");
+        let mut c = calibration("S-NAN", "2026-01-01T00:00:00Z");
+        c.std_errors = TermMap(vec![(Term::K0, 1e-6), (Term::Ki, bad)]);
+        assert!(s.insert_calibration(c.clone(), None).await.is_err());
+        assert!(s.calibration_result(c.id).await.unwrap().is_none());
+        let mut c = calibration("S-NAN", "2026-01-01T00:00:00Z");
+        c.expanded = Some(TermMap(vec![(Term::K0, bad), (Term::Ki, 1e-6)]));
+        let err = s.insert_calibration(c.clone(), None).await.unwrap_err();
+        assert!(matches!(err, StoreError::Refused(_)), "{err:?}");
+    }
+    assert!(s.sensor("S-NAN".into(), now()).await.unwrap().is_none());
+}
+
+/// Every stored number comes back bit for bit: what a control system loads
+/// is exactly what the calibration computed (found by the soak: serde_json
+/// without `float_roundtrip` can parse a shortest representation 1 ulp off).
+async fn numbers_round_trip_exactly(s: &dyn Store) {
+    let mut state: u64 = 0x9e37_79b9_7f4a_7c15;
+    let mut next = || {
+        // xorshift64*: deterministic, spread over magnitudes and mantissas.
+        state ^= state >> 12;
+        state ^= state << 25;
+        state ^= state >> 27;
+        let bits = state.wrapping_mul(0x2545_f491_4f6c_dd1d);
+        let x = f64::from_bits((bits >> 12) | 0x3ff0_0000_0000_0000) - 1.0;
+        x * 10f64.powi((bits % 40) as i32 - 20) * if bits & 1 == 0 { 1.0 } else { -1.0 }
+    };
+    for _ in 0..200 {
+        let mut c = calibration("S-BITS", "2026-01-01T00:00:00Z");
+        c.coefficients = TermMap(vec![(Term::K0, next()), (Term::Ki, next())]);
+        c.std_errors = TermMap(vec![(Term::K0, next().abs()), (Term::Ki, next().abs())]);
+        s.insert_calibration(c.clone(), None).await.unwrap();
+        let back = s.calibration_summary(c.id).await.unwrap().unwrap();
+        for ((_, a), (_, b)) in back.coefficients.iter().zip(c.coefficients.iter()) {
+            assert_eq!(a.to_bits(), b.to_bits(), "{a:e} came back for {b:e}");
+        }
+        for ((_, a), (_, b)) in back.std_errors.iter().zip(c.std_errors.iter()) {
+            assert_eq!(a.to_bits(), b.to_bits(), "{a:e} came back for {b:e}");
+        }
+        assert_eq!(back.expanded, c.expanded);
+    }
+}
+
+/// Sensors found by a part of their id, any case, with the other filters.
+async fn search(s: &dyn Store) {
+    for id in ["FIND-acc-001", "FIND-ACC-002", "FIND-gyro-1"] {
+        s.insert_calibration(calibration(id, "2026-01-01T00:00:00Z"), None)
+            .await
+            .unwrap();
+    }
+    let found = |text: &str| {
+        let q = SensorQuery {
+            search: Some(text.into()),
+            ..all_sensors(None, 50)
+        };
+        async move {
+            s.sensors(q)
+                .await
+                .unwrap()
+                .into_iter()
+                .map(|x| x.sensor_id)
+                .collect::<Vec<_>>()
+        }
+    };
+    assert_eq!(found("acc-").await, ["FIND-ACC-002", "FIND-acc-001"]);
+    assert_eq!(found("GYRO").await, ["FIND-gyro-1"]);
+    assert_eq!(found("find-").await.len(), 3);
+    assert!(
+        found("%").await.is_empty(),
+        "no wildcard: `%` is a character"
+    );
+    assert!(
+        found("_").await.is_empty(),
+        "no wildcard: `_` is a character"
+    );
+    let after = SensorQuery {
+        search: Some("acc".into()),
+        ..all_sensors(Some("FIND-ACC-002".into()), 50)
+    };
+    let page: Vec<String> = s
+        .sensors(after)
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|x| x.sensor_id)
+        .collect();
+    assert_eq!(page, ["FIND-acc-001"]);
+}
+
+/// Web sessions: stored by the hash of their id, read back whole, ended
+/// once; expired ones forgotten when a new one opens.
+async fn sessions(s: &dyn Store) {
+    use accelcal::domain::session::open;
+    let (old, _) = open("p-1".into(), [1; 32], t("2026-01-01T00:00:00Z"), 60).unwrap();
+    s.insert_session(old.clone()).await.unwrap();
+    assert_eq!(s.session(old.id_hash).await.unwrap(), Some(old.clone()));
+    let (new, _) = open("p-2".into(), [2; 32], t("2026-01-01T00:01:00Z"), 60).unwrap();
+    s.insert_session(new.clone()).await.unwrap();
+    assert_eq!(
+        s.session(old.id_hash).await.unwrap(),
+        None,
+        "expired by the new one's start"
+    );
+    assert_eq!(s.session(new.id_hash).await.unwrap(), Some(new.clone()));
+    assert!(s.delete_session(new.id_hash).await.unwrap());
+    assert!(!s.delete_session(new.id_hash).await.unwrap());
+    assert_eq!(s.session(new.id_hash).await.unwrap(), None);
+}
+
+pub(crate) fn sensor_type(id: &str, interval_days: u32) -> SensorType {
+    SensorType {
+        type_id: id.into(),
+        label: Some("nav".into()),
+        limits: TermMap(vec![(
+            Term::K0,
+            Limit {
+                min: Some(-1e-3),
+                max: Some(1e-3),
+            },
+        )]),
+        decision_rule: Rule::Guarded,
+        coverage_factor: 2.0,
+        interval_days,
+        updated_at: now(),
+    }
+}
+
+/// Sensor types, their assignment, and what typed calibrations leave on
+/// their sensor: the latest verdict and due date, from which the status is
+/// computed — by the store in SQL, to filter, and by the domain's rule,
+/// which must agree.
+async fn types_and_statuses(s: &dyn Store) {
+    assert!(
+        s.put_sensor_type(sensor_type("NAV", 365)).await.unwrap(),
+        "created"
+    );
+    assert!(
+        !s.put_sensor_type(sensor_type("NAV", 180)).await.unwrap(),
+        "replaced"
+    );
+    assert_eq!(
+        s.sensor_type("NAV".into())
+            .await
+            .unwrap()
+            .unwrap()
+            .interval_days,
+        180
+    );
+    s.put_sensor_type(sensor_type("AAA", 30)).await.unwrap();
+    let ids: Vec<String> = s
+        .sensor_types()
+        .await
+        .unwrap()
+        .into_iter()
+        .map(|t| t.type_id)
+        .collect();
+    assert_eq!(ids, ["AAA", "NAV"]);
+    assert!(s.sensor_type("NONE".into()).await.unwrap().is_none());
+
+    // One sensor per status, at now() = 2026-11-22.
+    let typed = |sensor: &str, at: &str, verdict: Verdict, due: &str| {
+        let mut c = calibration(sensor, at);
+        c.sensor_type = Some("NAV".into());
+        c.assigns_type = true;
+        c.verdict = Some(verdict);
+        c.due_at = Some(t(due));
+        c
+    };
+    for c in [
+        typed(
+            "ST-FAILED",
+            "2026-10-01T00:00:00Z",
+            Verdict::Fail,
+            "2027-04-01T00:00:00Z",
+        ),
+        typed(
+            "ST-OVERDUE",
+            "2025-01-01T00:00:00Z",
+            Verdict::Pass,
+            "2025-07-01T00:00:00Z",
+        ),
+        typed(
+            "ST-SOON",
+            "2026-06-01T00:00:00Z",
+            Verdict::Conditional,
+            "2026-12-01T00:00:00Z",
+        ),
+        typed(
+            "ST-OK",
+            "2026-10-01T00:00:00Z",
+            Verdict::Pass,
+            "2027-04-01T00:00:00Z",
+        ),
+        calibration("ST-UNKNOWN", "2026-10-01T00:00:00Z"),
+    ] {
+        s.insert_calibration(c, None).await.unwrap();
+    }
+    // An older calibration does not replace the latest verdict.
+    s.insert_calibration(
+        typed(
+            "ST-OK",
+            "2020-01-01T00:00:00Z",
+            Verdict::Fail,
+            "2020-07-01T00:00:00Z",
+        ),
+        None,
+    )
+    .await
+    .unwrap();
+    let ok = s.sensor("ST-OK".into(), now()).await.unwrap().unwrap();
+    assert_eq!(
+        (ok.status, ok.latest_verdict, ok.sensor_type.as_deref()),
+        (Status::Ok, Some(Verdict::Pass), Some("NAV"))
+    );
+    assert_eq!(ok.due_at, Some(t("2027-04-01T00:00:00Z")));
+    for status in Status::ALL {
+        let page = s
+            .sensors(SensorQuery {
+                after: Some("ST-".into()),
+                status: Some(status),
+                search: None,
+                now: now(),
+                limit: 50,
+            })
+            .await
+            .unwrap();
+        let names: Vec<&str> = page
+            .iter()
+            .map(|x| x.sensor_id.as_str())
+            .filter(|n| n.starts_with("ST-"))
+            .collect();
+        let want = match status {
+            Status::Failed => "ST-FAILED",
+            Status::Overdue => "ST-OVERDUE",
+            Status::DueSoon => "ST-SOON",
+            Status::Ok => "ST-OK",
+            Status::Unknown => "ST-UNKNOWN",
+        };
+        assert_eq!(names, [want], "{status:?}");
+        for x in &page {
+            let rule = Status::of(x.latest_verdict == Some(Verdict::Fail), x.due_at, now());
+            assert_eq!(
+                x.status, rule,
+                "the store and the domain's rule agree for {}",
+                x.sensor_id
+            );
+        }
+    }
+    // Assigning a type: only to an existing sensor; it applies from then on.
+    assert!(
+        s.assign_sensor_type("ST-UNKNOWN".into(), "AAA".into())
+            .await
+            .unwrap()
+    );
+    assert!(
+        !s.assign_sensor_type("NO-SUCH".into(), "AAA".into())
+            .await
+            .unwrap()
+    );
+    let unknown = s.sensor("ST-UNKNOWN".into(), now()).await.unwrap().unwrap();
+    assert_eq!(
+        (unknown.sensor_type.as_deref(), unknown.status),
+        (Some("AAA"), Status::Unknown)
+    );
+    // A calibration that does not name a type keeps the sensor's.
+    s.insert_calibration(calibration("ST-UNKNOWN", "2026-11-01T00:00:00Z"), None)
+        .await
+        .unwrap();
+    let kept = s.sensor("ST-UNKNOWN".into(), now()).await.unwrap().unwrap();
+    assert_eq!(kept.sensor_type.as_deref(), Some("AAA"));
+}
+
+/// The series (oldest first, within the window) and the previous
+/// calibration (strictly earlier).
+async fn series_and_previous(s: &dyn Store) {
+    let a = calibration("SER", "2026-01-01T00:00:00Z");
+    let b = calibration("SER", "2026-02-01T00:00:00Z");
+    let c = calibration("SER", "2026-03-01T00:00:00Z");
+    for x in [&c, &a, &b] {
+        s.insert_calibration(x.clone(), None).await.unwrap();
+    }
+    let ids = |v: accelcal::store::Series| {
+        (
+            v.items.into_iter().map(|x| x.id).collect::<Vec<_>>(),
+            v.in_window,
+        )
+    };
+    assert_eq!(
+        ids(s.series("SER".into(), None, None, 10).await.unwrap()),
+        (vec![a.id, b.id, c.id], 3)
+    );
+    assert_eq!(
+        ids(s
+            .series(
+                "SER".into(),
+                Some(t("2026-01-15T00:00:00Z")),
+                Some(t("2026-03-01T00:00:00Z")),
+                10
+            )
+            .await
+            .unwrap()),
+        (vec![b.id, c.id], 2)
+    );
+    // The limit keeps the latest, oldest first, and counts the window.
+    assert_eq!(
+        ids(s.series("SER".into(), None, None, 2).await.unwrap()),
+        (vec![b.id, c.id], 3)
+    );
+    assert_eq!(
+        ids(s.series("NONE".into(), None, None, 10).await.unwrap()),
+        (vec![], 0)
+    );
+    let prev = |at: &'static str| async move {
+        s.previous_calibration("SER".into(), t(at))
+            .await
+            .unwrap()
+            .map(|x| x.id)
+    };
+    assert_eq!(
+        prev("2026-03-01T00:00:00Z").await,
+        Some(b.id),
+        "strictly before"
+    );
+    assert_eq!(prev("2026-03-02T00:00:00Z").await, Some(c.id));
+    assert_eq!(prev("2026-01-01T00:00:00Z").await, None);
+    // The same answers, whole, once the sensor's summary was read (behind
+    // the sensor cache, that read fills it, and the cache answers what it
+    // can).
+    let whole = |at: &'static str| async move {
+        s.previous_calibration("SER".into(), t(at)).await.unwrap()
+    };
+    let dates = [
+        "2026-01-01T00:00:00Z",
+        "2026-02-15T00:00:00Z",
+        "2026-03-01T00:00:00Z",
+        "2026-03-01T00:00:00.000001Z",
+        "2027-01-01T00:00:00Z",
+    ];
+    let mut before = Vec::new();
+    for at in dates {
+        before.push(whole(at).await);
+    }
+    s.sensor("SER".into(), now()).await.unwrap().unwrap();
+    for (at, expected) in dates.into_iter().zip(before) {
+        assert_eq!(whole(at).await, expected, "previous before {at}");
+    }
+    assert_eq!(
+        whole("2027-01-01T00:00:00Z").await.map(|x| x.id),
+        Some(c.id)
+    );
+
+    // The sensor's latest calibration follows a newer write, not an older
+    // one (behind the cache, a hit until that write brings it up to date).
+    let latest = || async {
+        s.sensor("SER".into(), now())
+            .await
+            .unwrap()
+            .map(|x| x.latest.id)
+    };
+    assert_eq!(latest().await, Some(c.id));
+    let d = calibration("SER", "2026-04-01T00:00:00Z");
+    s.insert_calibration(d.clone(), None).await.unwrap();
+    assert_eq!(latest().await, Some(d.id));
+    let older = calibration("SER", "2025-12-01T00:00:00Z");
+    let older_id = older.id;
+    s.insert_calibration(older, None).await.unwrap();
+    assert_eq!(latest().await, Some(d.id));
+
+    // History pages: newest first, a cursor continues after its calibration,
+    // a window bounds both ends.
+    let page = |limit: usize| HistoryQuery {
+        limit,
+        ..HistoryQuery::default()
+    };
+    let ids = |q: HistoryQuery| async {
+        s.history("SER".into(), q)
+            .await
+            .unwrap()
+            .into_iter()
+            .map(|x| x.id)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(ids(page(10)).await, [d.id, c.id, b.id, a.id, older_id]);
+    assert_eq!(ids(page(2)).await, [d.id, c.id]);
+    let after_c = HistoryQuery {
+        before: Some(c.id),
+        ..page(10)
+    };
+    assert_eq!(ids(after_c).await, [b.id, a.id, older_id]);
+}
+
+/// The whole suite, on a fresh, empty store.
+async fn conformance(s: Arc<dyn Store>) {
+    s.ping().await.unwrap();
+    calibrations_and_sensors(s.as_ref()).await;
+    tokens(s.as_ref()).await;
+    idempotency(s.as_ref()).await;
+    non_finite_values_are_refused(s.as_ref()).await;
+    numbers_round_trip_exactly(s.as_ref()).await;
+    types_and_statuses(s.as_ref()).await;
+    series_and_previous(s.as_ref()).await;
+    search(s.as_ref()).await;
+    sessions(s.as_ref()).await;
+    s.close().await;
+}
+
+#[tokio::test]
+async fn sqlite_conforms() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = SqliteStore::open(dir.path().join("conformance.db")).unwrap();
+    conformance(Arc::new(store)).await;
+}
+
+#[tokio::test]
+async fn postgres_conforms() {
+    let db = pg::TestDb::create().await;
+    let store = PostgresStore::open(&db.url).await.unwrap();
+    conformance(Arc::new(store)).await;
+}
+
+#[tokio::test]
+async fn sqlite_behind_the_cache_conforms() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("cached.db");
+    let store = accelcal::store::open(path.to_str().unwrap()).await.unwrap();
+    conformance(store).await;
+}
+
+#[tokio::test]
+async fn postgres_behind_the_cache_conforms() {
+    let db = pg::TestDb::create().await;
+    let (store, _) = cached_replica(&db.url).await;
+    conformance(store).await;
+}
