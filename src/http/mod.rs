@@ -34,7 +34,7 @@ use std::time::Duration;
 use axum::Router;
 use axum::error_handling::HandleErrorLayer;
 use axum::http::StatusCode;
-use axum::routing::{delete, get, post};
+use axum::routing::get;
 use tokio::sync::Semaphore;
 use tower::ServiceBuilder;
 use tower::limit::GlobalConcurrencyLimitLayer;
@@ -45,6 +45,8 @@ use tower_http::map_request_body::MapRequestBodyLayer;
 use tower_http::request_id::{PropagateRequestIdLayer, SetRequestIdLayer};
 use tower_http::timeout::TimeoutLayer;
 use tower_http::trace::TraceLayer;
+use utoipa_axum::router::OpenApiRouter;
+use utoipa_axum::routes;
 
 use self::problem::Problem;
 use self::stack::Admission;
@@ -210,55 +212,46 @@ impl AppState {
     }
 }
 
+/// The API's routes (behind admission), each handler named once: its
+/// `#[utoipa::path]` gives both the route's method and path and its entry
+/// in the OpenAPI document ([`openapi::document`]). Their `/v1` is written
+/// out and the routes merged rather than nested: a nested router strips
+/// its prefix from every request's URI (a new `Uri` each time).
+pub fn api_routes() -> OpenApiRouter<AppState> {
+    OpenApiRouter::default()
+        .routes(routes!(calibrations::submit))
+        .routes(routes!(calibrations::get))
+        .routes(routes!(calibrations::certificate))
+        .routes(routes!(calibrations::submission))
+        .routes(routes!(sensors::list))
+        .routes(routes!(sensors::get, sensors::update))
+        .routes(routes!(sensors::history))
+        .routes(routes!(coefficients::coefficients))
+        .routes(routes!(coefficients::compensate))
+        .routes(routes!(stability::report))
+        .routes(routes!(sensor_types::list))
+        .routes(routes!(sensor_types::get, sensor_types::put))
+        .routes(routes!(compute::identify))
+        .routes(routes!(compute::fuse))
+        .routes(routes!(tokens::create, tokens::list))
+        .routes(routes!(tokens::revoke))
+        .routes(routes!(backup::backup))
+}
+
+/// The probes and the document itself (no admission, no token).
+pub fn probe_routes() -> OpenApiRouter<AppState> {
+    OpenApiRouter::default()
+        .routes(routes!(health::healthz))
+        .routes(routes!(health::readyz))
+        .routes(routes!(health::openapi))
+}
+
 /// The whole application: routes, state and middleware.
 pub fn router(state: AppState) -> Router {
     let limits = state.limits;
-    // The API's routes with their `/v1` written out, merged rather than
-    // nested: a nested router strips its prefix from every request's URI
-    // (a new `Uri` each time).
-    let v1 = Router::new()
-        .route("/v1/calibrations", post(calibrations::submit))
-        .route("/v1/calibrations/{id}", get(calibrations::get))
-        .route(
-            "/v1/calibrations/{id}/certificate",
-            get(calibrations::certificate),
-        )
-        .route(
-            "/v1/calibrations/{id}/submission",
-            get(calibrations::submission),
-        )
-        .route("/v1/sensors", get(sensors::list))
-        .route(
-            "/v1/sensors/{sensor_id}",
-            get(sensors::get).put(sensors::update),
-        )
-        .route(
-            "/v1/sensors/{sensor_id}/calibrations",
-            get(sensors::history),
-        )
-        .route(
-            "/v1/sensors/{sensor_id}/coefficients",
-            get(coefficients::coefficients),
-        )
-        .route(
-            "/v1/sensors/{sensor_id}/compensate",
-            post(coefficients::compensate),
-        )
-        .route("/v1/sensors/{sensor_id}/stability", get(stability::report))
-        .route("/v1/sensor-types", get(sensor_types::list))
-        .route(
-            "/v1/sensor-types/{type_id}",
-            get(sensor_types::get).put(sensor_types::put),
-        )
-        .route("/v1/identify", post(compute::identify))
-        .route("/v1/fuse", post(compute::fuse))
-        .route("/v1/tokens", post(tokens::create).get(tokens::list))
-        .route("/v1/tokens/{id}", delete(tokens::revoke))
-        .route("/v1/backup", get(backup::backup));
+    let (v1, _) = api_routes().split_for_parts();
     let app = Router::new()
-        .route("/healthz", get(health::healthz))
-        .route("/readyz", get(health::readyz))
-        .route("/openapi.yaml", get(health::openapi))
+        .merge(probe_routes().split_for_parts().0)
         .route(
             "/",
             get(|| async { axum::response::Redirect::to("/ui/sensors") }),

@@ -19,9 +19,6 @@ use utoipa::{Modify, OpenApi};
 
 pub use self::responses::*;
 pub use self::schemas::*;
-use super::{
-    backup, calibrations, coefficients, compute, health, sensor_types, sensors, stability, tokens,
-};
 use crate::domain::schema::{
     CoefficientMap, GravitySchema, Identifier, ModelSchema, NullableCoefficientMap, TermSchema,
 };
@@ -44,7 +41,8 @@ impl Modify for Bearer {
     }
 }
 
-/// The document's source: every path and component.
+/// The document's source: everything but the paths, which come from the
+/// routes themselves ([`super::api_routes`], [`super::probe_routes`]).
 #[derive(OpenApi)]
 #[openapi(
     info(
@@ -55,16 +53,6 @@ impl Modify for Bearer {
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
     tags((name = "calibrations"), (name = "sensors"), (name = "sensor-types"), (name = "compute"), (name = "tokens"), (name = "operations"), (name = "health")),
-    paths(
-        health::healthz, health::readyz, health::openapi,
-        calibrations::submit, calibrations::get, calibrations::submission, calibrations::certificate,
-        sensors::list, sensors::get, sensors::update, sensors::history,
-        coefficients::coefficients, coefficients::compensate, stability::report,
-        sensor_types::put, sensor_types::list, sensor_types::get,
-        compute::identify, compute::fuse,
-        tokens::create, tokens::list, tokens::revoke,
-        backup::backup,
-    ),
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
@@ -90,6 +78,8 @@ pub struct ApiDoc;
 /// only a station token may be bound to a station.
 pub fn document() -> String {
     let mut doc = ApiDoc::openapi();
+    doc.merge(super::api_routes().into_openapi());
+    doc.merge(super::probe_routes().into_openapi());
     doc.info.version = env!("CARGO_PKG_VERSION").to_owned();
     // serde_norway's mappings keep insertion order: the document reads in
     // the order of the OpenAPI structs, maps (paths, schemas) sorted.
