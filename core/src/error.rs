@@ -103,6 +103,18 @@ pub enum Error {
         /// Which quantity (`coefficient`, `standard error`, `dispersion`, …).
         quantity: &'static str,
     },
+    /// A single run with as many positions as terms: it fits exactly, so it
+    /// has no standard errors to stand for the fused ones.
+    #[error(
+        "a single run of {positions} positions and {terms} terms fits exactly and gives no \
+         standard errors: add positions, or submit two runs or more"
+    )]
+    SingleRunWithoutDof {
+        /// Number of positions.
+        positions: usize,
+        /// Number of model terms.
+        terms: usize,
+    },
     /// Batch-estimation fusion of one coefficient failed.
     #[error("coefficient `{term}`: {source}")]
     Fusion {

@@ -14,10 +14,11 @@ use crate::{Error, Term};
 pub struct MeanEstimate {
     /// `x̄` per term.
     pub coefficients: TermMap<f64>,
-    /// Eq. 8 about the mean, absolute.
-    pub dispersion: TermMap<f64>,
-    /// Eq. 8 about the mean divided by `|x̄|` (`null` when `x̄ = 0`).
-    pub relative_dispersion: TermMap<Option<f64>>,
+    /// Eq. 8 about the mean, absolute; `None` for a single run.
+    pub dispersion: Option<TermMap<f64>>,
+    /// Eq. 8 about the mean divided by `|x̄|` (`null` when `x̄ = 0`); `None`
+    /// for a single run.
+    pub relative_dispersion: Option<TermMap<Option<f64>>>,
 }
 
 /// One batch, shared by every term: its runs and per-term mean and deviation.
@@ -40,11 +41,19 @@ pub struct FusedEstimate {
     pub coefficients: TermMap<f64>,
     /// Fused standard error `1/sqrt(Σ w_p)` per term.
     pub std_errors: TermMap<f64>,
-    /// Eq. 8 about the fused value, absolute.
-    pub dispersion: TermMap<f64>,
-    /// Eq. 8 about the fused value divided by `|x⁺|` (`null` when `x⁺ = 0`).
-    pub relative_dispersion: TermMap<Option<f64>>,
+    /// Eq. 8 about the fused value, absolute; `None` for a single run.
+    pub dispersion: Option<TermMap<f64>>,
+    /// Eq. 8 about the fused value divided by `|x⁺|` (`null` when `x⁺ = 0`);
+    /// `None` for a single run.
+    pub relative_dispersion: Option<TermMap<Option<f64>>>,
+    /// Why there are no batches and no eq. 8 ([`SINGLE_RUN`]), when so.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<&'static str>,
 }
+
+/// What a single run's estimates say of themselves.
+pub const SINGLE_RUN: &str = "a single run: the fused and mean coefficients are the run's own, \
+    with its own standard errors; batches and eq. 8 need two runs or more";
 
 /// Both across-run estimates.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -58,6 +67,17 @@ pub struct Estimates {
 /// Mean and fused estimates of per-run values, keyed by term, over `batches`
 /// batches. Every term must have the same number of values (one per run).
 pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates, Error> {
+    estimate_with_floors(values, batches, &TermMap(Vec::new()))
+}
+
+/// As [`estimate`], each term's batches weighted with their deviation floored
+/// at that term's entry of `floors` (see [`fusion::consistency_floor`]; a term
+/// without an entry has none).
+pub fn estimate_with_floors(
+    values: &TermMap<Vec<f64>>,
+    batches: usize,
+    floors: &TermMap<f64>,
+) -> Result<Estimates, Error> {
     let Some((_, first)) = values.0.first() else {
         return Err(Error::NoValues);
     };
@@ -73,7 +93,9 @@ pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates,
     }
     let mut fusions = Vec::with_capacity(values.len());
     for (term, xs) in values.iter() {
-        let f = fusion::fuse(xs, batches).map_err(|source| Error::Fusion { term, source })?;
+        let floor = floors.get(term).copied().unwrap_or(0.0);
+        let f = fusion::fuse_with_floor(xs, batches, floor)
+            .map_err(|source| Error::Fusion { term, source })?;
         fusions.push((term, xs.as_slice(), f));
     }
 
@@ -109,26 +131,48 @@ pub fn estimate(values: &TermMap<Vec<f64>>, batches: usize) -> Result<Estimates,
     let estimates = Estimates {
         mean: MeanEstimate {
             coefficients: per_term(&|xs, _| fusion::mean(xs)),
-            dispersion: mean_abs,
-            relative_dispersion: mean_rel,
+            dispersion: Some(mean_abs),
+            relative_dispersion: Some(mean_rel),
         },
         fused: FusedEstimate {
             batches: batch_summaries,
             coefficients: per_term(&|_, f| f.value),
             std_errors: per_term(&|_, f| f.std_error),
-            dispersion: fused_abs,
-            relative_dispersion: fused_rel,
+            dispersion: Some(fused_abs),
+            relative_dispersion: Some(fused_rel),
+            note: None,
         },
     };
     finite(&estimates.mean.coefficients, "mean")?;
-    finite(&estimates.mean.dispersion, "dispersion about the mean")?;
+    if let Some(d) = &estimates.mean.dispersion {
+        finite(d, "dispersion about the mean")?;
+    }
     finite(&estimates.fused.coefficients, "fused value")?;
     finite(&estimates.fused.std_errors, "fused standard error")?;
-    finite(
-        &estimates.fused.dispersion,
-        "dispersion about the fused value",
-    )?;
+    if let Some(d) = &estimates.fused.dispersion {
+        finite(d, "dispersion about the fused value")?;
+    }
     Ok(estimates)
+}
+
+/// The estimates of a single run: its coefficients and its own standard
+/// errors, no batches and no eq. 8 ([`SINGLE_RUN`]).
+pub fn single_run(coefficients: &TermMap<f64>, std_errors: &TermMap<f64>) -> Estimates {
+    Estimates {
+        mean: MeanEstimate {
+            coefficients: coefficients.clone(),
+            dispersion: None,
+            relative_dispersion: None,
+        },
+        fused: FusedEstimate {
+            batches: Vec::new(),
+            coefficients: coefficients.clone(),
+            std_errors: std_errors.clone(),
+            dispersion: None,
+            relative_dispersion: None,
+            note: Some(SINGLE_RUN),
+        },
+    }
 }
 
 /// Refuses a map holding a non-finite number, naming the term and quantity:
@@ -195,12 +239,25 @@ mod tests {
     }
 
     #[test]
+    fn each_term_is_floored_by_its_own_entry() {
+        let xs = vec![1.0, 1.000_002, 3.0, 5.0];
+        let v = TermMap(vec![(Term::K0, xs.clone()), (Term::Ki, xs.clone())]);
+        let floors = TermMap(vec![(Term::Ki, 2f64.sqrt())]);
+        let e = estimate_with_floors(&v, 2, &floors).unwrap();
+        let plain = fusion::fuse(&xs, 2).unwrap().value;
+        let floored = fusion::fuse_with_floor(&xs, 2, 2f64.sqrt()).unwrap().value;
+        assert_eq!(e.fused.coefficients.get(Term::K0), Some(&plain));
+        assert_eq!(e.fused.coefficients.get(Term::Ki), Some(&floored));
+        assert_ne!(plain, floored);
+    }
+
+    #[test]
     fn fused_dispersion_is_never_below_the_mean_dispersion() {
         let v = TermMap(vec![(Term::K0, vec![1.0, 1.5, 1.1, 4.0, 5.0, 4.2])]);
         let e = estimate(&v, 2).unwrap();
         let (m, f) = (
-            e.mean.dispersion.get(Term::K0).unwrap(),
-            e.fused.dispersion.get(Term::K0).unwrap(),
+            e.mean.dispersion.as_ref().unwrap()[Term::K0],
+            e.fused.dispersion.as_ref().unwrap()[Term::K0],
         );
         assert!(f > m, "{f} vs {m}");
         assert_eq!(e.fused.batches[1].runs, vec![3, 4, 5]);

@@ -18,6 +18,15 @@
 //! `k = 2`; the general form above is used for every `k`. With `k = 1` the
 //! fused value is the mean and its standard error `s/√n`.
 //!
+//! **Implausibly consistent batches.** When the runs carry their own
+//! standard errors (spare positions), a batch whose `s_p` of a coefficient is
+//! below [`CONSISTENCY_FLOOR`] × the median of the runs' standard errors of
+//! that coefficient agrees better than the runs' own noise allows (repeated
+//! or copied data): its weight uses `s_p` floored at that bound,
+//! `w_p = n_p / max(s_p, floor)²`, so it cannot outweigh the other batches by
+//! orders of magnitude ([`consistency_floor`], [`fuse_with_floor`]). The
+//! batch's reported `s_p` is unchanged.
+//!
 //! **Scale-free arithmetic.** `1/s_p²` overflows for values near 1e-155 and
 //! squares of deviations underflow to zero below 1e-162, although every
 //! result is representable. So the weights are taken relative to the
@@ -57,6 +66,31 @@ pub fn mean(values: &[f64]) -> f64 {
     } else {
         values.iter().map(|x| x / n).sum()
     }
+}
+
+/// The median (the mean of the middle two for an even count); NaN when empty.
+pub fn median(values: &[f64]) -> f64 {
+    let mut v = values.to_vec();
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        mean(&v[n / 2 - 1..=n / 2])
+    }
+}
+
+/// A batch deviation below this fraction of the runs' median standard error
+/// is implausibly small.
+pub const CONSISTENCY_FLOOR: f64 = 0.01;
+
+/// The floor of a batch's deviation, `CONSISTENCY_FLOOR × median(run_std_errors)`,
+/// for one coefficient's per-run standard errors; 0 (no floor) without any.
+pub fn consistency_floor(run_std_errors: &[f64]) -> f64 {
+    if run_std_errors.is_empty() {
+        return 0.0;
+    }
+    CONSISTENCY_FLOOR * median(run_std_errors)
 }
 
 /// Sample standard deviation `sqrt(Σ (x_j − x̄)² / (n − 1))` (eq. 5);
@@ -150,6 +184,12 @@ pub struct Fusion {
 
 /// Fuses `values` (one per run, in submission order) over `k` batches.
 pub fn fuse(values: &[f64], k: usize) -> Result<Fusion, FusionError> {
+    fuse_with_floor(values, k, 0.0)
+}
+
+/// Fuses `values` over `k` batches, each batch weighted by its deviation
+/// floored at `floor` (see [`consistency_floor`]; 0 for none).
+pub fn fuse_with_floor(values: &[f64], k: usize, floor: f64) -> Result<Fusion, FusionError> {
     if let Some(run) = values.iter().position(|x| !x.is_finite()) {
         return Err(FusionError::NonFinite { run });
     }
@@ -173,11 +213,12 @@ pub fn fuse(values: &[f64], k: usize) -> Result<Fusion, FusionError> {
             std,
         });
     }
-    // Weights relative to the smallest deviation: w'_p = n_p·(s_min/s_p)².
-    let s_min = batches.iter().map(|b| b.std).fold(f64::INFINITY, f64::min);
+    // Weights relative to the smallest (floored) deviation: w'_p = n_p·(s_min/s_p)².
+    let weighed = |b: &Batch| b.std.max(floor);
+    let s_min = batches.iter().map(weighed).fold(f64::INFINITY, f64::min);
     let (mut sum_w, mut sum_wx) = (0.0, 0.0);
     for b in &batches {
-        let w = b.runs.len() as f64 * (s_min / b.std).powi(2);
+        let w = b.runs.len() as f64 * (s_min / weighed(b)).powi(2);
         sum_w += w;
         sum_wx += w * b.mean;
     }
@@ -278,6 +319,41 @@ mod tests {
         // Batch means fine, but the weighted sum of them overflows.
         let huge = [1.0e308, 1.01e308, 1.02e308, 1.1e308, 1.11e308, 1.12e308];
         assert_eq!(fuse(&huge, 2), Err(FusionError::NotRepresentable));
+    }
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        assert_eq!(median(&[5.0, 1.0, 3.0]), 3.0);
+        assert_eq!(median(&[4.0, 1.0, 3.0, 10.0]), 3.5);
+        assert_eq!(median(&[2.0, 8.0]), 5.0);
+        assert_eq!(median(&[7.0]), 7.0);
+    }
+
+    #[test]
+    fn the_floor_is_a_hundredth_of_the_median_standard_error() {
+        assert_eq!(consistency_floor(&[]), 0.0);
+        assert_eq!(consistency_floor(&[4.0, 1.0, 3.0]), 0.03);
+        assert_eq!(consistency_floor(&[2.0, 6.0]), 0.04);
+    }
+
+    #[test]
+    fn a_batch_below_the_floor_is_weighed_at_the_floor() {
+        // Batch 0: [1, 1 + 2e-6], s = √2·1e-6; batch 1: [3, 5], s = √2.
+        // Unfloored, batch 0 takes all the weight (ratio 1e12).
+        let xs = [1.0, 1.000_002, 3.0, 5.0];
+        let plain = fuse(&xs, 2).unwrap();
+        assert!((plain.value - 1.000_001).abs() < 1e-9);
+        // Floored at √2: equal weights, x⁺ = (1.000001 + 4)/2, SE = √2/√(2 + 2).
+        let floor = 2f64.sqrt();
+        let f = fuse_with_floor(&xs, 2, floor).unwrap();
+        assert!((f.value - 2.500_000_5).abs() < 1e-12, "{}", f.value);
+        assert!((f.std_error - floor / 2.0).abs() < 1e-12);
+        assert_eq!(
+            f.batches[0].std, plain.batches[0].std,
+            "s_p is reported as is"
+        );
+        // A floor below every deviation changes nothing.
+        assert_eq!(fuse_with_floor(&xs, 2, 1e-9).unwrap(), plain);
     }
 
     #[test]

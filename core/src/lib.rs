@@ -19,8 +19,9 @@
 //! 5. the metrology a lab signs: the uncertainty budget of each fused
 //!    coefficient ([`uncertainty`]), conformity decisions against limits
 //!    ([`decision`]), as found and stability over a sensor's history
-//!    ([`history`]), temperature sensitivity ([`temperature`]) and quality
-//!    flags ([`quality`]).
+//!    ([`history`]), temperature sensitivity ([`temperature`]), the model's
+//!    adequacy — pure error, lack of fit, unmodelled terms ([`adequacy`]) —
+//!    and quality flags with their F tests ([`quality`], [`ftest`]).
 //!
 //! ```
 //! use accelcal_core::{Model, Mount, Position, Run, Term, TumbleTest};
@@ -43,10 +44,12 @@
 
 mod error;
 
+pub mod adequacy;
 pub mod compensate;
 pub mod decision;
 pub mod derived;
 pub mod estimate;
+pub mod ftest;
 pub mod fusion;
 pub mod history;
 pub mod identify;

@@ -1,5 +1,5 @@
 //! Quality flags: warnings about a calibration that is computed but weak.
-//! They never change a number.
+//! They never change a number; each carries its statistic.
 //!
 //! * **ill_conditioned**: the design's condition number exceeds
 //!   [`ILL_CONDITIONED`]; the terms named are those whose component in the
@@ -7,18 +7,30 @@
 //!   at least 0.1 — the combination the positions barely separate (in 1 g,
 //!   `a_i² + a_p² + a_o² = 1` makes `k0` with `kii`, `kpp`, `koo` such a
 //!   combination, nearly singular once explicit components are rounded).
-//! * **noisy_run**: a run whose residual RMS exceeds 3 × the median residual
-//!   RMS of the runs (with at least three runs, so the median is not the
-//!   run itself or halfway to it): a stand that moved or a glitching sensor.
-//!   Without spare positions every run fits exactly, every RMS is 0 and
-//!   nothing is flagged.
+//! * **lack_of_fit**: the model misses something the repeated samples can
+//!   see ([`crate::adequacy`]).
+//! * **noisy_run**: run `j` with `ν_j = P − p` residual degrees of freedom and
+//!   `s_j² = Σ_i r_ij² / ν_j`, against the other runs pooled,
+//!   `s²_(−j) = Σ_{l≠j} Σ_i r_il² / Σ_{l≠j} ν_l`: flagged when
+//!   `s_j² / s²_(−j)` exceeds the upper `NOISY_RUN_ALPHA / m` point of
+//!   `F(ν_j, Σ_{l≠j} ν_l)` with `m` runs — a family-wise false-alarm rate of
+//!   1 % per submission. Not tested without residual degrees of freedom, with
+//!   one run, or when the other runs fit exactly.
+//! * **implausibly_consistent_batch**: a batch's deviation of a coefficient
+//!   below the floor of [`crate::fusion::consistency_floor`]; its weight
+//!   used the floor.
+//! * **unmodelled_term**: a term outside the model that explains the
+//!   run-averaged values significantly better ([`crate::adequacy`]).
 
 use serde::Serialize;
 
-use crate::fusion::mean;
-use crate::identify::Design;
-use crate::term::Term;
-use crate::tumble::Calibration;
+use crate::adequacy::{self, LackOfFit, PureError};
+use crate::estimate::BatchSummary;
+use crate::ftest::FTest;
+use crate::fusion::scaled_norm;
+use crate::identify::Identification;
+use crate::term::{Term, TermMap};
+use crate::tumble::{Calibration, TumbleTest, consistency_floors};
 
 /// Condition number above which the design is flagged.
 pub const ILL_CONDITIONED: f64 = 1e6;
@@ -26,8 +38,8 @@ pub const ILL_CONDITIONED: f64 = 1e6;
 /// Smallest component of the weakest direction that names a term.
 pub const PARTICIPATION: f64 = 0.1;
 
-/// A run's residual RMS beyond this multiple of the median is flagged.
-pub const NOISY_FACTOR: f64 = 3.0;
+/// Family-wise level of the noisy-run tests of one submission.
+pub const NOISY_RUN_ALPHA: f64 = 0.01;
 
 /// One warning.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -40,14 +52,46 @@ pub enum Warning {
         /// The terms in the weakest direction.
         terms: Vec<Term>,
     },
-    /// A run fits much worse than the others.
+    /// The residuals exceed what the pure error explains.
+    LackOfFit {
+        /// `F`, `ν1`, `ν2`, p-value and level.
+        #[serde(flatten)]
+        test: FTest,
+        /// The pooled pure error `s_pe`.
+        pure_error_std: f64,
+        /// The root of the lack-of-fit mean square.
+        lack_of_fit_std: f64,
+    },
+    /// A run fits significantly worse than the others.
     NoisyRun {
         /// Run index (0-based).
         run: usize,
-        /// Its residual RMS.
-        residual_rms: f64,
-        /// The median residual RMS of the runs.
-        median_residual_rms: f64,
+        /// `s_j² / s²_(−j)` and its test.
+        #[serde(flatten)]
+        test: FTest,
+        /// `s_j`.
+        residual_std: f64,
+        /// `s_(−j)`.
+        others_residual_std: f64,
+    },
+    /// A batch agrees better than its runs' own standard errors allow.
+    ImplausiblyConsistentBatch {
+        /// Batch index (0-based).
+        batch: usize,
+        /// The coefficient.
+        term: Term,
+        /// The batch's deviation `s_p`.
+        std: f64,
+        /// The floor its weight used.
+        floor: f64,
+    },
+    /// A term outside the model would explain the data significantly better.
+    UnmodelledTerm {
+        /// The term.
+        term: Term,
+        /// Its partial F test.
+        #[serde(flatten)]
+        test: FTest,
     },
 }
 
@@ -56,20 +100,12 @@ pub enum Warning {
 pub struct Quality {
     /// The design's condition number.
     pub condition_number: f64,
+    /// The scatter of repeated samples.
+    pub pure_error: PureError,
+    /// The lack-of-fit test, or why it was not made.
+    pub lack_of_fit: LackOfFit,
     /// Every warning, possibly none.
     pub warnings: Vec<Warning>,
-}
-
-/// The median of some values (the mean of the middle two for an even count).
-fn median(values: &[f64]) -> f64 {
-    let mut v = values.to_vec();
-    v.sort_by(f64::total_cmp);
-    let n = v.len();
-    if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        mean(&v[n / 2 - 1..=n / 2])
-    }
 }
 
 /// Whether a condition number is flagged (strictly above [`ILL_CONDITIONED`]).
@@ -77,26 +113,63 @@ fn ill_conditioned(condition_number: f64) -> bool {
     condition_number > ILL_CONDITIONED
 }
 
-/// The runs whose residual RMS exceeds [`NOISY_FACTOR`] × the median of
-/// all runs' (none with fewer than three runs).
-fn noisy(rms: &[f64]) -> Vec<Warning> {
-    if rms.len() < 3 {
-        return Vec::new();
+/// The noisy-run tests of the runs (see the module doc).
+fn noisy(runs: &[Identification]) -> Vec<Warning> {
+    // With one run, or none, or no residual degrees of freedom, the F test
+    // has a zero degree of freedom and is not made (see `FTest::new`).
+    let m = runs.len();
+    let dof = runs.first().map_or(0, |r| r.dof);
+    let norms: Vec<f64> = runs
+        .iter()
+        .map(|r| scaled_norm(r.residuals.iter().copied()))
+        .collect();
+    let others_dof = m.saturating_sub(1) * dof;
+    let alpha = NOISY_RUN_ALPHA / m as f64;
+    let mut out = Vec::new();
+    for (run, norm) in norms.iter().enumerate() {
+        let others = scaled_norm(
+            norms
+                .iter()
+                .enumerate()
+                .filter(|(l, _)| *l != run)
+                .map(|(_, n)| *n),
+        );
+        if let Some(test) =
+            FTest::of_roots(*norm, dof, others, others_dof, alpha).filter(FTest::flagged)
+        {
+            out.push(Warning::NoisyRun {
+                run,
+                test,
+                residual_std: norm / (dof as f64).sqrt(),
+                others_residual_std: others / (others_dof as f64).sqrt(),
+            });
+        }
     }
-    let median_residual_rms = median(rms);
-    rms.iter()
-        .enumerate()
-        .filter(|(_, r)| **r > NOISY_FACTOR * median_residual_rms)
-        .map(|(run, r)| Warning::NoisyRun {
-            run,
-            residual_rms: *r,
-            median_residual_rms,
-        })
-        .collect()
+    out
 }
 
-/// The flags of a calibration on its design.
-pub fn assess(design: &Design, calibration: &Calibration) -> Quality {
+/// The batches whose deviation of a coefficient is below its floor.
+fn implausibly_consistent(batches: &[BatchSummary], floors: &TermMap<f64>) -> Vec<Warning> {
+    let mut out = Vec::new();
+    for (batch, b) in batches.iter().enumerate() {
+        for (term, floor) in floors.iter() {
+            let std = b.std[term];
+            if std < *floor {
+                out.push(Warning::ImplausiblyConsistentBatch {
+                    batch,
+                    term,
+                    std,
+                    floor: *floor,
+                });
+            }
+        }
+    }
+    out
+}
+
+/// The flags of a calibration of `test`.
+pub fn assess(test: &TumbleTest, calibration: &Calibration) -> Quality {
+    let design = test.design();
     let condition_number = design.condition_number();
     let mut warnings = Vec::new();
     if ill_conditioned(condition_number) {
@@ -111,10 +184,35 @@ pub fn assess(design: &Design, calibration: &Calibration) -> Quality {
             terms,
         });
     }
-    let rms: Vec<f64> = calibration.runs.iter().map(|r| r.residual_rms).collect();
-    warnings.extend(noisy(&rms));
+    let (pure_error, lack_of_fit) = adequacy::lack_of_fit(test, &calibration.runs);
+    if let LackOfFit::Tested {
+        test,
+        pure_error_std,
+        lack_of_fit_std,
+    } = &lack_of_fit
+        && test.flagged()
+    {
+        warnings.push(Warning::LackOfFit {
+            test: *test,
+            pure_error_std: *pure_error_std,
+            lack_of_fit_std: *lack_of_fit_std,
+        });
+    }
+    warnings.extend(noisy(&calibration.runs));
+    warnings.extend(implausibly_consistent(
+        &calibration.fused.batches,
+        &consistency_floors(&calibration.runs),
+    ));
+    warnings.extend(
+        adequacy::unmodelled_terms(test)
+            .into_iter()
+            .filter(|(_, f)| f.flagged())
+            .map(|(term, test)| Warning::UnmodelledTerm { term, test }),
+    );
     Quality {
         condition_number,
+        pure_error,
+        lack_of_fit,
         warnings,
     }
 }
@@ -124,57 +222,113 @@ mod tests {
     use super::*;
 
     #[test]
-    fn median_of_odd_and_even_counts() {
-        assert_eq!(median(&[5.0, 1.0, 3.0]), 3.0);
-        assert_eq!(median(&[4.0, 1.0, 3.0, 10.0]), 3.5);
-        assert_eq!(median(&[2.0, 8.0]), 5.0);
-        assert_eq!(median(&[7.0]), 7.0);
-    }
-
-    #[test]
     fn the_threshold_is_strict() {
         assert!(!ill_conditioned(ILL_CONDITIONED));
         assert!(ill_conditioned(1.000_000_1e6));
         assert!(!ill_conditioned(10.0));
     }
 
-    fn flagged(rms: &[f64]) -> Vec<usize> {
-        noisy(rms)
-            .into_iter()
-            .map(|w| match w {
-                Warning::NoisyRun { run, .. } => run,
-                other => panic!("{other:?}"),
-            })
-            .collect()
+    fn run(residuals: &[f64], dof: usize) -> Identification {
+        Identification {
+            coefficients: TermMap(vec![(Term::K0, 0.0)]),
+            std_errors: None,
+            residuals: residuals.to_vec(),
+            residual_rms: 0.0,
+            dof,
+        }
     }
 
+    /// Three runs of one degree of freedom, residual roots 1, 1 and 30:
+    /// run 2 has F = 900 / ((1 + 1)/2) = 900 on (1, 2); its p-value is
+    /// 1 − I(900/902; 1/2, 1) = 1 − √(900/902) ≈ 1.109e-3 < 0.01/3.
     #[test]
-    fn a_run_is_noisy_strictly_beyond_three_medians() {
-        // Median 1: 3 is not beyond 3 × 1, a hair more is.
-        assert_eq!(flagged(&[1.0, 1.0, 3.0]), Vec::<usize>::new());
-        assert_eq!(flagged(&[1.0, 1.0, 3.000_000_1]), vec![2]);
-        // Median 1 of five; only the 9 stands out.
-        assert_eq!(flagged(&[0.5, 2.0, 1.0, 1.0, 9.0]), vec![4]);
-        // Even count: the median is the mean of the middle two, (1 + 3) / 2.
-        assert_eq!(flagged(&[1.0, 3.0, 6.5, 1.0]), vec![2]);
-        assert_eq!(flagged(&[1.0, 3.0, 5.9, 1.0]), Vec::<usize>::new());
+    fn a_run_is_noisy_beyond_the_bonferroni_point() {
+        let runs = [run(&[1.0], 1), run(&[-1.0], 1), run(&[30.0], 1)];
+        let w = noisy(&runs);
+        match &w[..] {
+            [
+                Warning::NoisyRun {
+                    run,
+                    test,
+                    residual_std,
+                    others_residual_std,
+                },
+            ] => {
+                assert_eq!(*run, 2);
+                assert_eq!((test.df1, test.df2), (1, 2));
+                assert!((test.f - 900.0).abs() < 1e-9);
+                let p = 1.0 - (900.0f64 / 902.0).sqrt();
+                assert!((test.p_value - p).abs() < 1e-12, "{}", test.p_value);
+                assert!((test.alpha - 0.01 / 3.0).abs() < 1e-18);
+                assert_eq!(*residual_std, 30.0);
+                assert_eq!(*others_residual_std, 1.0);
+            }
+            other => panic!("{other:?}"),
+        }
+        // F = 100: p = 1 − √(100/102) ≈ 9.9e-3, not below 0.01/3.
+        assert!(noisy(&[run(&[1.0], 1), run(&[-1.0], 1), run(&[10.0], 1)]).is_empty());
     }
 
+    /// Two runs of two degrees of freedom: roots 1 and 40 give F = 1600 on
+    /// (2, 2), p = 1/(1 + F) ≈ 6.2e-4 < 0.01/2; the deviations are the
+    /// roots over √2.
     #[test]
-    fn two_runs_or_exact_fits_are_never_noisy() {
-        assert_eq!(flagged(&[1.0, 100.0]), Vec::<usize>::new());
-        assert_eq!(flagged(&[0.0, 0.0, 0.0]), Vec::<usize>::new());
+    fn two_runs_suffice_and_deviations_divide_by_their_degrees_of_freedom() {
+        let w = noisy(&[run(&[1.0, 0.0], 2), run(&[0.0, 40.0], 2)]);
+        match &w[..] {
+            [
+                Warning::NoisyRun {
+                    run,
+                    test,
+                    residual_std,
+                    others_residual_std,
+                },
+            ] => {
+                assert_eq!(*run, 1);
+                assert!((test.p_value - 1.0 / 1601.0).abs() < 1e-12);
+                assert!((residual_std - 40.0 / 2f64.sqrt()).abs() < 1e-12);
+                assert!((others_residual_std - 1.0 / 2f64.sqrt()).abs() < 1e-15);
+            }
+            other => panic!("{other:?}"),
+        }
     }
 
+    /// Flagged strictly below the floor, per batch and term.
     #[test]
-    fn the_warning_carries_the_run_and_the_median() {
+    fn a_batch_is_implausibly_consistent_strictly_below_its_floor() {
+        let batch = |k0: f64, ki: f64| BatchSummary {
+            runs: vec![0, 1],
+            mean: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 1.0)]),
+            std: TermMap(vec![(Term::K0, k0), (Term::Ki, ki)]),
+        };
+        let floors = TermMap(vec![(Term::K0, 1e-6), (Term::Ki, 2e-6)]);
+        let w = implausibly_consistent(&[batch(1e-6, 3e-6), batch(5e-7, 1.9e-6)], &floors);
         assert_eq!(
-            noisy(&[0.5, 2.0, 1.0, 1.0, 9.0]),
-            vec![Warning::NoisyRun {
-                run: 4,
-                residual_rms: 9.0,
-                median_residual_rms: 1.0,
-            }]
+            w,
+            [
+                Warning::ImplausiblyConsistentBatch {
+                    batch: 1,
+                    term: Term::K0,
+                    std: 5e-7,
+                    floor: 1e-6
+                },
+                Warning::ImplausiblyConsistentBatch {
+                    batch: 1,
+                    term: Term::Ki,
+                    std: 1.9e-6,
+                    floor: 2e-6
+                },
+            ]
         );
+        assert!(implausibly_consistent(&[batch(0.0, 0.0)], &TermMap(vec![])).is_empty());
+    }
+
+    #[test]
+    fn no_noisy_run_without_degrees_of_freedom_or_a_second_run() {
+        assert!(noisy(&[run(&[30.0], 1)]).is_empty());
+        assert!(noisy(&[run(&[0.0], 0), run(&[0.0], 0), run(&[0.0], 0)]).is_empty());
+        // The others fit exactly: no finite ratio, no test.
+        assert!(noisy(&[run(&[0.0], 1), run(&[0.0], 1), run(&[5.0], 1)]).is_empty());
+        assert!(noisy(&[]).is_empty());
     }
 }

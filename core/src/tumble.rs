@@ -12,7 +12,7 @@ use serde::Serialize;
 use crate::Error;
 use crate::derived::Normalized;
 use crate::estimate::{self, FusedEstimate, MeanEstimate};
-use crate::fusion::mean;
+use crate::fusion::{self, mean};
 use crate::identify::{Design, Identification};
 use crate::position::{Gravity, Position};
 use crate::term::{Model, TermMap};
@@ -93,19 +93,42 @@ impl TumbleTest {
         &self.design
     }
 
-    /// Identifies every run separately.
-    pub fn identify_runs(&self) -> Vec<Identification> {
+    /// Each run's position values `ȳ_jr`, the means of its samples.
+    pub fn position_values(&self) -> Vec<Vec<f64>> {
         self.runs
             .iter()
-            .map(|run| {
-                let y: Vec<f64> = run.readings.iter().map(|s| mean(s)).collect();
-                self.design.solve(&y)
-            })
+            .map(|run| run.readings.iter().map(|s| mean(s)).collect())
+            .collect()
+    }
+
+    /// The run-averaged position values `x̃_r = Σ_j ȳ_jr / m` over the `m`
+    /// runs: what a systematic misfit, the same in every run, survives into.
+    pub fn averaged_values(&self) -> Vec<f64> {
+        let values = self.position_values();
+        (0..self.positions.len())
+            .map(|r| mean(&values.iter().map(|y| y[r]).collect::<Vec<_>>()))
+            .collect()
+    }
+
+    /// The least-squares fit of the run-averaged values (see
+    /// [`averaged_values`](Self::averaged_values)).
+    pub fn averaged_fit(&self) -> Identification {
+        self.design.solve(&self.averaged_values())
+    }
+
+    /// Identifies every run separately.
+    pub fn identify_runs(&self) -> Vec<Identification> {
+        self.position_values()
+            .iter()
+            .map(|y| self.design.solve(y))
             .collect()
     }
 
     /// Identifies every run, then estimates every coefficient across runs
-    /// with `batches` batches.
+    /// with `batches` batches, each batch's weight floored by the runs' own
+    /// standard errors ([`consistency_floors`]). A single run is its own
+    /// estimate ([`estimate::single_run`]; `batches` is then not used), and
+    /// needs a spare position for its standard errors.
     pub fn calibrate(&self, batches: usize) -> Result<Calibration, Error> {
         let runs = self.identify_runs();
         for run in &runs {
@@ -127,7 +150,17 @@ impl TumbleTest {
                 })
                 .collect(),
         );
-        let est = estimate::estimate(&values, batches)?;
+        let est = match &runs[..] {
+            // One run: its own coefficients and standard errors, if any.
+            [run] => {
+                let se = run.std_errors.as_ref().ok_or(Error::SingleRunWithoutDof {
+                    positions: self.positions.len(),
+                    terms: self.model().len(),
+                })?;
+                estimate::single_run(&run.coefficients, se)
+            }
+            _ => estimate::estimate_with_floors(&values, batches, &consistency_floors(&runs))?,
+        };
         Ok(Calibration {
             condition_number: self.design.condition_number(),
             normalized: Normalized::from_coefficients(&est.fused.coefficients),
@@ -136,6 +169,28 @@ impl TumbleTest {
             fused: est.fused,
         })
     }
+}
+
+/// Each coefficient's floor of a batch deviation (see
+/// [`fusion::consistency_floor`]) from the runs' own standard errors; no
+/// floor when a run has none (no spare positions).
+pub fn consistency_floors(runs: &[Identification]) -> TermMap<f64> {
+    let Some(first) = runs.first() else {
+        return TermMap(Vec::new());
+    };
+    TermMap(
+        first
+            .coefficients
+            .iter()
+            .filter_map(|(t, _)| {
+                let se: Option<Vec<f64>> = runs
+                    .iter()
+                    .map(|r| r.std_errors.as_ref().and_then(|s| s.get(t).copied()))
+                    .collect();
+                Some((t, fusion::consistency_floor(&se?)))
+            })
+            .collect(),
+    )
 }
 
 /// The outcome of calibrating a tumble test.

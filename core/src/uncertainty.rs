@@ -1,4 +1,4 @@
-//! The uncertainty budget of each fused coefficient, GUM style: three
+//! The uncertainty budget of each fused coefficient, GUM style: four
 //! components, combined in quadrature and expanded by a coverage factor.
 //!
 //! With `A` the design (one row per position), `A⁺ = (AᵀA)⁻¹Aᵀ` its
@@ -11,20 +11,31 @@
 //!   model in `a` dotted with the mount's `da/dθ`. The fit carries it into
 //!   the coefficients through `G = A⁺·D`, `D = diag(d)`; independent errors
 //!   of σ_θ at every position give `indexing_t = σ_θ·√(Σ_j G_tj²)`.
-//!   Positions given only by gravity components have no angle to be wrong:
-//!   `d_j = 0`.
+//!   A position given by its gravity vector `a_j` instead is perturbed by an
+//!   independent small rotation `ω_j` with each of its three components of
+//!   standard deviation σ_θ, so `δa_j = ω_j × a_j`. The coefficients are
+//!   those of the run-averaged fit `c = (AᵀA)⁻¹Aᵀx̃` (residuals `r̃`); a
+//!   change `δA` of row `j` changes them by the full first-order
+//!   derivative, residual term included,
+//!   `δc = (AᵀA)⁻¹(δAᵀ·r̃ − Aᵀ·δA·c) = (AᵀA)⁻¹·g·r̃_j − A⁺_{·j}·(g·c)` with
+//!   `g_t = ∇f_t(a_j)·δa_j`, and such positions add
+//!   `σ_θ²·Σ_j Σ_{e ∈ {x,y,z}} (δc_t at δa_j = e × a_j)²` to `indexing_t²`.
 //! * **gravity** (the relative uncertainty `u` of the gravity magnitude): a
 //!   gravity `g(1 + ε)` scales every `a` by `1 + ε`, which changes a
 //!   regressor of degree `n` by `n·ε` to first order, so the outputs by
 //!   `ε·s_j` with `s_j = Σ_t deg_t·k_t·f_t(a_j)`; a common ε is fully
 //!   correlated across positions: `gravity_t = u·|(A⁺·s)_t|`. For a linear
 //!   model this is `u·|k_t|` on the scale terms and 0 on the bias.
-//! * **combined** `= √(statistical² + indexing² + gravity²)`;
+//! * **model**: the standard error of the fit to the run-averaged values
+//!   when lack of fit is flagged, 0 otherwise
+//!   ([`crate::adequacy::model_uncertainty`]).
+//! * **combined** `= √(statistical² + indexing² + gravity² + model²)`;
 //!   **expanded** `U = coverage_factor × combined`.
 
 use serde::Serialize;
 
 use crate::estimate::finite;
+use crate::fusion::scaled_norm;
 use crate::term::TermMap;
 use crate::tumble::TumbleTest;
 use crate::{Error, Term};
@@ -50,7 +61,9 @@ pub struct TermBudget {
     pub indexing: f64,
     /// From the uncertainty of the gravity magnitude.
     pub gravity: f64,
-    /// Root-sum-square of the three.
+    /// From the model's lack of fit.
+    pub model: f64,
+    /// Root-sum-square of the four.
     pub combined: f64,
     /// `coverage_factor × combined`.
     pub expanded: f64,
@@ -72,14 +85,62 @@ impl Uncertainty {
     }
 }
 
+/// `e × a` for the unit axis `e` (0, 1, 2) and a vector `a`.
+fn cross_axis(e: usize, a: [f64; 3]) -> [f64; 3] {
+    match e {
+        0 => [0.0, -a[2], a[1]],
+        1 => [a[2], 0.0, -a[0]],
+        _ => [-a[1], a[0], 0.0],
+    }
+}
+
+/// Per term, every `δc_t` (per radian of σ_θ) of the positions given by
+/// gravity vectors, three per position (see the module doc).
+fn explicit_indexing(test: &TumbleTest) -> Vec<Vec<f64>> {
+    let design = test.design();
+    let terms = design.model().terms();
+    let mut changes = vec![Vec::new(); terms.len()];
+    let explicit: Vec<usize> = (0..test.positions().len())
+        .filter(|j| test.positions()[*j].rotation.is_none())
+        .collect();
+    if explicit.is_empty() {
+        return changes;
+    }
+    let fit = test.averaged_fit();
+    let c: Vec<f64> = fit.coefficients.iter().map(|(_, v)| *v).collect();
+    let gram_inv = design.inverse_gram();
+    let pinv = design.pseudo_inverse();
+    for j in explicit {
+        let a = test.positions()[j].a;
+        for e in 0..3 {
+            let da = cross_axis(e, a.to_array());
+            let g: Vec<f64> = terms
+                .iter()
+                .map(|t| {
+                    let grad = t.gradient(&a);
+                    grad[0] * da[0] + grad[1] * da[1] + grad[2] * da[2]
+                })
+                .collect();
+            let gc: f64 = g.iter().zip(&c).map(|(x, y)| x * y).sum();
+            for (k, dcs) in changes.iter_mut().enumerate() {
+                let first: f64 = (0..terms.len()).map(|l| gram_inv[(k, l)] * g[l]).sum();
+                dcs.push(first * fit.residuals[j] - pinv[(k, j)] * gc);
+            }
+        }
+    }
+    changes
+}
+
 /// The budget of the fused coefficients `fused` (standard errors
-/// `std_errors`) of `test`, for a stand and a coverage factor.
+/// `std_errors`) of `test`, for a stand and a coverage factor, with each
+/// term's `model` component (none for a term `model` does not list).
 pub fn budget(
     test: &TumbleTest,
     fused: &TermMap<f64>,
     std_errors: &TermMap<f64>,
     stand: Stand,
     coverage_factor: f64,
+    model: &TermMap<f64>,
 ) -> Result<Uncertainty, Error> {
     let design = test.design();
     let terms = design.model().terms();
@@ -114,16 +175,13 @@ pub fn budget(
                 .sum()
         })
         .collect();
+    let explicit = explicit_indexing(test);
     let mut out = Vec::with_capacity(terms.len());
     for (row, t) in terms.iter().enumerate() {
         let g_row = pinv.row(row);
-        let indexing = stand.angle_std_rad
-            * g_row
-                .iter()
-                .zip(&d)
-                .map(|(a, dj)| (a * dj).powi(2))
-                .sum::<f64>()
-                .sqrt();
+        let angles = g_row.iter().zip(&d).map(|(a, dj)| a * dj);
+        let indexing =
+            stand.angle_std_rad * scaled_norm(angles.chain(explicit[row].iter().copied()));
         let gravity = stand.gravity_rel_std
             * g_row
                 .iter()
@@ -132,13 +190,16 @@ pub fn budget(
                 .sum::<f64>()
                 .abs();
         let statistical = std_errors.get(*t).copied().unwrap_or(0.0);
-        let combined = (statistical.powi(2) + indexing.powi(2) + gravity.powi(2)).sqrt();
+        let model = model.get(*t).copied().unwrap_or(0.0);
+        let combined =
+            (statistical.powi(2) + indexing.powi(2) + gravity.powi(2) + model.powi(2)).sqrt();
         out.push((
             *t,
             TermBudget {
                 statistical,
                 indexing,
                 gravity,
+                model,
                 combined,
                 expanded: coverage_factor * combined,
             },

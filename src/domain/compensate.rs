@@ -1,12 +1,15 @@
 //! `POST /v1/sensors/{sensor_id}/compensate`: input accelerations from raw
 //! outputs, inverting a stored calibration's model.
 
-use accelcal_core::{Compensator, TermMap};
+use accelcal_core::decision::Verdict;
+use accelcal_core::{Compensator, Gravity, Model, TermMap};
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
 
 use super::field::{Errors, Invalid, Loc};
 use super::limits::{MAX_CROSS_G, MAX_OUTPUTS, MAX_READING};
+use super::timestamp::Timestamp;
+use super::usability::Usability;
 
 /// The body of a compensation request.
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
@@ -37,13 +40,60 @@ pub struct Compensated {
     pub sensor_id: String,
     /// The calibration whose model was inverted.
     pub calibration_id: Uuid,
+    /// When it was performed.
+    pub performed_at: Timestamp,
+    /// Its verdict against the sensor type's limits (null when untyped).
+    #[schema(value_type = Option<crate::domain::schema::VerdictSchema>)]
+    pub verdict: Option<Verdict>,
+    /// When the sensor is due again (null when untyped).
+    pub due_at: Option<Timestamp>,
+    /// The sensor's status by it, whether its coefficients are usable, and
+    /// why not.
+    #[serde(flatten)]
+    pub usability: Usability,
+    /// The cross-axis inputs (`a_p`, `a_o`) that were not given and were
+    /// taken as 0 although the model has terms in them.
+    pub assumed_zero: Vec<CrossAxis>,
     /// The outputs' unit.
     pub unit: String,
     /// One input acceleration (g) per output.
     pub a_i: Vec<f64>,
 }
 
+/// A cross-axis input of compensation.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, utoipa::ToSchema)]
+pub enum CrossAxis {
+    /// The pendulous axis.
+    #[serde(rename = "a_p")]
+    AP,
+    /// The output axis.
+    #[serde(rename = "a_o")]
+    AO,
+}
+
 impl CompensateRequest {
+    /// The cross-axis inputs this request leaves out although `model` has
+    /// terms in them: compensation takes them as 0.
+    pub fn assumed_zero(&self, model: &Model) -> Vec<CrossAxis> {
+        // A term has an axis in it when its gradient there is not zero at a
+        // point off every axis.
+        let generic = Gravity::from([0.3, 0.4, 0.5]);
+        let uses = |axis: usize| {
+            model
+                .terms()
+                .iter()
+                .any(|t| t.gradient(&generic)[axis] != 0.0)
+        };
+        let mut out = Vec::new();
+        if self.a_p.is_none() && uses(1) {
+            out.push(CrossAxis::AP);
+        }
+        if self.a_o.is_none() && uses(2) {
+            out.push(CrossAxis::AO);
+        }
+        out
+    }
+
     /// Checks sizes and ranges; every problem is reported.
     pub fn check(self) -> Result<CompensateRequest, Invalid> {
         let root = Loc::Root;
@@ -147,5 +197,45 @@ mod tests {
             pointers(over.check().unwrap_err()),
             ["/outputs/1", "/a_p/0"]
         );
+    }
+}
+
+#[cfg(test)]
+mod assumed {
+    use accelcal_core::Term::*;
+
+    use super::*;
+
+    fn model(terms: &[accelcal_core::Term]) -> Model {
+        Model::new(terms.to_vec()).unwrap()
+    }
+
+    /// The inputs left out that the model has terms in, and only those.
+    #[test]
+    fn the_answer_names_the_cross_axis_inputs_taken_as_zero() {
+        let none = CompensateRequest {
+            outputs: vec![1.0],
+            a_p: None,
+            a_o: None,
+            calibration_id: None,
+        };
+        assert_eq!(none.assumed_zero(&model(&[K0, Ki])), []);
+        assert_eq!(none.assumed_zero(&model(&[K0, Ki, Kp])), [CrossAxis::AP]);
+        assert_eq!(none.assumed_zero(&model(&[K0, Ki, Koo])), [CrossAxis::AO]);
+        assert_eq!(
+            none.assumed_zero(&model(&[K0, Ki, Kop])),
+            [CrossAxis::AP, CrossAxis::AO]
+        );
+        assert_eq!(none.assumed_zero(&model(&[K0, Ki, Kii, Kiii])), []);
+        let given = CompensateRequest {
+            a_p: Some(vec![0.1]),
+            ..none.clone()
+        };
+        assert_eq!(
+            given.assumed_zero(&model(&[K0, Ki, Kpi, Kio])),
+            [CrossAxis::AO]
+        );
+        let json = serde_json::to_string(&[CrossAxis::AP, CrossAxis::AO]).unwrap();
+        assert_eq!(json, r#"["a_p","a_o"]"#);
     }
 }

@@ -3,6 +3,7 @@
 //! calibration. Pure: the caller looks those up.
 
 use accelcal_core::TermMap;
+use accelcal_core::adequacy::model_uncertainty;
 use accelcal_core::decision::{Decision, decide};
 use accelcal_core::history::{PositionError, as_found};
 use accelcal_core::quality::{Quality, assess};
@@ -48,6 +49,9 @@ pub struct Metrology {
     /// As found against the previous calibration, when there is one in the
     /// same unit with a scale factor.
     pub as_found: Option<AsFoundView>,
+    /// Why `as_found` is null although there is a previous calibration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub as_found_note: Option<String>,
     /// When the sensor is due again (typed sensors).
     pub due_at: Option<Timestamp>,
     /// Temperature sensitivity, when the runs were made at two or more
@@ -72,13 +76,27 @@ pub fn assess_calibration(
         angle_std_rad: st.angle_std_arcsec * ARCSEC,
         gravity_rel_std: st.gravity_rel_std,
     });
+    if let Some(t) = sensor_type
+        && let Some(unit) = t.unit.as_ref().filter(|u| **u != s.unit)
+    {
+        return Err(Invalid::one(
+            Loc::Root.key("unit"),
+            format!(
+                "is `{}`, but sensor type `{}` sets its limits in `{unit}`: send the outputs \
+                 in `{unit}`, or give the sensor a type in `{}`",
+                s.unit, t.type_id, s.unit
+            ),
+        ));
+    }
     let coverage = sensor_type.map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor);
+    let quality = assess(&s.test, cal);
     let uncertainty = budget(
         &s.test,
         &cal.fused.coefficients,
         &cal.fused.std_errors,
         stand,
         coverage,
+        &model_uncertainty(&s.test, &quality.lack_of_fit),
     )
     .map_err(|err| Invalid::one(Loc::Root.key("stand"), err.to_string()))?;
     let decision = sensor_type
@@ -97,13 +115,34 @@ pub fn assess_calibration(
             )
         })
         .transpose()?;
-    let as_found = previous.filter(|p| p.unit == s.unit).and_then(|p| {
-        as_found(&s.test, &p.coefficients).map(|a| AsFoundView {
-            previous_calibration_id: p.id,
-            positions: a.positions,
-            max_abs_error_g: a.max_abs_error_g,
-        })
-    });
+    let (as_found, as_found_note) = match previous {
+        None => (None, None),
+        Some(p) if p.unit != s.unit => (
+            None,
+            Some(format!(
+                "the previous calibration {} is in `{}`, this one in `{}`: as found compares \
+                 outputs in one unit",
+                p.id, p.unit, s.unit
+            )),
+        ),
+        Some(p) => match as_found(&s.test, &p.coefficients) {
+            Some(a) => (
+                Some(AsFoundView {
+                    previous_calibration_id: p.id,
+                    positions: a.positions,
+                    max_abs_error_g: a.max_abs_error_g,
+                }),
+                None,
+            ),
+            None => (
+                None,
+                Some(format!(
+                    "the previous calibration {} has no `ki` to express the errors in g",
+                    p.id
+                )),
+            ),
+        },
+    };
     let due_at =
         sensor_type.map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
     let temperature = s
@@ -114,8 +153,9 @@ pub fn assess_calibration(
         uncertainty,
         decision,
         as_found,
+        as_found_note,
         due_at,
         temperature,
-        quality: assess(s.test.design(), cal),
+        quality,
     })
 }

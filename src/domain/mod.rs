@@ -23,3 +23,4 @@ pub mod text;
 pub mod timestamp;
 pub mod tokens;
 pub mod typed;
+pub mod usability;

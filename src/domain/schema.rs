@@ -16,9 +16,9 @@ use utoipa::{PartialSchema, ToSchema};
 
 use super::limits::{
     MAX_BATCHES, MAX_CROSS_G, MAX_GRAVITY_COMPONENT, MAX_ID_CHARS, MAX_LABEL_CHARS, MAX_OUTPUTS,
-    MAX_READING, MAX_RUNS,
+    MAX_READING, MAX_RUNS, MAX_UNIT_CHARS,
 };
-use super::sensor_types::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS};
+use super::sensor_types::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR};
 
 /// Implements `ToSchema` for a marker type from a schema expression; the
 /// schema's name is the type's without a `Schema` suffix.
@@ -113,6 +113,11 @@ pub fn nullable_identifier() -> RefOr<Schema> {
 /// A label or `null`.
 pub fn nullable_label() -> RefOr<Schema> {
     nullable(line(MAX_LABEL_CHARS).into())
+}
+
+/// An output unit (one line, at most 32 characters).
+pub fn unit() -> ObjectBuilder {
+    line(MAX_UNIT_CHARS)
 }
 
 marker_schema!(
@@ -242,7 +247,7 @@ pub fn limits() -> ObjectBuilder {
 pub fn coverage_factor() -> ObjectBuilder {
     ObjectBuilder::new()
         .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
-        .exclusive_minimum(Some(0.0))
+        .minimum(Some(MIN_COVERAGE_FACTOR))
         .maximum(Some(MAX_COVERAGE_FACTOR))
 }
 

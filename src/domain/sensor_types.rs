@@ -8,7 +8,7 @@ use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::field::{Errors, Invalid, Loc};
-use super::limits::MAX_LABEL_CHARS;
+use super::limits::{MAX_LABEL_CHARS, MAX_UNIT_CHARS};
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
@@ -16,6 +16,9 @@ use super::timestamp::Timestamp;
 pub const DEFAULT_COVERAGE_FACTOR: f64 = 2.0;
 /// Calibration interval when a type gives none, in days.
 pub const DEFAULT_INTERVAL_DAYS: u32 = 365;
+/// Smallest coverage factor accepted: below 1 an "expanded" uncertainty
+/// would be smaller than the standard one.
+pub const MIN_COVERAGE_FACTOR: f64 = 1.0;
 /// Largest coverage factor accepted.
 pub const MAX_COVERAGE_FACTOR: f64 = 10.0;
 /// Longest calibration interval accepted, in days (ten years).
@@ -29,8 +32,12 @@ pub struct SensorTypeBody {
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::nullable_label)]
     pub label: Option<String>,
-    /// Limits per term on the fused coefficients, in the calibrations'
-    /// output unit: `{"k0": {"min": -0.001, "max": 0.001}}`.
+    /// The output unit the limits are in (as a submission's `unit`, at most
+    /// 32 characters): a calibration in another unit is refused.
+    #[schema(schema_with = crate::domain::schema::unit)]
+    pub unit: String,
+    /// Limits per term on the fused coefficients, in `unit`:
+    /// `{"k0": {"min": -0.001, "max": 0.001}}`.
     #[schema(schema_with = crate::domain::schema::limits)]
     pub limits: TermMap<Limit>,
     /// `simple` (the value against the limits) or `guarded` (ILAC-G8,
@@ -55,6 +62,10 @@ pub struct SensorType {
     pub type_id: String,
     /// Its label.
     pub label: Option<String>,
+    /// The output unit its limits are in (null for types written before
+    /// types declared one: their calibrations' units are not compared).
+    #[serde(default)]
+    pub unit: Option<String>,
     /// Limits per term.
     #[schema(schema_with = crate::domain::schema::limits)]
     pub limits: TermMap<Limit>,
@@ -80,7 +91,17 @@ impl SensorTypeBody {
         {
             errors.add(root.key("label"), why);
         }
+        if let Err(why) = check_str(&self.unit, MAX_UNIT_CHARS, Chars::Line) {
+            errors.add(root.key("unit"), why);
+        }
         let limits_at = root.key("limits");
+        if self.limits.is_empty() {
+            errors.add(
+                limits_at,
+                "needs at least one limit: a type that limits nothing would pass every \
+                 calibration having checked nothing",
+            );
+        }
         for (term, limit) in self.limits.iter() {
             let at = limits_at.key(term.name());
             for (name, v) in [("min", limit.min), ("max", limit.max)] {
@@ -97,10 +118,13 @@ impl SensorTypeBody {
             }
         }
         let coverage_factor = self.coverage_factor.unwrap_or(DEFAULT_COVERAGE_FACTOR);
-        if !(coverage_factor > 0.0 && coverage_factor <= MAX_COVERAGE_FACTOR) {
+        if !(MIN_COVERAGE_FACTOR..=MAX_COVERAGE_FACTOR).contains(&coverage_factor) {
             errors.add(
                 root.key("coverage_factor"),
-                format!("must be above 0 and at most {MAX_COVERAGE_FACTOR}"),
+                format!(
+                    "must be from {MIN_COVERAGE_FACTOR} to {MAX_COVERAGE_FACTOR} (2 gives about \
+                     95 % coverage for a normal distribution)"
+                ),
             );
         }
         let interval = self
@@ -117,6 +141,7 @@ impl SensorTypeBody {
         errors.finish(|| SensorType {
             type_id,
             label: self.label,
+            unit: Some(self.unit),
             limits: TermMap(limits),
             decision_rule: self.decision_rule,
             coverage_factor,
@@ -147,37 +172,94 @@ mod tests {
     #[test]
     fn a_limit_may_be_a_single_value_but_not_inverted() {
         let t =
-            check(r#"{"limits": {"k0": {"min": 1e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
+            check(r#"{"unit": "mA", "limits": {"k0": {"min": 1e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
                 .unwrap();
         assert_eq!(t.limits.len(), 1);
         assert_eq!(
-            check(r#"{"limits": {"k0": {"min": 1.0000001e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
+            check(r#"{"unit": "mA", "limits": {"k0": {"min": 1.0000001e-3, "max": 1e-3}}, "decision_rule": "simple"}"#)
                 .unwrap_err(),
             ["/limits/k0"]
         );
     }
 
+    /// A type judges something: at least one limit, and a coverage factor
+    /// from 1 to 10 (the issue's 1e-300 is refused; both ends are accepted).
+    #[test]
+    fn a_type_must_limit_something_with_a_meaningful_coverage_factor() {
+        assert_eq!(
+            check(r#"{"unit": "mA", "limits": {}, "decision_rule": "simple"}"#).unwrap_err(),
+            ["/limits"]
+        );
+        let with = |k: &str| {
+            check(&format!(
+                r#"{{"unit": "mA", "limits": {{"k0": {{"max": 1}}}}, "decision_rule": "guarded", "coverage_factor": {k}}}"#
+            ))
+        };
+        for bad in ["1e-300", "0.999", "10.001"] {
+            assert_eq!(with(bad).unwrap_err(), ["/coverage_factor"], "{bad}");
+        }
+        assert_eq!(with("1").unwrap().coverage_factor, 1.0);
+        assert_eq!(with("10").unwrap().coverage_factor, 10.0);
+    }
+
     #[test]
     fn a_type_is_checked_field_by_field() {
-        let t = check(r#"{"limits": {"kp": {"max": 0.01}, "k0": {"min": -1e-3, "max": 1e-3}}, "decision_rule": "guarded"}"#).unwrap();
+        let t = check(r#"{"unit": "mA", "limits": {"kp": {"max": 0.01}, "k0": {"min": -1e-3, "max": 1e-3}}, "decision_rule": "guarded"}"#).unwrap();
         assert_eq!((t.coverage_factor, t.interval_days), (2.0, 365));
         let names: Vec<&str> = t.limits.iter().map(|(t, _)| t.name()).collect();
         assert_eq!(names, ["k0", "kp"], "limits in model order");
         assert_eq!(
-            check(r#"{"limits": {"k0": {"min": 1, "max": -1}, "ki": {}}, "decision_rule": "simple", "coverage_factor": 0, "interval_days": -5}"#).unwrap_err(),
+            check(r#"{"unit": "mA", "limits": {"k0": {"min": 1, "max": -1}, "ki": {}}, "decision_rule": "simple", "coverage_factor": 0, "interval_days": -5}"#).unwrap_err(),
             ["/limits/k0", "/limits/ki", "/coverage_factor", "/interval_days"]
         );
         assert_eq!(
-            check(r#"{"limits": {"k9": {"min": 1}}, "decision_rule": "simple"}"#).unwrap_err(),
+            check(r#"{"unit": "mA", "limits": {"k9": {"min": 1}}, "decision_rule": "simple"}"#)
+                .unwrap_err(),
             ["/limits/k9"]
         );
         assert_eq!(
-            check(r#"{"limits": {}, "decision_rule": "lenient"}"#).unwrap_err(),
+            check(r#"{"unit": "mA", "limits": {"k0": {"max": 1}}, "decision_rule": "lenient"}"#)
+                .unwrap_err(),
             ["/decision_rule"]
         );
         assert_eq!(
-            check(r#"{"limits": {"k0": {"mn": 1}}, "decision_rule": "simple"}"#).unwrap_err(),
+            check(r#"{"unit": "mA", "limits": {"k0": {"mn": 1}}, "decision_rule": "simple"}"#)
+                .unwrap_err(),
             ["/limits/k0/mn"]
         );
+    }
+}
+
+#[cfg(test)]
+mod units {
+    use super::*;
+    use crate::domain::typed::{BodyError, from_json};
+
+    /// A type declares the unit its limits are in; it is stored with it.
+    #[test]
+    fn a_type_declares_its_unit() {
+        let now = Timestamp::parse("2026-11-22T00:00:00Z").unwrap();
+        let body = |b: &str| from_json::<SensorTypeBody>(b.as_bytes());
+        match body(r#"{"limits": {"k0": {"max": 1}}, "decision_rule": "simple"}"#) {
+            Err(BodyError::Invalid(i)) => assert_eq!(i.errors[0].pointer, "/unit"),
+            other => panic!("{other:?}"),
+        }
+        let t = body(r#"{"unit": "mA", "limits": {"k0": {"max": 1}}, "decision_rule": "simple"}"#)
+            .unwrap()
+            .check("T".into(), now)
+            .unwrap();
+        assert_eq!(t.unit.as_deref(), Some("mA"));
+        let bad =
+            body(r#"{"unit": "m\nA", "limits": {"k0": {"max": 1}}, "decision_rule": "simple"}"#)
+                .unwrap()
+                .check("T".into(), now)
+                .unwrap_err();
+        assert_eq!(bad.errors[0].pointer, "/unit");
+        // A type stored before types declared a unit reads back without one.
+        let old: SensorType = serde_json::from_str(
+            r#"{"type_id": "OLD", "label": null, "limits": {"k0": {"max": 1}}, "decision_rule": "simple", "coverage_factor": 2, "interval_days": 365, "updated_at": "2026-01-01T00:00:00Z"}"#,
+        )
+        .unwrap();
+        assert_eq!(old.unit, None);
     }
 }

@@ -1,28 +1,32 @@
 //! What control systems use: the latest coefficients, and compensation of
 //! raw outputs with them.
 
+use accelcal_core::decision::Verdict;
 use axum::Json;
 use axum::extract::{Path, State};
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
-use serde::Serialize;
-use utoipa::ToSchema;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
 use uuid::Uuid;
 
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::problem::Problem;
+use super::problem::{Kind, Problem};
+use super::query::Params;
 use super::rendered::{APPLICATION_JSON, ById};
 use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
+use crate::domain::usability::Usability;
 use crate::store::CalibrationSummary;
 
-/// What a control system loads: the fused coefficients of one calibration.
+/// What a control system loads: the fused coefficients of one calibration,
+/// and whether to use them.
 #[derive(Debug, Serialize, ToSchema)]
 pub struct Coefficients {
     /// The sensor.
@@ -31,6 +35,14 @@ pub struct Coefficients {
     calibration_id: Uuid,
     /// When that calibration was performed.
     performed_at: Timestamp,
+    /// Its verdict against the sensor type's limits (null when untyped).
+    #[schema(value_type = Option<crate::domain::schema::VerdictSchema>)]
+    verdict: Option<Verdict>,
+    /// When the sensor is due again (null when untyped).
+    due_at: Option<Timestamp>,
+    /// The sensor's status, whether to use the coefficients, and why not.
+    #[serde(flatten)]
+    usability: Usability,
     /// Unit of the outputs and of every coefficient.
     unit: String,
     /// Model terms.
@@ -44,18 +56,64 @@ pub struct Coefficients {
     std_errors: accelcal_core::TermMap<f64>,
 }
 
-impl From<CalibrationSummary> for Coefficients {
-    fn from(summary: CalibrationSummary) -> Self {
+impl Coefficients {
+    /// The coefficients of `summary`, judged at `now`.
+    fn of(summary: CalibrationSummary, now: Timestamp) -> Self {
         Coefficients {
             sensor_id: summary.sensor_id,
             calibration_id: summary.id,
             performed_at: summary.performed_at,
+            verdict: summary.verdict,
+            due_at: summary.due_at,
+            usability: Usability::of(summary.verdict, summary.due_at, now),
             unit: summary.unit,
             model: summary.model,
             coefficients: summary.coefficients,
             std_errors: summary.std_errors,
         }
     }
+}
+
+/// The query of `/coefficients` and `/compensate`.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct RequireQuery {
+    /// `usable`: answer 409 (`not-usable`) instead of coefficients whose
+    /// calibration failed or is overdue.
+    #[param(value_type = Option<String>, pattern = "^usable$")]
+    require: Option<String>,
+}
+
+impl RequireQuery {
+    /// Whether `require=usable` was asked.
+    fn usable(&self) -> Result<bool, Problem> {
+        match self.require.as_deref() {
+            None => Ok(false),
+            Some("usable") => Ok(true),
+            Some(_) => Err(Problem::bad_parameter(
+                "require",
+                "must be `usable` (the only requirement there is)",
+            )),
+        }
+    }
+}
+
+/// The 409 for coefficients of `summary` whose usability is `u`.
+fn refuse_unusable(summary: &CalibrationSummary, u: &Usability) -> Result<(), Problem> {
+    if u.usable {
+        return Ok(());
+    }
+    let why: Vec<&str> = u.reasons.iter().map(|r| r.detail.as_str()).collect();
+    Err(Problem::new(
+        Kind::NotUsable,
+        format!(
+            "the coefficients of sensor `{}` (calibration {}) are not usable: {}",
+            echo(&summary.sensor_id),
+            summary.id,
+            why.join("; ")
+        ),
+    ))
 }
 
 /// `GET /v1/sensors/{sensor_id}/coefficients`: the latest calibration's fused values.
@@ -65,11 +123,17 @@ impl From<CalibrationSummary> for Coefficients {
     tag = "sensors",
     operation_id = "getCoefficients",
     summary = "The latest calibration's fused coefficients, for control systems.",
-    params(super::openapi::SensorIdPath),
+    description = "With the calibration's verdict, due date, the sensor's status, \
+        `usable` and the `reasons` why not: coefficients whose calibration failed \
+        or is overdue are not usable. With `require=usable` such coefficients are \
+        a 409 instead.",
+    params(super::openapi::SensorIdPath, RequireQuery),
     responses(
         (status = 200, description = "The coefficients.", body = Coefficients),
+        (status = 400, response = super::openapi::BadRequest),
         (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::NotUsable),
         (status = 503, response = super::openapi::Unavailable),
         (status = "default", response = super::openapi::ProblemResponse),
     )
@@ -78,16 +142,28 @@ pub async fn coefficients(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
+    Params(query): Params<RequireQuery>,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    // Which calibration is the latest, then its rendering if kept; the
-    // summary itself is read only to render a calibration not kept yet.
+    let usable = query.usable()?;
+    let now = Timestamp::now();
+    // Which calibration is the latest, then its rendering if kept and still
+    // right; the summary itself is read only to render, or to refuse.
     let id = latest_id(&state, &sensor_id).await?;
-    let body = match state.rendered.get(&id) {
+    let kept = if usable {
+        None
+    } else {
+        state.rendered.get(&id, now)
+    };
+    let body = match kept {
         Some(body) => body,
-        None => state
-            .rendered
-            .get_or_render(sensor(&state, &sensor_id).await?.latest)?,
+        None => {
+            let latest = sensor(&state, &sensor_id).await?.latest;
+            if usable {
+                refuse_unusable(&latest, &Usability::of(latest.verdict, latest.due_at, now))?;
+            }
+            state.rendered.get_or_render(latest, now)?
+        }
     };
     Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response())
 }
@@ -108,25 +184,31 @@ impl Default for Rendered {
 }
 
 impl Rendered {
-    /// The kept rendering of calibration `id`, if any.
-    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
-        self.0.get(id)
+    /// The kept rendering of calibration `id`, if any and still right at
+    /// `now` (its status changes 30 days before the due date and at it).
+    pub fn get(&self, id: &Uuid, now: Timestamp) -> Option<Bytes> {
+        self.0.get_at(id, now)
     }
 
-    /// The rendered [`Coefficients`] of `latest`, from memory when they
-    /// were rendered before.
-    pub fn get_or_render(&self, latest: CalibrationSummary) -> Result<Bytes, Problem> {
+    /// The rendered [`Coefficients`] of `latest` at `now`, from memory when
+    /// they were rendered before and are still right.
+    pub fn get_or_render(
+        &self,
+        latest: CalibrationSummary,
+        now: Timestamp,
+    ) -> Result<Bytes, Problem> {
         let id = latest.id;
-        if let Some(body) = self.0.get(&id) {
+        if let Some(body) = self.0.get_at(&id, now) {
             return Ok(body);
         }
-        let body = Bytes::from(
-            serde_json::to_vec(&Coefficients::from(latest)).map_err(|e| {
+        let until = Usability::valid_until(latest.due_at, now);
+        let body = Bytes::from(serde_json::to_vec(&Coefficients::of(latest, now)).map_err(
+            |e| {
                 tracing::error!(error = %e, "rendering coefficients failed");
                 Problem::internal()
-            })?,
-        );
-        self.0.insert(id, body.clone());
+            },
+        )?);
+        self.0.insert_until(id, body.clone(), until);
         Ok(body)
     }
 
@@ -149,17 +231,21 @@ impl Rendered {
     tag = "sensors",
     operation_id = "compensate",
     summary = "Input accelerations (g) from raw outputs.",
-    description = "Inverts the model of the sensor's latest calibration (or the one \\
-        named by `calibration_id`): closed form when the model is linear in \\
-        `a_i`, Newton's iteration otherwise. `a_p` and `a_o`, when given, \\
-        hold one known value per output (default 0).",
-    params(super::openapi::SensorIdPath),
+    description = "Inverts the model of the sensor's latest calibration (or the one \
+        named by `calibration_id`): closed form when the model is linear in \
+        `a_i`, Newton's iteration otherwise. `a_p` and `a_o`, when given, \
+        hold one known value per output; when omitted they are taken as 0, and \
+        `assumed_zero` names those the model has terms in. The answer says \
+        whether the calibration's coefficients are usable; with \
+        `require=usable`, unusable ones are a 409.",
+    params(super::openapi::SensorIdPath, RequireQuery),
     request_body(content((CompensateRequest = "application/json"))),
     responses(
         (status = 200, description = "One input acceleration per output.", body = Compensated),
         (status = 400, response = super::openapi::BadRequest),
         (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::NotUsable),
         (status = 413, response = super::openapi::TooLarge),
         (status = 415, response = super::openapi::UnsupportedMediaType),
         (status = 422, response = super::openapi::Invalid),
@@ -171,9 +257,11 @@ pub async fn compensate(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
+    Params(query): Params<RequireQuery>,
     body: Body,
 ) -> Result<Json<Compensated>, Problem> {
     require(&principal, Role::Reader)?;
+    let usable = query.usable()?;
     let request = body.json::<CompensateRequest>()?.check()?;
     let summary = match request.calibration_id {
         None => sensor(&state, &sensor_id).await?.latest,
@@ -189,10 +277,19 @@ pub async fn compensate(
                 ))
             })?,
     };
+    let usability = Usability::of(summary.verdict, summary.due_at, Timestamp::now());
+    if usable {
+        refuse_unusable(&summary, &usability)?;
+    }
     let a_i = request.compensate(&summary.coefficients, summary.id)?;
     Ok(Json(Compensated {
+        assumed_zero: request.assumed_zero(&summary.model),
+        usability,
         sensor_id: summary.sensor_id,
         calibration_id: summary.id,
+        performed_at: summary.performed_at,
+        verdict: summary.verdict,
+        due_at: summary.due_at,
         unit: summary.unit,
         a_i,
     }))
@@ -214,7 +311,8 @@ mod tests {
     #[test]
     fn the_rendering_is_the_coefficients_document() {
         let r = Rendered::default();
-        let body = r.get_or_render(latest(1, -8.4e-4)).unwrap();
+        let now = Timestamp::parse("2026-06-01T00:00:00Z").unwrap();
+        let body = r.get_or_render(latest(1, -8.4e-4), now).unwrap();
         let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
         assert_eq!(
             v,
@@ -222,6 +320,11 @@ mod tests {
                 "sensor_id": "S",
                 "calibration_id": Uuid::from_u128(1),
                 "performed_at": "2026-01-01T00:00:00.000000Z",
+                "verdict": null,
+                "due_at": null,
+                "status": "unknown",
+                "usable": true,
+                "reasons": [],
                 "unit": "mA",
                 "model": ["k0", "ki"],
                 "coefficients": {"k0": -8.4e-4, "ki": -1.216},
@@ -229,21 +332,57 @@ mod tests {
             })
         );
         // A second read of that calibration is the kept bytes.
-        let again = r.get_or_render(latest(1, 0.5)).unwrap();
+        let again = r.get_or_render(latest(1, 0.5), now).unwrap();
         assert_eq!(again, body);
         assert_eq!(r.len(), 1);
         // Another calibration is rendered on its own.
-        let other = r.get_or_render(latest(2, 0.5)).unwrap();
+        let other = r.get_or_render(latest(2, 0.5), now).unwrap();
         let v: serde_json::Value = serde_json::from_slice(&other).unwrap();
         assert_eq!(v["coefficients"]["k0"], 0.5);
         assert_eq!(r.len(), 2);
+    }
+
+    /// A rendering holds its status until the status can change: kept up
+    /// to 30 days before the due date, rendered again after it (due soon),
+    /// and again after the due date (overdue, not usable).
+    #[test]
+    fn a_rendering_is_renewed_when_its_status_can_change() {
+        let r = Rendered::default();
+        let at = |s: &str| Timestamp::parse(s).unwrap();
+        let mut s = latest(7, 1e-3);
+        s.verdict = Some(Verdict::Pass);
+        s.due_at = Some(at("2026-07-01T00:00:00Z"));
+        let read = |now: &str| {
+            let body = r.get_or_render(s.clone(), at(now)).unwrap();
+            let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+            (
+                v["status"].as_str().unwrap().to_owned(),
+                v["usable"].as_bool().unwrap(),
+            )
+        };
+        assert_eq!(read("2026-05-01T00:00:00Z"), ("ok".into(), true));
+        assert!(
+            r.get(&Uuid::from_u128(7), at("2026-06-01T00:00:00Z"))
+                .is_some()
+        );
+        assert!(
+            r.get(&Uuid::from_u128(7), at("2026-06-01T00:00:01Z"))
+                .is_none()
+        );
+        assert_eq!(read("2026-06-15T00:00:00Z"), ("due_soon".into(), true));
+        assert_eq!(read("2026-07-02T00:00:00Z"), ("overdue".into(), false));
+        // Overdue stays overdue: kept for ever.
+        assert!(
+            r.get(&Uuid::from_u128(7), at("2030-01-01T00:00:00Z"))
+                .is_some()
+        );
     }
 
     #[test]
     fn at_most_so_many_calibrations_are_kept() {
         let r = Rendered::default();
         for id in 0..(RENDERED as u128 + 10) {
-            r.get_or_render(latest(id, 0.0)).unwrap();
+            r.get_or_render(latest(id, 0.0), Timestamp::now()).unwrap();
         }
         assert_eq!(r.len(), RENDERED);
         // The newest is among them.

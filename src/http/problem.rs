@@ -48,6 +48,8 @@ pub enum Kind {
     Timeout,
     /// 409: a request with the same Idempotency-Key is still being processed.
     InFlight,
+    /// 409: coefficients asked for with `require=usable` are not usable.
+    NotUsable,
     /// 413: the body is too large.
     TooLarge,
     /// 429: too many failed authentications from the client's address.
@@ -66,7 +68,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 15] = [
+    pub const ALL: [Kind; 16] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -75,6 +77,7 @@ impl Kind {
         Kind::MethodNotAllowed,
         Kind::Timeout,
         Kind::InFlight,
+        Kind::NotUsable,
         Kind::TooLarge,
         Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
@@ -95,6 +98,7 @@ impl Kind {
             Kind::MethodNotAllowed => "method-not-allowed",
             Kind::Timeout => "timeout",
             Kind::InFlight => "in-flight",
+            Kind::NotUsable => "not-usable",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
@@ -116,6 +120,7 @@ impl Kind {
             Kind::MethodNotAllowed => "Method not allowed",
             Kind::Timeout => "Request timeout",
             Kind::InFlight => "Request in progress",
+            Kind::NotUsable => "Coefficients not usable",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
@@ -136,7 +141,7 @@ impl Kind {
             Kind::NotFound => StatusCode::NOT_FOUND,
             Kind::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
-            Kind::InFlight => StatusCode::CONFLICT,
+            Kind::InFlight | Kind::NotUsable => StatusCode::CONFLICT,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,

@@ -18,14 +18,17 @@ use axum::http::HeaderValue;
 use bytes::Bytes;
 use uuid::Uuid;
 
+use crate::domain::timestamp::Timestamp;
+
 /// The `Content-Type` of a rendered JSON answer.
 pub static APPLICATION_JSON: HeaderValue = HeaderValue::from_static("application/json");
 
 /// Renderings by calibration id, at most `capacity`; when full, an arbitrary
-/// one makes room.
+/// one makes room. A rendering that holds a time-dependent part (a status)
+/// is kept with the last instant it is right at.
 #[derive(Debug)]
 pub struct ById {
-    map: Mutex<HashMap<Uuid, Bytes>>,
+    map: Mutex<HashMap<Uuid, (Bytes, Option<Timestamp>)>>,
     capacity: usize,
 }
 
@@ -38,13 +41,28 @@ impl ById {
         }
     }
 
-    /// The kept rendering of calibration `id`, if any.
+    /// The kept rendering of calibration `id`, if any (kept for ever).
     pub fn get(&self, id: &Uuid) -> Option<Bytes> {
-        self.lock().get(id).cloned()
+        self.lock().get(id).map(|(body, _)| body.clone())
     }
 
-    /// Keeps `body` as the rendering of calibration `id`.
+    /// The kept rendering of calibration `id`, if any and still right at
+    /// `now`.
+    pub fn get_at(&self, id: &Uuid, now: Timestamp) -> Option<Bytes> {
+        match self.lock().get(id) {
+            Some((body, until)) if until.is_none_or(|t| now <= t) => Some(body.clone()),
+            _ => None,
+        }
+    }
+
+    /// Keeps `body` as the rendering of calibration `id`, right for ever.
     pub fn insert(&self, id: Uuid, body: Bytes) {
+        self.insert_until(id, body, None);
+    }
+
+    /// Keeps `body` as the rendering of calibration `id`, right up to
+    /// `until` (for ever when `None`).
+    pub fn insert_until(&self, id: Uuid, body: Bytes, until: Option<Timestamp>) {
         let mut map = self.lock();
         if map.len() >= self.capacity
             && !map.contains_key(&id)
@@ -52,7 +70,7 @@ impl ById {
         {
             map.remove(&victim);
         }
-        map.insert(id, body);
+        map.insert(id, (body, until));
     }
 
     /// Renderings kept now.
@@ -70,7 +88,7 @@ impl ById {
         self.lock().contains_key(id)
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, Bytes>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, (Bytes, Option<Timestamp>)>> {
         // Plain data: a panic elsewhere cannot leave it half-updated.
         self.map.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -89,11 +107,17 @@ mod tests {
             assert!(kept.len() <= 3);
         }
         assert_eq!(kept.len(), 3);
+        let now = Timestamp::parse("2026-01-01T00:00:00Z").unwrap();
         assert_eq!(kept.get(&Uuid::from_u128(9)), Some(Bytes::from("9")));
         // Putting one kept again evicts nothing.
         kept.insert(Uuid::from_u128(9), Bytes::from("9"));
         assert_eq!(kept.len(), 3);
         assert!(kept.contains(&Uuid::from_u128(9)));
         assert_eq!(kept.get(&Uuid::from_u128(100)), None);
+        // One right until a time is served up to it, not after.
+        let id = Uuid::from_u128(9);
+        kept.insert_until(id, Bytes::from("soon"), Some(now));
+        assert_eq!(kept.get_at(&id, now), Some(Bytes::from("soon")));
+        assert_eq!(kept.get_at(&id, now.plus_seconds(1)), None);
     }
 }

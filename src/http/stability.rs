@@ -44,6 +44,11 @@ pub struct Stability {
     pub sensor_id: String,
     /// Calibrations covered: the window's latest, at most 250.
     pub calibrations: usize,
+    /// The output unit of every value reported: the latest calibration's.
+    pub unit: Option<String>,
+    /// Calibrations in the window left out because they are in another
+    /// unit (stability never mixes units).
+    pub other_units: usize,
     /// Earlier calibrations of the window left out by the cap of 250
     /// (narrow `from`/`to` to cover them).
     pub omitted: usize,
@@ -90,7 +95,15 @@ pub async fn report_of(
         .series(sensor_id.to_owned(), from, to, MAX_SERIES)
         .await?;
     let omitted = found.in_window.saturating_sub(found.items.len());
-    let series = found.items;
+    // One unit: the latest calibration's.
+    let unit = found.items.last().map(|c| c.unit.clone());
+    let in_window = found.items.len();
+    let series: Vec<CalibrationSummary> = found
+        .items
+        .into_iter()
+        .filter(|c| Some(&c.unit) == unit.as_ref())
+        .collect();
+    let other_units = in_window - series.len();
     let points: Vec<Point> = series
         .iter()
         .map(|c| Point {
@@ -103,6 +116,8 @@ pub async fn report_of(
     let stability = Stability {
         sensor_id: sensor_id.to_owned(),
         calibrations: series.len(),
+        unit,
+        other_units,
         omitted,
         first_performed_at: series.first().map(|c| c.performed_at),
         last_performed_at: series.last().map(|c| c.performed_at),

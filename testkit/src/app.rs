@@ -53,6 +53,32 @@ pub fn submission(sensor: &str, performed_at: &str, runs: usize) -> Value {
     })
 }
 
+/// A submission whose outputs hold a term its model lacks: six runs on
+/// eight positions (45° steps) of U = k0 + ki·a_i + kp·a_p + 3e-3·a_i²,
+/// two samples a position with independent 1e-6 noise, model `k0 ki kp`.
+/// The misfit is the same in every run: lack of fit, with `kii` unmodelled.
+pub fn misfit_submission(sensor: &str) -> Value {
+    let mut body = submission(sensor, "2026-01-01T00:00:00Z", 6);
+    let angles = [0, 45, 90, 135, 180, 225, 270, 315];
+    body["positions"] = json!(angles.map(|d| json!({"angle_deg": d})));
+    let (k0, ki, kp, kii) = (-8.4e-4, -1.216, 6.2e-3, 3e-3);
+    for (j, run) in body["runs"].as_array_mut().unwrap().iter_mut().enumerate() {
+        let readings: Vec<Value> = angles
+            .iter()
+            .enumerate()
+            .map(|(p, d)| {
+                let th = f64::from(*d).to_radians();
+                let a_i = -th.sin();
+                let u = k0 + ki * a_i + kp * th.cos() + kii * a_i * a_i;
+                let k = (j * 8 + p) as f64;
+                json!([u + 1e-6 * (k * 1.3).sin(), u + 1e-6 * (k * 2.1 + 0.4).cos()])
+            })
+            .collect();
+        run["readings"] = json!(readings);
+    }
+    body
+}
+
 /// The engine a test's server runs on: API tests take it as a parameter
 /// (`#[values(Sqlite, Postgres)] engine: Engine`, with `rstest`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

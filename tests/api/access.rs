@@ -98,7 +98,8 @@ async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)]
         .submit(ADMIN, &submission("M-1", "2026-01-01T00:00:00Z", 4))
         .await;
     let id = r["id"].as_str().unwrap();
-    let nav = json!({"limits": {"k0": {"min": -1, "max": 1}}, "decision_rule": "simple"});
+    let nav =
+        json!({"unit": "mA", "limits": {"k0": {"min": -1, "max": 1}}, "decision_rule": "simple"});
     let created = app
         .client
         .put(app.url("/v1/sensor-types/NAV"))

@@ -24,6 +24,7 @@ async fn put(app: &TestApp, path: &str, token: &str, body: &Value) -> reqwest::R
 fn nav_type() -> Value {
     json!({
         "label": "Navigation grade",
+        "unit": "mA",
         "limits": {"k0": {"min": -1e-3, "max": 1e-3}, "kp": {"min": -6.2e-3, "max": 6.2e-3}},
         "decision_rule": "guarded",
         "coverage_factor": 2,
@@ -74,19 +75,19 @@ async fn sensor_types_are_written_by_admins_and_checked(
     .await;
     for (body, pointer) in [
         (
-            json!({"limits": {"k0": {"min": 1, "max": -1}}, "decision_rule": "simple"}),
+            json!({"unit": "mA", "limits": {"k0": {"min": 1, "max": -1}}, "decision_rule": "simple"}),
             "/limits/k0",
         ),
         (
-            json!({"limits": {}, "decision_rule": "simple", "interval_days": -5}),
+            json!({"unit": "mA", "limits": {"k0": {"max": 1}}, "decision_rule": "simple", "interval_days": -5}),
             "/interval_days",
         ),
         (
-            json!({"limits": {"k9": {"min": 1}}, "decision_rule": "simple"}),
+            json!({"unit": "mA", "limits": {"k9": {"min": 1}}, "decision_rule": "simple"}),
             "/limits/k9",
         ),
         (
-            json!({"limits": {}, "decision_rule": "strict"}),
+            json!({"unit": "mA", "limits": {"k0": {"max": 1}}, "decision_rule": "strict"}),
             "/decision_rule",
         ),
     ] {
@@ -112,6 +113,7 @@ async fn a_typed_calibration_carries_its_budget_decision_and_due_date(
     let app = TestApp::spawn(engine).await;
     put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
     let mut body = paper();
+    body["unit"] = json!("mA");
     body["sensor_type"] = json!("NAV");
     body["stand"] = json!({"id": "DH-1", "angle_std_arcsec": 4.0, "gravity_rel_std": 2e-5});
     let r = app.submit(ADMIN, &body).await;
@@ -263,7 +265,7 @@ async fn decisions_are_immutable_and_types_must_fit(#[values(Sqlite, Postgres)] 
         &app,
         "/v1/sensor-types/KO",
         ADMIN,
-        &json!({"limits": {"ko": {"max": 1}}, "decision_rule": "simple"}),
+        &json!({"unit": "mA", "limits": {"ko": {"max": 1}}, "decision_rule": "simple"}),
     )
     .await;
     body["sensor_type"] = json!("KO");
@@ -559,4 +561,242 @@ async fn a_noisy_run_is_flagged(#[values(Sqlite, Postgres)] engine: Engine) {
         (Some("noisy_run"), Some(4))
     );
     assert_eq!(r["quality"]["condition_number"], r["condition_number"]);
+}
+
+/// Coefficients a control system can act on: a failed calibration and an
+/// overdue one are served with `usable: false` and their reasons, refused
+/// with a 409 to a client that requires usable ones, and compensation says
+/// which cross-axis inputs it took as 0.
+#[rstest]
+#[tokio::test]
+async fn unusable_coefficients_say_so_and_are_refused_on_request(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    // The paper's k0 (−6.8e-4) is below this type's minimum: fail.
+    let strict = json!({"unit": "output", "limits": {"k0": {"min": 0.0, "max": 1e-3}}, "decision_rule": "simple"});
+    assert_eq!(
+        put(&app, "/v1/sensor-types/STRICT", ADMIN, &strict)
+            .await
+            .status(),
+        StatusCode::CREATED
+    );
+    let mut body = paper();
+    body["sensor_type"] = json!("STRICT");
+    let id = app.submit(ADMIN, &body).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let reader = app.token("reader", None).await;
+    let c = app
+        .get_json("/v1/sensors/PAPER-2005/coefficients", &reader)
+        .await;
+    assert_eq!(c["calibration_id"], id.as_str());
+    assert_eq!(
+        (c["verdict"].as_str(), c["status"].as_str()),
+        (Some("fail"), Some("failed"))
+    );
+    assert_eq!(c["usable"], false);
+    assert_eq!(c["reasons"][0]["reason"], "failed");
+    assert!(c["due_at"].is_string());
+    let p = problem(
+        app.get(
+            "/v1/sensors/PAPER-2005/coefficients?require=usable",
+            &reader,
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert_eq!(p["type"], "urn:accelcal:problem:not-usable");
+    assert!(p["detail"].as_str().unwrap().contains("verdict"), "{p}");
+    let p = problem(
+        app.post(
+            "/v1/sensors/PAPER-2005/compensate?require=usable",
+            &reader,
+            &json!({"outputs": [0.5]}),
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert_eq!(p["type"], "urn:accelcal:problem:not-usable");
+    let r = app
+        .post(
+            "/v1/sensors/PAPER-2005/compensate",
+            &reader,
+            &json!({"outputs": [0.5]}),
+        )
+        .await;
+    assert_eq!(r.status(), StatusCode::OK);
+    let r: Value = r.json().await.unwrap();
+    assert_eq!(
+        (r["usable"].as_bool(), r["status"].as_str()),
+        (Some(false), Some("failed"))
+    );
+    // The paper's model has kp: a_p was taken as 0 and the answer says so.
+    assert_eq!(r["assumed_zero"], json!(["a_p"]));
+    let r: Value = app
+        .post(
+            "/v1/sensors/PAPER-2005/compensate",
+            &reader,
+            &json!({"outputs": [0.5], "a_p": [0.0]}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(r["assumed_zero"], json!([]));
+    // A requirement other than `usable` is a 400 naming the parameter.
+    let p = problem(
+        app.get("/v1/sensors/PAPER-2005/coefficients?require=fresh", &reader)
+            .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "require");
+
+    // Overdue: a one-day interval, performed three days ago; it passes.
+    let daily = json!({"unit": "mA", "limits": {"k0": {"min": -1e-3, "max": 1e-3}}, "decision_rule": "simple", "interval_days": 1});
+    put(&app, "/v1/sensor-types/DAILY", ADMIN, &daily).await;
+    let mut body = submission("OLD-1", "2000-01-01T00:00:00Z", 6);
+    let three_days_ago = accelcal::domain::timestamp::Timestamp::now().plus_seconds(-3 * 86_400);
+    body["performed_at"] = json!(three_days_ago.to_string());
+    body["sensor_type"] = json!("DAILY");
+    app.submit(ADMIN, &body).await;
+    let c = app
+        .get_json("/v1/sensors/OLD-1/coefficients", &reader)
+        .await;
+    assert_eq!(
+        (c["verdict"].as_str(), c["status"].as_str()),
+        (Some("pass"), Some("overdue"))
+    );
+    assert_eq!(c["usable"], false);
+    assert_eq!(c["reasons"][0]["reason"], "overdue");
+    problem(
+        app.get("/v1/sensors/OLD-1/coefficients?require=usable", &reader)
+            .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    // A usable one is served as usual when required (due within a day:
+    // due soon, and usable).
+    let mut body = submission("NEW-1", "2000-01-01T00:00:00Z", 6);
+    body["performed_at"] = json!(accelcal::domain::timestamp::Timestamp::now().to_string());
+    body["sensor_type"] = json!("DAILY");
+    app.submit(ADMIN, &body).await;
+    let c = app
+        .get_json("/v1/sensors/NEW-1/coefficients?require=usable", &reader)
+        .await;
+    assert_eq!(
+        (c["usable"].as_bool(), c["status"].as_str()),
+        (Some(true), Some("due_soon"))
+    );
+}
+
+/// A systematic misfit the runs share: the model `k0 ki kp` on eight
+/// positions whose outputs hold an unmodelled `kii`, two samples a position.
+/// The result says lack of fit (F, ν1, ν2, p), names `kii`, and the budget
+/// carries the model component in quadrature.
+#[rstest]
+#[tokio::test]
+async fn a_misfit_is_flagged_and_enters_the_budget(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let body = misfit_submission("MISFIT-1");
+    let r = app.submit(ADMIN, &body).await;
+    let lof = &r["quality"]["lack_of_fit"];
+    assert_eq!(lof["status"], "tested", "{lof}");
+    assert_eq!(
+        (lof["df1"].as_u64(), lof["df2"].as_u64()),
+        (Some(30), Some(48))
+    );
+    assert!(f(&lof["p_value"]) < 1e-3, "{lof}");
+    let kinds: Vec<&str> = r["quality"]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w["kind"].as_str().unwrap())
+        .collect();
+    assert!(kinds.contains(&"lack_of_fit"), "{kinds:?}");
+    assert!(
+        r["quality"]["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w["kind"] == "unmodelled_term" && w["term"] == "kii"),
+        "{}",
+        r["quality"]["warnings"]
+    );
+    for term in ["k0", "ki", "kp"] {
+        let b = &r["uncertainty"]["terms"][term];
+        let parts = ["statistical", "indexing", "gravity", "model"].map(|k| f(&b[k]));
+        assert!(parts[3] > 0.0, "{term}: {b}");
+        let rss = parts.iter().map(|x| x * x).sum::<f64>().sqrt();
+        assert!(
+            (f(&b["combined"]) - rss).abs() <= 1e-12 * rss,
+            "{term}: {b}"
+        );
+    }
+    // The model component dominates the fused standard error: the misfit is
+    // the same in every run, so fusion cannot see it.
+    let b = &r["uncertainty"]["terms"]["k0"];
+    assert!(f(&b["model"]) > 10.0 * f(&b["statistical"]), "{b}");
+}
+
+/// Units are compared: a typed sensor's calibrations must be in its type's
+/// unit; as found across a change of unit is null with the reason; stability
+/// reports one unit, the latest calibration's, and counts what it left out.
+#[rstest]
+#[tokio::test]
+async fn units_are_compared_and_never_mixed(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    put(&app, "/v1/sensor-types/NAV", ADMIN, &nav_type()).await;
+    // The type's limits are in mA: a submission in A for it is refused.
+    let mut amps = submission("U-1", "2026-01-01T00:00:00Z", 4);
+    amps["unit"] = json!("A");
+    amps["sensor_type"] = json!("NAV");
+    let p = problem(
+        app.post("/v1/calibrations", ADMIN, &amps).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(p["errors"][0]["pointer"], "/unit");
+    let detail = p["errors"][0]["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("`A`") && detail.contains("`mA`") && detail.contains("NAV"),
+        "{detail}"
+    );
+    // Untyped, a sensor may change unit; as found says why it is null.
+    app.submit(ADMIN, &submission("U-2", "2026-01-01T00:00:00Z", 4))
+        .await;
+    app.submit(ADMIN, &submission("U-2", "2026-02-01T00:00:00Z", 4))
+        .await;
+    let mut later = submission("U-2", "2026-03-01T00:00:00Z", 4);
+    later["unit"] = json!("A");
+    let r = app.submit(ADMIN, &later).await;
+    assert!(r["as_found"].is_null());
+    let note = r["as_found_note"].as_str().unwrap();
+    assert!(note.contains("`mA`") && note.contains("`A`"), "{note}");
+    let s = app.get_json("/v1/sensors/U-2/stability", ADMIN).await;
+    assert_eq!(
+        (
+            s["unit"].as_str(),
+            s["calibrations"].as_u64(),
+            s["other_units"].as_u64()
+        ),
+        (Some("A"), Some(1), Some(2))
+    );
+    // Back in mA: the mA ones are the series again, the A one left out.
+    app.submit(ADMIN, &submission("U-2", "2026-04-01T00:00:00Z", 4))
+        .await;
+    let s = app.get_json("/v1/sensors/U-2/stability", ADMIN).await;
+    assert_eq!(
+        (
+            s["unit"].as_str(),
+            s["calibrations"].as_u64(),
+            s["other_units"].as_u64()
+        ),
+        (Some("mA"), Some(3), Some(1))
+    );
+    assert!(s["terms"]["k0"]["mean"].is_number());
 }

@@ -263,8 +263,10 @@ async fn a_calibration_from_the_future_cannot_pin_the_coefficients() {
 #[tokio::test]
 async fn a_station_cannot_retype_a_sensor_through_a_submission() {
     let app = TestApp::spawn(Sqlite).await;
-    let nav: Value =
+    let mut nav: Value =
         serde_json::from_str(include_str!("../../examples/sensor-type-nav.json")).unwrap();
+    // The submissions below are in mA.
+    nav["unit"] = json!("mA");
     let mut lenient = nav.clone();
     lenient["limits"] = json!({"k0": {"min": -1, "max": 1}});
     lenient["interval_days"] = json!(3650);

@@ -12,7 +12,7 @@ use serde_json::{Value, json};
 use sha2::{Digest, Sha256};
 
 use accelcal_testkit::Engine::{self, Postgres, Sqlite};
-use accelcal_testkit::{ADMIN, TestApp, paper};
+use accelcal_testkit::{ADMIN, TestApp, misfit_submission, paper};
 use rstest::rstest;
 
 fn browser() -> Client {
@@ -554,4 +554,73 @@ async fn pages_are_bounded_whatever_the_history(#[values(Sqlite, Postgres)] engi
         "residuals note"
     );
     assert!(!html.contains(r#"data-run="24""#));
+}
+
+/// A single run, and a misfit: the calibration page and the certificate
+/// render them — no batches and no eq. 8 for the one, the lack-of-fit and
+/// unmodelled-term warnings and the budget's model column for the other.
+#[rstest]
+#[tokio::test]
+async fn single_runs_and_misfits_are_shown(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let mut one = paper();
+    one["runs"] = json!([one["runs"][0]]);
+    one["sensor_id"] = json!("ONE-RUN");
+    let r = app.submit(ADMIN, &one).await;
+    assert_eq!(r["fused"]["batches"], json!([]));
+    assert!(r["fused"]["dispersion"].is_null() && r["mean"]["dispersion"].is_null());
+    assert!(
+        r["fused"]["note"]
+            .as_str()
+            .unwrap()
+            .starts_with("a single run")
+    );
+    let id = r["id"].as_str().unwrap().to_owned();
+    let reader = app.token("reader", None).await;
+    let (session, _) = sign_in(&app, &reader).await;
+    let res = page(&app, &format!("/ui/calibrations/{id}"), &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let html = res.text().await.unwrap();
+    assert!(html.contains("Not fused: a single run"), "no note");
+    let res = page(
+        &app,
+        &format!("/ui/calibrations/{id}/certificate"),
+        &session,
+    )
+    .await;
+    assert_eq!(res.status(), StatusCode::OK);
+
+    let misfit = misfit_submission("MISFIT-2");
+    let id = app.submit(ADMIN, &misfit).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let html = page(&app, &format!("/ui/calibrations/{id}"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    for text in [
+        "Lack of fit.",
+        "Unmodelled term.",
+        "<code>kii</code>",
+        "data-label=\"Model\"",
+        "Lack-of-fit test: F =",
+    ] {
+        assert!(html.contains(text), "no {text}");
+    }
+    let cert = page(
+        &app,
+        &format!("/ui/calibrations/{id}/certificate"),
+        &session,
+    )
+    .await
+    .text()
+    .await
+    .unwrap();
+    assert!(
+        cert.contains("the model's own standard error"),
+        "certificate method"
+    );
+    assert!(cert.contains("data-label=\"Model\""), "certificate budget");
 }

@@ -370,6 +370,7 @@ pub(crate) fn sensor_type(id: &str, interval_days: u32) -> SensorType {
     SensorType {
         type_id: id.into(),
         label: Some("nav".into()),
+        unit: Some("mA".into()),
         limits: TermMap(vec![(
             Term::K0,
             Limit {

@@ -134,7 +134,7 @@ try {
   const reader = (await must(201, api('POST', '/v1/tokens', { body: JSON.stringify({ role: 'reader', label: 'ui' }) }), 'reader token')).token;
   await must(201, api('PUT', '/v1/sensor-types/NAV', { body: fs.readFileSync('examples/sensor-type-nav.json') }), 'type NAV');
   await must(201, api('PUT', '/v1/sensor-types/SYN', {
-    body: JSON.stringify({ label: 'Synthetic', limits: { k0: { min: -5e-4, max: 5e-4 }, ki: { min: 0.999, max: 1.001 } }, decision_rule: 'guarded', interval_days: 180 }),
+    body: JSON.stringify({ label: 'Synthetic', unit: 'mA', limits: { k0: { min: -5e-4, max: 5e-4 }, ki: { min: 0.999, max: 1.001 } }, decision_rule: 'guarded', interval_days: 180 }),
   }), 'type SYN');
   const paperBytes = fs.readFileSync('examples/paper-table1.json');
   const paper = await must(201, api('POST', '/v1/calibrations', { body: paperBytes }), 'paper');

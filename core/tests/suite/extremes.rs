@@ -86,18 +86,30 @@ fn calibration_scales_with_the_outputs() {
                 tol,
             );
             rel(
-                g(&cal.mean.dispersion),
-                c.abs() * g(&base.mean.dispersion),
+                g(cal.mean.dispersion.as_ref().unwrap()),
+                c.abs() * g(base.mean.dispersion.as_ref().unwrap()),
                 tol,
             );
             rel(
-                g(&cal.fused.dispersion),
-                c.abs() * g(&base.fused.dispersion),
+                g(cal.fused.dispersion.as_ref().unwrap()),
+                c.abs() * g(base.fused.dispersion.as_ref().unwrap()),
                 tol,
             );
             rel(
-                cal.fused.relative_dispersion.get(t).unwrap().unwrap(),
-                base.fused.relative_dispersion.get(t).unwrap().unwrap(),
+                cal.fused
+                    .relative_dispersion
+                    .as_ref()
+                    .unwrap()
+                    .get(t)
+                    .unwrap()
+                    .unwrap(),
+                base.fused
+                    .relative_dispersion
+                    .as_ref()
+                    .unwrap()
+                    .get(t)
+                    .unwrap()
+                    .unwrap(),
                 tol,
             );
             for (run, b) in cal.runs.iter().zip(&base.runs) {

@@ -64,13 +64,31 @@ fn table_2_fusion() {
     assert_printed(g(&e.fused.std_errors, Term::Ki), "2.8651e-5");
     assert_printed(g(&e.fused.std_errors, Term::Kp), "6.3639e-6");
     // eq. 8 about the mean: the paper's σ_pk0 and σ_pk1 (relative)
-    assert_printed(g(&e.mean.dispersion, Term::K0), "1.9747e-5");
-    assert_printed(rel(&e.mean.relative_dispersion, Term::Ki), "5.3216e-5");
-    assert_printed(g(&e.mean.dispersion, Term::Kp), "8.6799e-5");
+    assert_printed(
+        g(e.mean.dispersion.as_ref().unwrap(), Term::K0),
+        "1.9747e-5",
+    );
+    assert_printed(
+        rel(e.mean.relative_dispersion.as_ref().unwrap(), Term::Ki),
+        "5.3216e-5",
+    );
+    assert_printed(
+        g(e.mean.dispersion.as_ref().unwrap(), Term::Kp),
+        "8.6799e-5",
+    );
     // eq. 8 about the fused value (not the paper's σ_rk0, σ_rk1: see NOTES §5)
-    assert_printed(g(&e.fused.dispersion, Term::K0), "2.0257e-5");
-    assert_printed(rel(&e.fused.relative_dispersion, Term::Ki), "5.3233e-5");
-    assert_printed(g(&e.fused.dispersion, Term::Kp), "1.1092e-4");
+    assert_printed(
+        g(e.fused.dispersion.as_ref().unwrap(), Term::K0),
+        "2.0257e-5",
+    );
+    assert_printed(
+        rel(e.fused.relative_dispersion.as_ref().unwrap(), Term::Ki),
+        "5.3233e-5",
+    );
+    assert_printed(
+        g(e.fused.dispersion.as_ref().unwrap(), Term::Kp),
+        "1.1092e-4",
+    );
 
     // The batches: runs 0–2 and 3–5.
     assert_eq!(e.fused.batches.len(), 2);
@@ -182,12 +200,18 @@ fn table_1_figures_match_an_independent_computation() {
             1e-12,
         );
         close(
-            *cal.mean.dispersion.get(t).unwrap(),
+            *cal.mean.dispersion.as_ref().unwrap().get(t).unwrap(),
             &t1["mean_dispersion"][n],
             1e-9,
         );
         close(
-            cal.mean.relative_dispersion.get(t).unwrap().unwrap(),
+            cal.mean
+                .relative_dispersion
+                .as_ref()
+                .unwrap()
+                .get(t)
+                .unwrap()
+                .unwrap(),
             &t1["mean_relative_dispersion"][n],
             1e-9,
         );
@@ -202,12 +226,18 @@ fn table_1_figures_match_an_independent_computation() {
             1e-9,
         );
         close(
-            *cal.fused.dispersion.get(t).unwrap(),
+            *cal.fused.dispersion.as_ref().unwrap().get(t).unwrap(),
             &t1["fused_dispersion"][n],
             1e-9,
         );
         close(
-            cal.fused.relative_dispersion.get(t).unwrap().unwrap(),
+            cal.fused
+                .relative_dispersion
+                .as_ref()
+                .unwrap()
+                .get(t)
+                .unwrap()
+                .unwrap(),
             &t1["fused_relative_dispersion"][n],
             1e-9,
         );
@@ -243,7 +273,7 @@ fn table_2_fusion_matches_an_independent_computation() {
         let n = t.name();
         close(*e.mean.coefficients.get(t).unwrap(), &t2["mean"][n], 1e-12);
         close(
-            *e.mean.dispersion.get(t).unwrap(),
+            *e.mean.dispersion.as_ref().unwrap().get(t).unwrap(),
             &t2["mean_dispersion"][n],
             1e-9,
         );
@@ -258,12 +288,18 @@ fn table_2_fusion_matches_an_independent_computation() {
             1e-9,
         );
         close(
-            *e.fused.dispersion.get(t).unwrap(),
+            *e.fused.dispersion.as_ref().unwrap().get(t).unwrap(),
             &t2["fused_dispersion"][n],
             1e-9,
         );
         close(
-            e.fused.relative_dispersion.get(t).unwrap().unwrap(),
+            e.fused
+                .relative_dispersion
+                .as_ref()
+                .unwrap()
+                .get(t)
+                .unwrap()
+                .unwrap(),
             &t2["fused_relative_dispersion"][n],
             1e-9,
         );
@@ -280,4 +316,58 @@ fn close(got: f64, want: &serde_json::Value, relative: f64) {
         (got - want).abs() <= relative * want.abs(),
         "{got:e} vs reference {want:e} (relative {relative:e})"
     );
+}
+
+/// Each of the paper's runs submitted alone is its own estimate: the
+/// coefficients and standard errors of the independent closed form for that
+/// run, no batches and no eq. 8, and a note saying so. A run that fits
+/// exactly (as many positions as terms) has no standard errors to give and
+/// is refused, naming both counts.
+#[test]
+fn a_single_run_is_its_own_estimate() {
+    let r: serde_json::Value =
+        serde_json::from_str(include_str!("../data/reference.json")).unwrap();
+    let paper = paper_tumble();
+    for (j, run) in paper.runs().iter().enumerate() {
+        let one = accelcal_core::TumbleTest::new(
+            paper.model().clone(),
+            paper.positions().to_vec(),
+            vec![run.clone()],
+        )
+        .unwrap();
+        let cal = one.calibrate(2).unwrap();
+        let want = &r["table1"]["runs"][j];
+        for t in [Term::K0, Term::Ki, Term::Kp] {
+            close(
+                cal.fused.coefficients[t],
+                &want["coefficients"][t.name()],
+                1e-12,
+            );
+            close(
+                cal.mean.coefficients[t],
+                &want["coefficients"][t.name()],
+                1e-12,
+            );
+            close(cal.fused.std_errors[t], &want["std_errors"][t.name()], 1e-9);
+        }
+        assert!(cal.fused.batches.is_empty());
+        assert!(cal.fused.dispersion.is_none() && cal.mean.dispersion.is_none());
+        assert!(cal.fused.relative_dispersion.is_none() && cal.mean.relative_dispersion.is_none());
+        assert_eq!(cal.fused.note, Some(accelcal_core::estimate::SINGLE_RUN));
+    }
+    let exact = accelcal_core::TumbleTest::new(
+        accelcal_core::Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Kii]).unwrap(),
+        paper.positions().to_vec(),
+        vec![paper.runs()[0].clone()],
+    )
+    .unwrap();
+    assert_eq!(
+        exact.calibrate(1).unwrap_err(),
+        accelcal_core::Error::SingleRunWithoutDof {
+            positions: 4,
+            terms: 4
+        }
+    );
+    // Two runs or more are fused as before: the note is absent.
+    assert_eq!(paper.calibrate(2).unwrap().fused.note, None);
 }

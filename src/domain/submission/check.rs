@@ -112,12 +112,16 @@ impl Hints {
                     if surplus == 1 { "" } else { "s" }
                 )
             }
+            // Only with two runs or more (one run is not fused), so at
+            // least one batch is always possible.
             CoreError::Fusion {
-                source: FusionError::TooFewRuns { batches, .. },
+                source: FusionError::TooFewRuns { batches, total, .. },
                 ..
             } => format!(
-                "{e}: submit at least {} runs or ask for fewer batches",
-                2 * batches
+                "{e}: submit at least {} runs, or ask for at most {} batch{}",
+                2 * batches,
+                total / 2,
+                if total / 2 == 1 { "" } else { "es" }
             ),
             CoreError::Fusion { .. } => {
                 format!("{e}; batch estimation needs runs whose coefficients differ")
@@ -125,6 +129,34 @@ impl Hints {
             other => other.to_string(),
         }
     }
+}
+
+/// Largest |angle| (degrees) of a tumble that looks like radians: 2π, and
+/// a rounding's margin.
+const RADIANS_BOUND: f64 = std::f64::consts::TAU + 1e-3;
+
+/// Why the angles look like radians, when at least two distinct angles are
+/// given and all lie within ±2π: a tumble confined to ±6.3° tilts the input
+/// axis by at most 0.11 g and the pendulous axis by 0.006 g, which separates
+/// nothing, so no real tumble in degrees looks like this.
+pub(super) fn radians(positions: &[PositionIn]) -> Option<String> {
+    let angles: Vec<f64> = positions.iter().filter_map(|p| p.angle_deg).collect();
+    let distinct = angles.iter().any(|a| Some(a) != angles.first());
+    if !distinct || angles.iter().any(|a| a.abs() > RADIANS_BOUND) {
+        return None;
+    }
+    let shown: Vec<String> = angles.iter().take(6).map(|a| format!("{a}")).collect();
+    let degrees: Vec<String> = angles
+        .iter()
+        .take(6)
+        .map(|a| format!("{}", (a.to_degrees() * 1e6).round() / 1e6))
+        .collect();
+    Some(format!(
+        "the angles ({}) all lie within ±2π, which looks like radians: `angle_deg` is in \
+         degrees — send ({}), i.e. radians × 180/π",
+        shown.join(", "),
+        degrees.join(", ")
+    ))
 }
 
 /// Resolves one position with the mount; `None` when wrong (recorded).
@@ -318,6 +350,9 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             label: p.label.clone(),
         })
         .collect();
+    if let Some(why) = radians(&positions) {
+        return Err(Invalid::one(root.key("positions"), why));
+    }
     hints.still = still_axes(&positions);
     let test = TumbleTest::new(model, core_positions, runs)
         .map_err(|e| Invalid::one(hints.pointer_of(&e), hints.detail_of(&e)))?;

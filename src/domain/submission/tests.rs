@@ -103,8 +103,53 @@ fn fusion_refusals_point_at_batches() {
         "{}",
         i.errors[0].detail
     );
+    // Six runs: at most three batches, which the message says.
+    assert!(
+        i.errors[0]
+            .detail
+            .ends_with("submit at least 8 runs, or ask for at most 3 batches"),
+        "{}",
+        i.errors[0].detail
+    );
     b["batches"] = json!(0);
     assert_eq!(pointers(&b), ["/batches"]);
+    // Three runs in the default two batches: one batch is what is possible.
+    let mut b = paper();
+    b["runs"] = json!(b["runs"].as_array().unwrap()[..3]);
+    b.as_object_mut().unwrap().remove("batches");
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert!(
+        i.errors[0].detail.ends_with("or ask for at most 1 batch"),
+        "{}",
+        i.errors[0].detail
+    );
+}
+
+/// One run is a valid submission: its own estimate, whatever `batches`
+/// says; with no spare position it is refused at `/runs`.
+#[test]
+fn a_single_run_is_a_submission() {
+    let mut b = paper();
+    b["runs"] = json!([b["runs"][0]]);
+    let e = run(&b).unwrap();
+    assert_eq!(e.calibration.runs.len(), 1);
+    assert_eq!(
+        e.calibration.fused.coefficients,
+        e.calibration.runs[0].coefficients
+    );
+    assert!(e.calibration.fused.dispersion.is_none());
+    b["model"] = json!(["k0", "ki", "kp", "kii"]);
+    let Err(Refused::Invalid(i)) = run(&b) else {
+        panic!()
+    };
+    assert_eq!(i.errors[0].pointer, "/runs");
+    assert!(
+        i.errors[0].detail.contains("fits exactly"),
+        "{}",
+        i.errors[0].detail
+    );
 }
 
 #[test]
@@ -318,4 +363,35 @@ fn near_misses_get_a_hint() {
         "{:?}",
         i.errors
     );
+}
+
+/// The radians body: refused at `/positions`, saying what to send.
+/// A real tumble, even a fine one stepping by 5° over a quarter turn, passes.
+#[test]
+fn angles_in_radians_are_refused_with_the_degrees_to_send() {
+    let mut b = paper();
+    // The values, as a station sends them.
+    let sent: Value = serde_json::from_str("[0, 1.5708, 3.1416, 4.7124]").unwrap();
+    for (k, rad) in sent.as_array().unwrap().iter().enumerate() {
+        b["positions"][k] = json!({"angle_deg": rad});
+    }
+    match run(&b) {
+        Err(Refused::Invalid(i)) => {
+            assert_eq!(i.errors.len(), 1);
+            assert_eq!(i.errors[0].pointer, "/positions");
+            let m = &i.errors[0].detail;
+            assert!(m.contains("looks like radians"), "{m}");
+            assert!(m.contains("(0, 90.00021, 180.000421, 270.000631)"), "{m}");
+        }
+        other => panic!("{other:?}"),
+    }
+    // The bound is 2π: an angle of 6.3 (beyond it) makes it degrees.
+    b["positions"][3] = json!({"angle_deg": 6.3});
+    assert!(
+        !pointers(&b).contains(&"/positions".to_owned()),
+        "{:?}",
+        pointers(&b)
+    );
+    // One distinct angle is no tumble to judge.
+    assert!(check::radians(&[]).is_none());
 }

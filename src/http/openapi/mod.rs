@@ -66,7 +66,7 @@ impl Modify for Bearer {
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
-            UnsupportedMediaType, Invalid, Unavailable,
+            UnsupportedMediaType, Invalid, NotUsable, Unavailable,
         ),
     ),
     modifiers(&Bearer),

@@ -45,6 +45,10 @@ problem_response!(
     Invalid,
     "Well-formed but invalid or unidentifiable; `errors` lists the problems (the first 100)."
 );
+problem_response!(
+    NotUsable,
+    "Asked `require=usable`, and the coefficients are not usable (failed or overdue): `detail` says why."
+);
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
 
 /// The `Idempotency-Key` header.

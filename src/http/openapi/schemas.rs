@@ -106,7 +106,7 @@ marker_schema!(
         .property("runs", array(reference("RunIn")).min_items(Some(1)).max_items(Some(MAX_RUNS)))
         .property("batches", ObjectBuilder::new()
             .schema_type(SchemaType::from_iter([Type::Integer, Type::Null]))
-            .description(Some("Fusion batches (default 2); each needs at least two runs."))
+            .description(Some("Fusion batches (default 2); each needs at least two runs. Not used for a single run."))
             .minimum(Some(1.0))
             .maximum(Some(MAX_BATCHES as f64)))
         .property("notes", nullable(text(MAX_NOTES_CHARS).into()))
@@ -153,11 +153,12 @@ marker_schema!(
 );
 
 marker_schema!(
-    /// The arithmetic mean across runs, with eq. 8 about it.
+    /// The arithmetic mean across runs, with eq. 8 about it (null for a
+    /// single run).
     MeanEstimateSchema => ObjectBuilder::new()
         .property("coefficients", reference("CoefficientMap"))
-        .property("dispersion", reference("CoefficientMap"))
-        .property("relative_dispersion", reference("NullableCoefficientMap"))
+        .property("dispersion", nullable(reference("CoefficientMap")))
+        .property("relative_dispersion", nullable(reference("NullableCoefficientMap")))
         .required("coefficients").required("dispersion").required("relative_dispersion")
         .build()
         .into()
@@ -175,13 +176,15 @@ marker_schema!(
 );
 
 marker_schema!(
-    /// The batch-estimation fusion, with eq. 8 about it.
+    /// The batch-estimation fusion, with eq. 8 about it; for a single run,
+    /// the run itself (no batches, eq. 8 null, and `note` says so).
     FusedEstimateSchema => ObjectBuilder::new()
         .property("batches", array(reference("Batch")))
         .property("coefficients", reference("CoefficientMap"))
         .property("std_errors", reference("CoefficientMap"))
-        .property("dispersion", reference("CoefficientMap"))
-        .property("relative_dispersion", reference("NullableCoefficientMap"))
+        .property("dispersion", nullable(reference("CoefficientMap")))
+        .property("relative_dispersion", nullable(reference("NullableCoefficientMap")))
+        .property("note", of_type(Type::String).description(Some("Present for a single run: why there are no batches and no eq. 8.")))
         .required("batches").required("coefficients").required("std_errors")
         .required("dispersion").required("relative_dispersion")
         .build()
@@ -243,10 +246,11 @@ fn per_term(item: &str) -> ObjectBuilder {
 marker_schema!(
     /// One coefficient's uncertainty budget.
     TermBudgetSchema => ObjectBuilder::new()
-        .description(Some("In the coefficient's unit; combined = √(statistical² + indexing² + gravity²), expanded = k × combined."))
+        .description(Some("In the coefficient's unit; combined = √(statistical² + indexing² + gravity² + model²), expanded = k × combined. `model` is the standard error of the fit to the run-averaged values when lack of fit is flagged, 0 otherwise (absent from results computed before it existed)."))
         .property("statistical", of_type(Type::Number).minimum(Some(0.0)))
         .property("indexing", of_type(Type::Number).minimum(Some(0.0)))
         .property("gravity", of_type(Type::Number).minimum(Some(0.0)))
+        .property("model", of_type(Type::Number).minimum(Some(0.0)))
         .property("combined", of_type(Type::Number).minimum(Some(0.0)))
         .property("expanded", of_type(Type::Number).minimum(Some(0.0)))
         .required("statistical").required("indexing").required("gravity")
@@ -315,16 +319,62 @@ marker_schema!(
         .into()
 );
 
+/// The members of an F test: statistic, degrees of freedom, p-value, level.
+fn f_test(o: ObjectBuilder) -> ObjectBuilder {
+    o.property("f", of_type(Type::Number).minimum(Some(0.0)))
+        .property("df1", of_type(Type::Integer).minimum(Some(1.0)))
+        .property("df2", of_type(Type::Integer).minimum(Some(1.0)))
+        .property(
+            "p_value",
+            of_type(Type::Number).minimum(Some(0.0)).maximum(Some(1.0)),
+        )
+        .property(
+            "alpha",
+            of_type(Type::Number)
+                .exclusive_minimum(Some(0.0))
+                .maximum(Some(1.0)),
+        )
+}
+
+fn spread() -> ObjectBuilder {
+    ObjectBuilder::new()
+        .property("std", nullable_number().minimum(Some(0.0)))
+        .property("dof", of_type(Type::Integer).minimum(Some(0.0)))
+        .required("std")
+        .required("dof")
+}
+
 marker_schema!(
-    /// Warnings that never change a number.
+    /// Warnings that never change a number, with the model-adequacy tests
+    /// behind them (`pure_error` and `lack_of_fit` are absent from results
+    /// computed before they existed).
     QualitySchema => ObjectBuilder::new()
         .property("condition_number", of_type(Type::Number).minimum(Some(1.0)))
-        .property("warnings", array(ObjectBuilder::new()
-            .description(Some("`ill_conditioned` (condition_number, terms) or `noisy_run` (run, residual_rms, median_residual_rms)."))
-            .property("kind", of_type(Type::String).enum_values(Some(["ill_conditioned", "noisy_run"])))
+        .property("pure_error", spread()
+            .description(Some("The scatter of repeated samples within positions, pooled over runs, and per run."))
+            .property("runs", array(spread()))
+            .required("runs"))
+        .property("lack_of_fit", f_test(ObjectBuilder::new())
+            .description(Some("`status` `tested` with the F test (F, ν1, ν2, p-value, α), `pure_error_std` and `lack_of_fit_std`; or `not_tested` with `reason`: `no_residual_dof` (as many positions as terms), `no_replicates` (no position has two samples), `no_scatter` (repeated samples identical)."))
+            .property("status", of_type(Type::String).enum_values(Some(["tested", "not_tested"])))
+            .property("pure_error_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("lack_of_fit_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("reason", of_type(Type::String).enum_values(Some(["no_residual_dof", "no_replicates", "no_scatter"])))
+            .required("status"))
+        .property("warnings", array(f_test(ObjectBuilder::new())
+            .description(Some("`ill_conditioned` (condition_number, terms); `lack_of_fit` (the F test, pure_error_std, lack_of_fit_std); `noisy_run` (run, the F test, residual_std, others_residual_std); `implausibly_consistent_batch` (batch, term, std, floor); `unmodelled_term` (term, the F test). Results computed before the F tests existed may hold `noisy_run` with residual_rms and median_residual_rms instead."))
+            .property("kind", of_type(Type::String).enum_values(Some(["ill_conditioned", "lack_of_fit", "noisy_run", "implausibly_consistent_batch", "unmodelled_term"])))
             .property("condition_number", of_type(Type::Number))
             .property("terms", array(reference("Term")))
+            .property("term", reference("Term"))
             .property("run", of_type(Type::Integer).minimum(Some(0.0)))
+            .property("batch", of_type(Type::Integer).minimum(Some(0.0)))
+            .property("pure_error_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("lack_of_fit_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("residual_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("others_residual_std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("std", of_type(Type::Number).minimum(Some(0.0)))
+            .property("floor", of_type(Type::Number).minimum(Some(0.0)))
             .property("residual_rms", of_type(Type::Number))
             .property("median_residual_rms", of_type(Type::Number))
             .required("kind")))
@@ -398,6 +448,7 @@ marker_schema!(
         .property("uncertainty", reference("Uncertainty"))
         .property("decision", nullable(reference("Decision")))
         .property("as_found", nullable(reference("AsFound")))
+        .property("as_found_note", of_type(Type::String).description(Some("Why `as_found` is null although there is a previous calibration (another unit, or no `ki`).")))
         .property("due_at", string_or_null().format(Some(SchemaFormat::KnownFormat(KnownFormat::DateTime))))
         .property("temperature", per_term("Sensitivity").description(Some("Present when the runs were made at two or more temperatures.")))
         .property("quality", reference("Quality"))

@@ -19,7 +19,7 @@ use maud::{Markup, html};
 
 use super::format::{Notation, given, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Series, XAxis};
-use super::result::{ResultDoc, WarningDoc};
+use super::result::{LackOfFitDoc, ResultDoc, WarningDoc};
 use super::session::Viewer;
 use super::{Html, UiError, badge, layout};
 use crate::domain::timestamp::Timestamp;
@@ -76,6 +76,10 @@ fn terms(d: &ResultDoc) -> Vec<accelcal_core::Term> {
 fn runs_table(d: &ResultDoc) -> Markup {
     let terms = terms(d);
     let v = |m: &accelcal_core::TermMap<f64>, t| m.get(t).copied();
+    // A single run has no eq. 8: its rows show dashes.
+    let none = accelcal_core::TermMap(Vec::new());
+    let mean_dispersion = d.mean.dispersion.as_ref().unwrap_or(&none);
+    let fused_dispersion = d.fused.dispersion.as_ref().unwrap_or(&none);
     // One notation per column and kind: the coefficients of a term's column
     // (runs, mean, fused) share one, its spreads (dispersions, standard
     // error) another, each decided by every number of that kind it shows.
@@ -95,7 +99,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                 of(t, &[&d.mean.coefficients, &d.fused.coefficients], true),
                 of(
                     t,
-                    &[&d.mean.dispersion, &d.fused.std_errors, &d.fused.dispersion],
+                    &[mean_dispersion, &d.fused.std_errors, fused_dispersion],
                     false,
                 ),
             )
@@ -141,7 +145,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                     }
                     tr data-row="mean-dispersion" {
                         th scope="row" { "Dispersion about the mean (eq. 8)" }
-                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.mean.dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(mean_dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                     tr.summary data-row="fused" {
@@ -156,7 +160,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                     }
                     tr data-row="fused-dispersion" {
                         th scope="row" { "Dispersion about the fused value (eq. 8)" }
-                        @for t in &terms { td.num data-label=(t.name()) { (v(&d.fused.dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
+                        @for t in &terms { td.num data-label=(t.name()) { (v(fused_dispersion, *t).map_or("—".into(), |x| spread(t).unc(x))) } }
                         td {} td {} @if d.temperatures_c.is_some() { td {} }
                     }
                 }
@@ -164,12 +168,17 @@ fn runs_table(d: &ResultDoc) -> Markup {
         }
         (left_out(RUNS_SHOWN.min(d.runs.len()), d.runs.len(), &d.id.to_string()))
         p.muted {
-            "Batches: "
-            @for (k, b) in d.fused.batches.iter().enumerate() {
-                @if k > 0 { "; " }
-                "runs " (b.runs.iter().map(|r| (r + 1).to_string()).collect::<Vec<_>>().join(", "))
+            @if let Some(note) = &d.fused.note {
+                "Not fused: " (note) "."
+            } @else {
+                "Batches: "
+                @for (k, b) in d.fused.batches.iter().enumerate() {
+                    @if k > 0 { "; " }
+                    "runs " (b.runs.iter().map(|r| (r + 1).to_string()).collect::<Vec<_>>().join(", "))
+                }
+                "."
             }
-            ". Condition number of the design " (format!("{:.4}", d.condition_number)) "."
+            " Condition number of the design " (format!("{:.4}", d.condition_number)) "."
         }
     }
 }
@@ -249,6 +258,7 @@ pub fn budget(d: &ResultDoc) -> Markup {
                         th scope="col" .num { "Statistical" }
                         th scope="col" .num { "Indexing" }
                         th scope="col" .num { "Gravity" }
+                        th scope="col" .num { "Model" }
                         th scope="col" .num { "Combined" }
                         th scope="col" .num { "Expanded U" }
                     } }
@@ -259,6 +269,7 @@ pub fn budget(d: &ResultDoc) -> Markup {
                                 td.num data-label="Statistical" { (unc(b.statistical)) }
                                 td.num data-label="Indexing" { (unc(b.indexing)) }
                                 td.num data-label="Gravity" { (unc(b.gravity)) }
+                                td.num data-label="Model" { (unc(b.model)) }
                                 td.num data-label="Combined" { (unc(b.combined)) }
                                 td.num data-label="Expanded U" { (unc(b.expanded)) }
                             }
@@ -367,13 +378,52 @@ fn temperature(d: &ResultDoc) -> Markup {
     }
 }
 
+/// An F statistic at a readable precision.
+fn stat(f: f64) -> String {
+    if f >= 1e4 {
+        format!("{f:.3e}")
+    } else {
+        format!("{f:.3}")
+    }
+}
+
+/// A p-value at a readable precision.
+fn p_value(p: f64) -> String {
+    if p < 1e-3 {
+        format!("{p:.2e}")
+    } else {
+        format!("{p:.3}")
+    }
+}
+
 fn warnings(d: &ResultDoc) -> Markup {
     let list = d
         .quality
         .as_ref()
         .map_or(&[][..], |q| q.warnings.as_slice());
+    // Implausibly consistent batches, one notice for all of them.
+    let consistent: Vec<String> = list
+        .iter()
+        .filter_map(|w| match w {
+            WarningDoc::ImplausiblyConsistentBatch {
+                batch,
+                term,
+                std,
+                floor,
+            } => Some(format!(
+                "batch {} on {term} ({} against a floor of {})",
+                batch + 1,
+                unc(*std),
+                unc(*floor)
+            )),
+            _ => None,
+        })
+        .collect();
+    let misfit = list
+        .iter()
+        .any(|w| matches!(w, WarningDoc::LackOfFit { .. }));
     html! {
-        @for w in list {
+        @for w in list.iter().filter(|w| !matches!(w, WarningDoc::ImplausiblyConsistentBatch { .. })) {
             p.notice.warning role="note" {
                 @match w {
                     WarningDoc::IllConditioned { condition_number, terms } => {
@@ -381,10 +431,56 @@ fn warnings(d: &ResultDoc) -> Markup {
                         "Condition number " (format!("{condition_number:.3e}")) ": the positions barely separate "
                         (terms.join(", ")) "."
                     }
-                    WarningDoc::NoisyRun { run, residual_rms, median_residual_rms } => {
+                    WarningDoc::LackOfFit { f, df1, df2, p_value, pure_error_std, lack_of_fit_std } => {
+                        strong { "Lack of fit. " }
+                        "The residuals (" (unc(*lack_of_fit_std)) " per sample) exceed the scatter of repeated samples ("
+                        (unc(*pure_error_std)) "): F = " (stat(*f)) " on (" (df1) ", " (df2) "), p = "
+                        (self::p_value(*p_value)) ". The model misses something the same in every run; the "
+                        "budget's model component carries it."
+                    }
+                    WarningDoc::NoisyRun { run, f, p_value, residual_std, others_residual_std, residual_rms, median_residual_rms } => {
                         strong { "Noisy run. " }
-                        "Run " (run + 1) " fits with residual RMS " (unc(*residual_rms))
-                        ", more than three times the median " (unc(*median_residual_rms)) "."
+                        @match (f, p_value, residual_std, others_residual_std) {
+                            (Some(f), Some(p), Some(s), Some(o)) => {
+                                "Run " (run + 1) " fits with residual deviation " (unc(*s)) " against " (unc(*o))
+                                " for the other runs: F = " (stat(*f)) ", p = " (self::p_value(*p)) "."
+                            }
+                            _ => {
+                                "Run " (run + 1) " fits with residual RMS " (opt(*residual_rms, unc))
+                                ", more than three times the median " (opt(*median_residual_rms, unc)) "."
+                            }
+                        }
+                    }
+                    WarningDoc::ImplausiblyConsistentBatch { .. } => {}
+                    WarningDoc::UnmodelledTerm { term, f, p_value } => {
+                        strong { "Unmodelled term. " }
+                        "Adding " code { (term) } " to the model would explain the data significantly better: F = "
+                        (stat(*f)) ", p = " (self::p_value(*p_value)) "."
+                    }
+                }
+            }
+        }
+        @if !consistent.is_empty() {
+            p.notice.warning role="note" {
+                strong { "Implausibly consistent batches. " }
+                "These agree better than a hundredth of their runs' own standard errors, and were weighted "
+                "at that floor: " (consistent.join("; ")) "."
+                @if misfit { " With lack of fit, the runs' standard errors carry the misfit as well." }
+            }
+        }
+        @if let Some(lof) = d.quality.as_ref().and_then(|q| q.lack_of_fit.as_ref()) {
+            p.muted #lack-of-fit {
+                @match lof {
+                    LackOfFitDoc::Tested { f, df1, df2, p_value, alpha } => {
+                        "Lack-of-fit test: F = " (stat(*f)) " on (" (df1) ", " (df2) "), p = "
+                        (self::p_value(*p_value)) @if p_value >= alpha { ", no lack of fit at " (alpha) "." } @else { "." }
+                    }
+                    LackOfFitDoc::NotTested { reason } => {
+                        "Lack of fit not tested: " (match reason.as_str() {
+                            "no_residual_dof" => "as many positions as terms, every run fits exactly.",
+                            "no_replicates" => "no position holds two samples, so there is no pure error to compare with.",
+                            _ => "the repeated samples are identical.",
+                        })
                     }
                 }
             }

@@ -104,7 +104,8 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         " is identified from each run by least squares; the runs are fused by batch "
                         "estimation (" (d.batches) " batches, inverse-variance weighting of batch means), after "
                         (PAPER) ". Uncertainty after the GUM: the fused standard error, the stand's indexing "
-                        "error and the uncertainty of gravity, combined in quadrature and expanded"
+                        "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short of the data, "
+                        "the model's own standard error, combined in quadrature and expanded"
                         @if let Some(k) = coverage { " with coverage factor k = " (k) } "."
                     }
                     h2 { "Results" }

@@ -72,8 +72,9 @@ pub struct RunDoc {
 pub struct MeanDoc {
     /// Eq. 1.
     pub coefficients: TermMap<f64>,
-    /// Eq. 8 about the mean.
-    pub dispersion: TermMap<f64>,
+    /// Eq. 8 about the mean (null for a single run).
+    #[serde(default)]
+    pub dispersion: Option<TermMap<f64>>,
 }
 
 /// One fusion batch.
@@ -92,8 +93,12 @@ pub struct FusedDoc {
     pub coefficients: TermMap<f64>,
     /// Their standard errors.
     pub std_errors: TermMap<f64>,
-    /// Eq. 8 about the fused values.
-    pub dispersion: TermMap<f64>,
+    /// Eq. 8 about the fused values (null for a single run).
+    #[serde(default)]
+    pub dispersion: Option<TermMap<f64>>,
+    /// Why there are no batches (a single run).
+    #[serde(default)]
+    pub note: Option<String>,
 }
 
 /// One coefficient's budget.
@@ -105,6 +110,9 @@ pub struct BudgetDoc {
     pub indexing: f64,
     /// From gravity.
     pub gravity: f64,
+    /// From the model's lack of fit (absent before it existed).
+    #[serde(default)]
+    pub model: f64,
     /// Root-sum-square.
     pub combined: f64,
     /// Expanded.
@@ -193,20 +201,97 @@ pub enum WarningDoc {
         /// The terms.
         terms: Vec<String>,
     },
-    /// A run fits much worse than the others.
+    /// The residuals exceed what the pure error explains.
+    LackOfFit {
+        /// The statistic.
+        f: f64,
+        /// Its degrees of freedom.
+        df1: usize,
+        /// Its degrees of freedom.
+        df2: usize,
+        /// Its p-value.
+        p_value: f64,
+        /// The pooled pure error.
+        pure_error_std: f64,
+        /// The root of the lack-of-fit mean square.
+        lack_of_fit_std: f64,
+    },
+    /// A run fits significantly worse than the others (an F test; results
+    /// computed before it hold the RMS and the median instead).
     NoisyRun {
         /// Run index (0-based).
         run: usize,
-        /// Its residual RMS.
-        residual_rms: f64,
-        /// The median.
-        median_residual_rms: f64,
+        /// The statistic.
+        #[serde(default)]
+        f: Option<f64>,
+        /// Its p-value.
+        #[serde(default)]
+        p_value: Option<f64>,
+        /// `s_j`.
+        #[serde(default)]
+        residual_std: Option<f64>,
+        /// `s_(−j)`.
+        #[serde(default)]
+        others_residual_std: Option<f64>,
+        /// Former: its residual RMS.
+        #[serde(default)]
+        residual_rms: Option<f64>,
+        /// Former: the median.
+        #[serde(default)]
+        median_residual_rms: Option<f64>,
+    },
+    /// A batch agrees better than its runs' own standard errors allow.
+    ImplausiblyConsistentBatch {
+        /// Batch index (0-based).
+        batch: usize,
+        /// The coefficient.
+        term: String,
+        /// The batch's deviation.
+        std: f64,
+        /// The floor its weight used.
+        floor: f64,
+    },
+    /// A term outside the model would explain the data significantly better.
+    UnmodelledTerm {
+        /// The term.
+        term: String,
+        /// The statistic.
+        f: f64,
+        /// Its p-value.
+        p_value: f64,
+    },
+}
+
+/// The lack-of-fit test as stored.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(tag = "status", rename_all = "snake_case")]
+pub enum LackOfFitDoc {
+    /// Computed.
+    Tested {
+        /// The statistic.
+        f: f64,
+        /// Its degrees of freedom.
+        df1: usize,
+        /// Its degrees of freedom.
+        df2: usize,
+        /// Its p-value.
+        p_value: f64,
+        /// The level.
+        alpha: f64,
+    },
+    /// Not computed.
+    NotTested {
+        /// Why.
+        reason: String,
     },
 }
 
 /// Quality flags.
 #[derive(Debug, Clone, Deserialize)]
 pub struct QualityDoc {
+    /// The lack-of-fit test (absent before it existed).
+    #[serde(default)]
+    pub lack_of_fit: Option<LackOfFitDoc>,
     /// The warnings.
     pub warnings: Vec<WarningDoc>,
 }

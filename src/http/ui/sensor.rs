@@ -371,6 +371,13 @@ pub async fn page(
                 " calibrations; choose a window (From, To) to see earlier ones. The list below has them all."
             }
         }
+        @if report.stability.other_units > 0 {
+            p.notice #other-units {
+                "The charts and the stability are in " (report.stability.unit.as_deref().unwrap_or("?"))
+                ", the latest calibration's unit; " (report.stability.other_units)
+                " calibration(s) of the window in another unit are left out (the list below has them)."
+            }
+        }
         @if report.series.is_empty() {
             p.notice { "No calibration in this window." }
         } @else {
