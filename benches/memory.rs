@@ -5,11 +5,17 @@
 //! cargo bench --bench memory
 //! ```
 //!
-//! The submission is the largest the limits allow in samples: 360 positions ×
-//! 555 runs × 1 sample = 199 800 samples, about 2.5 MB of JSON. Then the
-//! pages: that calibration's page, and the page of a sensor with 2 000
-//! calibrations, one view and six at once. Prints a markdown table (pasted
-//! unedited into BENCHMARKS.md). Measured, never judged.
+//! Two largest submissions: the largest in samples (8 positions × 20 runs ×
+//! 12 500 samples = 2 000 000, long static windows, about 26 MB of JSON),
+//! sent plain and gzip-compressed, alone and two at once (one token's
+//! share of the body budget); and the largest in cells (360 positions ×
+//! 1 000 runs × 1 sample, whose answer is the largest), alone and eight at
+//! once. Then the pages: the latter calibration's page, and the page of a
+//! sensor with 2 000 calibrations, one view and six at once. Prints a
+//! markdown table (pasted unedited into BENCHMARKS.md). Measured, never
+//! judged.
+
+use std::io::Write as _;
 
 use std::time::Instant;
 
@@ -31,24 +37,53 @@ fn status_kib(pid: u32, field: &str) -> u64 {
         .unwrap_or(0)
 }
 
-/// The largest submission in samples: a linear model with a little noise.
-fn largest(sensor: &str) -> Value {
-    let positions: Vec<Value> = (0..360).map(|k| json!({"angle_deg": k})).collect();
-    let runs: Vec<Value> = (0..555)
+/// A submission of `positions` equally spaced angles × `runs` runs ×
+/// `samples` samples each: a linear model with a little noise, nine
+/// decimals as a station prints them.
+fn tumble(sensor: &str, positions: u32, runs: u32, samples: u32) -> Vec<u8> {
+    let step = 360 / positions;
+    let angles: Vec<Value> = (0..positions)
+        .map(|k| json!({"angle_deg": k * step}))
+        .collect();
+    let runs: Vec<Value> = (0..runs)
         .map(|j| {
-            let readings: Vec<Value> = (0..360)
+            let readings: Vec<Value> = (0..positions)
                 .map(|k| {
-                    let t = f64::from(k).to_radians();
-                    let noise = 1e-6 * ((j * 360 + k) as f64 * 0.731).sin();
-                    let u = -8e-4 + 1.216 * t.sin() + 6e-3 * t.cos() + noise;
-                    // Nine decimals, as a station prints them.
-                    json!([(u * 1e9).round() / 1e9])
+                    let t = f64::from(k * step).to_radians();
+                    let u = -8e-4 + 1.216 * t.sin() + 6e-3 * t.cos();
+                    let window: Vec<f64> = (0..samples)
+                        .map(|s| {
+                            let n = f64::from((j * positions + k) * samples + s);
+                            ((u + 1e-6 * (n * 0.731).sin()) * 1e9).round() / 1e9
+                        })
+                        .collect();
+                    json!(window)
                 })
                 .collect();
             json!({"readings": readings})
         })
         .collect();
-    json!({"sensor_id": sensor, "unit": "mA", "positions": positions, "runs": runs, "batches": 2})
+    serde_json::to_vec(
+        &json!({"sensor_id": sensor, "unit": "mA", "positions": angles,
+        "runs": runs, "batches": 2}),
+    )
+    .unwrap()
+}
+
+/// The largest submission in samples: 2 000 000 in long windows.
+fn most_samples(sensor: &str) -> Vec<u8> {
+    tumble(sensor, 8, 20, 12_500)
+}
+
+/// The largest in cells (runs × positions), whose answer is the largest.
+fn most_cells(sensor: &str) -> Vec<u8> {
+    tumble(sensor, 360, 1000, 1)
+}
+
+fn gzip(bytes: &[u8]) -> Vec<u8> {
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(bytes).unwrap();
+    e.finish().unwrap()
 }
 
 /// Starts the tasks (at once) and measures the server's memory around
@@ -95,11 +130,66 @@ fn main() {
     );
     let pid = server.child.id();
     let client = reqwest::Client::new();
-    let body = serde_json::to_vec(&largest("MEM-1")).unwrap();
+    let sizes = (most_samples("MEM-1"), most_cells("MEM-1"));
     println!(
-        "largest submission: {} bytes of JSON, 199 800 samples",
-        body.len()
+        "largest in samples: {} bytes of JSON ({} gzip-compressed), 2 000 000 samples; \
+         largest in cells: {} bytes of JSON, 360 000 samples",
+        sizes.0.len(),
+        gzip(&sizes.0).len(),
+        sizes.1.len()
     );
+    type Body = fn(&str) -> Vec<u8>;
+    let requests: [(&str, &str, Body, bool, usize); 7] = [
+        (
+            "identify, most samples, 1 request",
+            "/v1/identify",
+            most_samples,
+            false,
+            1,
+        ),
+        (
+            "submit, most samples, 1 request",
+            "/v1/calibrations",
+            most_samples,
+            false,
+            1,
+        ),
+        (
+            "submit, most samples gzip, 1 request",
+            "/v1/calibrations",
+            most_samples,
+            true,
+            1,
+        ),
+        (
+            "submit, most samples, 2 at once",
+            "/v1/calibrations",
+            most_samples,
+            false,
+            2,
+        ),
+        (
+            "identify, most cells, 1 request",
+            "/v1/identify",
+            most_cells,
+            false,
+            1,
+        ),
+        (
+            "submit, most cells, 1 request",
+            "/v1/calibrations",
+            most_cells,
+            false,
+            1,
+        ),
+        (
+            "submit, most cells, 8 at once",
+            "/v1/calibrations",
+            most_cells,
+            false,
+            8,
+        ),
+    ];
 
     let mut rows = Vec::new();
     rt.block_on(async {
@@ -112,31 +202,22 @@ fn main() {
             .await
             .unwrap();
         assert!(res.status().is_success());
-        for (label, path, concurrent) in [
-            ("identify, 1 request", "/v1/identify", 1),
-            ("submit (stored), 1 request", "/v1/calibrations", 1),
-            ("submit (stored), 8 at once", "/v1/calibrations", 8),
-        ] {
+        for (label, path, body_of, gzipped, concurrent) in requests {
             let tasks = (0..concurrent).map(|n| {
                 let client = client.clone();
                 let url = format!("{}{path}", server.base);
-                let body = if path == "/v1/calibrations" {
-                    serde_json::to_vec(&largest(
-                        &format!("MEM-{label}-{n}").replace([' ', ',', '(', ')'], ""),
-                    ))
-                    .unwrap()
-                } else {
-                    body.clone()
-                };
+                let sensor = format!("MEM-{label}-{n}").replace([' ', ',', '(', ')'], "");
+                let body = body_of(&sensor);
+                let body = if gzipped { gzip(&body) } else { body };
                 tokio::spawn(async move {
-                    let res = client
+                    let mut req = client
                         .post(url)
                         .bearer_auth(ADMIN)
-                        .header("content-type", "application/json")
-                        .body(body)
-                        .send()
-                        .await
-                        .unwrap();
+                        .header("content-type", "application/json");
+                    if gzipped {
+                        req = req.header("content-encoding", "gzip");
+                    }
+                    let res = req.body(body).send().await.unwrap();
                     let status = res.status();
                     let answer = res.bytes().await.unwrap().len();
                     assert!(status.is_success(), "{status}");
@@ -183,7 +264,7 @@ fn main() {
             l.await.unwrap();
         }
         let largest_id = server
-            .get_json("/v1/sensors/MEM-submitstored1request-0/calibrations")
+            .get_json("/v1/sensors/MEM-submitmostcells1request-0/calibrations")
             .await;
         let largest_id = largest_id["items"][0]["id"].as_str().unwrap_or_default().to_owned();
         for (label, path, concurrent) in [

@@ -12,6 +12,7 @@ use clap::{Args, Parser, Subcommand};
 
 use crate::domain::auth::Role;
 use crate::domain::field::{FieldError, Invalid};
+use crate::domain::limits::{DEFAULT_BODY_BUDGET_BYTES, DEFAULT_MAX_BODY_BYTES};
 use crate::domain::metrology::assess_calibration;
 use crate::domain::submission::{Media, ResultView, evaluate};
 use crate::domain::timestamp::Timestamp;
@@ -95,11 +96,11 @@ struct ServeArgs {
     #[arg(long, env = "ACCELCAL_ADMIN_TOKEN", hide_env_values = true)]
     admin_token: Option<String>,
     /// Largest request body in bytes (after decompression).
-    #[arg(long, env = "ACCELCAL_MAX_BODY_BYTES", default_value_t = 4 * 1024 * 1024)]
+    #[arg(long, env = "ACCELCAL_MAX_BODY_BYTES", default_value_t = DEFAULT_MAX_BODY_BYTES)]
     max_body_bytes: usize,
     /// Bytes of request bodies received or worked on at once; beyond it new
     /// bodies are answered 503 (bounds the memory requests can take).
-    #[arg(long, env = "ACCELCAL_BODY_BUDGET_BYTES", default_value_t = 64 * 1024 * 1024)]
+    #[arg(long, env = "ACCELCAL_BODY_BUDGET_BYTES", default_value_t = DEFAULT_BODY_BUDGET_BYTES)]
     body_budget_bytes: usize,
     /// Requests handled at once; beyond it the service answers 503.
     #[arg(long, env = "ACCELCAL_MAX_CONCURRENT", default_value_t = 256)]

@@ -10,7 +10,8 @@
 //!   `s²_pe,j = Σ_i Σ_k (x_ijk − x̄_ij)² / Σ_i (n_ij − 1)`; pooled over runs,
 //!   `s²_pe = Σ_j Σ_i Σ_k (…)² / Σ_j Σ_i (n_ij − 1)`, with `ν_pe` that
 //!   denominator. It is the scatter of repeated samples, which no model
-//!   error can reach.
+//!   error can reach. A position given as a summary (mean, `s_ij`, `n_ij`)
+//!   adds `s_ij²·(n_ij − 1)` to the sum ([`crate::reading`]).
 //! * **Lack of fit** (pooled): `F = [Σ_j Σ_i n_ij·r_ij² / Σ_j (P − p)] / s²_pe`
 //!   on `ν1 = Σ_j (P − p)`, `ν2 = ν_pe`; flagged when `F` exceeds the upper
 //!   [`LACK_OF_FIT_ALPHA`] point of `F(ν1, ν2)`. Not computed without
@@ -34,9 +35,10 @@ use serde::Serialize;
 
 use crate::Term;
 use crate::ftest::FTest;
-use crate::fusion::{mean, scaled_norm};
+use crate::fusion::scaled_norm;
 use crate::identify::{Design, Identification};
 use crate::position::Gravity;
+use crate::reading::Reading;
 use crate::term::{Model, TermMap};
 use crate::tumble::TumbleTest;
 
@@ -80,12 +82,9 @@ fn pure_error_norm(test: &TumbleTest) -> (PureError, f64) {
     let mut norms = Vec::with_capacity(test.runs().len());
     let mut runs = Vec::with_capacity(test.runs().len());
     for run in test.runs() {
-        let deviations = run.readings.iter().flat_map(|samples| {
-            let m = mean(samples);
-            samples.iter().map(move |x| x - m)
-        });
-        let dof: usize = run.readings.iter().map(|s| s.len() - 1).sum();
-        let norm = scaled_norm(deviations);
+        let roots: Vec<f64> = run.readings.iter().map(Reading::deviation_norm).collect();
+        let dof = run.readings.iter().map(|r| r.dof() as usize).sum();
+        let norm = scaled_norm(roots.iter().copied());
         norms.push(norm);
         runs.push(Spread::of(norm, dof));
     }
@@ -164,7 +163,7 @@ pub fn lack_of_fit(test: &TumbleTest, runs: &[Identification]) -> (PureError, La
         run.readings
             .iter()
             .zip(&id.residuals)
-            .map(|(samples, r)| (samples.len() as f64).sqrt() * r)
+            .map(|(reading, r)| (reading.count() as f64).sqrt() * r)
     });
     let lof_norm = scaled_norm(weighted);
     let outcome = match FTest::of_roots(lof_norm, df1, pe_norm, df2, LACK_OF_FIT_ALPHA) {
@@ -231,7 +230,7 @@ mod tests {
     }
 
     fn test_of(positions: Vec<Position>, runs: Vec<Vec<Vec<f64>>>) -> TumbleTest {
-        let runs = runs.into_iter().map(|readings| Run { readings }).collect();
+        let runs = runs.into_iter().map(Run::from_samples).collect();
         TumbleTest::new(Model::pendulum(), positions, runs).unwrap()
     }
 
@@ -329,14 +328,12 @@ mod tests {
         let exact = TumbleTest::new(
             Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Kii]).unwrap(),
             four(),
-            vec![Run {
-                readings: vec![
-                    vec![0.3, 0.4],
-                    vec![1.7, 1.6],
-                    vec![-0.5, -0.4],
-                    vec![-1.1, -1.0],
-                ],
-            }],
+            vec![Run::from_samples(vec![
+                vec![0.3, 0.4],
+                vec![1.7, 1.6],
+                vec![-0.5, -0.4],
+                vec![-1.1, -1.0],
+            ])],
         )
         .unwrap();
         let (_, lof) = lack_of_fit(&exact, &exact.identify_runs());

@@ -81,6 +81,16 @@ pub enum Error {
         /// Sample index.
         sample: usize,
     },
+    /// A summary that cannot be used.
+    #[error("run {run}, position {position}: {fault}")]
+    InvalidSummary {
+        /// Run index.
+        run: usize,
+        /// Position index.
+        position: usize,
+        /// What is wrong with it.
+        fault: crate::reading::Fault,
+    },
     /// No coefficient values were given to fuse.
     #[error("no coefficient values were given")]
     NoValues,

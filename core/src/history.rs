@@ -3,7 +3,8 @@
 //! of calibrations.
 //!
 //! **As found.** For each position `r`, with `ȳ_r` the mean of every sample
-//! of every run at `r` and `P` the previous calibration's fused model:
+//! of every run at `r` (`Σ_j n_jr·ȳ_jr / Σ_j n_jr` when runs give their
+//! readings as summaries) and `P` the previous calibration's fused model:
 //!
 //! ```text
 //! error_output_r = ȳ_r − P(a_r),     error_g_r = error_output_r / ki_prev
@@ -66,12 +67,12 @@ pub fn as_found(test: &TumbleTest, previous: &TermMap<f64>) -> Option<AsFound> {
         .iter()
         .enumerate()
         .map(|(r, p)| {
-            let samples: Vec<f64> = test
-                .runs()
-                .iter()
-                .flat_map(|run| run.readings[r].iter().copied())
-                .collect();
-            let error_output = mean(&samples) - model.output(&p.a);
+            let readings = test.runs().iter().map(|run| &run.readings[r]);
+            let (sum, count) = readings.fold((0.0, 0.0), |(sum, count), reading| {
+                let n = reading.count() as f64;
+                (sum + n * reading.mean(), count + n)
+            });
+            let error_output = sum / count - model.output(&p.a);
             PositionError {
                 error_output,
                 error_g: error_output / ki,

@@ -8,7 +8,8 @@
 //! Accelerometer Based on Data Fusion" (2005):
 //!
 //! 1. [`TumbleTest`]: positions of a dividing-head tumble ([`Position`],
-//!    [`Mount`]), a [`Model`] of [`Term`]s, and repeated runs of samples;
+//!    [`Mount`]), a [`Model`] of [`Term`]s, and repeated runs of samples
+//!    or their summaries ([`Reading`]);
 //! 2. per-run least-squares identification ([`identify::Design`]), with
 //!    standard errors, residuals, and refusal of unidentifiable designs that
 //!    names the inseparable terms;
@@ -33,7 +34,7 @@
 //! let runs = (0..4)
 //!     .map(|j| {
 //!         let e = |k: u32| 1e-6 * f64::from((j * 7 + k * 3) % 5);
-//!         Run { readings: vec![vec![0.007 + e(0)], vec![1.201 + e(1)], vec![-0.005 + e(2)], vec![-1.199 + e(3)]] }
+//!         Run::from_samples(vec![vec![0.007 + e(0)], vec![1.201 + e(1)], vec![-0.005 + e(2)], vec![-1.199 + e(3)]])
 //!     })
 //!     .collect();
 //! let cal = TumbleTest::new(Model::pendulum(), positions, runs)?.calibrate(1)?;
@@ -55,6 +56,7 @@ pub mod history;
 pub mod identify;
 pub mod position;
 pub mod quality;
+pub mod reading;
 pub mod temperature;
 pub mod term;
 pub mod tumble;
@@ -66,5 +68,6 @@ pub use error::{CompensateError, Error, FusionError};
 pub use estimate::{Estimates, estimate};
 pub use identify::{Design, Identification};
 pub use position::{Gravity, Mount, Position, Rotation};
+pub use reading::{Reading, Summary};
 pub use term::{Model, Term, TermMap, UnknownTerm};
 pub use tumble::{Calibration, Run, TumbleTest};

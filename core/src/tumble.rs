@@ -2,8 +2,8 @@
 //! per-run identification, then mean and fusion across runs.
 //!
 //! Run `j` gives, for each position `r`, one or more samples (e.g. clockwise
-//! and counter-clockwise); the position's value is their mean
-//! `y_jr = Σ_s u_jrs / n_jr`. Each run is identified on the same design
+//! and counter-clockwise), or their summary ([`Reading`]); the position's
+//! value is their mean `y_jr = Σ_s u_jrs / n_jr`. Each run is identified on the same design
 //! ([`Design`]), and each coefficient's per-run values are then combined by
 //! [`estimate`](crate::estimate::estimate).
 
@@ -15,13 +15,23 @@ use crate::estimate::{self, FusedEstimate, MeanEstimate};
 use crate::fusion::{self, mean};
 use crate::identify::{Design, Identification};
 use crate::position::{Gravity, Position};
+use crate::reading::{Fault, Reading};
 use crate::term::{Model, TermMap};
 
-/// One run of the tumble: for each position, its samples.
+/// One run of the tumble: for each position, its reading.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Run {
-    /// `readings[r]` holds the samples at position `r`.
-    pub readings: Vec<Vec<f64>>,
+    /// `readings[r]` is the reading at position `r`.
+    pub readings: Vec<Reading>,
+}
+
+impl Run {
+    /// A run given as samples: `samples[r]` are position `r`'s.
+    pub fn from_samples(samples: Vec<Vec<f64>>) -> Self {
+        Run {
+            readings: samples.into_iter().map(Reading::from).collect(),
+        }
+    }
 }
 
 /// A validated tumble test: its runs match its positions, every sample is
@@ -37,8 +47,9 @@ impl TumbleTest {
     /// Checks and factorises a tumble test.
     ///
     /// Refuses a test without runs, a run without one reading per position,
-    /// a position without samples, a non-finite sample, and an unidentifiable
-    /// design (see [`Design::new`]).
+    /// a position without samples, a non-finite sample, an unusable summary
+    /// ([`Reading::check`]), and an unidentifiable design (see
+    /// [`Design::new`]).
     pub fn new(model: Model, positions: Vec<Position>, runs: Vec<Run>) -> Result<Self, Error> {
         if runs.is_empty() {
             return Err(Error::NoRuns);
@@ -51,17 +62,20 @@ impl TumbleTest {
                     found: r.readings.len(),
                 });
             }
-            for (position, samples) in r.readings.iter().enumerate() {
-                if samples.is_empty() {
-                    return Err(Error::NoSamples { run, position });
-                }
-                if let Some(sample) = samples.iter().position(|u| !u.is_finite()) {
-                    return Err(Error::NonFiniteSample {
+            for (position, reading) in r.readings.iter().enumerate() {
+                reading.check().map_err(|fault| match fault {
+                    Fault::Empty => Error::NoSamples { run, position },
+                    Fault::NonFinite(sample) => Error::NonFiniteSample {
                         run,
                         position,
                         sample,
-                    });
-                }
+                    },
+                    fault => Error::InvalidSummary {
+                        run,
+                        position,
+                        fault,
+                    },
+                })?;
             }
         }
         let gravity: Vec<Gravity> = positions.iter().map(|p| p.a).collect();
@@ -97,7 +111,7 @@ impl TumbleTest {
     pub fn position_values(&self) -> Vec<Vec<f64>> {
         self.runs
             .iter()
-            .map(|run| run.readings.iter().map(|s| mean(s)).collect())
+            .map(|run| run.readings.iter().map(Reading::mean).collect())
             .collect()
     }
 
@@ -227,7 +241,7 @@ mod tests {
             TumbleTest::new(
                 Model::pendulum(),
                 four(),
-                runs.into_iter().map(|readings| Run { readings }).collect(),
+                runs.into_iter().map(Run::from_samples).collect(),
             )
             .map(|_| ())
         };
@@ -259,14 +273,31 @@ mod tests {
                 sample: 1
             })
         );
+        let mut summary = Run::from_samples(ok.clone());
+        summary.readings[1] = Reading::Summary(crate::Summary {
+            mean: 1.0,
+            std: 0.5,
+            count: 1,
+        });
+        assert_eq!(
+            TumbleTest::new(Model::pendulum(), four(), vec![summary]).map(|_| ()),
+            Err(Error::InvalidSummary {
+                run: 0,
+                position: 1,
+                fault: Fault::SpreadOfOne
+            })
+        );
     }
 
     #[test]
     fn a_test_keeps_its_model_positions_and_runs() {
         let model = Model::new(vec![crate::Term::K0, crate::Term::Kp]).unwrap();
-        let runs = vec![Run {
-            readings: vec![vec![1.0], vec![2.0], vec![3.0], vec![4.0]],
-        }];
+        let runs = vec![Run::from_samples(vec![
+            vec![1.0],
+            vec![2.0],
+            vec![3.0],
+            vec![4.0],
+        ])];
         let t = TumbleTest::new(model.clone(), four(), runs.clone()).unwrap();
         assert_eq!(t.model(), &model);
         assert_eq!(t.positions(), four().as_slice());
@@ -279,13 +310,36 @@ mod tests {
         let t = TumbleTest::new(
             Model::pendulum(),
             four(),
-            vec![Run {
-                readings: vec![vec![1.0, 3.0], vec![5.0], vec![-1.0, -2.0, -3.0], vec![0.0]],
-            }],
+            vec![Run::from_samples(vec![
+                vec![1.0, 3.0],
+                vec![5.0],
+                vec![-1.0, -2.0, -3.0],
+                vec![0.0],
+            ])],
         )
         .unwrap();
+        assert_eq!(t.position_values(), [[2.0, 5.0, -2.0, 0.0]]);
         let id = &t.identify_runs()[0];
         // kp = (U0 − U180)/2 = (2 − (−2))/2
         assert!((id.coefficients.get(crate::Term::Kp).unwrap() - 2.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn a_summary_is_its_mean() {
+        let summary = |mean, std, count| Reading::Summary(crate::Summary { mean, std, count });
+        let t = TumbleTest::new(
+            Model::pendulum(),
+            four(),
+            vec![Run {
+                readings: vec![
+                    summary(2.0, 1.4, 2),
+                    Reading::from(vec![5.0]),
+                    summary(-2.0, 1.0, 3),
+                    summary(0.0, 0.0, 1),
+                ],
+            }],
+        )
+        .unwrap();
+        assert_eq!(t.position_values(), [[2.0, 5.0, -2.0, 0.0]]);
     }
 }

@@ -15,10 +15,25 @@ pub const MAX_NOTES_CHARS: usize = 4096;
 pub const MAX_POSITIONS: usize = 360;
 /// Most runs in one submission.
 pub const MAX_RUNS: usize = 1000;
-/// Most samples at one position of one run.
-pub const MAX_SAMPLES: usize = 1000;
-/// Most samples in one submission, over all runs and positions.
-pub const MAX_TOTAL_SAMPLES: usize = 200_000;
+/// Most samples at one position of one run: a static window of 1 000 s at
+/// 100 Hz.
+pub const MAX_SAMPLES: usize = 100_000;
+/// Most samples in one submission, over all runs and positions (16 MB of
+/// `f64` once read; see [`DEFAULT_MAX_BODY_BYTES`]).
+pub const MAX_TOTAL_SAMPLES: usize = 2_000_000;
+/// Largest `count` of a summary reading (samples averaged on board, never
+/// sent, so not counted against [`MAX_TOTAL_SAMPLES`]); below 2⁵³, so every
+/// count is exact as an `f64`.
+pub const MAX_SUMMARY_COUNT: u64 = 1_000_000_000;
+/// Largest request body by default, after decompression
+/// (`--max-body-bytes`): the largest submission, 2 000 000 samples, as JSON
+/// or CSV at up to 32 bytes a sample (`-1.2345678901234567e-05,` and the
+/// structure around it).
+pub const DEFAULT_MAX_BODY_BYTES: usize = 64 * 1024 * 1024;
+/// Bytes of request bodies held at once by default (`--body-budget-bytes`):
+/// four largest bodies, of which one token may hold a quarter — one largest
+/// body — at once.
+pub const DEFAULT_BODY_BUDGET_BYTES: usize = 256 * 1024 * 1024;
 /// Most fusion batches.
 pub const MAX_BATCHES: u64 = 100;
 /// Fusion batches when a request names none (the paper's two batches).

@@ -50,6 +50,7 @@ use utoipa_axum::routes;
 
 use self::problem::Problem;
 use self::stack::Admission;
+use crate::domain::limits::{DEFAULT_BODY_BUDGET_BYTES, DEFAULT_MAX_BODY_BYTES};
 use crate::store::Store;
 
 /// Bounds on what one request may take.
@@ -77,8 +78,8 @@ pub struct Limits {
 impl Default for Limits {
     fn default() -> Self {
         Limits {
-            max_body_bytes: 4 * 1024 * 1024,
-            body_budget_bytes: 64 * 1024 * 1024,
+            max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            body_budget_bytes: DEFAULT_BODY_BUDGET_BYTES,
             body_timeout: Duration::from_secs(30),
             request_timeout: Duration::from_secs(60),
             max_concurrent: 256,

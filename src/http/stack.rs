@@ -351,8 +351,11 @@ pub enum Bodies {
 /// request competes for a work slot, so a client trickling its body holds
 /// only its own connection and its share, never a slot that a ready request
 /// needs. The body must arrive within the body deadline (408) and, once
-/// decompressed, within the size limit (413). A gzip body is decoded whole:
-/// every member (RFC 1952 allows several), nothing after the last.
+/// decompressed, within the size limit (413). A gzip body is decoded whole on
+/// the compute pool — every member (RFC 1952 allows several), nothing after
+/// the last — and its decoded size is charged too (503 past the share or the
+/// budget), so the memory bodies hold is bounded by the budget plus one
+/// largest body per compute thread.
 ///
 /// The authenticated principal goes in the request's extensions, so that the
 /// handler does not authenticate again.
@@ -395,13 +398,24 @@ pub async fn admit(
         Ok(b) => b,
         Err(problem) => return problem.into_response(),
     };
+    let mut _decoded = None;
     if gzipped {
+        // Always on the compute pool, whatever its size as sent: a few KiB
+        // of gzip may decode to the largest body, and the pool's threads
+        // bound how many are being decoded at once.
         let max = limits.max_body_bytes;
-        let sent = bytes.len();
-        bytes = match state.compute_for(sent, move || gunzip(&bytes, max)).await {
+        bytes = match state.compute(move || gunzip(&bytes, max)).await {
             Ok(Ok(b)) => b,
             Ok(Err(problem)) | Err(problem) => return problem.into_response(),
         };
+        // The decoded body is held from here on: charged as well.
+        let more = bytes.len().div_ceil(1024).saturating_sub(weight);
+        if more > 0 {
+            match state.admission.charge(&principal.id, more) {
+                Ok(c) => _decoded = Some(c),
+                Err(problem) => return problem.into_response(),
+            }
+        }
         parts.headers.remove(header::CONTENT_ENCODING);
         parts.headers.remove(header::CONTENT_LENGTH);
     }

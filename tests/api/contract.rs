@@ -54,8 +54,12 @@ fn the_contract_carries_the_limits() {
         1000
     );
     assert_eq!(
-        schemas["RunIn"]["properties"]["readings"]["items"]["maxItems"],
-        1000
+        schemas["ReadingIn"]["anyOf"][0]["maxItems"], 100_000,
+        "a real static window of 1 000 s at 100 Hz fits"
+    );
+    assert_eq!(
+        schemas["ReadingIn"]["anyOf"][1]["required"],
+        serde_json::json!(["mean", "std", "count"])
     );
     assert_eq!(schemas["Identifier"]["maxLength"], 64);
     assert_eq!(

@@ -800,3 +800,140 @@ async fn units_are_compared_and_never_mixed(#[values(Sqlite, Postgres)] engine: 
     );
     assert!(s["terms"]["k0"]["mean"].is_number());
 }
+
+/// Each position's samples replaced by their summary: mean, sample standard
+/// deviation and count (computed here, two-pass).
+fn summarised(body: &Value) -> Value {
+    let mut body = body.clone();
+    for run in body["runs"].as_array_mut().unwrap() {
+        for reading in run["readings"].as_array_mut().unwrap() {
+            let xs: Vec<f64> = reading.as_array().unwrap().iter().map(f).collect();
+            let n = xs.len() as f64;
+            let mean = xs.iter().sum::<f64>() / n;
+            let ss: f64 = xs.iter().map(|x| (x - mean).powi(2)).sum();
+            let std = if xs.len() > 1 {
+                (ss / (n - 1.0)).sqrt()
+            } else {
+                0.0
+            };
+            *reading = json!({"mean": mean, "std": std, "count": xs.len()});
+        }
+    }
+    body
+}
+
+#[track_caller]
+fn same(a: &Value, b: &Value, what: &str) {
+    let (x, y) = (f(a), f(b));
+    assert!(
+        (x - y).abs() <= 1e-12 * x.abs().max(1e-300),
+        "{what}: {x:e} vs {y:e}"
+    );
+}
+
+/// A station that averages on board sends each position's mean, standard
+/// deviation and count, as JSON or CSV: the calibration — coefficients,
+/// standard errors, pure error and lack of fit — is the one its samples give.
+#[rstest]
+#[tokio::test]
+async fn summaries_calibrate_as_their_samples_do(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let samples = misfit_submission("SUMMARY-SAMPLES");
+    let mut json_summaries = summarised(&samples);
+    json_summaries["sensor_id"] = json!("SUMMARY-JSON");
+    let mut csv =
+        String::from("# sensor_id: SUMMARY-CSV\n# unit: mA\nrun,angle_deg,mean,std,count\n");
+    for (j, run) in json_summaries["runs"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .enumerate()
+    {
+        for (p, r) in run["readings"].as_array().unwrap().iter().enumerate() {
+            let angle = &samples["positions"][p]["angle_deg"];
+            csv += &format!(
+                "{j},{angle},{:e},{:e},{}\n",
+                f(&r["mean"]),
+                f(&r["std"]),
+                r["count"]
+            );
+        }
+    }
+    let a = app.submit(ADMIN, &samples).await;
+    let b = app.submit(ADMIN, &json_summaries).await;
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(ADMIN)
+        .header("content-type", "text/csv")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let c: Value = res.json().await.unwrap();
+    assert_eq!(a["quality"]["lack_of_fit"]["status"], "tested");
+    for r in [&b, &c] {
+        for term in ["k0", "ki", "kp"] {
+            for block in ["coefficients", "std_errors"] {
+                same(&a["fused"][block][term], &r["fused"][block][term], term);
+            }
+        }
+        let (pa, pr) = (&a["quality"]["pure_error"], &r["quality"]["pure_error"]);
+        assert_eq!(pa["dof"], pr["dof"]);
+        same(&pa["std"], &pr["std"], "pure error");
+        let (la, lr) = (&a["quality"]["lack_of_fit"], &r["quality"]["lack_of_fit"]);
+        assert_eq!((&la["df1"], &la["df2"]), (&lr["df1"], &lr["df2"]));
+        assert!(
+            (f(&la["f"]) - f(&lr["f"])).abs() <= 1e-9 * f(&la["f"]),
+            "{la} {lr}"
+        );
+    }
+}
+
+/// A real static window: 100 000 samples at one position of one run (1 000 s
+/// at 100 Hz), sent gzip-compressed, is a submission.
+#[tokio::test]
+async fn a_position_may_hold_a_hundred_thousand_samples() {
+    use std::io::Write as _;
+    let app = TestApp::spawn(Sqlite).await;
+    let mut body = submission("LONG-WINDOW", "2026-01-01T00:00:00Z", 4);
+    let first = f(&body["runs"][0]["readings"][0][0]);
+    let window: Vec<f64> = (0..100_000)
+        .map(|k| first + 1e-6 * (f64::from(k) * 0.37).sin())
+        .collect();
+    body["runs"][0]["readings"][0] = json!(window);
+    let plain = serde_json::to_vec(&body).unwrap();
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(&plain).unwrap();
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations"))
+        .bearer_auth(ADMIN)
+        .header("content-type", "application/json")
+        .header("content-encoding", "gzip")
+        .body(e.finish().unwrap())
+        .send()
+        .await
+        .unwrap();
+    let status = res.status();
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(status, StatusCode::CREATED, "{r}");
+    // The window's 99 999 degrees of freedom are in the pure error.
+    let runs = body["runs"].as_array().unwrap();
+    let dof: usize = runs
+        .iter()
+        .flat_map(|run| run["readings"].as_array().unwrap())
+        .map(|s| s.as_array().unwrap().len() - 1)
+        .sum();
+    assert_eq!(r["quality"]["pure_error"]["dof"], json!(dof));
+    assert!(dof >= 99_999);
+    // One more sample is refused, naming the position.
+    body["runs"][0]["readings"][0]
+        .as_array_mut()
+        .unwrap()
+        .push(json!(first));
+    let res = app.post("/v1/calibrations", ADMIN, &body).await;
+    let p = problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert_eq!(p["errors"][0]["pointer"], "/runs/0/readings/0");
+}

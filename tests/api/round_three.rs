@@ -64,7 +64,7 @@ async fn bodies_without_a_token_hold_no_budget_and_one_token_only_its_share() {
         app.admission.body_budget_kib,
         "no budget is held for a body without a token"
     );
-    // One token: its share (16 MiB of 64) is four 4 MiB bodies; a fifth is 503.
+    // One token: its share (64 MiB of 256) is sixteen 4 MiB bodies; one more is 503.
     let share = app.admission.share_kib;
     assert_eq!(share, app.admission.body_budget_kib / 4);
     for _ in 0..share / 4096 {
@@ -116,6 +116,60 @@ async fn post_gzip(app: &TestApp, path: &str, ct: &str, body: Vec<u8>) -> reqwes
         .send()
         .await
         .unwrap()
+}
+
+/// A gzip body is charged to the budget with its decoded size, not only
+/// its size as sent: a token holding half its share with an idle body, whose
+/// few KiB of gzip decode to more than the other half, is answered 503 —
+/// and with that idle body gone, the same request is taken.
+#[tokio::test]
+async fn a_gzip_body_is_charged_its_decoded_size() {
+    let app = TestApp::configured(Sqlite, |config| {
+        config.limits.max_body_bytes = 1024 * 1024;
+        config.limits.body_budget_bytes = 1024 * 1024;
+    })
+    .await;
+    assert_eq!(app.admission.share_kib, 1024);
+    // 600 KiB of spaces and `{}`: valid JSON, some 1 KiB compressed.
+    let mut plain = vec![b' '; 600 * 1024];
+    plain.extend_from_slice(br#"{"values": {"k0": [1, 2, 3, 4]}}"#);
+    let body = gzip(&plain);
+    assert!(body.len() < 4096);
+    let mut idle = connect(&app).await;
+    idle.write_all(
+        format!(
+            "POST /v1/fuse HTTP/1.1\r\nHost: x\r\nAuthorization: Bearer {ADMIN}\r\n\
+             Content-Type: application/json\r\nContent-Length: {}\r\n\r\n{{",
+            512 * 1024
+        )
+        .as_bytes(),
+    )
+    .await
+    .unwrap();
+    eventually(
+        Duration::from_secs(5),
+        "half the share to be taken",
+        || async { (app.admission.bodies.available_permits() == 512).then_some(()) },
+    )
+    .await;
+    let res = post_gzip(&app, "/v1/fuse", "application/json", body.clone()).await;
+    let p = problem(res, StatusCode::SERVICE_UNAVAILABLE).await;
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("may have at most 1024 KiB"),
+        "{p}"
+    );
+    drop(idle);
+    eventually(
+        Duration::from_secs(5),
+        "the share to be returned",
+        || async { (app.admission.bodies.available_permits() == 1024).then_some(()) },
+    )
+    .await;
+    let res = post_gzip(&app, "/v1/fuse", "application/json", body).await;
+    assert_eq!(res.status(), StatusCode::OK);
 }
 
 /// Finding 2: a gzip body of two members (concatenated `.gz` files) is

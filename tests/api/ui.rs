@@ -437,8 +437,8 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
     assert!(from_ui.contains(&hex::encode(Sha256::digest(&body))));
 }
 
-/// A submission at the documented input limits: 1 000 runs of 200 positions,
-/// one sample each (200 000 samples, about 2 MiB of JSON).
+/// A submission of many cells: 1 000 runs (the most) of 200 positions, one
+/// sample each (200 000 samples, about 2 MiB of JSON).
 fn at_the_limits() -> Value {
     let positions: Vec<Value> = (0..200)
         .map(|i| {

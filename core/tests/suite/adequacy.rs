@@ -7,7 +7,7 @@
 use accelcal_core::adequacy::{LackOfFit, model_uncertainty, unmodelled_terms};
 use accelcal_core::quality::{Warning, assess};
 use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
-use accelcal_core::{Model, Mount, Position, Run, Term, TermMap, TumbleTest};
+use accelcal_core::{Model, Mount, Position, Reading, Run, Summary, Term, TermMap, TumbleTest};
 use serde_json::Value;
 
 #[track_caller]
@@ -30,7 +30,35 @@ fn cases() -> Vec<Value> {
     serde_json::from_str(include_str!("../data/adequacy.json")).unwrap()
 }
 
+/// The case's samples, or (`Form::Summaries`) each position's summary —
+/// mean, sample standard deviation and count, computed here — in their
+/// place: the reference's figures hold for both.
+#[derive(Clone, Copy, Debug)]
+enum Form {
+    Samples,
+    Summaries,
+}
+
+fn summary_of(samples: &[f64]) -> Reading {
+    let n = samples.len() as f64;
+    let mean = samples.iter().sum::<f64>() / n;
+    let ss: f64 = samples.iter().map(|x| (x - mean).powi(2)).sum();
+    Reading::Summary(Summary {
+        mean,
+        std: if samples.len() > 1 {
+            (ss / (n - 1.0)).sqrt()
+        } else {
+            0.0
+        },
+        count: samples.len() as u64,
+    })
+}
+
 fn tumble_of(case: &Value) -> TumbleTest {
+    tumble_as(case, Form::Samples)
+}
+
+fn tumble_as(case: &Value, form: Form) -> TumbleTest {
     let model = Model::new(case["model"].as_array().unwrap().iter().map(term).collect()).unwrap();
     let positions = case["positions"]
         .as_array()
@@ -48,13 +76,19 @@ fn tumble_of(case: &Value) -> TumbleTest {
         .as_array()
         .unwrap()
         .iter()
-        .map(|run| Run {
-            readings: run
+        .map(|run| {
+            let samples: Vec<Vec<f64>> = run
                 .as_array()
                 .unwrap()
                 .iter()
                 .map(|s| s.as_array().unwrap().iter().map(f).collect())
-                .collect(),
+                .collect();
+            match form {
+                Form::Samples => Run::from_samples(samples),
+                Form::Summaries => Run {
+                    readings: samples.iter().map(|s| summary_of(s)).collect(),
+                },
+            }
         })
         .collect();
     TumbleTest::new(model, positions, runs).unwrap()
@@ -78,10 +112,21 @@ fn same_test(got: &accelcal_core::ftest::FTest, want: &Value, what: &str) {
 
 #[test]
 fn every_case_matches_the_numpy_reference() {
+    matches_the_reference(Form::Samples);
+}
+
+/// A station that averages on board sends each position's mean, standard
+/// deviation and count: the same figures follow.
+#[test]
+fn every_case_given_as_summaries_matches_the_numpy_reference() {
+    matches_the_reference(Form::Summaries);
+}
+
+fn matches_the_reference(form: Form) {
     for case in cases() {
-        let name = case["name"].as_str().unwrap();
+        let name = &format!("{} ({form:?})", case["name"].as_str().unwrap());
         let want = &case["expected"];
-        let t = tumble_of(&case);
+        let t = tumble_as(&case, form);
         let cal = t
             .calibrate(case["batches"].as_u64().unwrap() as usize)
             .unwrap();

@@ -6,7 +6,7 @@
 
 use crate::common::paper_tumble;
 use accelcal_core::fusion::{dispersion, fuse, scaled_norm};
-use accelcal_core::{Run, Term, TermMap, TumbleTest, estimate};
+use accelcal_core::{Reading, Run, Summary, Term, TermMap, TumbleTest, estimate};
 
 #[track_caller]
 fn rel(got: f64, want: f64, tol: f64) {
@@ -57,7 +57,14 @@ fn scaled(test: &TumbleTest, c: f64) -> TumbleTest {
             readings: r
                 .readings
                 .iter()
-                .map(|s| s.iter().map(|u| u * c).collect())
+                .map(|reading| match reading {
+                    Reading::Samples(s) => Reading::Samples(s.iter().map(|u| u * c).collect()),
+                    Reading::Summary(s) => Reading::Summary(Summary {
+                        mean: s.mean * c,
+                        std: s.std * c.abs(),
+                        count: s.count,
+                    }),
+                })
                 .collect(),
         })
         .collect();

@@ -39,15 +39,15 @@ fn clean(rng: &mut Normal, angles: &[f64]) -> TumbleTest {
     let runs = (0..6)
         .map(|_| {
             let shift = 1e-4 * rng.next();
-            Run {
-                readings: positions
+            Run::from_samples(
+                positions
                     .iter()
                     .map(|p| {
                         let u = -8.4e-4 - 1.216 * p.a.i + 6.2e-3 * p.a.p + shift;
                         (0..2).map(|_| u + 1e-5 * rng.next()).collect()
                     })
                     .collect(),
-            }
+            )
         })
         .collect();
     TumbleTest::new(Model::pendulum(), positions, runs).unwrap()

@@ -8,7 +8,8 @@ use accelcal_core::quality::{Warning, assess};
 use accelcal_core::temperature::sensitivity;
 use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
 use accelcal_core::{
-    Compensator, Design, Gravity, Model, Mount, Position, Run, Term, TermMap, TumbleTest,
+    Compensator, Design, Gravity, Model, Mount, Position, Reading, Run, Summary, Term, TermMap,
+    TumbleTest,
 };
 
 use Term::*;
@@ -33,12 +34,14 @@ fn tumble(mount: Mount, n: u32) -> Vec<Position> {
 fn test_of(truth: &TermMap<f64>, model: &Model, positions: Vec<Position>) -> TumbleTest {
     let c = Compensator::new(truth).unwrap();
     let runs = (0..4)
-        .map(|j| Run {
-            readings: positions
-                .iter()
-                .enumerate()
-                .map(|(r, p)| vec![c.output(&p.a) + 1e-7 * ((j * 7 + r * 3) as f64).sin()])
-                .collect(),
+        .map(|j| {
+            Run::from_samples(
+                positions
+                    .iter()
+                    .enumerate()
+                    .map(|(r, p)| vec![c.output(&p.a) + 1e-7 * ((j * 7 + r * 3) as f64).sin()])
+                    .collect(),
+            )
         })
         .collect();
     TumbleTest::new(model.clone(), positions, runs).unwrap()
@@ -283,20 +286,51 @@ fn as_found_is_the_error_of_the_previous_coefficients() {
     let before = TermMap(vec![(K0, -5.0e-4), (Ki, -1.19), (Kp, 6.0e-3)]);
     let positions = tumble(Mount::Pendulum, 4);
     let c = Compensator::new(&now).unwrap();
-    // Unequal sample counts: the position value is the mean of every sample.
-    let runs = vec![
-        Run {
-            readings: positions
-                .iter()
-                .map(|p| vec![c.output(&p.a) + 1e-6, c.output(&p.a) - 1e-6])
-                .collect(),
-        },
-        Run {
-            readings: positions.iter().map(|p| vec![c.output(&p.a)]).collect(),
-        },
-    ];
-    let t = TumbleTest::new(Model::pendulum(), positions.clone(), runs).unwrap();
-    let af = as_found(&t, &before).unwrap();
+    // Unequal sample counts: the position value is the mean of every sample,
+    // two at +3e-6 and one at −6e-6, which is 0 (the mean of the runs' means
+    // would be −1.5e-6). Run 0 given as samples, then as their summary.
+    let twice = Run::from_samples(
+        positions
+            .iter()
+            .map(|p| vec![c.output(&p.a) + 3e-6; 2])
+            .collect(),
+    );
+    let summarised = Run {
+        readings: positions
+            .iter()
+            .map(|p| {
+                Reading::Summary(Summary {
+                    mean: c.output(&p.a) + 3e-6,
+                    std: 0.0,
+                    count: 2,
+                })
+            })
+            .collect(),
+    };
+    let once = Run::from_samples(
+        positions
+            .iter()
+            .map(|p| vec![c.output(&p.a) - 6e-6])
+            .collect(),
+    );
+    for run in [twice, summarised] {
+        let runs = vec![run, once.clone()];
+        let t = TumbleTest::new(Model::pendulum(), positions.clone(), runs).unwrap();
+        let af = as_found(&t, &before).unwrap();
+        check_as_found(&af, &positions, &now, &before);
+        assert!(
+            as_found(&t, &TermMap(vec![(K0, 1.0)])).is_none(),
+            "no ki, no as found"
+        );
+    }
+}
+
+fn check_as_found(
+    af: &accelcal_core::history::AsFound,
+    positions: &[Position],
+    now: &TermMap<f64>,
+    before: &TermMap<f64>,
+) {
     let mut max = 0.0f64;
     for (p, e) in positions.iter().zip(&af.positions) {
         let want = (now[K0] - before[K0])
@@ -307,10 +341,6 @@ fn as_found_is_the_error_of_the_previous_coefficients() {
         max = max.max((want / before[Ki]).abs());
     }
     near(af.max_abs_error_g, max, 1e-9);
-    assert!(
-        as_found(&t, &TermMap(vec![(K0, 1.0)])).is_none(),
-        "no ki, no as found"
-    );
 }
 
 fn point(id: &str, t: f64, x: f64, se: f64) -> Point {
@@ -494,13 +524,13 @@ fn a_run_ten_times_noisier_than_the_median_is_flagged() {
     let runs: Vec<Run> = (0..5)
         .map(|j| {
             let amp = if j == 3 { 1e-4 } else { 1e-5 };
-            Run {
-                readings: positions
+            Run::from_samples(
+                positions
                     .iter()
                     .enumerate()
                     .map(|(r, p)| vec![c.output(&p.a) + amp * ((r * 5 + j) as f64).sin()])
                     .collect(),
-            }
+            )
         })
         .collect();
     let t = TumbleTest::new(Model::pendulum(), positions, runs).unwrap();

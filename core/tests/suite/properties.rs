@@ -142,12 +142,14 @@ mod metrology {
             .collect();
         let c = Compensator::new(k).unwrap();
         let runs = (0..4)
-            .map(|r| Run {
-                readings: positions
-                    .iter()
-                    .enumerate()
-                    .map(|(p, pos)| vec![c.output(&pos.a) + 1e-7 * ((r * 11 + p) as f64).cos()])
-                    .collect(),
+            .map(|r| {
+                Run::from_samples(
+                    positions
+                        .iter()
+                        .enumerate()
+                        .map(|(p, pos)| vec![c.output(&pos.a) + 1e-7 * ((r * 11 + p) as f64).cos()])
+                        .collect(),
+                )
             })
             .collect();
         TumbleTest::new(Model::pendulum(), positions, runs).unwrap()

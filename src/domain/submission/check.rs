@@ -56,7 +56,8 @@ impl Hints {
                 ..
             } if self.batches_given => root.key("batches").to_string(),
             CoreError::ReadingCount { run, .. } => runs.index(*run).key("readings").to_string(),
-            CoreError::NoSamples { run, position } => runs
+            CoreError::NoSamples { run, position }
+            | CoreError::InvalidSummary { run, position, .. } => runs
                 .index(*run)
                 .key("readings")
                 .index(*position)
@@ -290,28 +291,27 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
     };
     let runs_at = root.key("runs");
     let mut temperatures: Vec<Option<f64>> = Vec::new();
-    let runs: Option<Vec<Run>> =
-        match runs {
-            Slot::Value(rs) => {
-                let mut out = Vec::with_capacity(rs.len());
-                for (j, r) in rs.into_iter().enumerate() {
-                    let Some(r) = r else { continue };
-                    temperatures.push(r.temperature_c);
-                    match n_positions {
+    let runs: Option<Vec<Run>> = match runs {
+        Slot::Value(rs) => {
+            let mut out = Vec::with_capacity(rs.len());
+            for (j, r) in rs.into_iter().enumerate() {
+                let Some(r) = r else { continue };
+                temperatures.push(r.temperature_c);
+                match n_positions {
                     Some(n) if n != r.readings.len() => errors.add(
                         runs_at.index(j).key("readings"),
                         format!(
-                            "must hold one array of samples per position: {n} positions, {} given",
+                            "must hold one reading (samples or a summary) per position: {n} positions, {} given",
                             r.readings.len()
                         ),
                     ),
                     _ => out.push(Run { readings: r.readings }),
                 }
-                }
-                Some(out)
             }
-            _ => None,
-        };
+            Some(out)
+        }
+        _ => None,
+    };
     // Temperatures: every run or none.
     let temperatures_c = if temperatures.iter().all(Option::is_none) {
         None

@@ -2,7 +2,7 @@
 //! fields to each other: every field that was given and well-typed, and a
 //! record of every problem found so far.
 
-use accelcal_core::{Gravity, Mount, Term};
+use accelcal_core::{Gravity, Mount, Reading, Term};
 
 use crate::domain::field::Errors;
 use crate::domain::timestamp::Timestamp;
@@ -42,11 +42,11 @@ pub struct PositionDraft {
     pub label: Option<String>,
 }
 
-/// A run as given: samples per position (each within the limits).
+/// A run as given: a reading per position (each within the limits).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct RunDraft {
-    /// `readings[i]`: the samples at position `i`.
-    pub readings: Vec<Vec<f64>>,
+    /// `readings[i]`: the samples at position `i`, or their summary.
+    pub readings: Vec<Reading>,
     /// The temperature the run was made at, °C.
     pub temperature_c: Option<f64>,
 }

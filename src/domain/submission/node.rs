@@ -9,7 +9,7 @@ use std::fmt;
 use serde::de::{self, DeserializeSeed, IgnoredAny, MapAccess, SeqAccess, Visitor};
 
 use crate::domain::field::{Errors, Loc};
-use crate::domain::text::{Chars, check_str};
+use crate::domain::text::{Chars, check_str, echo};
 
 /// A JSON value other than an array or object, or only the kind of one.
 #[derive(Debug, Clone, PartialEq)]
@@ -203,4 +203,42 @@ pub type Next<T> = Option<Option<T>>;
 /// Records `result`'s error at `at`, giving its value otherwise.
 pub fn keep<T>(errors: &mut Errors, at: Loc<'_>, result: Result<T, String>) -> Option<T> {
     result.map_err(|why| errors.add(at, why)).ok()
+}
+
+/// Reads an object whose members are all scalars, named by `keys`: each
+/// member's value in `keys` order (`None` when absent or null). An unknown or
+/// repeated key is recorded at it, and then the object gives `None`.
+pub fn scalar_fields<'de, A: MapAccess<'de>, const N: usize>(
+    mut map: A,
+    errors: &mut Errors,
+    at: Loc<'_>,
+    keys: [&str; N],
+) -> Result<Option<[Option<Scalar>; N]>, A::Error> {
+    let mut values: [Option<Scalar>; N] = std::array::from_fn(|_| None);
+    let mut seen = [false; N];
+    let mut ok = true;
+    while let Some(key) = map.next_key::<String>()? {
+        let here = at.key(&key);
+        let Some(k) = keys.iter().position(|x| *x == key) else {
+            errors.add(
+                here,
+                format!(
+                    "unknown field `{}`; expected one of: {}",
+                    echo(&key),
+                    keys.join(", ")
+                ),
+            );
+            map.next_value::<IgnoredAny>()?;
+            ok = false;
+            continue;
+        };
+        let v = map.next_value_seed(Seed(Any))?;
+        if std::mem::replace(&mut seen[k], true) {
+            errors.add(here, format!("duplicate key `{key}`: given more than once"));
+            ok = false;
+        } else if v != Scalar::Null {
+            values[k] = Some(v);
+        }
+    }
+    Ok(ok.then_some(values))
 }

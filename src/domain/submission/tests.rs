@@ -178,14 +178,15 @@ fn future_and_malformed_times_are_refused() {
 }
 
 #[test]
-fn a_million_wrong_samples_give_a_hundred_errors_and_a_count() {
-    // 360 positions × 3 runs × 1000 `""` samples (the attack of finding 3).
+fn two_million_wrong_samples_give_a_hundred_errors_and_a_count() {
+    // 360 positions × 6 runs × 1000 `""` samples (the attack of finding 3,
+    // past the 2 000 000 samples a submission may hold).
     let positions: Vec<Value> = (0..360).map(|k| json!({"angle_deg": k})).collect();
     let samples = format!("[{}]", vec!["\"\""; 1000].join(","));
     let readings = format!("[{}]", vec![samples.as_str(); 360].join(","));
     let runs = format!(
         "[{}]",
-        vec![format!("{{\"readings\": {readings}}}"); 3].join(",")
+        vec![format!("{{\"readings\": {readings}}}"); 6].join(",")
     );
     let body = format!(
         "{{\"sensor_id\": \"A\", \"positions\": {}, \"runs\": {runs}}}",
@@ -195,8 +196,8 @@ fn a_million_wrong_samples_give_a_hundred_errors_and_a_count() {
         panic!()
     };
     assert_eq!(i.errors.len(), 100);
-    // Every sample is wrong, and so is their total (beyond 200 000).
-    assert_eq!(i.count(), 360 * 3 * 1000 + 1);
+    // Every sample is wrong, and so is their total (beyond 2 000 000).
+    assert_eq!(i.count(), 360 * 6 * 1000 + 1);
 }
 
 #[test]

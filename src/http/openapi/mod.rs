@@ -56,7 +56,7 @@ impl Modify for Bearer {
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
-            MountSchema, PositionInSchema, RunInSchema, SubmissionSchema, RawBodySchema, RunResultSchema,
+            MountSchema, PositionInSchema, ReadingInSchema, RunInSchema, SubmissionSchema, RawBodySchema, RunResultSchema,
             MeanEstimateSchema, BatchSchema, FusedEstimateSchema, EstimatesSchema, NormalizedSchema,
             PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, SensorPageSchema,
             CalibrationPageSchema, super::problem::ProblemBody, crate::domain::field::FieldError,

@@ -71,7 +71,31 @@ marker_schema!(
 );
 
 marker_schema!(
-    /// One run's samples.
+    /// A position's reading in one run: its samples, or their summary.
+    ReadingInSchema => RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
+        .description(Some(
+            "The samples at one position of one run, or — from a station that averages on \
+             board — their mean, sample standard deviation (divisor n − 1) and count; a \
+             summary's samples are not counted against the limits on samples.",
+        ))
+        .item(array(number(MAX_READING)).min_items(Some(1)).max_items(Some(MAX_SAMPLES)))
+        .item(closed(ObjectBuilder::new())
+            .property("mean", number(MAX_READING))
+            .property("std", of_type(Type::Number)
+                .minimum(Some(0.0))
+                .maximum(Some(MAX_READING))
+                .description(Some("Sample standard deviation; 0 when `count` is 1.")))
+            .property("count", of_type(Type::Integer)
+                .minimum(Some(1.0))
+                .maximum(Some(MAX_SUMMARY_COUNT as f64)))
+            .required("mean")
+            .required("std")
+            .required("count"))
+        .build()))
+);
+
+marker_schema!(
+    /// One run's readings.
     RunInSchema => closed(ObjectBuilder::new())
         .property("temperature_c", ObjectBuilder::new()
             .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
@@ -80,8 +104,8 @@ marker_schema!(
             .maximum(Some(*TEMPERATURE_C.end())))
         .property(
             "readings",
-            array(array(number(MAX_READING)).min_items(Some(1)).max_items(Some(MAX_SAMPLES)))
-                .description(Some("One array of samples per position, in position order."))
+            array(reference("ReadingIn"))
+                .description(Some("One reading per position, in position order."))
                 .min_items(Some(1))
                 .max_items(Some(MAX_POSITIONS)),
         )

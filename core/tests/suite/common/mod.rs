@@ -50,16 +50,18 @@ pub fn paper_tumble() -> TumbleTest {
         .map(|d| Position::from_angle(*d, Mount::Pendulum, None))
         .collect();
     let runs = (1..=6)
-        .map(|test| Run {
-            readings: angles
-                .iter()
-                .map(|d| {
-                    rows.iter()
-                        .filter(|r| r.0 == test && r.1 == *d)
-                        .map(|r| r.4)
-                        .collect()
-                })
-                .collect(),
+        .map(|test| {
+            Run::from_samples(
+                angles
+                    .iter()
+                    .map(|d| {
+                        rows.iter()
+                            .filter(|r| r.0 == test && r.1 == *d)
+                            .map(|r| r.4)
+                            .collect()
+                    })
+                    .collect(),
+            )
         })
         .collect();
     TumbleTest::new(Model::pendulum(), positions, runs).unwrap()

@@ -23,10 +23,13 @@
 //!   `test`), the position as `angle_deg` or as `a_i`, `a_p`, `a_o` (or
 //!   both), optional `label`, optional `direction` (informational),
 //!   optional `temperature_c` (the run's, the same on each of its rows), and
-//!   `output`. Fields may be double-quoted, with `""` for a quote and line
+//!   `output` (or `mean`, `std`, `count`). Fields may be double-quoted, with `""` for a quote and line
 //!   breaks inside quotes.
 //! * After the header every line is data: a run named `#1` or a label
 //!   starting with `#` is a value like any other.
+//! * A station that averages on board gives `mean`, `std` (sample standard
+//!   deviation) and `count` columns instead of `output`: each row is then
+//!   one run's summary at one position, and a run has one row per position.
 //! * Each row is one sample. Positions are numbered in order of first
 //!   appearance (indexed by a hash of angle, components and label), runs
 //!   likewise; every run must have samples at every position. The limits on
@@ -60,6 +63,9 @@ pub const COLUMNS: &[&str] = &[
     "direction",
     "temperature_c",
     "output",
+    "mean",
+    "std",
+    "count",
 ];
 
 /// The submission fields a `# key: value` line may set: all but the two the

@@ -1,9 +1,12 @@
-//! The header and rows after it: every line is one sample, read with the
-//! `csv` crate; positions and runs are indexed by hash as they first appear,
-//! and the limits are checked while reading.
+//! The header and rows after it: every line is one sample (or one run's
+//! summary at a position), read with the `csv` crate; positions and runs are
+//! indexed by hash as they first appear, and the limits are checked while
+//! reading.
 
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
+
+use accelcal_core::{Reading, Summary};
 
 use super::super::draft::{Draft, PositionDraft, RunDraft, Slot};
 use super::super::json::{gravity, temperature};
@@ -13,10 +16,18 @@ use crate::domain::field::{Errors, Loc};
 use crate::domain::limits::*;
 use crate::domain::text::{Chars, check_str, echo};
 
+/// Where a row's reading is: one sample's `output`, or a summary's `mean`,
+/// `std` and `count`.
+#[derive(Clone, Copy)]
+enum Value {
+    Output(usize),
+    Summary([usize; 3]),
+}
+
 /// The header's column indices.
 struct Header {
     run: usize,
-    output: usize,
+    value: Value,
     angle: Option<usize>,
     components: Option<[usize; 3]>,
     label: Option<usize>,
@@ -49,10 +60,31 @@ fn header(cols: &[String], line: usize, errors: &mut Errors) -> Option<Header> {
             fail(errors, format!("column `{c}` appears twice"));
         }
     }
-    let output = find("output");
-    if output.is_none() {
-        fail(errors, "the header needs an `output` column".into());
-    }
+    let summary = [find("mean"), find("std"), find("count")];
+    let value = match (find("output"), summary) {
+        (Some(k), [None, None, None]) => Some(Value::Output(k)),
+        (None, [Some(m), Some(s), Some(n)]) => Some(Value::Summary([m, s, n])),
+        (Some(_), _) => {
+            fail(
+                errors,
+                "give an `output` column (one sample per row) or `mean`, `std`, `count` \
+                 columns (one summary per row), not both"
+                    .into(),
+            );
+            None
+        }
+        (None, [None, None, None]) => {
+            fail(
+                errors,
+                "the header needs an `output` column (or `mean`, `std`, `count`)".into(),
+            );
+            None
+        }
+        (None, _) => {
+            fail(errors, "give all of `mean`, `std`, `count` or none".into());
+            None
+        }
+    };
     let run = find("run").or_else(|| find("test"));
     if run.is_none() {
         fail(errors, "the header needs a `run` column".into());
@@ -71,7 +103,7 @@ fn header(cols: &[String], line: usize, errors: &mut Errors) -> Option<Header> {
     }
     Some(Header {
         run: run?,
-        output: output?,
+        value: value?,
         angle,
         components: match explicit {
             [Some(i), Some(p), Some(o)] => Some([i, p, o]),
@@ -128,11 +160,44 @@ fn separator_hint(cols: &[String]) -> Option<String> {
         })
 }
 
-/// One sample as read: run, position and value.
+/// One row as read: run, position and its sample or summary.
 struct Sample {
     run: u32,
     position: u32,
-    value: f64,
+    value: Cell,
+}
+
+/// A row's reading.
+enum Cell {
+    Sample(f64),
+    Summary(Summary),
+}
+
+/// The summary in the `mean`, `std` and `count` columns `[m, s, n]`.
+fn summary(record: &csv::StringRecord, [m, s, n]: [usize; 3]) -> Result<Summary, String> {
+    let mean = number(&record[m], m, "mean", MAX_READING)?;
+    let std = number(&record[s], s, "std", MAX_READING)?;
+    if std < 0.0 {
+        return Err(format!("column {} (`std`): must not be negative", s + 1));
+    }
+    let count = record[n]
+        .parse::<u64>()
+        .ok()
+        .filter(|c| (1..=MAX_SUMMARY_COUNT).contains(c))
+        .ok_or_else(|| {
+            format!(
+                "column {} (`count`): `{}` is not an integer from 1 to {MAX_SUMMARY_COUNT}",
+                n + 1,
+                echo(&record[n])
+            )
+        })?;
+    if count == 1 && std != 0.0 {
+        return Err(format!(
+            "column {} (`std`): must be 0 when `count` is 1: one sample has no spread",
+            s + 1
+        ));
+    }
+    Ok(Summary { mean, std, count })
 }
 
 /// Reads the header and rows (from the header line on) into `draft`.
@@ -171,6 +236,8 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
     let mut position_index: HashMap<String, u32> = HashMap::new();
     let mut run_names: Vec<String> = Vec::new();
     let mut run_temperatures: Vec<Option<f64>> = Vec::new();
+    // Whether a run's temperature has been read from one of its rows.
+    let mut run_has_rows: Vec<bool> = Vec::new();
     let mut run_index: HashMap<String, u32> = HashMap::new();
     let mut cell_counts: HashMap<(u32, u32), usize> = HashMap::new();
     let mut samples: Vec<Sample> = Vec::new();
@@ -202,7 +269,11 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
             at_line(&mut draft.errors, line, "the run is empty");
             continue;
         }
-        let value = match number(&record[h.output], h.output, "output", MAX_READING) {
+        let value = match h.value {
+            Value::Output(k) => number(&record[k], k, "output", MAX_READING).map(Cell::Sample),
+            Value::Summary(cols) => summary(&record, cols).map(Cell::Summary),
+        };
+        let value = match value {
             Ok(x) => x,
             Err(why) => {
                 at_line(&mut draft.errors, line, why);
@@ -277,6 +348,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                 }
                 run_names.push(run.to_owned());
                 run_temperatures.push(None);
+                run_has_rows.push(false);
                 run_index.insert(run.to_owned(), run_names.len() as u32 - 1);
                 run_names.len() as u32 - 1
             }
@@ -295,7 +367,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                 }
             };
             let slot = &mut run_temperatures[run as usize];
-            if samples.iter().any(|s: &Sample| s.run == run) && *slot != t {
+            if std::mem::replace(&mut run_has_rows[run as usize], true) && *slot != t {
                 at_line(
                     &mut draft.errors,
                     line,
@@ -310,6 +382,18 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
         }
         let count = cell_counts.entry((run, position)).or_default();
         *count += 1;
+        if matches!(value, Cell::Summary(_)) && *count > 1 {
+            at_line(
+                &mut draft.errors,
+                line,
+                format!(
+                    "a second summary of run `{}` at one position; a summary row stands for \
+                     all of a position's samples",
+                    echo(&run_names[run as usize])
+                ),
+            );
+            continue;
+        }
         if *count > MAX_SAMPLES {
             at_line(
                 &mut draft.errors,
@@ -346,19 +430,22 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
         );
         return;
     }
-    // Every run needs a sample at every position: with more cells than the
-    // samples allowed in all, some must be empty — say so without building them.
-    let cells = run_names.len() * positions.len();
-    if cells > MAX_TOTAL_SAMPLES {
-        draft.errors.add(Loc::Root, format!(
-            "CSV: {} runs × {} positions need a sample in each of {cells} cells; only {} were given",
-            run_names.len(), positions.len(), samples.len()
-        ));
-        return;
-    }
-    let mut runs: Vec<Vec<Vec<f64>>> = vec![vec![Vec::new(); positions.len()]; run_names.len()];
+    // Every cell (run × position) is built, empty or not: at most
+    // MAX_RUNS × MAX_POSITIONS of them, fewer than the samples allowed.
+    const _: () = assert!(MAX_RUNS * MAX_POSITIONS <= MAX_TOTAL_SAMPLES);
+    let mut runs: Vec<Vec<Reading>> =
+        vec![vec![Reading::Samples(Vec::new()); positions.len()]; run_names.len()];
     for s in samples {
-        runs[s.run as usize][s.position as usize].push(s.value);
+        let reading = &mut runs[s.run as usize][s.position as usize];
+        match s.value {
+            Cell::Summary(summary) => *reading = Reading::Summary(summary),
+            Cell::Sample(x) => {
+                // A file's rows are all samples or all summaries (the header).
+                if let Reading::Samples(xs) = reading {
+                    xs.push(x);
+                }
+            }
+        }
     }
     if lonely(
         &positions,
@@ -371,7 +458,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
     }
     for (name, readings) in run_names.iter().zip(&runs) {
         for (p, cell) in readings.iter().enumerate() {
-            if cell.is_empty() {
+            if cell.count() == 0 {
                 draft.errors.add(
                     Loc::Root,
                     format!(
@@ -406,13 +493,13 @@ fn lonely(
     positions: &[PositionDraft],
     first_line: &[usize],
     run_names: &[String],
-    runs: &[Vec<Vec<f64>>],
+    runs: &[Vec<Reading>],
     errors: &mut Errors,
 ) -> bool {
     if run_names.len() < 3 {
         return false;
     }
-    let holders = |p: usize| runs.iter().filter(|r| !r[p].is_empty()).count();
+    let holders = |p: usize| runs.iter().filter(|r| r[p].count() > 0).count();
     let shared: Vec<usize> = (0..positions.len()).filter(|&p| holders(p) > 1).collect();
     let alone: Vec<usize> = (0..positions.len()).filter(|&p| holders(p) == 1).collect();
     // Typos are the exception: when most positions are one run's alone, the
@@ -422,7 +509,7 @@ fn lonely(
     }
     let mut found = false;
     for p in alone {
-        let Some(run) = runs.iter().position(|r| !r[p].is_empty()) else {
+        let Some(run) = runs.iter().position(|r| r[p].count() > 0) else {
             continue;
         };
         let nearest = positions[p].angle_deg.and_then(|a| {

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::domain::limits::MAX_LISTED_ERRORS;
+use accelcal_core::Reading;
 
 fn errors(text: &str) -> Vec<String> {
     let d = read(text.as_bytes()).unwrap();
@@ -41,7 +42,7 @@ fn paper_table_reads_like_the_json_example() {
     assert_eq!(runs.len(), 6);
     assert_eq!(
         runs[0].as_ref().unwrap().readings[0],
-        vec![0.005341914, 0.005679272]
+        Reading::Samples(vec![0.005341914, 0.005679272])
     );
 }
 
@@ -197,31 +198,6 @@ fn the_station_comes_from_its_metadata_line() {
     assert_eq!(d.errors.into_invalid().errors[0].pointer, "/station_id");
 }
 
-#[test]
-fn the_cell_count_may_reach_the_sample_limit_but_not_pass_it() {
-    // One row per run, the runs spread over the positions: `runs × positions`
-    // cells, most of them empty. At exactly MAX_TOTAL_SAMPLES cells the
-    // reader goes on to name the empty cells; one position more and it
-    // refuses the shape in one message.
-    let table = |positions: usize| {
-        let mut text = String::from("run,angle_deg,output\n");
-        for k in 0..MAX_RUNS {
-            text += &format!("r{k},{},1\n", k % positions);
-        }
-        text
-    };
-    assert_eq!(MAX_RUNS * 200, MAX_TOTAL_SAMPLES);
-    let e = errors(&table(200));
-    assert!(e[0].contains("has no samples at position"), "{e:?}");
-    let e = errors(&table(201));
-    assert_eq!(
-        e,
-        [
-            "CSV: 1000 runs × 201 positions need a sample in each of 201000 cells; only 1000 were given"
-        ]
-    );
-}
-
 /// A model may name every term there is, once each; one name more is
 /// refused with the count allowed.
 #[test]
@@ -249,7 +225,10 @@ fn gravity_columns_stand_for_the_angle_and_blank_lines_are_skipped() {
     let d = read(b"run,a_i,a_p,a_o,output\n1,1,0,0,1.5\n\n   \n1,-1,0,0,-0.5\n").unwrap();
     assert!(d.errors.is_empty(), "{:?}", d.errors);
     let Slot::Value(runs) = &d.runs else { panic!() };
-    assert_eq!(runs[0].as_ref().unwrap().readings, [vec![1.5], vec![-0.5]]);
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings,
+        [Reading::from(vec![1.5]), Reading::from(vec![-0.5])]
+    );
 }
 
 /// One cell (a run at a position) holds at most MAX_SAMPLES samples: that
@@ -368,5 +347,48 @@ fn a_mistyped_angle_blames_its_own_line() {
     assert!(
         e[0].contains("run `4` only") && e[0].contains("90°"),
         "{e:?}"
+    );
+}
+
+/// A station that averages on board sends `mean`, `std` and `count`
+/// columns: one row per run and position.
+#[test]
+fn summary_columns_give_one_reading_per_row() {
+    let d = read(b"run,angle_deg,mean,std,count\n1,0,1.5,0.1,10\n1,180,-0.5,0,1\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    let summary = |mean, std, count| Reading::Summary(accelcal_core::Summary { mean, std, count });
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings,
+        [summary(1.5, 0.1, 10), summary(-0.5, 0.0, 1)]
+    );
+    assert_eq!(
+        errors("run,angle_deg,output,mean,std,count\n1,0,1,1,0,1\n"),
+        [
+            "CSV line 1: give an `output` column (one sample per row) or `mean`, `std`, `count` \
+             columns (one summary per row), not both"
+        ]
+    );
+    assert_eq!(
+        errors("run,angle_deg,mean,std\n1,0,1,0\n"),
+        ["CSV line 1: give all of `mean`, `std`, `count` or none"]
+    );
+    assert_eq!(
+        errors("run,angle_deg,mean,std,count\n1,0,1,0,2\n1,0,1,0,2\n"),
+        [
+            "CSV line 3: a second summary of run `1` at one position; a summary row stands for \
+             all of a position's samples"
+        ]
+    );
+    assert_eq!(
+        errors("run,angle_deg,mean,std,count\n1,0,1,0.1,1\n1,90,1,-1,2\n1,180,1,0,0\n"),
+        [
+            "CSV line 2: column 4 (`std`): must be 0 when `count` is 1: one sample has no spread"
+                .to_owned(),
+            "CSV line 3: column 4 (`std`): must not be negative".to_owned(),
+            format!(
+                "CSV line 4: column 5 (`count`): `0` is not an integer from 1 to {MAX_SUMMARY_COUNT}"
+            ),
+        ]
     );
 }

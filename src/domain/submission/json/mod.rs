@@ -14,7 +14,7 @@ use self::positions::Positions;
 use self::runs::Runs;
 use super::FIELDS;
 use super::draft::{Draft, Slot, StandDraft};
-use super::node::{Any, Node, Scalar, Seed, elements, keep};
+use super::node::{Any, Node, Scalar, Seed, elements, keep, scalar_fields};
 use crate::domain::field::{Errors, Loc};
 use crate::domain::limits::*;
 use crate::domain::text::{Chars, echo};
@@ -218,45 +218,29 @@ impl<'de> Node<'de> for StandNode<'_> {
             .add(self.at, format!("must be an object, not {}", v.kind()));
         Slot::Invalid
     }
-    fn map<A: MapAccess<'de>>(self, mut map: A) -> Result<Self::Out, A::Error> {
+    fn map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Out, A::Error> {
         const KEYS: [&str; 3] = ["id", "angle_std_arcsec", "gravity_rel_std"];
-        let mut stand = StandDraft::default();
+        let Some([id, angle, gravity]) = scalar_fields(map, self.errors, self.at, KEYS)? else {
+            return Ok(Slot::Invalid);
+        };
+        let (errors, at) = (self.errors, self.at);
         let mut ok = true;
-        let mut seen = [false; 3];
-        while let Some(key) = map.next_key::<String>()? {
-            let at = self.at.key(&key);
-            let Some(k) = KEYS.iter().position(|x| *x == key) else {
-                self.errors.add(
-                    at,
-                    format!(
-                        "unknown field `{}`; expected one of: {}",
-                        echo(&key),
-                        KEYS.join(", ")
-                    ),
-                );
-                map.next_value::<IgnoredAny>()?;
-                ok = false;
-                continue;
-            };
-            let v = map.next_value_seed(Seed(Any))?;
-            if std::mem::replace(&mut seen[k], true) {
-                self.errors
-                    .add(at, format!("duplicate key `{key}`: given more than once"));
-                ok = false;
-                continue;
-            }
-            if v == Scalar::Null {
-                continue;
-            }
-            let read = match k {
-                0 => keep(self.errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
-                    .map(|id| stand.id = Some(id)),
-                1 => keep(self.errors, at, angle_std(&v)).map(|x| stand.angle_std_arcsec = Some(x)),
-                _ => {
-                    keep(self.errors, at, gravity_std(&v)).map(|x| stand.gravity_rel_std = Some(x))
-                }
-            };
-            ok &= read.is_some();
+        let mut stand = StandDraft::default();
+        if let Some(v) = id {
+            stand.id = keep(
+                errors,
+                at.key(KEYS[0]),
+                v.string(MAX_ID_CHARS, Chars::Identifier),
+            );
+            ok &= stand.id.is_some();
+        }
+        if let Some(v) = angle {
+            stand.angle_std_arcsec = keep(errors, at.key(KEYS[1]), angle_std(&v));
+            ok &= stand.angle_std_arcsec.is_some();
+        }
+        if let Some(v) = gravity {
+            stand.gravity_rel_std = keep(errors, at.key(KEYS[2]), gravity_std(&v));
+            ok &= stand.gravity_rel_std.is_some();
         }
         Ok(if ok {
             Slot::Value(stand)

@@ -1,10 +1,13 @@
-//! `runs`: objects of `readings`, each an array of samples per position,
+//! `runs`: objects of `readings`, one per position: an array of samples,
 //! numbers read straight into `Vec<f64>` with the counts checked as they
-//! grow.
+//! grow, or a summary object `{"mean", "std", "count"}` from a station that
+//! averages on board (its samples are not counted against the limits: they
+//! were never sent).
 
+use accelcal_core::{Reading, Summary};
 use serde::de::{IgnoredAny, MapAccess, SeqAccess};
 
-use super::super::node::{Any, Node, Scalar, Seed, elements, keep};
+use super::super::node::{Any, Node, Scalar, Seed, elements, keep, scalar_fields};
 use super::temperature;
 use crate::domain::field::{Errors, Loc};
 use crate::domain::limits::*;
@@ -121,7 +124,7 @@ impl<'de> Node<'de> for RunNode<'_> {
     }
 }
 
-/// `readings`: per position, an array of samples.
+/// `readings`: per position, its samples or their summary.
 struct Readings<'a> {
     errors: &'a mut Errors,
     at: Loc<'a>,
@@ -129,7 +132,7 @@ struct Readings<'a> {
 }
 
 impl<'de> Node<'de> for Readings<'_> {
-    type Out = Option<Vec<Vec<f64>>>;
+    type Out = Option<Vec<Reading>>;
     fn scalar(self, v: Scalar) -> Self::Out {
         let why = match v {
             Scalar::Null => "is required".to_owned(),
@@ -162,7 +165,10 @@ impl<'de> Node<'de> for Readings<'_> {
     }
 }
 
-/// The samples of one position in one run.
+/// The reading of one position in one run: samples or a summary.
+/// The members of a summary reading.
+pub const SUMMARY_KEYS: [&str; 3] = ["mean", "std", "count"];
+
 struct Samples<'a> {
     errors: &'a mut Errors,
     at: Loc<'a>,
@@ -170,11 +176,61 @@ struct Samples<'a> {
 }
 
 impl<'de> Node<'de> for Samples<'_> {
-    type Out = Option<Vec<f64>>;
+    type Out = Option<Reading>;
     fn scalar(self, v: Scalar) -> Self::Out {
-        self.errors
-            .add(self.at, format!("must be an array, not {}", v.kind()));
+        self.errors.add(
+            self.at,
+            format!(
+                "must be an array of samples or an object of `mean`, `std` and `count`, not {}",
+                v.kind()
+            ),
+        );
         None
+    }
+    fn map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Out, A::Error> {
+        let (errors, at) = (self.errors, self.at);
+        let Some([mean, std, count]) = scalar_fields(map, errors, at, SUMMARY_KEYS)? else {
+            return Ok(None);
+        };
+        let mut field =
+            |k: usize, v: Option<Scalar>, read: &dyn Fn(Scalar) -> Result<f64, String>| {
+                let here = at.key(SUMMARY_KEYS[k]);
+                match v {
+                    None => {
+                        errors.add(here, "is required");
+                        None
+                    }
+                    Some(v) => keep(errors, here, read(v)),
+                }
+            };
+        let mean = field(0, mean, &|v| v.number(MAX_READING));
+        let std = field(1, std, &|v| {
+            v.number(MAX_READING).and_then(|s| {
+                if s < 0.0 {
+                    Err("must not be negative".into())
+                } else {
+                    Ok(s)
+                }
+            })
+        });
+        let count = field(2, count, &|v| {
+            v.integer(1, MAX_SUMMARY_COUNT).map(|n| n as f64)
+        });
+        let (Some(mean), Some(std), Some(count)) = (mean, std, count) else {
+            return Ok(None);
+        };
+        if count == 1.0 && std != 0.0 {
+            errors.add(
+                at.key("std"),
+                "must be 0 when `count` is 1: one sample has no spread",
+            );
+            return Ok(None);
+        }
+        Ok(Some(Reading::Summary(Summary {
+            mean,
+            std,
+            count: count as u64,
+        })))
     }
     fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
         let at = self.at;
@@ -190,6 +246,6 @@ impl<'de> Node<'de> for Samples<'_> {
             // Beyond the total limit nothing more is kept (it is refused).
             Ok(Some(x.filter(|_| *total <= MAX_TOTAL_SAMPLES)))
         })?;
-        Ok(read.filter(|_| ok))
+        Ok(read.filter(|_| ok).map(Reading::Samples))
     }
 }

@@ -1,6 +1,7 @@
 //! Unit tests of the JSON reader.
 
 use super::*;
+use accelcal_core::Reading;
 
 fn pointers(body: &str) -> Vec<String> {
     let d = read(body.as_bytes()).unwrap();
@@ -21,7 +22,7 @@ fn reads_every_field() {
     assert_eq!(runs.len(), 6);
     assert_eq!(
         runs[0].as_ref().unwrap().readings[0],
-        vec![0.005341914, 0.005679272]
+        Reading::Samples(vec![0.005341914, 0.005679272])
     );
 }
 
@@ -60,9 +61,10 @@ fn counts_are_checked_while_reading_and_nothing_beyond_is_kept() {
     let inv = d.errors.into_invalid();
     assert_eq!(inv.errors[0].pointer, "/runs/0/readings/0");
     assert!(
-        inv.errors[0]
-            .detail
-            .contains("at most 1000 elements, not 1005"),
+        inv.errors[0].detail.contains(&format!(
+            "at most {MAX_SAMPLES} elements, not {}",
+            MAX_SAMPLES + 5
+        )),
         "{inv:?}"
     );
 }
@@ -226,6 +228,74 @@ fn a_run_with_a_wrong_member_is_left_out_whole() {
             panic!("{:?}", d.runs)
         };
         assert!(runs[0].is_none(), "{:?}", runs[0]);
-        assert_eq!(runs[1].as_ref().unwrap().readings, vec![vec![1.0]]);
+        assert_eq!(
+            runs[1].as_ref().unwrap().readings,
+            [Reading::from(vec![1.0])]
+        );
     }
+}
+
+/// A position's reading may be its samples or their summary, side by side
+/// in one run; a summary's problems name its members.
+#[test]
+fn a_reading_is_samples_or_a_summary() {
+    let d = no_problem(
+        br#"{"runs": [{"readings": [{"count": 10, "mean": 1.5, "std": 0.1}, [1, 2]]}]}"#,
+    );
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings,
+        [
+            Reading::Summary(accelcal_core::Summary {
+                mean: 1.5,
+                std: 0.1,
+                count: 10
+            }),
+            Reading::from(vec![1.0, 2.0])
+        ]
+    );
+    let at = |k: &str| format!("/runs/0/readings/0/{k}");
+    assert_eq!(
+        pointers(r#"{"runs": [{"readings": [{"mean": "a", "std": -1, "count": 0}]}]}"#),
+        [at("mean"), at("std"), at("count")]
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [{"mean": 1, "std": 0.5, "count": 1}]}]}"#,
+        &at("std"),
+        "must be 0 when `count` is 1: one sample has no spread",
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [{"mean": 1, "std": 0, "count": 2, "n": 2}]}]}"#,
+        &at("n"),
+        "unknown field `n`; expected one of: mean, std, count",
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [{"mean": 1, "std": 0, "count": 2.5}]}]}"#,
+        &at("count"),
+        &format!("must be an integer from 1 to {MAX_SUMMARY_COUNT}"),
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [{"mean": 1, "count": 2}]}]}"#,
+        &at("std"),
+        "is required",
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [7]}]}"#,
+        "/runs/0/readings/0",
+        "must be an array of samples or an object of `mean`, `std` and `count`, not a number",
+    );
+}
+
+/// Summarised samples were never sent: they do not count against the
+/// limit on samples in all.
+#[test]
+fn summarised_samples_are_not_counted_against_the_limits() {
+    let summary = format!(r#"{{"mean": 1, "std": 0.1, "count": {MAX_SUMMARY_COUNT}}}"#);
+    let readings = [summary.as_str(); 4].join(",");
+    let d = no_problem(format!(r#"{{"runs": [{{"readings": [{readings}]}}]}}"#).as_bytes());
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    assert_eq!(
+        runs[0].as_ref().unwrap().readings[3].count(),
+        MAX_SUMMARY_COUNT
+    );
 }
