@@ -10,23 +10,8 @@ BIN=$(realpath "${1:-$(dirname "$0")/../target/debug/accelcal}")
 ENGINE=${2:-sqlite}
 cd "$(dirname "$0")/.."
 WORK=$(mktemp -d)
-PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-BASE=http://127.0.0.1:$PORT
-export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
-case $ENGINE in
-  sqlite) DATABASE=$WORK/accelcal.db; DROP=: ;;
-  postgres)
-    ADMIN_URL=${ACCELCAL_TEST_POSTGRES_URL:-postgres://postgres@127.0.0.1:5432/test}
-    NAME=accelcal_walkthrough_$$
-    psql -q "$ADMIN_URL" -c "CREATE DATABASE $NAME" >/dev/null
-    DATABASE=${ADMIN_URL%/*}/$NAME
-    DROP="psql -q $ADMIN_URL -c 'DROP DATABASE IF EXISTS $NAME WITH (FORCE)'" ;;
-  *) echo "walkthrough: engine must be sqlite or postgres" >&2; exit 2 ;;
-esac
-"$BIN" serve --listen 127.0.0.1:$PORT --database "$DATABASE" >"$WORK/out.log" 2>"$WORK/err.log" &
-PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; eval "$DROP" >/dev/null 2>&1; rm -rf "$WORK"' EXIT
-for _ in $(seq 50); do curl -sf $BASE/healthz >/dev/null && break; sleep 0.1; done
+. tests/server.sh
+start_server "$ENGINE" walkthrough "$WORK/out.log" "$WORK/err.log"
 
 fail() { echo "walkthrough: $*" >&2; cat "$WORK/err.log" >&2; exit 1; }
 
@@ -34,7 +19,7 @@ fail() { echo "walkthrough: $*" >&2; cat "$WORK/err.log" >&2; exit 1; }
 # Only what cannot run here is replaced: the release build by the binary
 # under test, port 8080 by a free one.
 if [ "$ENGINE" = sqlite ]; then
-  README_PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
+  README_PORT=$(free_port)
   mkdir "$WORK/readme" && ln -s "$PWD/examples" "$WORK/readme/examples"
   python3 - "$BIN" "$README_PORT" >"$WORK/readme/walkthrough.sh" <<'PY'
 import re, sys

@@ -143,10 +143,8 @@ pub fn estimated_bits(token: &str) -> f64 {
     let nf = n as f64;
     let per_char: f64 = counts
         .values()
-        .map(|&k| {
-            let p = k as f64 / nf;
-            -p * p.log2()
-        })
+        // p·log2(1/p), never −0 (a repeated character must read "0 bits").
+        .map(|&k| k as f64 / nf * (nf / k as f64).log2())
         .sum();
     per_char * nf
 }
@@ -229,6 +227,8 @@ mod tests {
     fn entropy_is_length_times_shannon_entropy_of_the_characters() {
         assert_eq!(estimated_bits(""), 0.0);
         assert_eq!(estimated_bits(&"a".repeat(16)), 0.0);
+        assert!(estimated_bits(&"a".repeat(16)).is_sign_positive());
+        assert_eq!(format!("{:.0}", estimated_bits(&"a".repeat(16))), "0");
         // "abab": two characters at 1/2 each, 1 bit each, 4 characters.
         assert!((estimated_bits("abab") - 4.0).abs() < 1e-12);
         // "aab": -(2/3 log2 2/3 + 1/3 log2 1/3) = 0.918 295 834 bits, 3 characters.

@@ -25,11 +25,9 @@ use crate::domain::timestamp::Timestamp;
         PostgreSQL answers 501: back it up with `pg_dump`.",
     responses(
         (status = 200, description = "The database file.", content((String = "application/vnd.sqlite3"))),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 501, response = super::openapi::ProblemResponse),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn backup(

@@ -168,16 +168,12 @@ async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
                 ("GetSubmission" = (operation_id = "getSubmission", parameters(("id" = "$response.body#/id")))),
                 ("GetSensor" = (operation_id = "getSensor", parameters(("sensor_id" = "$response.body#/sensor_id")))),
             )),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 408, response = super::openapi::ProblemResponse),
         (status = 409, response = super::openapi::ProblemResponse),
         (status = 413, response = super::openapi::TooLarge),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn submit(
@@ -250,10 +246,8 @@ fn unknown(id: Uuid) -> Problem {
     params(super::openapi::CalibrationIdPath),
     responses(
         (status = 200, description = "The result, as answered when it was submitted.", body = super::openapi::StoredCalibrationSchema),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn get(
@@ -281,10 +275,8 @@ pub async fn get(
     responses(
         (status = 200, description = "The body as submitted (decompressed, if it was sent gzip-encoded).",
             content((super::openapi::RawBodySchema = "text/csv"), (serde_json::Value = "application/json"))),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn submission(
@@ -317,10 +309,8 @@ pub async fn submission(
             fused coefficients with expanded uncertainty, decision, as found, due date, the SHA-256 of \
             the stored submission, the accelcal version and its own URL.",
             content((String = "text/html"))),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn certificate(

@@ -131,11 +131,9 @@ fn refuse_unusable(summary: &CalibrationSummary, u: &Usability) -> Result<(), Pr
     responses(
         (status = 200, description = "The coefficients.", body = Coefficients),
         (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
         (status = 409, response = super::openapi::NotUsable),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn coefficients(
@@ -242,15 +240,11 @@ impl Rendered {
     request_body(content((CompensateRequest = "application/json"))),
     responses(
         (status = 200, description = "One input acceleration per output.", body = Compensated),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
         (status = 409, response = super::openapi::NotUsable),
         (status = 413, response = super::openapi::TooLarge),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn compensate(

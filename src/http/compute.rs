@@ -30,14 +30,10 @@ use crate::domain::timestamp::Timestamp;
     )),
     responses(
         (status = 200, description = "The result (without `id`).", body = super::openapi::CalibrationResultSchema),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 413, response = super::openapi::TooLarge),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn identify(
@@ -69,13 +65,9 @@ pub async fn identify(
         example = json!({"values": {"k0": [-0.0008222, -0.0008709, -0.0008703, -0.0008426, -0.0008339, -0.0008544]}, "batches": 2})))),
     responses(
         (status = 200, description = "Mean and fused estimates.", body = super::openapi::EstimatesSchema),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 413, response = super::openapi::TooLarge),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn fuse(

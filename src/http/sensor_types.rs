@@ -35,13 +35,9 @@ fn unknown_type(type_id: &str) -> Problem {
     responses(
         (status = 200, description = "Replaced.", body = SensorType),
         (status = 201, description = "Created.", body = SensorType),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn put(
@@ -83,9 +79,7 @@ pub struct SensorTypeList {
     summary = "Every sensor type.",
     responses(
         (status = 200, description = "The types.", body = SensorTypeList),
-        (status = 401, response = super::openapi::Unauthorized),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn list(
@@ -108,10 +102,8 @@ pub async fn list(
     params(("type_id" = crate::domain::schema::Identifier, Path, description = "The type's id.")),
     responses(
         (status = 200, description = "The type.", body = SensorType),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn get(

@@ -142,9 +142,7 @@ impl SensorListQuery {
     responses(
         (status = 200, description = "One page.", body = super::openapi::SensorPageSchema),
         (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn list(
@@ -170,10 +168,8 @@ pub async fn list(
     params(super::openapi::SensorIdPath),
     responses(
         (status = 200, description = "The sensor.", body = SensorSummary),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn get(
@@ -219,10 +215,8 @@ pub struct HistoryParams {
     responses(
         (status = 200, description = "One page.", body = super::openapi::CalibrationPageSchema),
         (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn history(
@@ -345,14 +339,10 @@ pub struct SensorUpdate {
     request_body(content((SensorUpdate = "application/json"))),
     responses(
         (status = 200, description = "The sensor.", body = SensorSummary),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 404, response = super::openapi::NotFound),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn update(

@@ -148,10 +148,8 @@ pub fn years(t: Timestamp) -> f64 {
     responses(
         (status = 200, description = "The report.", body = Stability),
         (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn report(

@@ -25,14 +25,10 @@ use crate::domain::tokens::{CreatedToken, TokenRequest, TokenView, issue};
     responses(
         (status = 201, description = "Created.", body = CreatedToken,
             links(("RevokeToken" = (operation_id = "revokeToken", parameters(("id" = "$response.body#/id")))))),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 413, response = super::openapi::TooLarge),
-        (status = 415, response = super::openapi::UnsupportedMediaType),
-        (status = 422, response = super::openapi::Invalid),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
     )
 )]
 pub async fn create(
@@ -67,10 +63,8 @@ pub struct TokenList {
     summary = "Every token, without secrets (admin).",
     responses(
         (status = 200, description = "The tokens.", body = TokenList),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn list(
@@ -99,11 +93,9 @@ pub async fn list(
     params(("id" = uuid::Uuid, Path, description = "The token's id.")),
     responses(
         (status = 204, description = "Revoked."),
-        (status = 401, response = super::openapi::Unauthorized),
         (status = 403, response = super::openapi::Forbidden),
         (status = 404, response = super::openapi::NotFound),
-        (status = 503, response = super::openapi::Unavailable),
-        (status = "default", response = super::openapi::ProblemResponse),
+        super::openapi::Always,
     )
 )]
 pub async fn revoke(

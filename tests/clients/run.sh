@@ -30,23 +30,9 @@ quiet openapi-python-client generate --path "$WORK/openapi.yaml" --output-path "
   --config $HERE/python/config.yaml
 $HERE/node_modules/.bin/tsc -p $HERE || fail "tsc --strict refused a client program"
 
-PORT=$(python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])')
-export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
-case $ENGINE in
-  sqlite) DATABASE=$WORK/clients.db; DROP=: ;;
-  postgres)
-    ADMIN_URL=${ACCELCAL_TEST_POSTGRES_URL:-postgres://postgres@127.0.0.1:5432/test}
-    NAME=accelcal_clients_$$
-    psql -q "$ADMIN_URL" -c "CREATE DATABASE $NAME" >/dev/null
-    DATABASE=${ADMIN_URL%/*}/$NAME
-    DROP="psql -q $ADMIN_URL -c 'DROP DATABASE IF EXISTS $NAME WITH (FORCE)'" ;;
-  *) fail "engine must be sqlite or postgres" ;;
-esac
-"$BIN" serve --listen 127.0.0.1:$PORT --database "$DATABASE" >"$WORK/server.log" 2>&1 &
-PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; eval "$DROP" >/dev/null 2>&1; rm -rf "$WORK"' EXIT
-for _ in $(seq 100); do curl -sf http://127.0.0.1:$PORT/readyz >/dev/null && break; sleep 0.1; done
-export ACCELCAL_URL=http://127.0.0.1:$PORT
+. tests/server.sh
+start_server "$ENGINE" clients "$WORK/server.log" "$WORK/server.log"
+export ACCELCAL_URL=$BASE
 ACCELCAL_TOKEN=$(curl -sf -X POST $ACCELCAL_URL/v1/tokens -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" \
   -H 'Content-Type: application/json' -d '{"role": "station"}' \
   | python3 -c 'import json, sys; print(json.load(sys.stdin)["token"])')

@@ -1,10 +1,12 @@
-//! Reusable problem answers and parameters.
+//! Reusable problem answers, the sets of them operations share, and parameters.
 
+use std::collections::BTreeMap;
 use utoipa::openapi::path::{Parameter, ParameterBuilder, ParameterIn};
 use utoipa::openapi::response::{Response, ResponseBuilder};
 use utoipa::openapi::schema::{Schema, Type};
-use utoipa::openapi::{ContentBuilder, HeaderBuilder, KnownFormat, RefOr, SchemaFormat};
-use utoipa::{IntoParams, ToResponse};
+
+use utoipa::openapi::{ContentBuilder, HeaderBuilder, KnownFormat, Ref, RefOr, SchemaFormat};
+use utoipa::{IntoParams, IntoResponses, ToResponse};
 
 use super::schemas::reference;
 use crate::domain::schema::of_type;
@@ -50,6 +52,42 @@ problem_response!(
     "Asked `require=usable`, and the coefficients are not usable (failed or overdue): `detail` says why."
 );
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
+
+/// Implements `IntoResponses` for a set of the reusable problem answers that
+/// operations share, each by reference, keyed by status.
+macro_rules! problem_set {
+    ($(#[$doc:meta])* $name:ident { $($status:literal => $response:ident),+ $(,)? }) => {
+        $(#[$doc])*
+        pub struct $name;
+        impl IntoResponses for $name {
+            fn responses() -> BTreeMap<String, RefOr<Response>> {
+                BTreeMap::from([$((
+                    $status.to_owned(),
+                    RefOr::Ref(Ref::from_response_name(<$response as ToResponse>::response().0)),
+                )),+])
+            }
+        }
+    };
+}
+
+problem_set!(
+    /// What every `/v1` operation may answer besides its own: no valid token
+    /// (401), unavailable (503), or another problem.
+    Always {
+        "401" => Unauthorized,
+        "503" => Unavailable,
+        "default" => ProblemResponse,
+    }
+);
+problem_set!(
+    /// What an operation reading a request body may also answer: malformed
+    /// (400), the wrong media type or coding (415), invalid content (422).
+    BodyProblems {
+        "400" => BadRequest,
+        "415" => UnsupportedMediaType,
+        "422" => Invalid,
+    }
+);
 
 /// The `Idempotency-Key` header.
 pub struct IdempotencyKeyHeader;
