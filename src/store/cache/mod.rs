@@ -94,10 +94,10 @@ pub struct CachedStore {
 }
 
 /// The engine's own check that the database it serves is still there (the
-/// SQLite pool's: the file at its path is the one it opened). Cached answers
-/// run it first, so nothing is answered from memory that the database no
-/// longer backs — a file removed, or a backup moved over it (503, as the
-/// engine answers then).
+/// SQLite pool's: the file at its path is the one it opened, a good check
+/// standing for 50 ms). Cached answers run it first, so nothing is answered
+/// from memory that the database no longer backs — a file removed, or a
+/// backup moved over it (503, as the engine answers then).
 pub type FileCheck = Arc<dyn Fn() -> Result<(), StoreError> + Send + Sync>;
 
 impl CachedStore {

@@ -23,7 +23,7 @@ mod sessions;
 mod tokens;
 pub mod writer;
 
-pub use self::pool::READERS;
+pub use self::pool::{READERS, RECHECK};
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -128,10 +128,11 @@ impl SqliteStore {
     }
 
     /// The pool's check that the file at the path is the one it serves,
-    /// for what answers without the pool (the caches in front of it).
+    /// for what answers without the pool (the caches in front of it): a
+    /// good check stands for [`pool::RECHECK`].
     pub fn file_check(&self) -> crate::store::cache::FileCheck {
         let pool = self.pool.clone();
-        Arc::new(move || pool.check())
+        Arc::new(move || pool.check_recent())
     }
 
     /// The database file.

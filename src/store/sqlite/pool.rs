@@ -12,7 +12,7 @@
 use std::os::unix::fs::{MetadataExt, OpenOptionsExt};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::time::Duration;
 
 use rusqlite::config::DbConfig;
@@ -60,7 +60,17 @@ pub struct Pool {
     idle: Mutex<Vec<Pooled>>,
     /// Connections opened so far.
     opened: AtomicUsize,
+    /// When the pool was created, and how long after it the file was last
+    /// found to be the one served, in microseconds ([`Pool::check_recent`]).
+    created: std::time::Instant,
+    last_good_us: AtomicU64,
 }
+
+/// How long a good check of the file stands for answers served from memory
+/// ([`Pool::check_recent`]): a `stat` per cached answer cost 15 % of the
+/// SQLite coefficients route's throughput at 64 connections (BENCHMARKS,
+/// "Against a5689ea").
+pub const RECHECK: std::time::Duration = std::time::Duration::from_millis(50);
 
 fn file_id(path: &Path) -> Result<FileId, StoreError> {
     let meta = std::fs::metadata(path).map_err(|e| {
@@ -104,6 +114,8 @@ impl Pool {
             origin,
             idle: Mutex::new(Vec::new()),
             opened: AtomicUsize::new(0),
+            created: std::time::Instant::now(),
+            last_good_us: AtomicU64::new(0),
         })
     }
 
@@ -159,6 +171,21 @@ impl Pool {
         }
     }
 
+    /// [`Pool::check`] for answers served from memory: a good check stands
+    /// for [`RECHECK`], so a replaced file is refused within that time
+    /// (writes, and reads that reach the file, check every time). A bad one
+    /// stands for nothing: the next call checks again.
+    pub fn check_recent(&self) -> Result<(), StoreError> {
+        let now_us = self.created.elapsed().as_micros() as u64;
+        let last = self.last_good_us.load(Ordering::Relaxed);
+        if last != 0 && now_us.saturating_sub(last) < RECHECK.as_micros() as u64 {
+            return Ok(());
+        }
+        self.check()?;
+        self.last_good_us.store(now_us.max(1), Ordering::Relaxed);
+        Ok(())
+    }
+
     /// Returns a connection that worked to the pool.
     pub fn checkin(&self, p: Pooled) {
         let mut idle = self.idle.lock().expect("pool lock");
@@ -195,6 +222,29 @@ mod tests {
         std::fs::remove_file(&path).unwrap();
         assert!(matches!(pool.checkout(), Err(StoreError::Unavailable(_))));
         assert!(!path.exists());
+    }
+
+    /// For answers from memory a good check stands for [`RECHECK`]; a bad
+    /// one for nothing, and the same file back is served again.
+    #[test]
+    fn a_replaced_file_is_refused_within_the_recheck_interval() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("live.db");
+        let pool = Pool::create(path.clone()).unwrap();
+        assert!(pool.check_recent().is_ok());
+        let aside = dir.path().join("aside.db");
+        std::fs::rename(&path, &aside).unwrap();
+        std::fs::write(&path, b"another file").unwrap();
+        assert!(pool.check().is_err(), "the exact check sees it at once");
+        std::thread::sleep(RECHECK + std::time::Duration::from_millis(10));
+        for _ in 0..2 {
+            assert!(matches!(
+                pool.check_recent(),
+                Err(StoreError::Unavailable(_))
+            ));
+        }
+        std::fs::rename(&aside, &path).unwrap();
+        assert!(pool.check_recent().is_ok());
     }
 
     /// The durability promise rests on these settings of every connection a
