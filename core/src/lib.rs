@@ -45,6 +45,11 @@
 
 mod error;
 
+/// The core's version, recorded with every result it computes: raised
+/// whenever a number the core computes for the same input can change (0.2.0:
+/// the design factorised by faer's SVD, and the adequacy tests).
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+
 pub mod adequacy;
 pub mod compensate;
 pub mod decision;

@@ -375,7 +375,16 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         .await
         .unwrap();
     let stored: Value = res.json().await.unwrap();
+    // The method that computed it is recorded with it, and the certificate
+    // says so.
+    let method = serde_json::json!({
+        "accelcal": env!("CARGO_PKG_VERSION"),
+        "core": accelcal_core::VERSION,
+    });
+    assert_eq!(stored["method"], method);
     let id = stored["id"].as_str().unwrap();
+    let again = app.get_json(&format!("/v1/calibrations/{id}"), ADMIN).await;
+    assert_eq!(again["method"], method);
     let path = format!("/v1/calibrations/{id}/certificate");
     assert_eq!(
         app.client
@@ -410,7 +419,11 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         html.contains(&format!("https://cal.example.com{path}")),
         "its own URL"
     );
-    assert!(html.contains(concat!("accelcal ", env!("CARGO_PKG_VERSION"))));
+    assert!(html.contains(&format!(
+        "Computed by</dt><dd>accelcal {} (core {})",
+        env!("CARGO_PKG_VERSION"),
+        accelcal_core::VERSION
+    )));
     assert!(html.contains("PAPER-2005") && html.contains("k0, ki, kp"));
     assert!(html.contains("-1.21615405"), "fused K1 to nine digits");
     assert!(html.contains("Expanded U (k = 2)"));

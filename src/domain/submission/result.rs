@@ -31,10 +31,30 @@ impl From<&PositionIn> for PositionOut {
     }
 }
 
+/// The versions of the method that computed a result: accelcal's (what it
+/// reads, checks and stores) and its core's (every number).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Method {
+    /// accelcal's version.
+    pub accelcal: &'static str,
+    /// accelcal-core's version ([`accelcal_core::VERSION`]).
+    pub core: &'static str,
+}
+
+impl Method {
+    /// This build's.
+    pub const CURRENT: Method = Method {
+        accelcal: env!("CARGO_PKG_VERSION"),
+        core: accelcal_core::VERSION,
+    };
+}
+
 /// A calibration result: the submission's metadata and the core's numbers.
 /// `id` is absent for `/v1/identify`, which stores nothing.
 #[derive(Debug, Serialize)]
 pub struct ResultView<'a> {
+    /// The method that computed it.
+    pub method: Method,
     /// Time-ordered identifier (UUIDv7).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub id: Option<Uuid>,
@@ -85,6 +105,7 @@ impl<'a> ResultView<'a> {
     ) -> Self {
         let s = &e.submission;
         ResultView {
+            method: Method::CURRENT,
             id,
             sensor_id: &s.sensor_id,
             station_id,

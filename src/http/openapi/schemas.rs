@@ -450,6 +450,12 @@ marker_schema!(
 marker_schema!(
     /// A calibration result.
     CalibrationResultSchema => ObjectBuilder::new()
+        .property("method", ObjectBuilder::new()
+            .description(Some("The versions of the method that computed this result: accelcal's and its core's \
+                (absent from results stored before accelcal 0.2.0)."))
+            .property("accelcal", of_type(Type::String))
+            .property("core", of_type(Type::String))
+            .required("accelcal").required("core"))
         .property("id", of_type(Type::String).format(Some(SchemaFormat::KnownFormat(KnownFormat::Uuid))))
         .property("sensor_id", reference("Identifier"))
         .property("station_id", string_or_null())

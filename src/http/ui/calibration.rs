@@ -512,6 +512,7 @@ pub async fn page(
             div { dt { "Unit" } dd { (d.unit) } }
             div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
             div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
+            div { dt { "Computed by" } dd { (super::result::MethodDoc::describe(d.method.as_ref())) } }
             @if let Some(s) = &d.stand {
                 div { dt { "Stand" } dd { (s.id.as_deref().unwrap_or("unnamed")) ": " (s.angle_std_arcsec) "″ indexing, " (s.gravity_rel_std) " in g" } }
             }

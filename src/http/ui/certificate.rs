@@ -24,7 +24,7 @@ use sha2::{Digest, Sha256};
 use super::assets::STYLESHEET;
 use super::calibration::{as_found, budget, decision, load, when};
 use super::format::{num, unc};
-use super::result::ResultDoc;
+use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
 use super::{UiError, badge};
 use crate::domain::timestamp::Timestamp;
@@ -143,7 +143,8 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     dl.facts {
                         div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
                         div { dt { "Submission format" } dd { (c.content_type) } }
-                        div { dt { "Produced by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
+                        div { dt { "Computed by" } dd { (MethodDoc::describe(d.method.as_ref())) } }
+                        div { dt { "Rendered by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
                         div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
                         div { dt { "This certificate" } dd.sha { (c.url) } }
                     }

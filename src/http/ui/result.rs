@@ -9,6 +9,25 @@ use accelcal_core::TermMap;
 use serde::Deserialize;
 use uuid::Uuid;
 
+/// The versions of the method that computed a result.
+#[derive(Debug, Clone, Deserialize)]
+pub struct MethodDoc {
+    /// accelcal's.
+    pub accelcal: String,
+    /// accelcal-core's.
+    pub core: String,
+}
+
+impl MethodDoc {
+    /// "accelcal 0.2.0 (core 0.2.0)", or what to say when it was not recorded.
+    pub fn describe(method: Option<&MethodDoc>) -> String {
+        match method {
+            Some(m) => format!("accelcal {} (core {})", m.accelcal, m.core),
+            None => "not recorded (computed before accelcal 0.2.0)".to_owned(),
+        }
+    }
+}
+
 /// One position, resolved.
 #[derive(Debug, Clone, Deserialize)]
 pub struct PositionDoc {
@@ -299,6 +318,9 @@ pub struct QualityDoc {
 /// A stored result document.
 #[derive(Debug, Clone, Deserialize)]
 pub struct ResultDoc {
+    /// The method's versions (absent before accelcal 0.2.0).
+    #[serde(default)]
+    pub method: Option<MethodDoc>,
     /// Calibration id.
     pub id: Uuid,
     /// The sensor.
@@ -358,4 +380,22 @@ pub struct ResultDoc {
     /// Quality flags.
     #[serde(default)]
     pub quality: Option<QualityDoc>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_method_is_described_or_said_to_be_unrecorded() {
+        let m = MethodDoc {
+            accelcal: "0.2.0".into(),
+            core: "0.3.1".into(),
+        };
+        assert_eq!(MethodDoc::describe(Some(&m)), "accelcal 0.2.0 (core 0.3.1)");
+        assert_eq!(
+            MethodDoc::describe(None),
+            "not recorded (computed before accelcal 0.2.0)"
+        );
+    }
 }

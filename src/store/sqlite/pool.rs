@@ -67,9 +67,8 @@ pub struct Pool {
 }
 
 /// How long a good check of the file stands for answers served from memory
-/// ([`Pool::check_recent`]): a `stat` per cached answer cost 15 % of the
-/// SQLite coefficients route's throughput at 64 connections (BENCHMARKS,
-/// "Against a5689ea").
+/// ([`Pool::check_recent`]); it buys 11–20 % of the cached routes'
+/// throughput at 64 connections, a `stat` per answer costing that much.
 pub const RECHECK: std::time::Duration = std::time::Duration::from_millis(50);
 
 fn file_id(path: &Path) -> Result<FileId, StoreError> {
