@@ -5,11 +5,10 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 
-#[path = "../tests/suite/common/mod.rs"]
-mod common;
+use accelcal_paper as paper;
 
 fn identify_and_fuse(c: &mut Criterion) {
-    let test = common::paper_tumble();
+    let test = paper::paper_tumble();
     c.bench_function("paper six runs: identify + fuse (2 batches)", |b| {
         b.iter(|| black_box(&test).calibrate(black_box(2)).unwrap())
     });
@@ -36,7 +35,7 @@ fn quality_and_budget(c: &mut Criterion) {
     use accelcal_core::adequacy::model_uncertainty;
     use accelcal_core::quality::assess;
     use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
-    let test = common::paper_tumble();
+    let test = paper::paper_tumble();
     let cal = test.calibrate(2).unwrap();
     let stand = Stand {
         angle_std_rad: 2.0 * ARCSEC,

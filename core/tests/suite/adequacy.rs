@@ -304,5 +304,5 @@ fn the_paper_is_adequate_and_unchanged() {
         }
         other => panic!("{other:?}"),
     }
-    crate::common::assert_printed(cal.fused.coefficients[Term::Ki], "-1.216154046");
+    accelcal_paper::assert_printed(cal.fused.coefficients[Term::Ki], "-1.216154046");
 }

@@ -4,9 +4,9 @@
 //! zero (hardening round two, finding 5). Expected values are derived by hand
 //! from the definitions, not taken from the code.
 
-use crate::common::paper_tumble;
 use accelcal_core::fusion::{dispersion, fuse, scaled_norm};
 use accelcal_core::{Reading, Run, Summary, Term, TermMap, TumbleTest, estimate};
+use accelcal_paper::paper_tumble;
 
 #[track_caller]
 fn rel(got: f64, want: f64, tol: f64) {
@@ -137,7 +137,7 @@ fn calibration_scales_with_the_outputs() {
 /// Fusing given values is scale-free too (`POST /v1/fuse`).
 #[test]
 fn estimates_scale_with_the_values() {
-    let t = crate::common::table2();
+    let t = accelcal_paper::table2();
     let base_values = TermMap(vec![(Term::K0, t.iter().map(|r| r[0]).collect::<Vec<_>>())]);
     let base = estimate(&base_values, 2).unwrap();
     for c in [1e-155, 1e150] {

@@ -14,7 +14,6 @@
 //!   temperature and quality flags against independent computations.
 
 mod adequacy;
-mod common;
 mod extremes;
 mod false_alarms;
 mod metrology;

@@ -1,7 +1,7 @@
 //! The paper's figures (NOTES §5), reproduced to the printed digits.
 
-use crate::common::{assert_printed, paper_tumble, table2};
 use accelcal_core::{Term, TermMap, estimate};
+use accelcal_paper::{assert_printed, paper_tumble, table2};
 
 /// α per run from Table 1 equals Table 2's α column within 1e-9.
 #[test]

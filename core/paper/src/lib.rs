@@ -1,13 +1,13 @@
-//! Shared helpers for the core's integration tests: the paper's tables as data
-//! and a check of a value against a figure printed to a given number of digits.
-
-#![allow(dead_code)]
+//! The paper's tables as data, and a check of a value against a figure
+//! printed to a given number of digits: shared by accelcal-core's tests and
+//! its benchmarks (a crate of its own, so that neither includes the other's
+//! files).
 
 use accelcal_core::{Model, Mount, Position, Run, TumbleTest};
 
 /// Table 1 of the paper: `(test, angle_deg, [a_i, a_p, a_o], direction, output)`.
 pub fn table1() -> Vec<(usize, f64, [f64; 3], String, f64)> {
-    include_str!("../../data/table1.csv")
+    include_str!("../../tests/data/table1.csv")
         .lines()
         .skip(1)
         .map(|line| {
@@ -26,7 +26,7 @@ pub fn table1() -> Vec<(usize, f64, [f64; 3], String, f64)> {
 
 /// Table 2 of the paper: per-test `(K0, K1, α)`.
 pub fn table2() -> Vec<[f64; 3]> {
-    include_str!("../../data/table2.csv")
+    include_str!("../../tests/data/table2.csv")
         .lines()
         .skip(1)
         .map(|line| {
