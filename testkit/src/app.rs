@@ -26,7 +26,9 @@ pub fn paper_csv() -> String {
 }
 
 /// A small valid submission for `sensor`, with `runs` noisy runs of the
-/// model U = k0 + ki·a_i + kp·a_p.
+/// model U = k0 + ki·a_i + kp·a_p: each position's two samples (cw, ccw)
+/// scatter about its value as much as the values scatter about the model,
+/// so the model fits (no lack of fit).
 pub fn submission(sensor: &str, performed_at: &str, runs: usize) -> Value {
     let (k0, ki, kp) = (-8.4e-4, -1.216, 6.2e-3);
     let runs: Vec<Value> = (0..runs)
@@ -36,8 +38,9 @@ pub fn submission(sensor: &str, performed_at: &str, runs: usize) -> Value {
                 .enumerate()
                 .map(|(p, (ai, ap))| {
                     let noise = 1e-6 * (j as f64 * 1.7 + p as f64 * 2.9).sin();
+                    let scatter = 1e-6 * (j as f64 * 2.3 + p as f64 * 1.1).cos();
                     let u = k0 + ki * ai + kp * ap + noise;
-                    json!([u, u + 1e-7])
+                    json!([u - scatter, u + scatter])
                 })
                 .collect();
             json!({ "readings": readings })

@@ -937,3 +937,26 @@ async fn a_position_may_hold_a_hundred_thousand_samples() {
     let p = problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
     assert_eq!(p["errors"][0]["pointer"], "/runs/0/readings/0");
 }
+
+/// The suites' clean submission is clean by the service's own tests: its
+/// replicates scatter as much as its runs, so lack of fit is tested and not
+/// found, and no warning is raised — tests that need a misfit ask for one
+/// (`misfit_submission`).
+#[tokio::test]
+async fn the_clean_test_submission_raises_no_warning() {
+    let app = TestApp::spawn(Sqlite).await;
+    let r = app
+        .submit(ADMIN, &submission("CLEAN-1", "2026-01-01T00:00:00Z", 8))
+        .await;
+    let lof = &r["quality"]["lack_of_fit"];
+    assert_eq!(lof["status"], "tested", "{lof}");
+    assert!(f(&lof["p_value"]) > 0.001, "{lof}");
+    assert_eq!(r["quality"]["warnings"], json!([]));
+    for term in ["k0", "ki", "kp"] {
+        assert_eq!(
+            r["uncertainty"]["terms"][term]["model"],
+            json!(0.0),
+            "{term}"
+        );
+    }
+}
