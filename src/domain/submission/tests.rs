@@ -211,6 +211,32 @@ fn csv_and_json_forms_calibrate_alike() {
     assert_eq!(from_csv.calibration.fused, from_json.calibration.fused);
 }
 
+/// The paper as a station averaging on board sends it
+/// (`examples/paper-summaries.csv`: each run's cw and ccw as mean, standard
+/// deviation and count, computed by Python's `statistics`) calibrates as its
+/// samples do, to the paper's printed digits.
+#[test]
+fn the_paper_as_summaries_calibrates_as_its_samples() {
+    let from_summaries = evaluate(
+        Media::Csv,
+        include_bytes!("../../../examples/paper-summaries.csv"),
+        now(),
+    )
+    .unwrap();
+    let from_samples = run(&paper()).unwrap();
+    let (a, b) = (
+        &from_summaries.calibration.fused,
+        &from_samples.calibration.fused,
+    );
+    for (term, x) in b.coefficients.iter() {
+        let y = a.coefficients[term];
+        assert!((x - y).abs() <= 1e-12 * x.abs(), "{term:?}: {x:e} vs {y:e}");
+        let (sx, sy) = (b.std_errors[term], a.std_errors[term]);
+        assert!((sx - sy).abs() <= 1e-9 * sx, "{term:?}: {sx:e} vs {sy:e}");
+    }
+    assert!((a.coefficients[Term::Ki] + 1.216154046).abs() < 5e-10);
+}
+
 #[test]
 fn numbers_are_finite_and_within_their_bound() {
     use node::Scalar;
