@@ -201,6 +201,12 @@ pub struct SensorSummary {
     pub latest: CalibrationSummary,
 }
 
+/// A sensor's calibrations newest first: by `performed_at`, a tie going to
+/// the larger id (UUIDv7, so the later stored). The one order both engines'
+/// queries of the latest, the previous and the history use; the sensors'
+/// merge ([`SENSOR_MERGE`]) keeps the latest by the same rule.
+pub const NEWEST_FIRST: &str = "ORDER BY c.performed_at DESC, c.id DESC";
+
 /// How a sensor's upsert merges into its stored row (`sensors`) what
 /// `excluded` holds of its new calibrations (one, or several of a batch
 /// folded into one row): the rule of [`SensorSummary::after`], in SQL that

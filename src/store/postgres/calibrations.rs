@@ -12,6 +12,8 @@
 //! of two requests completing one key at once, the second waits for the
 //! first's lock and finds the key completed, so it writes nothing.
 
+use std::sync::LazyLock;
+
 use bytes::Bytes;
 use deadpool_postgres::{Object, Transaction};
 use uuid::Uuid;
@@ -20,8 +22,8 @@ use super::errors::map;
 use super::rows::{self, RECORD_COLUMNS, SUMMARY_COLUMNS};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, SENSOR_MERGE, Series,
-    StoreError, Stored, StoredSubmission,
+    CalibrationSummary, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration, SENSOR_MERGE,
+    Series, StoreError, Stored, StoredSubmission,
 };
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
@@ -308,7 +310,7 @@ pub async fn history(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let sql = format!("SELECT {SUMMARY_COLUMNS} {HISTORY_PAGE}");
+    let sql = format!("SELECT {SUMMARY_COLUMNS} {}", *HISTORY_PAGE);
     let found = page(client, &sql, sensor_id, q).await?;
     found.iter().map(rows::summary).collect()
 }
@@ -319,19 +321,23 @@ pub async fn history_ids(
     sensor_id: &str,
     q: &HistoryQuery,
 ) -> Result<Vec<Uuid>, StoreError> {
-    let sql = format!("SELECT c.id {HISTORY_PAGE}");
+    let sql = format!("SELECT c.id {}", *HISTORY_PAGE);
     let found = page(client, &sql, sensor_id, q).await?;
     found.iter().map(|r| rows::get(r, "id")).collect()
 }
 
 /// A page of a sensor's history: newest first, within `$2..=$3`, before the
 /// calibration `$4`, at most `$5` (after the selected columns).
-const HISTORY_PAGE: &str = "FROM calibrations c WHERE c.sensor_id = $1 \
+static HISTORY_PAGE: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "FROM calibrations c WHERE c.sensor_id = $1 \
      AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
      AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
      AND ($4::uuid IS NULL OR (c.performed_at, c.id) < \
           (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = $4)) \
-     ORDER BY c.performed_at DESC, c.id DESC LIMIT $5";
+     {NEWEST_FIRST} LIMIT $5"
+    )
+});
 
 async fn page(
     client: &Object,
@@ -370,7 +376,7 @@ pub async fn series(
          WHERE c.sensor_id = $1 \
          AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
          AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT $4"
+         {NEWEST_FIRST} LIMIT $4"
     );
     let stmt = client.prepare_cached(&sql).await.map_err(map)?;
     let found = client
@@ -404,7 +410,7 @@ pub async fn previous(
 ) -> Result<Option<CalibrationSummary>, StoreError> {
     let sql = format!(
         "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND c.performed_at < $2 \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
+         {NEWEST_FIRST} LIMIT 1"
     );
     let stmt = client.prepare_cached(&sql).await.map_err(map)?;
     let row = client

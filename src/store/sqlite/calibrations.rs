@@ -9,11 +9,11 @@ use uuid::Uuid;
 
 use super::errors::map;
 use super::rows::{self, SUMMARY_COLUMNS};
-use crate::store::SENSOR_MERGE;
 use crate::store::{
     CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
     StoredSubmission,
 };
+use crate::store::{NEWEST_FIRST, SENSOR_MERGE};
 
 /// The sensor's row after a calibration is stored, by [`SENSOR_MERGE`].
 static UPSERT_SENSOR: LazyLock<String> = LazyLock::new(|| {
@@ -30,18 +30,22 @@ static SUMMARY: LazyLock<String> =
 
 /// A page of a sensor's history: newest first, within `?2..=?3`, before the
 /// calibration `?4`, at most `?5` (after the selected columns).
-const HISTORY_PAGE: &str = "FROM calibrations c WHERE c.sensor_id = ?1 \
-     AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-     AND (?4 IS NULL OR (c.performed_at, c.id) < \
-          (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
-     ORDER BY c.performed_at DESC, c.id DESC LIMIT ?5";
+static HISTORY_PAGE: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "FROM calibrations c WHERE c.sensor_id = ?1 \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
+         AND (?4 IS NULL OR (c.performed_at, c.id) < \
+              (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ?4)) \
+         {NEWEST_FIRST} LIMIT ?5"
+    )
+});
 
 /// The summaries of a page of a sensor's history.
 static HISTORY: LazyLock<String> =
-    LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} {HISTORY_PAGE}"));
+    LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} {}", *HISTORY_PAGE));
 
 /// The ids of a page of a sensor's history.
-static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| format!("SELECT c.id {HISTORY_PAGE}"));
+static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| format!("SELECT c.id {}", *HISTORY_PAGE));
 
 /// A sensor's calibrations within `?2..=?3`, oldest first.
 static SERIES: LazyLock<String> = LazyLock::new(|| {
@@ -49,7 +53,7 @@ static SERIES: LazyLock<String> = LazyLock::new(|| {
         "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
          WHERE c.sensor_id = ?1 \
          AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT ?4"
+         {NEWEST_FIRST} LIMIT ?4"
     )
 });
 
@@ -57,7 +61,7 @@ static SERIES: LazyLock<String> = LazyLock::new(|| {
 static PREVIOUS: LazyLock<String> = LazyLock::new(|| {
     format!(
         "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND c.performed_at < ?2 \
-         ORDER BY c.performed_at DESC, c.id DESC LIMIT 1"
+         {NEWEST_FIRST} LIMIT 1"
     )
 });
 
