@@ -15,12 +15,11 @@
 //! markdown table (pasted unedited into BENCHMARKS.md). Measured, never
 //! judged.
 
-use std::io::Write as _;
-
 use std::time::Instant;
 
 use serde_json::{Value, json};
 
+use accelcal_testkit::gzip;
 use accelcal_testkit::process as server;
 
 use server::{ADMIN, Server};
@@ -78,12 +77,6 @@ fn most_samples(sensor: &str) -> Vec<u8> {
 /// The largest in cells (runs × positions), whose answer is the largest.
 fn most_cells(sensor: &str) -> Vec<u8> {
     tumble(sensor, 360, 1000, 1)
-}
-
-fn gzip(bytes: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(bytes).unwrap();
-    e.finish().unwrap()
 }
 
 /// Starts the tasks (at once) and measures the server's memory around

@@ -12,3 +12,12 @@ pub mod pg;
 pub mod process;
 
 pub use app::*;
+
+/// `bytes` gzip-compressed, as a client sends a body with
+/// `Content-Encoding: gzip`.
+pub fn gzip(bytes: &[u8]) -> Vec<u8> {
+    use std::io::Write as _;
+    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    e.write_all(bytes).expect("writing to memory");
+    e.finish().expect("writing to memory")
+}

@@ -2,7 +2,6 @@
 //! station tokens found (issue "Hardening, round two", findings 1–14), over
 //! real HTTP or raw TCP.
 
-use std::io::Write;
 use std::time::{Duration, Instant};
 
 use reqwest::StatusCode;
@@ -308,12 +307,6 @@ async fn errors_before_routing_are_problems() {
     assert!(answer.starts_with("HTTP/1.1 400"), "{answer}");
     let detail = body_of(&answer)["detail"].as_str().unwrap().to_owned();
     assert!(!detail.contains("chunk size line"), "{detail}");
-}
-
-fn gzip(bytes: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(bytes).unwrap();
-    e.finish().unwrap()
 }
 
 /// Finding 8: gzip bodies are decompressed (the limit applies after), other

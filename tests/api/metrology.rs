@@ -895,7 +895,6 @@ async fn summaries_calibrate_as_their_samples_do(#[values(Sqlite, Postgres)] eng
 /// at 100 Hz), sent gzip-compressed, is a submission.
 #[tokio::test]
 async fn a_position_may_hold_a_hundred_thousand_samples() {
-    use std::io::Write as _;
     let app = TestApp::spawn(Sqlite).await;
     let mut body = submission("LONG-WINDOW", "2026-01-01T00:00:00Z", 4);
     let first = f(&body["runs"][0]["readings"][0][0]);
@@ -904,15 +903,13 @@ async fn a_position_may_hold_a_hundred_thousand_samples() {
         .collect();
     body["runs"][0]["readings"][0] = json!(window);
     let plain = serde_json::to_vec(&body).unwrap();
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(&plain).unwrap();
     let res = app
         .client
         .post(app.url("/v1/calibrations"))
         .bearer_auth(ADMIN)
         .header("content-type", "application/json")
         .header("content-encoding", "gzip")
-        .body(e.finish().unwrap())
+        .body(gzip(&plain))
         .send()
         .await
         .unwrap();

@@ -2,7 +2,6 @@
 //! loopback (with, where needed, a reader or station token) found (issue
 //! "Hardening, round three", findings 1–11), over real HTTP or raw TCP.
 
-use std::io::Write;
 use std::time::Duration;
 
 use reqwest::StatusCode;
@@ -98,12 +97,6 @@ async fn bodies_without_a_token_hold_no_budget_and_one_token_only_its_share() {
     let ready = app.client.get(app.url("/readyz")).send().await.unwrap();
     assert_eq!(ready.status(), StatusCode::OK);
     drop(idle);
-}
-
-fn gzip(bytes: &[u8]) -> Vec<u8> {
-    let mut e = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
-    e.write_all(bytes).unwrap();
-    e.finish().unwrap()
 }
 
 async fn post_gzip(app: &TestApp, path: &str, ct: &str, body: Vec<u8>) -> reqwest::Response {
