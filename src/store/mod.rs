@@ -1,10 +1,12 @@
-//! Storage of calibrations, sensors, tokens and idempotency keys behind one
-//! engine-agnostic trait.
+//! Storage of calibrations, sensors, tokens and idempotency keys behind
+//! engine-agnostic traits, one per concern.
 //!
-//! Handlers see only [`Store`]; each engine (PostgreSQL, and SQLite, see
-//! [`sqlite::SqliteStore`]) implements it and runs the shared conformance
-//! tests in `tests/store/`; [`open`] puts the sensor cache ([`cache`]) in
-//! front of it. Failures of the database itself — locked, gone,
+//! Handlers see only [`Store`], the sum of the concerns; each engine
+//! (PostgreSQL, and SQLite, see [`sqlite::SqliteStore`]) implements every
+//! concern in the file of that concern, each method's body being its query,
+//! and runs the shared conformance tests in `tests/store/`; [`open`] gives
+//! it its [`cache::Cache`], which it asks itself where a read is cached.
+//! Failures of the database itself — locked, gone,
 //! read-only, full — are [`StoreError::Unavailable`], which the HTTP layer
 //! answers with a retryable 503. A new engine goes in a folder of its own
 //! beside `sqlite/`, with its migrations, one file per concern, and one line
@@ -33,11 +35,56 @@ use crate::domain::tokens::TokenRecord;
 /// How long idempotency keys are kept, in seconds (at least 24 h promised).
 pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
 
-/// The storage operations accelcal needs; one implementation per engine.
+/// Everything accelcal stores: one trait per concern, each implemented by
+/// each engine in the file of that concern (`sqlite/tokens.rs` holds
+/// `impl Tokens for SqliteStore`, its method bodies the queries). Handlers
+/// hold an `Arc<dyn Store>` and bring the concerns they use into scope
+/// ([`prelude`]).
+pub trait Store:
+    Database + Calibrations + Sensors + SensorTypes + Tokens + Sessions + Idempotency
+{
+}
+
+impl<T> Store for T where
+    T: Database + Calibrations + Sensors + SensorTypes + Tokens + Sessions + Idempotency
+{
+}
+
+/// Every concern trait, for `use crate::store::prelude::*`.
+pub mod prelude {
+    pub use super::{
+        Calibrations, Database, Idempotency, SensorTypes, Sensors, Sessions, Store, Tokens,
+    };
+}
+
+/// The database itself: whether it answers, what it holds, its backup and
+/// its end.
 #[async_trait]
-pub trait Store: Send + Sync + 'static {
+pub trait Database: Send + Sync + 'static {
     /// Checks that the database answers.
     async fn ping(&self) -> Result<(), StoreError>;
+    /// Whether the database holds no calibration, token or sensor type.
+    async fn is_empty(&self) -> Result<bool, StoreError>;
+    /// The description of an `accelcal migrate` into this database that has
+    /// not finished, if there is one.
+    async fn import_in_progress(&self) -> Result<Option<String>, StoreError>;
+    /// Marks an import into this database as under way (`Some`, described)
+    /// or finished (`None`).
+    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError>;
+    /// A consistent copy of the whole database as one SQLite file, written
+    /// into a new temporary file beside the database (removed when the
+    /// handle is dropped); `None` for an engine with its own tools
+    /// (PostgreSQL: `pg_dump`).
+    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
+        Ok(None)
+    }
+    /// Flushes and closes (at shutdown).
+    async fn close(&self);
+}
+
+/// Calibrations: the durable insert and every read of them.
+#[async_trait]
+pub trait Calibrations: Send + Sync + 'static {
     /// Stores a calibration and updates its sensor, atomically and durably;
     /// with a key, also records the key as done in the same transaction
     /// (unless another request completed the key first). Refuses a record
@@ -47,17 +94,6 @@ pub trait Store: Send + Sync + 'static {
         c: NewCalibration,
         key: Option<IdempotencyKey>,
     ) -> Result<Stored, StoreError>;
-    /// Claims an idempotency key for a request, holding it until
-    /// `lease_until`; forgets keys older than the retention period.
-    async fn claim_key(
-        &self,
-        key: IdempotencyKey,
-        now: Timestamp,
-        lease_until: Timestamp,
-    ) -> Result<Claim, StoreError>;
-    /// Gives up a claimed key whose request stored nothing — unless another
-    /// request has since taken the lease over (`key.holder` no longer holds it).
-    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError>;
     /// The result document of a calibration (JSON, as answered when stored).
     async fn calibration_result(&self, id: Uuid) -> Result<Option<bytes::Bytes>, StoreError>;
     /// The submitted body of a calibration.
@@ -65,44 +101,20 @@ pub trait Store: Send + Sync + 'static {
     /// The summary of a calibration.
     async fn calibration_summary(&self, id: Uuid)
     -> Result<Option<CalibrationSummary>, StoreError>;
-    /// Sensors in `sensor_id` order, strictly after `after`, of a status.
-    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError>;
-    /// One sensor, its status computed at `now`.
-    async fn sensor(
-        &self,
-        sensor_id: String,
-        now: Timestamp,
-    ) -> Result<Option<SensorSummary>, StoreError>;
-    /// The id of a sensor's latest calibration (the one [`Store::sensor`]
-    /// reports), `None` for an unknown sensor. The sensor cache answers it
-    /// without copying the summary.
-    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
-        Ok(self
-            .sensor(sensor_id, Timestamp::now())
-            .await?
-            .map(|s| s.latest.id))
-    }
     /// A sensor's calibrations, newest `performed_at` first.
     async fn history(
         &self,
         sensor_id: String,
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError>;
-    /// The ids of the calibrations [`Store::history`] answers for `q`, in
-    /// its order: what a reader needs when it keeps the summaries rendered
-    /// by id (a stored calibration never changes).
+    /// The ids of the calibrations [`Calibrations::history`] answers for
+    /// `q`, in its order: what a reader needs when it keeps the summaries
+    /// rendered by id (a stored calibration never changes).
     async fn history_ids(
         &self,
         sensor_id: String,
         q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError> {
-        Ok(self
-            .history(sensor_id, q)
-            .await?
-            .into_iter()
-            .map(|c| c.id)
-            .collect())
-    }
+    ) -> Result<Vec<Uuid>, StoreError>;
     /// A sensor's latest `limit` calibrations performed within `from..=to`,
     /// oldest first (ties by id), and how many the window holds: the series
     /// of its stability.
@@ -120,12 +132,28 @@ pub trait Store: Send + Sync + 'static {
         sensor_id: String,
         before: Timestamp,
     ) -> Result<Option<CalibrationSummary>, StoreError>;
-    /// Creates or replaces a sensor type; true when it was created.
-    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError>;
-    /// One sensor type.
-    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
-    /// Every sensor type, in id order.
-    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError>;
+    /// Whole calibrations in id order, after `after` (for `accelcal migrate`).
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError>;
+}
+
+/// Sensors: each one's summary with its latest calibration, and its type.
+#[async_trait]
+pub trait Sensors: Send + Sync + 'static {
+    /// Sensors in `sensor_id` order, strictly after `after`, of a status.
+    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError>;
+    /// One sensor, its status computed at `now`.
+    async fn sensor(
+        &self,
+        sensor_id: String,
+        now: Timestamp,
+    ) -> Result<Option<SensorSummary>, StoreError>;
+    /// The id of a sensor's latest calibration (the one [`Sensors::sensor`]
+    /// reports), `None` for an unknown sensor.
+    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError>;
     /// Assigns an existing type to an existing sensor; false when there is
     /// no such sensor.
     async fn assign_sensor_type(
@@ -133,6 +161,22 @@ pub trait Store: Send + Sync + 'static {
         sensor_id: String,
         type_id: String,
     ) -> Result<bool, StoreError>;
+}
+
+/// Sensor types: limits, intervals and the model they ask for.
+#[async_trait]
+pub trait SensorTypes: Send + Sync + 'static {
+    /// Creates or replaces a sensor type; true when it was created.
+    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError>;
+    /// One sensor type.
+    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
+    /// Every sensor type, in id order.
+    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError>;
+}
+
+/// Issued tokens (only the hash of each secret).
+#[async_trait]
+pub trait Tokens: Send + Sync + 'static {
     /// Stores a new token.
     async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError>;
     /// One token by id.
@@ -143,6 +187,11 @@ pub trait Store: Send + Sync + 'static {
     async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError>;
     /// Whether an unrevoked admin token exists.
     async fn has_admin_token(&self) -> Result<bool, StoreError>;
+}
+
+/// Web sessions (only the hash of each id).
+#[async_trait]
+pub trait Sessions: Send + Sync + 'static {
     /// Opens a web session, forgetting every session expired by its
     /// `created_at`.
     async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError>;
@@ -150,33 +199,26 @@ pub trait Store: Send + Sync + 'static {
     async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError>;
     /// Ends a session; false when there was none.
     async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError>;
-    /// Whether the database holds no calibration, token or sensor type.
-    async fn is_empty(&self) -> Result<bool, StoreError>;
-    /// The description of an `accelcal migrate` into this database that has
-    /// not finished, if there is one.
-    async fn import_in_progress(&self) -> Result<Option<String>, StoreError>;
-    /// Marks an import into this database as under way (`Some`, described)
-    /// or finished (`None`).
-    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError>;
-    /// Whole calibrations in id order, after `after` (for `accelcal migrate`).
-    async fn export_calibrations(
+}
+
+/// Idempotency keys: claimed with a lease, completed with their calibration.
+#[async_trait]
+pub trait Idempotency: Send + Sync + 'static {
+    /// Claims an idempotency key for a request, holding it until
+    /// `lease_until`; forgets keys older than the retention period.
+    async fn claim_key(
         &self,
-        after: Option<Uuid>,
-        limit: usize,
-    ) -> Result<Vec<NewCalibration>, StoreError>;
+        key: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError>;
+    /// Gives up a claimed key whose request stored nothing — unless another
+    /// request has since taken the lease over (`key.holder` no longer holds it).
+    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError>;
     /// Completed idempotency keys created at or after `since`.
     async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError>;
     /// Stores a completed idempotency key (its calibration stored first).
     async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError>;
-    /// A consistent copy of the whole database as one SQLite file, written
-    /// into a new temporary file beside the database (removed when the
-    /// handle is dropped); `None` for an engine with its own tools
-    /// (PostgreSQL: `pg_dump`).
-    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
-        Ok(None)
-    }
-    /// Flushes and closes (at shutdown).
-    async fn close(&self);
 }
 
 /// Records one storage operation's latency in
@@ -206,9 +248,9 @@ pub fn observe<T>(
 
 /// Opens the database named by a URL — `postgres://…` or `postgresql://…`
 /// (PostgreSQL), `sqlite://PATH`, `sqlite:PATH` or a plain file path
-/// (SQLite) — brings its schema up to date, and puts the sensor cache
-/// ([`cache`]) in front of it: for PostgreSQL with its listener, so that
-/// writes by other replicas reach it.
+/// (SQLite) — brings its schema up to date, and gives the engine its cache
+/// ([`cache`]): for PostgreSQL with its listener, so that writes by other
+/// replicas reach it.
 pub async fn open(url: &str) -> Result<Arc<dyn Store>, StoreError> {
     open_with(url, sqlite::MIN_FREE_BYTES).await
 }
@@ -223,12 +265,9 @@ pub async fn open_with(url: &str, min_free: u64) -> Result<Arc<dyn Store>, Store
         .strip_prefix("sqlite://")
         .or_else(|| url.strip_prefix("sqlite:"))
         .unwrap_or(url);
-    let inner = Arc::new(sqlite::SqliteStore::open(path)?.with_min_free(min_free));
-    // One process serves a SQLite file: every write passes through here.
-    let cache = Arc::new(cache::SensorCache::new(cache::CAPACITY, true));
-    let tokens = Arc::new(cache::TokenCache::new(cache::tokens::CAPACITY, true));
-    let watch = inner.file_check();
     Ok(Arc::new(
-        cache::CachedStore::new(inner, cache, tokens, None).watching(watch),
+        sqlite::SqliteStore::open(path)?
+            .with_min_free(min_free)
+            .cached(),
     ))
 }

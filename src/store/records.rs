@@ -209,8 +209,18 @@ pub const NEWEST_FIRST: &str = "ORDER BY c.performed_at DESC, c.id DESC";
 
 /// How a sensor's upsert merges into its stored row (`sensors`) what
 /// `excluded` holds of its new calibrations (one, or several of a batch
-/// folded into one row): the rule of [`SensorSummary::after`], in SQL that
-/// both engines run as it is.
+/// folded into one row), in SQL that both engines run as it is — the one
+/// statement of the rule:
+///
+/// * `calibration_count` adds up;
+/// * `first_performed_at` is the least;
+/// * the latest calibration is the greater by `(performed_at, id)`
+///   ([`NEWEST_FIRST`]), and the latest verdict and due date are its;
+/// * the assigned type is the new one when a write assigns one, and is
+///   kept otherwise.
+///
+/// The sensor cache takes what the upsert answers ([`SENSOR_ROW`]) rather
+/// than applying the rule again.
 pub const SENSOR_MERGE: &str = "ON CONFLICT (sensor_id) DO UPDATE SET \
      calibration_count = sensors.calibration_count + excluded.calibration_count, \
      first_performed_at = CASE WHEN excluded.first_performed_at < sensors.first_performed_at \
@@ -228,35 +238,56 @@ pub const SENSOR_MERGE: &str = "ON CONFLICT (sensor_id) DO UPDATE SET \
        THEN excluded.latest_performed_at ELSE sensors.latest_performed_at END, \
      sensor_type = coalesce(excluded.sensor_type, sensors.sensor_type)";
 
-impl SensorSummary {
-    /// The sensor as one more stored calibration `c` of it leaves it —
-    /// the rule every engine's write applies to the sensor's row
-    /// ([`SENSOR_MERGE`]), applied here to the sensor cache's entry:
-    ///
-    /// * `calibration_count + 1`;
-    /// * `first_performed_at = min(first_performed_at, c.performed_at)`;
-    /// * `c` becomes the latest when `(c.performed_at, c.id)` is greater
-    ///   than the latest's (the later id breaks a tie), and then the
-    ///   latest verdict and due date are `c`'s;
-    /// * `latest_performed_at = max(latest_performed_at, c.performed_at)`;
-    /// * the assigned type becomes `c.sensor_type` when `c` assigns one
-    ///   (`assigns_type`), and is kept otherwise.
-    ///
-    /// The status is left as it was: it depends on the time of a read.
-    pub fn after(&self, c: CalibrationSummary, assigns_type: bool) -> SensorSummary {
-        let mut s = self.clone();
-        s.calibration_count += 1;
-        s.first_performed_at = s.first_performed_at.min(c.performed_at);
-        s.latest_performed_at = s.latest_performed_at.max(c.performed_at);
-        if assigns_type && c.sensor_type.is_some() {
-            s.sensor_type = c.sensor_type.clone();
-        }
-        if (c.performed_at, c.id) > (s.latest.performed_at, s.latest.id) {
-            s.latest_verdict = c.verdict;
-            s.due_at = c.due_at;
-            s.latest = c;
-        }
-        s
+/// What the sensors' upsert answers ([`SENSOR_MERGE`] then this): the
+/// sensor's row as the write left it.
+pub const SENSOR_ROW: &str = "RETURNING sensor_id, calibration_count, first_performed_at, \
+     latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at";
+
+/// A sensor's stored row as a write left it ([`SENSOR_ROW`]): its summary
+/// but for the latest calibration's, which the row names by id.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SensorRow {
+    /// The sensor.
+    pub sensor_id: String,
+    /// How many calibrations it has.
+    pub calibration_count: u64,
+    /// The earliest `performed_at`.
+    pub first_performed_at: Timestamp,
+    /// The latest `performed_at`.
+    pub latest_performed_at: Timestamp,
+    /// The latest calibration, by [`NEWEST_FIRST`].
+    pub latest_calibration_id: Uuid,
+    /// The type assigned to it.
+    pub sensor_type: Option<String>,
+    /// The latest calibration's verdict.
+    pub latest_verdict: Option<Verdict>,
+    /// When the sensor is due, from its latest calibration.
+    pub due_at: Option<Timestamp>,
+}
+
+impl SensorRow {
+    /// The sensor's summary, given the calibration the row names as its
+    /// latest — one of `candidates`, or `None` when it is none of them.
+    /// The status is left `Unknown`: it depends on the time of a read.
+    pub fn summary<'a>(
+        self,
+        candidates: impl IntoIterator<Item = &'a CalibrationSummary>,
+    ) -> Option<SensorSummary> {
+        let latest = candidates
+            .into_iter()
+            .find(|c| c.id == self.latest_calibration_id)?
+            .clone();
+        Some(SensorSummary {
+            sensor_id: self.sensor_id,
+            calibration_count: self.calibration_count,
+            first_performed_at: self.first_performed_at,
+            latest_performed_at: self.latest_performed_at,
+            sensor_type: self.sensor_type,
+            latest_verdict: self.latest_verdict,
+            due_at: self.due_at,
+            status: Status::Unknown,
+            latest,
+        })
     }
 }
 
@@ -388,80 +419,33 @@ mod tests {
         }
     }
 
-    /// Sensor `S` with two calibrations, 2026-02-01 and 2026-03-01 (id 50,
-    /// passed, due 2027-03-01), type `A` assigned.
-    fn sensor() -> SensorSummary {
-        let latest = CalibrationSummary {
-            verdict: Some(Verdict::Pass),
-            due_at: Some(ts("2027-03-01T00:00:00Z")),
-            sensor_type: Some("A".into()),
-            ..cal(50, "2026-03-01T00:00:00Z")
-        };
-        SensorSummary {
-            calibration_count: 2,
-            first_performed_at: ts("2026-02-01T00:00:00Z"),
-            latest_performed_at: ts("2026-03-01T00:00:00Z"),
-            sensor_type: Some("A".into()),
-            latest_verdict: latest.verdict,
-            due_at: latest.due_at,
-            status: Status::Ok,
-            latest,
-            ..SensorSummary::for_test("S")
-        }
-    }
-
-    /// Each rule of [`SensorSummary::after`], the expected summary written
-    /// out by hand.
+    /// The row names its latest calibration by id: the summary takes it
+    /// from the candidates, or there is none.
     #[test]
-    fn one_more_calibration_by_the_rules_of_the_sensors_row() {
-        let before = sensor();
-
-        // Older than the first: the first date moves, nothing else.
-        let older = cal(60, "2026-01-01T00:00:00Z");
-        let mut want = sensor();
-        want.calibration_count = 3;
-        want.first_performed_at = ts("2026-01-01T00:00:00Z");
-        assert_eq!(before.after(older, false), want);
-
-        // Newer, untyped: the latest, its (absent) verdict and due date;
-        // the assigned type stays.
-        let newer = cal(40, "2026-04-01T00:00:00Z");
-        let mut want = sensor();
-        want.calibration_count = 3;
-        want.latest_performed_at = ts("2026-04-01T00:00:00Z");
-        want.latest_verdict = None;
-        want.due_at = None;
-        want.latest = newer.clone();
-        assert_eq!(before.after(newer.clone(), false), want);
-
-        // The same, assigning type B: the type changes too. Naming B
-        // without assigning it leaves A.
-        let typed = CalibrationSummary {
-            sensor_type: Some("B".into()),
-            verdict: Some(Verdict::Fail),
-            due_at: Some(ts("2026-10-01T00:00:00Z")),
-            ..newer.clone()
+    fn a_rows_latest_is_the_candidate_it_names() {
+        let row = SensorRow {
+            sensor_id: "S".into(),
+            calibration_count: 3,
+            first_performed_at: ts("2026-01-01T00:00:00Z"),
+            latest_performed_at: ts("2026-03-01T00:00:00Z"),
+            latest_calibration_id: Uuid::from_u128(50),
+            sensor_type: Some("A".into()),
+            latest_verdict: Some(Verdict::Pass),
+            due_at: Some(ts("2027-03-01T00:00:00Z")),
         };
-        let got = before.after(typed.clone(), true);
-        assert_eq!(got.sensor_type.as_deref(), Some("B"));
-        assert_eq!(got.latest_verdict, Some(Verdict::Fail));
-        assert_eq!(got.due_at, Some(ts("2026-10-01T00:00:00Z")));
-        assert_eq!(before.after(typed, false).sensor_type.as_deref(), Some("A"));
-
-        // Performed at the latest's instant: the greater id is the latest.
-        let tie_above = cal(51, "2026-03-01T00:00:00Z");
-        let tie_below = cal(49, "2026-03-01T00:00:00Z");
-        assert_eq!(before.after(tie_above, false).latest.id.as_u128(), 51);
-        let got = before.after(tie_below, false);
-        assert_eq!(got.latest.id.as_u128(), 50);
-        assert_eq!(got.latest_verdict, Some(Verdict::Pass));
-        assert_eq!(got.calibration_count, 3);
-
-        // The status is not the rule's business.
-        assert_eq!(
-            before.after(cal(70, "2026-05-01T00:00:00Z"), false).status,
-            Status::Ok
+        let (a, b) = (
+            cal(49, "2026-03-01T00:00:00Z"),
+            cal(50, "2026-03-01T00:00:00Z"),
         );
+        let got = row.clone().summary([&a, &b]).unwrap();
+        assert_eq!(got.latest, b);
+        assert_eq!(
+            (got.calibration_count, got.sensor_type.as_deref()),
+            (3, Some("A"))
+        );
+        assert_eq!(got.latest_verdict, Some(Verdict::Pass));
+        assert_eq!(got.status, Status::Unknown);
+        assert_eq!(row.summary([&a]), None);
     }
 
     /// A stored record's summary carries every field the record has.

@@ -6,7 +6,7 @@ use super::*;
 /// it, with the cache at hand; waits until the listener is connected.
 pub(crate) async fn cached_replica(url: &str) -> (Arc<dyn Store>, Arc<SensorCache>) {
     let store = PostgresStore::cached(url).await.unwrap();
-    let cache = store.cache().clone();
+    let cache = store.cache().sensors().clone();
     until(|| cache.is_live(), "the listener to connect").await;
     (Arc::new(store), cache)
 }
@@ -133,11 +133,10 @@ async fn writes_keep_their_sensor_cached(
 #[tokio::test]
 async fn sqlite_writes_keep_their_sensor_cached() {
     let dir = tempfile::tempdir().unwrap();
-    let inner = Arc::new(SqliteStore::open(dir.path().join("kept.db")).unwrap());
-    let cache = Arc::new(SensorCache::new(CAPACITY, true));
-    let tokens = Arc::new(TokenCache::new(CAPACITY, true));
-    let store = CachedStore::new(inner.clone(), cache.clone(), tokens, None);
-    writes_keep_their_sensor_cached(&store, &*inner, &cache, std::time::Duration::ZERO).await;
+    let inner = SqliteStore::open(dir.path().join("kept.db")).unwrap();
+    let store = inner.clone().cached();
+    let cache = store.cache().sensors().clone();
+    writes_keep_their_sensor_cached(&store, &inner, &cache, std::time::Duration::ZERO).await;
 }
 
 /// The same behind PostgreSQL's listener: the replica's own notifications

@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use super::{calibration, key, pg, until};
+use accelcal::store::prelude::*;
 use accelcal::store::{
     IdempotencyKey, NewCalibration, Store, StoreError, Stored, postgres::PostgresStore,
     sqlite::SqliteStore,

@@ -24,9 +24,10 @@ use accelcal::domain::sensor_types::SensorType;
 use accelcal::domain::status::Status;
 use accelcal::domain::timestamp::Timestamp;
 use accelcal::domain::tokens::TokenRecord;
-use accelcal::store::cache::{CAPACITY, CachedStore, SensorCache, TokenCache};
+use accelcal::store::cache::SensorCache;
+use accelcal::store::prelude::*;
 use accelcal::store::{
-    Claim, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery, Store, StoreError, Stored,
+    Claim, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery, StoreError, Stored,
     postgres::PostgresStore, sqlite::SqliteStore,
 };
 use accelcal_core::decision::{Limit, Rule, Verdict};

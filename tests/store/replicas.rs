@@ -165,9 +165,9 @@ async fn postgres_replica_token_caches_follow_revocations() {
     let db = pg::TestDb::create().await;
     let replica = || async {
         let s = PostgresStore::cached(&db.url).await.unwrap();
-        let tokens = s.tokens().clone();
+        let tokens = s.cache().tokens().clone();
         until(
-            || tokens.is_live() && s.cache().is_live(),
+            || tokens.is_live() && s.cache().sensors().is_live(),
             "the listener to connect",
         )
         .await;

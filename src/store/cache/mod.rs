@@ -2,21 +2,24 @@
 //! most — latest coefficients, compensation, a sensor's summary — are
 //! answered without a database round trip.
 //!
-//! [`CachedStore`] wraps any engine and caches [`Store::sensor`]: the
-//! sensor's summary with its latest calibration. What is cached is the
+//! Each engine holds a [`Cache`] and asks it first in the few operations it
+//! serves — a sensor's summary with its latest calibration
+//! ([`Sensors::sensor`](super::Sensors::sensor)), a token
+//! ([`Tokens::token`](super::Tokens::token)) — and tells it of every write
+//! of them; a [`Cache::off`] keeps nothing (the engines bare, in tests). What is cached is the
 //! state stored; the status, which depends on the time of the read, is
 //! computed again on every hit ([`Status::of`]). The rules that keep every
 //! read seeing every acknowledged write:
 //!
-//! * **Writes through this process** ([`Store::insert_calibration`])
+//! * **Writes through this process** ([`Calibrations::insert_calibration`](super::Calibrations::insert_calibration))
 //!   settle the sensor's entry after the database answered and before the
-//!   caller can answer its client: a calibration stored brings the cached
-//!   summary up to date by the rule the engines apply to the sensor's row
-//!   ([`SensorSummary::after`]); any other end — a failure, an unknown
+//!   caller can answer its client: a calibration stored puts in the
+//!   sensor's row as the database's upsert answered it
+//!   ([`SensorRow`](super::SensorRow)); any other end — a failure, an unknown
 //!   outcome (a failed commit may still have landed), a write racing
 //!   another of the same sensor — drops it. So a station's next
 //!   submission of that sensor finds it cached. A type assigned
-//!   ([`Store::assign_sensor_type`]) drops the entry.
+//!   ([`Sensors::assign_sensor_type`](super::Sensors::assign_sensor_type)) drops the entry.
 //! * **A read racing a write** cannot put back what the write replaced:
 //!   every change ticks a clock and stamps the sensor's stripe, and a read
 //!   fills the cache only if its stripe was not stamped between its start
@@ -50,19 +53,13 @@
 //! The hand-written part is the consistency protocol above, which no cache
 //! crate provides; the map under it is a `HashMap`.
 
+use std::future::Future;
 use std::sync::Arc;
 use std::sync::Mutex;
 
-use async_trait::async_trait;
-use bytes::Bytes;
 use uuid::Uuid;
 
-use super::{
-    CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
-    SensorSummary, Series, Store, StoreError, Stored, StoredSubmission,
-};
-use crate::domain::sensor_types::SensorType;
-use crate::domain::session::SessionRecord;
+use super::{CalibrationSummary, SensorRow, SensorSummary, StoreError, Stored};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
@@ -81,160 +78,170 @@ fn at(summary: &SensorSummary, now: Timestamp) -> SensorSummary {
     s
 }
 
-/// An engine with [`SensorCache`] in front of its sensor reads and
-/// [`TokenCache`] in front of its token reads.
-pub struct CachedStore {
-    inner: Arc<dyn Store>,
-    cache: Arc<SensorCache>,
+/// What an engine keeps in memory: its sensors ([`SensorCache`]) and its
+/// tokens ([`TokenCache`]), and the task that keeps both in step with other
+/// processes, if any (PostgreSQL's listener).
+#[derive(Debug)]
+pub struct Cache {
+    sensors: Arc<SensorCache>,
     tokens: Arc<TokenCache>,
-    /// Stopped at [`Store::close`] (the PostgreSQL listener).
+    /// Stopped at [`Cache::close`].
     listener: Mutex<Option<tokio::task::JoinHandle<()>>>,
-    /// The engine's check of its file (SQLite), if it has one.
-    file: Option<FileCheck>,
 }
 
-/// The engine's own check that the database it serves is still there (the
-/// SQLite pool's: the file at its path is the one it opened, a good check
-/// standing for 50 ms). Cached answers run it first, so nothing is answered
-/// from memory that the database no longer backs — a file removed, or a
-/// backup moved over it (503, as the engine answers then).
-pub type FileCheck = Arc<dyn Fn() -> Result<(), StoreError> + Send + Sync>;
-
-impl CachedStore {
-    /// `inner` behind `cache` and `tokens`; `listener` is the task that
-    /// keeps both in step with other processes, if any.
-    pub fn new(
-        inner: Arc<dyn Store>,
-        cache: Arc<SensorCache>,
-        tokens: Arc<TokenCache>,
-        listener: Option<tokio::task::JoinHandle<()>>,
-    ) -> Self {
-        CachedStore {
-            inner,
-            cache,
-            tokens,
-            listener: Mutex::new(listener),
-            file: None,
+impl Cache {
+    /// A cache usable at once (`live`), or only once a listener makes it
+    /// so.
+    pub fn new(live: bool) -> Self {
+        Cache {
+            sensors: Arc::new(SensorCache::new(CAPACITY, live)),
+            tokens: Arc::new(TokenCache::new(tokens::CAPACITY, live)),
+            listener: Mutex::new(None),
         }
     }
 
-    /// The same, for an engine whose file `check` checks.
-    pub fn watching(mut self, check: FileCheck) -> Self {
-        self.file = Some(check);
+    /// A cache that keeps nothing: every read asks the database.
+    pub fn off() -> Self {
+        Self::new(false)
+    }
+
+    /// The same, stopping `listener` when it closes.
+    pub fn listening(self, listener: tokio::task::JoinHandle<()>) -> Self {
+        *self.listener.lock().unwrap_or_else(|e| e.into_inner()) = Some(listener);
         self
     }
 
-    /// The sensor cache (for tests and metrics).
-    pub fn cache(&self) -> &Arc<SensorCache> {
-        &self.cache
+    /// The sensor cache (for the listener, tests and metrics).
+    pub fn sensors(&self) -> &Arc<SensorCache> {
+        &self.sensors
     }
 
-    /// The token cache (for tests).
+    /// The token cache (for the listener and tests).
     pub fn tokens(&self) -> &Arc<TokenCache> {
         &self.tokens
     }
 
-    /// 503 when the database file is not the one served (SQLite).
-    fn follow_the_file(&self) -> Result<(), StoreError> {
-        match &self.file {
-            Some(check) => check(),
-            None => Ok(()),
-        }
-    }
-}
-
-#[async_trait]
-impl Store for CachedStore {
-    async fn sensor(
+    /// A sensor's summary as of `now`: the cached one, or what `read` finds
+    /// (kept when the rules of [`sensors`] allow).
+    pub async fn sensor(
         &self,
-        sensor_id: String,
+        sensor_id: &str,
         now: Timestamp,
+        read: impl Future<Output = Result<Option<SensorSummary>, StoreError>>,
     ) -> Result<Option<SensorSummary>, StoreError> {
-        self.follow_the_file()?;
-        if let Some(hit) = self.cache.get(&sensor_id) {
+        if let Some(hit) = self.sensors.get(sensor_id) {
             metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
             return Ok(Some(at(&hit, now)));
         }
         metrics::counter!("accelcal_sensor_cache_total", "outcome" => "miss").increment(1);
-        let epoch = self.cache.begin();
-        let found = self.inner.sensor(sensor_id, now).await?;
+        let epoch = self.sensors.begin();
+        let found = read.await?;
         if let (Some(epoch), Some(s)) = (epoch, &found) {
-            self.cache.fill(epoch, s);
+            self.sensors.fill(epoch, s);
         }
         Ok(found)
     }
 
-    /// From the cached summary when there is one (no copy of it); else
-    /// read, and cached, as [`Store::sensor`] does.
-    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
-        self.follow_the_file()?;
-        if let Some(hit) = self.cache.get(&sensor_id) {
-            metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
-            return Ok(Some(hit.latest.id));
-        }
-        Ok(self
-            .sensor(sensor_id, Timestamp::now())
-            .await?
-            .map(|s| s.latest.id))
+    /// The id of a cached sensor's latest calibration (no copy of the
+    /// summary); `None` when it is not cached.
+    pub fn latest_calibration_id(&self, sensor_id: &str) -> Option<Uuid> {
+        let hit = self.sensors.get(sensor_id)?;
+        metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
+        Some(hit.latest.id)
     }
 
-    /// The latest calibration performed strictly before `before`. When the
-    /// sensor is cached and its latest calibration (the greatest by
-    /// `(performed_at, id)`) was performed before `before`, that one is the
-    /// answer — nothing later exists to be "before" — and the database is not
-    /// asked: the common case of a submission, which follows its sensor's
-    /// summary read ([`Store::sensor`]) and comes after its latest. Otherwise
-    /// the engine answers.
-    async fn previous_calibration(
+    /// The latest calibration performed strictly before `before`, when the
+    /// cache can tell: the sensor is cached and its latest calibration (the
+    /// greatest by `(performed_at, id)`) was performed before `before`, so
+    /// nothing later exists to be "before" — the common case of a
+    /// submission, which follows its sensor's summary read and comes after
+    /// its latest. `None` means: ask the database.
+    pub fn previous_calibration(
         &self,
-        sensor_id: String,
+        sensor_id: &str,
         before: Timestamp,
-    ) -> Result<Option<CalibrationSummary>, StoreError> {
-        self.follow_the_file()?;
-        if let Some(hit) = self.cache.get(&sensor_id)
-            && hit.latest.performed_at < before
-        {
-            return Ok(Some(hit.latest.clone()));
-        }
-        self.inner.previous_calibration(sensor_id, before).await
+    ) -> Option<CalibrationSummary> {
+        self.sensors
+            .get(sensor_id)
+            .filter(|hit| hit.latest.performed_at < before)
+            .map(|hit| hit.latest.clone())
     }
 
-    async fn insert_calibration(
+    /// Runs `write`, which stores `c` and answers the sensor's row as it
+    /// left it, in a task of its own, so that the cache learns the write's
+    /// end even when the request is cancelled meanwhile (its client gone):
+    /// the write stands, and a read must not fill from before it. The
+    /// sensor's entry is replaced or dropped ([`Write::settle`]).
+    pub async fn insert_calibration(
         &self,
-        c: NewCalibration,
-        key: Option<IdempotencyKey>,
+        c: CalibrationSummary,
+        write: impl Future<Output = Result<(Stored, Option<SensorRow>), StoreError>> + Send + 'static,
     ) -> Result<Stored, StoreError> {
-        self.follow_the_file()?;
-        // A task of its own, so that the cache learns the write's end even
-        // when the request is cancelled meanwhile (its client gone): the
-        // write stands, and a read must not fill from before it.
-        let (inner, cache) = (self.inner.clone(), self.cache.clone());
+        let cache = self.sensors.clone();
         tokio::spawn(async move {
-            let write = cache.write(&c.sensor_id);
-            let stored = (CalibrationSummary::from(&c), c.assigns_type);
-            let out = inner.insert_calibration(c, key).await;
-            write.settle(matches!(out, Ok(Stored::New)).then_some(stored));
+            let writing = cache.write(&c.sensor_id);
+            match write.await {
+                Ok((Stored::New, Some(row))) => {
+                    writing.settle(Some((c, row)));
+                    Ok(Stored::New)
+                }
+                Ok((stored, _)) => {
+                    writing.settle(None);
+                    Ok(stored)
+                }
+                Err(e) => {
+                    writing.settle(None);
+                    Err(e)
+                }
+            }
+        })
+        .await
+        .map_err(|e| StoreError::Unavailable(Box::new(e)))?
+    }
+
+    /// Drops what is cached of a sensor whose row changed (its type).
+    pub fn sensor_changed(&self, sensor_id: &str) {
+        self.sensors.invalidate(sensor_id);
+    }
+
+    /// A token: the cached record, or what `read` finds (kept when the
+    /// rules of [`tokens`] allow).
+    pub async fn token(
+        &self,
+        id: Uuid,
+        read: impl Future<Output = Result<Option<TokenRecord>, StoreError>>,
+    ) -> Result<Option<TokenRecord>, StoreError> {
+        if let Some(hit) = self.tokens.get(id) {
+            return Ok(Some(hit));
+        }
+        let epoch = self.tokens.begin();
+        let found = read.await?;
+        if let (Some(epoch), Some(t)) = (epoch, &found) {
+            self.tokens.fill(epoch, t);
+        }
+        Ok(found)
+    }
+
+    /// Runs `revoke` and drops the token once the engine answered, whatever
+    /// it answered, in a task of its own so that a cancelled request cannot
+    /// skip the drop.
+    pub async fn revoke_token(
+        &self,
+        id: Uuid,
+        revoke: impl Future<Output = Result<bool, StoreError>> + Send + 'static,
+    ) -> Result<bool, StoreError> {
+        let tokens = self.tokens.clone();
+        tokio::spawn(async move {
+            let out = revoke.await;
+            tokens.invalidate(id);
             out
         })
         .await
         .map_err(|e| StoreError::Unavailable(Box::new(e)))?
     }
 
-    async fn assign_sensor_type(
-        &self,
-        sensor_id: String,
-        type_id: String,
-    ) -> Result<bool, StoreError> {
-        self.follow_the_file()?;
-        let out = self
-            .inner
-            .assign_sensor_type(sensor_id.clone(), type_id)
-            .await;
-        self.cache.invalidate(&sensor_id);
-        out
-    }
-
-    async fn close(&self) {
+    /// Stops the listener and empties both caches, for good.
+    pub fn close(&self) {
         let listener = self
             .listener
             .lock()
@@ -243,143 +250,8 @@ impl Store for CachedStore {
         if let Some(l) = listener {
             l.abort();
         }
-        self.cache.reset(false);
+        self.sensors.reset(false);
         self.tokens.reset(false);
-        self.inner.close().await;
-    }
-
-    // Everything else is the engine's.
-
-    async fn ping(&self) -> Result<(), StoreError> {
-        self.inner.ping().await
-    }
-    async fn claim_key(
-        &self,
-        key: IdempotencyKey,
-        now: Timestamp,
-        lease_until: Timestamp,
-    ) -> Result<Claim, StoreError> {
-        self.inner.claim_key(key, now, lease_until).await
-    }
-    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
-        self.inner.release_key(key).await
-    }
-    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
-        self.inner.calibration_result(id).await
-    }
-    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
-        self.inner.submission(id).await
-    }
-    async fn calibration_summary(
-        &self,
-        id: Uuid,
-    ) -> Result<Option<CalibrationSummary>, StoreError> {
-        self.inner.calibration_summary(id).await
-    }
-    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
-        self.inner.sensors(q).await
-    }
-    async fn history(
-        &self,
-        sensor_id: String,
-        q: HistoryQuery,
-    ) -> Result<Vec<CalibrationSummary>, StoreError> {
-        self.inner.history(sensor_id, q).await
-    }
-    async fn history_ids(
-        &self,
-        sensor_id: String,
-        q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError> {
-        self.inner.history_ids(sensor_id, q).await
-    }
-    async fn series(
-        &self,
-        sensor_id: String,
-        from: Option<Timestamp>,
-        to: Option<Timestamp>,
-        limit: usize,
-    ) -> Result<Series, StoreError> {
-        self.inner.series(sensor_id, from, to, limit).await
-    }
-    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
-        self.inner.put_sensor_type(t).await
-    }
-    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError> {
-        self.inner.sensor_type(type_id).await
-    }
-    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError> {
-        self.inner.sensor_types().await
-    }
-    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
-        self.inner.insert_token(t).await
-    }
-    async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
-        self.follow_the_file()?;
-        if let Some(hit) = self.tokens.get(id) {
-            return Ok(Some(hit));
-        }
-        let epoch = self.tokens.begin();
-        let found = self.inner.token(id).await?;
-        if let (Some(epoch), Some(t)) = (epoch, &found) {
-            self.tokens.fill(epoch, t);
-        }
-        Ok(found)
-    }
-    async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
-        self.inner.tokens().await
-    }
-    /// Drops the token from the cache once the engine answered, whatever
-    /// it answered, in a task of its own so that a cancelled request cannot
-    /// skip the drop.
-    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
-        self.follow_the_file()?;
-        let (inner, tokens) = (self.inner.clone(), self.tokens.clone());
-        tokio::spawn(async move {
-            let out = inner.revoke_token(id, at).await;
-            tokens.invalidate(id);
-            out
-        })
-        .await
-        .map_err(|e| StoreError::Unavailable(Box::new(e)))?
-    }
-    async fn has_admin_token(&self) -> Result<bool, StoreError> {
-        self.inner.has_admin_token().await
-    }
-    async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError> {
-        self.inner.insert_session(s).await
-    }
-    async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError> {
-        self.inner.session(id_hash).await
-    }
-    async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError> {
-        self.inner.delete_session(id_hash).await
-    }
-    async fn is_empty(&self) -> Result<bool, StoreError> {
-        self.inner.is_empty().await
-    }
-    async fn export_calibrations(
-        &self,
-        after: Option<Uuid>,
-        limit: usize,
-    ) -> Result<Vec<NewCalibration>, StoreError> {
-        self.inner.export_calibrations(after, limit).await
-    }
-    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
-        self.inner.done_keys(since).await
-    }
-    async fn import_in_progress(&self) -> Result<Option<String>, StoreError> {
-        self.inner.import_in_progress().await
-    }
-    async fn set_import_in_progress(&self, import: Option<String>) -> Result<(), StoreError> {
-        self.inner.set_import_in_progress(import).await
-    }
-    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
-        self.inner.put_done_key(k).await
-    }
-    async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
-        self.follow_the_file()?;
-        self.inner.backup().await
     }
 }
 

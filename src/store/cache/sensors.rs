@@ -12,13 +12,13 @@
 //!   of the stripe is in flight (its result might or might not include the
 //!   write);
 //! * a **write** through this process ([`SensorCache::write`]) that
-//!   stored calibration `c` replaces the cached summary `s` with
-//!   `s.after(c)` ([`SensorSummary::after`], the rule the engines apply to
-//!   the sensor's row) only if it was the only write of its stripe in
-//!   flight from start to end and the stripe was not stamped meanwhile;
-//!   in every other case — failed, unknown outcome, not cached, a
-//!   concurrent write, a drop — the entry is dropped and the next read
-//!   fills it from the database.
+//!   stored calibration `c` puts in the sensor's row as the database's
+//!   upsert answered it ([`SensorRow`]), with its latest calibration —
+//!   `c`, or the cached summary's latest — only if it was the only write
+//!   of its stripe in flight from start to end and the stripe was not
+//!   stamped meanwhile; in every other case — failed, unknown outcome, a
+//!   latest that is neither, a concurrent write, a drop — the entry is
+//!   dropped and the next read fills it from the database.
 //!
 //! Sensors sharing a stripe hold each other back, which costs a read, never
 //! a stale answer.
@@ -28,7 +28,7 @@ use std::hash::{BuildHasher, RandomState};
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 
-use crate::store::{CalibrationSummary, SensorSummary};
+use crate::store::{CalibrationSummary, SensorRow, SensorSummary};
 
 /// Sensors cached at most (a summary is about 1 KiB).
 pub const CAPACITY: usize = 4096;
@@ -176,7 +176,7 @@ impl SensorCache {
     }
 
     /// Ends a write; see [`Write::settle`].
-    fn end(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, bool)>) {
+    fn end(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, SensorRow)>) {
         let kept = self.apply(w, stored);
         let outcome = if kept { "kept" } else { "dropped" };
         metrics::counter!("accelcal_sensor_cache_writes_total", "outcome" => outcome).increment(1);
@@ -184,7 +184,7 @@ impl SensorCache {
 
     /// [`end`](Self::end)'s work under the lock; whether the entry was
     /// kept up to date.
-    fn apply(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, bool)>) -> bool {
+    fn apply(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, SensorRow)>) -> bool {
         let mut e = self.lock();
         let alone = e.writing[w.stripe] == 1;
         e.writing[w.stripe] -= 1;
@@ -192,12 +192,16 @@ impl SensorCache {
         e.stamp(w.stripe);
         let cached = e.map.remove(&w.sensor_id);
         let certain = alone && unchanged && self.live.load(Ordering::SeqCst);
-        match (stored, cached) {
-            (Some((c, assigns)), Some(s)) if certain => {
-                self.put(&mut e, Arc::new(s.after(c, assigns)));
+        let Some((c, row)) = stored.filter(|_| certain) else {
+            return false;
+        };
+        let candidates = std::iter::once(&c).chain(cached.as_deref().map(|s| &s.latest));
+        match row.summary(candidates) {
+            Some(s) => {
+                self.put(&mut e, Arc::new(s));
                 true
             }
-            _ => false,
+            None => false,
         }
     }
 
@@ -235,11 +239,12 @@ pub struct Write<'a> {
 }
 
 impl Write<'_> {
-    /// Ends the write. `stored` is the calibration it stored and whether
-    /// that assigns the sensor its type, or `None` when nothing was stored
-    /// or the outcome is unknown. The cached summary is brought up to date
-    /// with it where the module's rule allows, dropped otherwise.
-    pub fn settle(mut self, stored: Option<(CalibrationSummary, bool)>) {
+    /// Ends the write. `stored` is the calibration it stored and the
+    /// sensor's row as the database answered the write, or `None` when
+    /// nothing was stored or the outcome is unknown. The cached summary
+    /// is replaced with it where the module's rule allows, dropped
+    /// otherwise.
+    pub fn settle(mut self, stored: Option<(CalibrationSummary, SensorRow)>) {
         self.settled = true;
         self.cache.end(&self, stored);
     }
@@ -259,6 +264,7 @@ impl Drop for Write<'_> {
 mod tests {
     use super::*;
     use crate::domain::timestamp::Timestamp;
+    use uuid::Uuid;
 
     pub(crate) fn ts(s: &str) -> Timestamp {
         Timestamp::parse(s).unwrap()
@@ -274,6 +280,30 @@ mod tests {
             performed_at: ts(&format!("2026-01-{day:02}T00:00:00Z")),
             ..CalibrationSummary::for_test(id, sensor, 0.5, 1.0)
         }
+    }
+
+    /// What the database answers when `c` is stored after
+    /// [`summary`]`(sensor)`'s one calibration (id 7, performed in 2025).
+    fn row(c: &CalibrationSummary) -> SensorRow {
+        let before = summary(&c.sensor_id);
+        let newest = (c.performed_at, c.id) > (before.latest.performed_at, before.latest.id);
+        let latest = if newest { c } else { &before.latest };
+        SensorRow {
+            sensor_id: c.sensor_id.clone(),
+            calibration_count: 2,
+            first_performed_at: before.first_performed_at.min(c.performed_at),
+            latest_performed_at: latest.performed_at,
+            latest_calibration_id: latest.id,
+            sensor_type: None,
+            latest_verdict: latest.verdict,
+            due_at: latest.due_at,
+        }
+    }
+
+    fn stored(sensor: &str, id: u128, day: u8) -> Option<(CalibrationSummary, SensorRow)> {
+        let c = newer(sensor, id, day);
+        let r = row(&c);
+        Some((c, r))
     }
 
     fn filled(c: &SensorCache, sensor: &str) {
@@ -335,7 +365,7 @@ mod tests {
         filled(&c, "S");
         let w = c.write("S");
         c.reset(false);
-        w.settle(Some((newer("S", 8, 2), false)));
+        w.settle(stored("S", 8, 2));
         assert!(c.is_empty());
     }
 
@@ -353,25 +383,46 @@ mod tests {
         assert_eq!(c.len(), 3);
     }
 
-    /// A write alone brings the cached summary up to date by
-    /// [`SensorSummary::after`] (whose rules records.rs tests).
+    /// A write alone puts in the row the database answered, with the
+    /// calibration it names as latest: the one written, or the one cached.
     #[test]
     fn a_write_alone_updates_its_sensor() {
         let c = SensorCache::new(8, true);
         filled(&c, "S");
         let w = c.write("S");
-        w.settle(Some((newer("S", 8, 2), true)));
+        let (written, r) = stored("S", 8, 2).unwrap();
+        w.settle(Some((written.clone(), r.clone())));
         let s = c.get("S").expect("the written sensor stays cached");
-        assert_eq!(*s, summary("S").after(newer("S", 8, 2), true));
+        assert_eq!(s.latest, written);
         assert_eq!(s.calibration_count, 2);
-        assert_eq!(s.latest.id.as_u128(), 8);
+        assert_eq!(s.latest_performed_at, written.performed_at);
+
+        // An older calibration: the cached latest stays the latest.
+        let older = CalibrationSummary {
+            performed_at: ts("2020-01-01T00:00:00Z"),
+            ..newer("S", 9, 1)
+        };
+        let mut r = row(&older);
+        r.latest_calibration_id = written.id;
+        r.latest_performed_at = written.performed_at;
+        c.write("S").settle(Some((older.clone(), r)));
+        let s = c.get("S").expect("still cached");
+        assert_eq!(
+            (s.latest.id, s.first_performed_at),
+            (written.id, older.performed_at)
+        );
+
+        // A sensor not cached is put in when the write is its latest.
+        let (fresh, r) = stored("T", 10, 3).unwrap();
+        c.write("T").settle(Some((fresh.clone(), r)));
+        assert_eq!(c.get("T").unwrap().latest, fresh);
     }
 
     /// Every other end of a write drops the entry.
     #[test]
     fn a_write_that_is_not_alone_or_did_not_store_drops_its_sensor() {
         let c = SensorCache::new(8, true);
-        let stored = || Some((newer("S", 8, 2), false));
+        let stored = || stored("S", 8, 2);
         // Nothing stored, or the outcome unknown.
         filled(&c, "S");
         c.write("S").settle(None);
@@ -380,8 +431,12 @@ mod tests {
         filled(&c, "S");
         drop(c.write("S"));
         assert!(!c.contains("S"));
-        // Not cached when it ended: nothing to update.
-        c.write("S").settle(stored());
+        // A latest that is neither the write's nor the cached one (a
+        // newer calibration stored meanwhile by another process).
+        filled(&c, "S");
+        let (written, mut r) = stored().unwrap();
+        r.latest_calibration_id = Uuid::from_u128(99);
+        c.write("S").settle(Some((written, r)));
         assert!(!c.contains("S"));
         // Dropped meanwhile (another replica's notification).
         filled(&c, "S");
@@ -409,7 +464,8 @@ mod tests {
     }
 
     /// A read that may have seen the write's effect cannot fill while the
-    /// write is in flight, nor after it ended if it began before.
+    /// write is in flight, nor replace the write's row after it ended if it
+    /// began before.
     #[test]
     fn a_read_racing_a_write_does_not_fill() {
         let c = SensorCache::new(8, true);
@@ -417,9 +473,17 @@ mod tests {
         let epoch = c.begin().unwrap();
         c.fill(epoch, &summary("S"));
         assert!(!c.contains("S"), "filled during a write");
-        w.settle(Some((newer("S", 8, 2), false)));
+        w.settle(stored("S", 8, 2));
+        assert_eq!(
+            c.get("S").unwrap().latest.id.as_u128(),
+            8,
+            "the write's row"
+        );
         c.fill(epoch, &summary("S"));
-        assert!(!c.contains("S"), "filled from before the write's end");
-        filled(&c, "S");
+        assert_eq!(
+            c.get("S").unwrap().latest.id.as_u128(),
+            8,
+            "filled from before the write's end"
+        );
     }
 }

@@ -12,20 +12,22 @@
 //! 2. the calibrations still to write, inserted from arrays (`unnest`);
 //! 3. their keys completed, guarded as one at a time is
 //!    (`… WHERE idempotency_keys.calibration_id IS NULL`);
-//! 4. one upsert per sensor, of the batch's writes of that sensor folded in
-//!    the batch's order (see [`fold`]).
+//! 4. one upsert of every sensor the batch wrote, each with the batch's
+//!    calibrations of it aggregated in SQL ([`UPSERT_SENSORS`]) and merged
+//!    into its row by [`SENSOR_MERGE`], answering the rows.
 //!
 //! What is stored is what the writes one after the other would have stored:
 //! a sensor's summary is `count`, the least `performed_at`, the latest
 //! calibration by `(performed_at, id)` with its verdict and due date, and
 //! the last type a write assigned — each an associative fold, so folding
-//! the batch first and then applying the fold to the stored row is the same
-//! as applying each write in turn. A key named twice in one batch, or
+//! the batch first and then merging the fold into the stored row is the
+//! same as merging each write in turn. A key named twice in one batch, or
 //! completed by another request between the look and the completion, ends
 //! the batch as [`Outcome::Raced`]: the writer rolls it back and stores each
 //! write alone, where those cases are decided one at a time.
 
-use std::collections::{BTreeMap, HashMap, HashSet};
+use std::collections::{HashMap, HashSet};
+use std::sync::LazyLock;
 
 use deadpool_postgres::Transaction;
 use time::OffsetDateTime;
@@ -34,14 +36,17 @@ use uuid::Uuid;
 use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
-use crate::store::{IdempotencyKey, SENSOR_MERGE, StoreError, Stored};
+use crate::store::{
+    IdempotencyKey, NEWEST_FIRST, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError, Stored,
+};
 
 /// What writing a batch inside an open transaction came to.
 #[derive(Debug)]
 pub enum Outcome {
     /// Each write's answer, in the batch's order (stored once the
-    /// transaction commits), and the sensors whose rows changed.
-    Stored(Vec<Stored>, Option<Changed>),
+    /// transaction commits) with its sensor's row as the batch left it,
+    /// and the sensors whose rows changed.
+    Stored(Vec<(Stored, Option<SensorRow>)>, Option<Changed>),
     /// A key was named twice, or completed by another request meanwhile:
     /// the transaction must be rolled back.
     Raced,
@@ -57,67 +62,30 @@ pub struct Changed {
     pub sensors: Vec<String>,
 }
 
-/// One sensor's summary of the batch's writes of it, in the batch's order.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Fold<'a> {
-    /// How many.
-    pub count: i64,
-    /// The least `performed_at`.
-    pub first: OffsetDateTime,
-    /// The latest by `(performed_at, id)`.
-    pub latest: (OffsetDateTime, Uuid),
-    /// The latest one's verdict.
-    pub verdict: Option<&'a str>,
-    /// The latest one's due date.
-    pub due_at: Option<OffsetDateTime>,
-    /// The last type a write assigned, if any did.
-    pub assigned: Option<&'a str>,
-}
-
-/// Folds `rows` (in the batch's order) into one summary per sensor.
-///
-/// For sensor `s` with writes `w₁ … wₖ` of it, in order:
-/// `count = k`, `first = min performed_at`,
-/// `latest = max (performed_at, id)` (with that write's verdict and due
-/// date), `assigned = the last non-null assigned type`.
-pub fn fold<'a>(rows: impl IntoIterator<Item = &'a Row>) -> BTreeMap<&'a str, Fold<'a>> {
-    let mut out: BTreeMap<&str, Fold> = BTreeMap::new();
-    for row in rows {
-        let n = row.new_calibration();
-        let at = n.performed_at.datetime();
-        let verdict = n.verdict.map(|v| v.as_str());
-        let due_at = n.due_at.map(|t| t.datetime());
-        let assigned = n.sensor_type.as_deref().filter(|_| n.assigns_type);
-        match out.get_mut(n.sensor_id.as_str()) {
-            None => {
-                out.insert(
-                    &n.sensor_id,
-                    Fold {
-                        count: 1,
-                        first: at,
-                        latest: (at, n.id),
-                        verdict,
-                        due_at,
-                        assigned,
-                    },
-                );
-            }
-            Some(f) => {
-                f.count += 1;
-                f.first = f.first.min(at);
-                if (at, n.id) > f.latest {
-                    f.latest = (at, n.id);
-                    f.verdict = verdict;
-                    f.due_at = due_at;
-                }
-                if assigned.is_some() {
-                    f.assigned = assigned;
-                }
-            }
-        }
-    }
-    out
-}
+/// The batch's calibrations (`$1`, in the batch's order, each with the
+/// type it assigns, `$2`) aggregated per sensor — the count, the least
+/// `performed_at`, the latest by [`NEWEST_FIRST`] with its verdict and due
+/// date, the last type assigned — and merged into the sensors' rows, in
+/// sensor order (so that two replicas' batches take the rows' locks in one
+/// order); answers the rows and the connection's backend process.
+static UPSERT_SENSORS: LazyLock<String> = LazyLock::new(|| {
+    let latest = |column: &str| format!("(array_agg(c.{column} {NEWEST_FIRST}))[1]");
+    format!(
+        "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
+         latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
+         SELECT c.sensor_id, count(*), min(c.performed_at), {}, {}, \
+           (array_agg(w.assigned ORDER BY w.position DESC) FILTER (WHERE w.assigned IS NOT NULL))[1], \
+           {}, {} \
+         FROM unnest($1::uuid[], $2::text[]) WITH ORDINALITY AS w(id, assigned, position) \
+         JOIN calibrations c ON c.id = w.id \
+         GROUP BY c.sensor_id ORDER BY c.sensor_id \
+         {SENSOR_MERGE} {SENSOR_ROW}, pg_backend_pid() AS pid",
+        latest("performed_at"),
+        latest("id"),
+        latest("verdict"),
+        latest("due_at"),
+    )
+});
 
 /// Writes `batch` (calibration, key) in `tx`; see the module's steps.
 pub async fn write(
@@ -166,12 +134,11 @@ pub async fn write(
         .filter(|(_, a)| a.is_none())
         .map(|(w, _)| *w)
         .collect();
-    let answers = answers
-        .into_iter()
-        .map(|a| a.unwrap_or(Stored::New))
-        .collect();
     if to_write.is_empty() {
-        return Ok(Outcome::Stored(answers, None));
+        let answers = answers
+            .into_iter()
+            .map(|a| (a.unwrap_or(Stored::New), None));
+        return Ok(Outcome::Stored(answers.collect(), None));
     }
 
     // 2. The calibrations.
@@ -188,9 +155,16 @@ pub async fn write(
     }
 
     // 4. The sensors' summaries.
-    let folds = fold(rows);
-    let pid = upsert_sensors(tx, &folds).await?;
-    let sensors = folds.keys().map(|s| (*s).to_owned()).collect();
+    let (pid, merged) = upsert_sensors(tx, &rows).await?;
+    let answers = batch
+        .iter()
+        .zip(answers)
+        .map(|((row, _), a)| match a {
+            Some(existing) => (existing, None),
+            None => (Stored::New, merged.get(row.sensor_id()).cloned()),
+        })
+        .collect();
+    let sensors = merged.into_keys().collect();
     Ok(Outcome::Stored(answers, Some(Changed { pid, sensors })))
 }
 
@@ -295,47 +269,35 @@ async fn complete_keys(
         .map_err(map)
 }
 
-/// Applies each sensor's fold to its stored summary (or creates it), by
-/// the rules of one write's upsert ([`SENSOR_MERGE`]); answers the
-/// connection's backend process id.
+/// Merges the batch's calibrations `rows` (in the batch's order) into
+/// their sensors' rows ([`UPSERT_SENSORS`]); answers the connection's
+/// backend process id and each sensor's row as it left it.
 async fn upsert_sensors(
     tx: &Transaction<'_>,
-    folds: &BTreeMap<&str, Fold<'_>>,
-) -> Result<i32, StoreError> {
-    let upsert = tx
-        .prepare_cached(&format!(
-            "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
-             latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-             SELECT * FROM unnest($1::text[], $2::int8[], $3::timestamptz[], $4::timestamptz[], \
-               $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) {SENSOR_MERGE} \
-             RETURNING pg_backend_pid() AS pid"
-        ))
-        .await
-        .map_err(map)?;
-    // In sensor order (the map's), so that two replicas' batches take the
-    // sensors' row locks in one order.
-    let sensors: Vec<&str> = folds.keys().copied().collect();
-    let counts: Vec<i64> = folds.values().map(|f| f.count).collect();
-    let first: Vec<OffsetDateTime> = folds.values().map(|f| f.first).collect();
-    let latest_at: Vec<OffsetDateTime> = folds.values().map(|f| f.latest.0).collect();
-    let latest_id: Vec<Uuid> = folds.values().map(|f| f.latest.1).collect();
-    let types: Vec<Option<&str>> = folds.values().map(|f| f.assigned).collect();
-    let verdicts: Vec<Option<&str>> = folds.values().map(|f| f.verdict).collect();
-    let due: Vec<Option<OffsetDateTime>> = folds.values().map(|f| f.due_at).collect();
-    let upserted = tx
-        .query(
-            &upsert,
-            &[
-                &sensors, &counts, &first, &latest_at, &latest_id, &types, &verdicts, &due,
-            ],
-        )
-        .await
-        .map_err(map)?;
-    match upserted.first() {
-        Some(row) => rows::get(row, "pid"),
-        None => Err(StoreError::corrupt(
-            "the sensors' upsert",
-            "it answered no row",
-        )),
-    }
+    rows: &[&Row],
+) -> Result<(i32, HashMap<String, SensorRow>), StoreError> {
+    let upsert = tx.prepare_cached(&UPSERT_SENSORS).await.map_err(map)?;
+    let ids: Vec<Uuid> = rows.iter().map(|r| r.new_calibration().id).collect();
+    let assigned: Vec<Option<&str>> = rows
+        .iter()
+        .map(|r| {
+            let n = r.new_calibration();
+            n.sensor_type.as_deref().filter(|_| n.assigns_type)
+        })
+        .collect();
+    let upserted = tx.query(&upsert, &[&ids, &assigned]).await.map_err(map)?;
+    let pid = match upserted.first() {
+        Some(row) => rows::get(row, "pid")?,
+        None => {
+            return Err(StoreError::corrupt(
+                "the sensors' upsert",
+                "it answered no row",
+            ));
+        }
+    };
+    let merged = upserted
+        .iter()
+        .map(|r| rows::sensor_row(r).map(|s| (s.sensor_id.clone(), s)))
+        .collect::<Result<_, _>>()?;
+    Ok((pid, merged))
 }

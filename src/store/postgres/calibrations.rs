@@ -13,17 +13,20 @@
 //! first's lock and finds the key completed, so it writes nothing.
 
 use std::sync::LazyLock;
+use std::time::Instant;
 
+use async_trait::async_trait;
 use bytes::Bytes;
 use deadpool_postgres::{Object, Transaction};
 use uuid::Uuid;
 
+use super::PostgresStore;
 use super::errors::map;
 use super::rows::{self, RECORD_COLUMNS, SUMMARY_COLUMNS};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration, SENSOR_MERGE,
-    Series, StoreError, Stored, StoredSubmission,
+    CalibrationSummary, Calibrations, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration,
+    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission, observe,
 };
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
@@ -98,8 +101,8 @@ impl Row {
 
 /// What writing one calibration inside an open transaction came to.
 pub enum Written {
-    /// Stored (once the transaction commits).
-    New,
+    /// Stored (once the transaction commits), leaving its sensor's row so.
+    New(SensorRow),
     /// The key was already completed by this calibration: nothing written.
     Existing(Uuid),
     /// Another request completed the key between this one's look at it and
@@ -209,25 +212,26 @@ pub async fn write(
         .prepare_cached(&format!(
             "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
              latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-             VALUES ($1, 1, $2, $2, $3, $4, $5, $6) {SENSOR_MERGE}"
+             VALUES ($1, 1, $2, $2, $3, $4, $5, $6) {SENSOR_MERGE} {SENSOR_ROW}"
         ))
         .await
         .map_err(map)?;
     let assigned = n.sensor_type.as_ref().filter(|_| n.assigns_type);
-    tx.execute(
-        &sensor,
-        &[
-            &n.sensor_id,
-            &performed_at,
-            &n.id,
-            &assigned,
-            &verdict,
-            &due_at,
-        ],
-    )
-    .await
-    .map_err(map)?;
-    Ok(Written::New)
+    let merged = tx
+        .query_one(
+            &sensor,
+            &[
+                &n.sensor_id,
+                &performed_at,
+                &n.id,
+                &assigned,
+                &verdict,
+                &due_at,
+            ],
+        )
+        .await
+        .map_err(map)?;
+    Ok(Written::New(rows::sensor_row(&merged)?))
 }
 
 /// Stores one calibration, its sensor's summary and its key in a
@@ -239,16 +243,16 @@ pub async fn insert(
     client: &mut Object,
     row: &Row,
     key: Option<&IdempotencyKey>,
-) -> Result<Stored, StoreError> {
+) -> Result<(Stored, Option<SensorRow>), StoreError> {
     let tx = client.transaction().await.map_err(map)?;
     match write(&tx, row, key).await? {
-        Written::New => {
+        Written::New(sensor) => {
             tx.commit().await.map_err(map)?;
-            Ok(Stored::New)
+            Ok((Stored::New, Some(sensor)))
         }
         Written::Existing(id) => {
             tx.rollback().await.map_err(map)?;
-            Ok(Stored::Existing(id))
+            Ok((Stored::Existing(id), None))
         }
         Written::Raced => {
             tx.rollback().await.map_err(map)?;
@@ -262,68 +266,12 @@ pub async fn insert(
                 .await
                 .map_err(map)?;
             let existing: Option<Uuid> = rows::get(&row, "calibration_id")?;
-            existing.map(Stored::Existing).ok_or_else(|| {
+            let existing = existing.ok_or_else(|| {
                 StoreError::corrupt("idempotency key", "completed without a calibration")
-            })
+            })?;
+            Ok((Stored::Existing(existing), None))
         }
     }
-}
-
-/// The stored result document.
-pub async fn result(client: &Object, id: Uuid) -> Result<Option<Bytes>, StoreError> {
-    let stmt = client
-        .prepare_cached("SELECT result FROM calibrations WHERE id = $1")
-        .await
-        .map_err(map)?;
-    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
-    row.map(|r| rows::get::<String>(&r, "result").map(Bytes::from))
-        .transpose()
-}
-
-/// The stored submission.
-pub async fn submission(client: &Object, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
-    let stmt = client
-        .prepare_cached("SELECT content_type, submission FROM calibrations WHERE id = $1")
-        .await
-        .map_err(map)?;
-    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
-    row.map(|r| {
-        Ok(StoredSubmission {
-            content_type: rows::get(&r, "content_type")?,
-            body: Bytes::from(rows::get::<Vec<u8>>(&r, "submission")?),
-        })
-    })
-    .transpose()
-}
-
-/// One calibration's summary.
-pub async fn summary(client: &Object, id: Uuid) -> Result<Option<CalibrationSummary>, StoreError> {
-    let sql = format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = $1");
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
-    row.as_ref().map(rows::summary).transpose()
-}
-
-/// A sensor's calibrations, newest `performed_at` first (ties: larger id).
-pub async fn history(
-    client: &Object,
-    sensor_id: &str,
-    q: &HistoryQuery,
-) -> Result<Vec<CalibrationSummary>, StoreError> {
-    let sql = format!("SELECT {SUMMARY_COLUMNS} {}", *HISTORY_PAGE);
-    let found = page(client, &sql, sensor_id, q).await?;
-    found.iter().map(rows::summary).collect()
-}
-
-/// The ids of the page [`history`] answers for `q`, in its order.
-pub async fn history_ids(
-    client: &Object,
-    sensor_id: &str,
-    q: &HistoryQuery,
-) -> Result<Vec<Uuid>, StoreError> {
-    let sql = format!("SELECT c.id {}", *HISTORY_PAGE);
-    let found = page(client, &sql, sensor_id, q).await?;
-    found.iter().map(|r| rows::get(r, "id")).collect()
 }
 
 /// A page of a sensor's history: newest first, within `$2..=$3`, before the
@@ -362,77 +310,175 @@ async fn page(
         .map_err(map)
 }
 
-/// A sensor's latest `limit` calibrations within `from..=to`, oldest first,
-/// and how many the window holds.
-pub async fn series(
-    client: &Object,
-    sensor_id: &str,
-    from: Option<Timestamp>,
-    to: Option<Timestamp>,
-    limit: usize,
-) -> Result<Series, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
-         WHERE c.sensor_id = $1 \
-         AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
-         AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-         {NEWEST_FIRST} LIMIT $4"
-    );
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let found = client
-        .query(
-            &stmt,
-            &[
-                &sensor_id,
-                &from.map(|t| t.datetime()),
-                &to.map(|t| t.datetime()),
-                &(limit as i64),
-            ],
-        )
-        .await
-        .map_err(map)?;
-    let in_window = found
-        .first()
-        .map_or(0, |r| r.get::<_, i64>("in_window") as usize);
-    let mut items = found
-        .iter()
-        .map(rows::summary)
-        .collect::<Result<Vec<_>, _>>()?;
-    items.reverse();
-    Ok(Series { items, in_window })
-}
+#[async_trait]
+impl Calibrations for PostgresStore {
+    /// In the writer's next batch; the sensor's cached summary is brought
+    /// up to date once it is durable.
+    async fn insert_calibration(
+        &self,
+        n: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError> {
+        let started = Instant::now();
+        let row = Row::new(n);
+        let out = match row {
+            Ok(row) => {
+                let c = CalibrationSummary::from(row.new_calibration());
+                let writer = self.writer.clone();
+                self.cache
+                    .insert_calibration(c, async move { writer.insert(row, key).await })
+                    .await
+            }
+            Err(e) => Err(e),
+        };
+        observe("insert_calibration", started, &out);
+        out
+    }
 
-/// The latest calibration of a sensor performed strictly before `before`.
-pub async fn previous(
-    client: &Object,
-    sensor_id: &str,
-    before: Timestamp,
-) -> Result<Option<CalibrationSummary>, StoreError> {
-    let sql = format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND c.performed_at < $2 \
-         {NEWEST_FIRST} LIMIT 1"
-    );
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let row = client
-        .query_opt(&stmt, &[&sensor_id, &before.datetime()])
-        .await
-        .map_err(map)?;
-    row.as_ref().map(rows::summary).transpose()
-}
+    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
+        op!(self, "calibration_result", |client| {
+            let stmt = client
+                .prepare_cached("SELECT result FROM calibrations WHERE id = $1")
+                .await
+                .map_err(map)?;
+            let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
+            row.map(|r| rows::get::<String>(&r, "result").map(Bytes::from))
+                .transpose()
+        })
+    }
 
-/// Whole calibrations in id order after `after` (for copying a database).
-pub async fn export(
-    client: &Object,
-    after: Option<Uuid>,
-    limit: usize,
-) -> Result<Vec<NewCalibration>, StoreError> {
-    let sql = format!(
-        "SELECT {RECORD_COLUMNS} FROM calibrations c WHERE ($1::uuid IS NULL OR c.id > $1) \
-         ORDER BY c.id LIMIT $2"
-    );
-    let found = client
-        .query(&sql, &[&after, &(limit as i64)])
-        .await
-        .map_err(map)?;
-    found.iter().map(rows::record).collect()
+    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
+        op!(self, "submission", |client| {
+            let stmt = client
+                .prepare_cached("SELECT content_type, submission FROM calibrations WHERE id = $1")
+                .await
+                .map_err(map)?;
+            let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
+            row.map(|r| {
+                Ok(StoredSubmission {
+                    content_type: rows::get(&r, "content_type")?,
+                    body: Bytes::from(rows::get::<Vec<u8>>(&r, "submission")?),
+                })
+            })
+            .transpose()
+        })
+    }
+
+    async fn calibration_summary(
+        &self,
+        id: Uuid,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        op!(self, "calibration_summary", |client| {
+            let sql = format!("SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.id = $1");
+            let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+            let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
+            row.as_ref().map(rows::summary).transpose()
+        })
+    }
+
+    async fn history(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        op!(self, "history", |client| {
+            let sql = format!("SELECT {SUMMARY_COLUMNS} {}", *HISTORY_PAGE);
+            let found = page(&client, &sql, &sensor_id, &q).await?;
+            found.iter().map(rows::summary).collect()
+        })
+    }
+
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        op!(self, "history_ids", |client| {
+            let sql = format!("SELECT c.id {}", *HISTORY_PAGE);
+            let found = page(&client, &sql, &sensor_id, &q).await?;
+            found.iter().map(|r| rows::get(r, "id")).collect()
+        })
+    }
+
+    async fn series(
+        &self,
+        sensor_id: String,
+        from: Option<Timestamp>,
+        to: Option<Timestamp>,
+        limit: usize,
+    ) -> Result<Series, StoreError> {
+        op!(self, "series", |client| {
+            let sql = format!(
+                "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
+             WHERE c.sensor_id = $1 \
+             AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
+             AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
+             {NEWEST_FIRST} LIMIT $4"
+            );
+            let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+            let found = client
+                .query(
+                    &stmt,
+                    &[
+                        &sensor_id,
+                        &from.map(|t| t.datetime()),
+                        &to.map(|t| t.datetime()),
+                        &(limit as i64),
+                    ],
+                )
+                .await
+                .map_err(map)?;
+            let in_window = found
+                .first()
+                .map_or(0, |r| r.get::<_, i64>("in_window") as usize);
+            let mut items = found
+                .iter()
+                .map(rows::summary)
+                .collect::<Result<Vec<_>, _>>()?;
+            items.reverse();
+            Ok(Series { items, in_window })
+        })
+    }
+
+    /// From the sensor's cached summary when it can tell
+    /// ([`crate::store::cache::Cache::previous_calibration`]).
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        if let Some(hit) = self.cache.previous_calibration(&sensor_id, before) {
+            return Ok(Some(hit));
+        }
+        op!(self, "previous_calibration", |client| {
+            let sql = format!(
+                "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND c.performed_at < $2 \
+             {NEWEST_FIRST} LIMIT 1"
+            );
+            let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+            let row = client
+                .query_opt(&stmt, &[&sensor_id, &before.datetime()])
+                .await
+                .map_err(map)?;
+            row.as_ref().map(rows::summary).transpose()
+        })
+    }
+
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError> {
+        op!(self, "export_calibrations", |client| {
+            let sql = format!(
+                "SELECT {RECORD_COLUMNS} FROM calibrations c WHERE ($1::uuid IS NULL OR c.id > $1) \
+             ORDER BY c.id LIMIT $2"
+            );
+            let found = client
+                .query(&sql, &[&after, &(limit as i64)])
+                .await
+                .map_err(map)?;
+            found.iter().map(rows::record).collect()
+        })
+    }
 }

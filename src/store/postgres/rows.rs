@@ -10,7 +10,7 @@ use crate::domain::auth::Role;
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
-use crate::store::{CalibrationSummary, NewCalibration, SensorSummary, StoreError};
+use crate::store::{CalibrationSummary, NewCalibration, SensorRow, SensorSummary, StoreError};
 
 /// A column of a row.
 pub fn get<'a, T: FromSql<'a>>(row: &'a Row, column: &str) -> Result<T, StoreError> {
@@ -140,6 +140,21 @@ pub fn sensor(row: &Row) -> Result<SensorSummary, StoreError> {
         due_at: optional_timestamp(row, "latest_due_at")?,
         status: Status::parse(status).ok_or_else(|| decode("status", "not a status"))?,
         latest,
+    })
+}
+
+/// A sensor's row as the sensors' upsert answers it
+/// ([`crate::store::SENSOR_ROW`]).
+pub fn sensor_row(row: &Row) -> Result<SensorRow, StoreError> {
+    Ok(SensorRow {
+        sensor_id: get(row, "sensor_id")?,
+        calibration_count: count(row, "calibration_count")?,
+        first_performed_at: timestamp(row, "first_performed_at")?,
+        latest_performed_at: timestamp(row, "latest_performed_at")?,
+        latest_calibration_id: get(row, "latest_calibration_id")?,
+        sensor_type: get(row, "sensor_type")?,
+        latest_verdict: verdict(row, "latest_verdict")?,
+        due_at: optional_timestamp(row, "latest_due_at")?,
     })
 }
 

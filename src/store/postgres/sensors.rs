@@ -1,71 +1,95 @@
 //! Sensors: the per-sensor summary kept up to date by every insert, with the
-//! status computed at query time.
+//! status computed at query time. One sensor's reads go through the sensor
+//! cache ([`crate::store::cache`]).
 
-use deadpool_postgres::Object;
+use async_trait::async_trait;
+use uuid::Uuid;
 
+use super::PostgresStore;
 use super::errors::map;
 use super::rows;
 use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{SensorQuery, SensorSummary, StoreError};
+use crate::store::{SensorQuery, SensorSummary, Sensors, StoreError};
 
-/// Sensors in id order, strictly after `after`, of a status, found by a part
-/// of their id.
-pub async fn list(client: &Object, q: &SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
-    let sql = rows::sensor_query(&format!(
-        "WHERE ($3::text IS NULL OR s.sensor_id > $3) \
-         AND ($4::text IS NULL OR {} = $4) \
-         AND ($5::text IS NULL OR strpos(lower(s.sensor_id), lower($5)) > 0) \
-         ORDER BY s.sensor_id LIMIT $6",
-        Status::sql("$1", "$2")
-    ));
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let soon = q.now.plus_seconds(DUE_SOON_DAYS * 86_400);
-    let found = client
-        .query(
-            &stmt,
-            &[
-                &q.now.datetime(),
-                &soon.datetime(),
-                &q.after,
-                &q.status.map(|s| s.as_str()),
-                &q.search,
-                &(q.limit as i64),
-            ],
-        )
-        .await
-        .map_err(map)?;
-    found.iter().map(rows::sensor).collect()
-}
+#[async_trait]
+impl Sensors for PostgresStore {
+    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
+        op!(self, "sensors", |client| {
+            let sql = rows::sensor_query(&format!(
+                "WHERE ($3::text IS NULL OR s.sensor_id > $3) \
+             AND ($4::text IS NULL OR {} = $4) \
+             AND ($5::text IS NULL OR strpos(lower(s.sensor_id), lower($5)) > 0) \
+             ORDER BY s.sensor_id LIMIT $6",
+                Status::sql("$1", "$2")
+            ));
+            let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+            let soon = q.now.plus_seconds(DUE_SOON_DAYS * 86_400);
+            let found = client
+                .query(
+                    &stmt,
+                    &[
+                        &q.now.datetime(),
+                        &soon.datetime(),
+                        &q.after,
+                        &q.status.map(|s| s.as_str()),
+                        &q.search,
+                        &(q.limit as i64),
+                    ],
+                )
+                .await
+                .map_err(map)?;
+            found.iter().map(rows::sensor).collect()
+        })
+    }
 
-/// One sensor.
-pub async fn get(
-    client: &Object,
-    sensor_id: &str,
-    now: Timestamp,
-) -> Result<Option<SensorSummary>, StoreError> {
-    let sql = rows::sensor_query("WHERE s.sensor_id = $3");
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let soon = now.plus_seconds(DUE_SOON_DAYS * 86_400);
-    let row = client
-        .query_opt(&stmt, &[&now.datetime(), &soon.datetime(), &sensor_id])
-        .await
-        .map_err(map)?;
-    row.as_ref().map(rows::sensor).transpose()
-}
+    async fn sensor(
+        &self,
+        sensor_id: String,
+        now: Timestamp,
+    ) -> Result<Option<SensorSummary>, StoreError> {
+        let read = async {
+            op!(self, "sensor", |client| {
+                let sql = rows::sensor_query("WHERE s.sensor_id = $3");
+                let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+                let soon = now.plus_seconds(DUE_SOON_DAYS * 86_400);
+                let row = client
+                    .query_opt(&stmt, &[&now.datetime(), &soon.datetime(), &sensor_id])
+                    .await
+                    .map_err(map)?;
+                row.as_ref().map(rows::sensor).transpose()
+            })
+        };
+        self.cache.sensor(&sensor_id, now, read).await
+    }
 
-/// Assigns a type to an existing sensor; whether there was one.
-pub async fn assign_type(
-    client: &Object,
-    sensor_id: &str,
-    type_id: &str,
-) -> Result<bool, StoreError> {
-    let n = client
-        .execute(
-            "UPDATE sensors SET sensor_type = $2 WHERE sensor_id = $1",
-            &[&sensor_id, &type_id],
-        )
-        .await
-        .map_err(map)?;
-    Ok(n == 1)
+    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
+        if let Some(id) = self.cache.latest_calibration_id(&sensor_id) {
+            return Ok(Some(id));
+        }
+        Ok(self
+            .sensor(sensor_id, Timestamp::now())
+            .await?
+            .map(|s| s.latest.id))
+    }
+
+    /// Drops the sensor's cached summary, whatever the database answered.
+    async fn assign_sensor_type(
+        &self,
+        sensor_id: String,
+        type_id: String,
+    ) -> Result<bool, StoreError> {
+        let out = op!(self, "assign_sensor_type", |client| {
+            let n = client
+                .execute(
+                    "UPDATE sensors SET sensor_type = $2 WHERE sensor_id = $1",
+                    &[&sensor_id, &type_id],
+                )
+                .await
+                .map_err(map)?;
+            Ok(n == 1)
+        });
+        self.cache.sensor_changed(&sensor_id);
+        out
+    }
 }

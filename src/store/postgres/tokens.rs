@@ -1,69 +1,88 @@
-//! Tokens: only the hash of each secret is stored.
+//! Tokens: only the hash of each secret is stored. Reads go through the
+//! token cache ([`crate::store::cache::tokens`]).
 
-use deadpool_postgres::Object;
+use async_trait::async_trait;
 use uuid::Uuid;
 
+use super::PostgresStore;
 use super::errors::map;
 use super::rows::{self, TOKEN_COLUMNS};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
-use crate::store::StoreError;
+use crate::store::{StoreError, Tokens};
 
-/// Stores a new token.
-pub async fn insert(client: &Object, t: &TokenRecord) -> Result<(), StoreError> {
-    client
-        .execute(
-            &format!("INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7)"),
-            &[
-                &t.id,
-                &t.secret_hash,
-                &t.role.as_str(),
-                &t.station_id,
-                &t.label,
-                &t.created_at.datetime(),
-                &t.revoked_at.map(|r| r.datetime()),
-            ],
-        )
-        .await
-        .map_err(map)?;
-    Ok(())
-}
+#[async_trait]
+impl Tokens for PostgresStore {
+    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
+        op!(self, "insert_token", |client| {
+            client
+                .execute(
+                    &format!(
+                        "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7)"
+                    ),
+                    &[
+                        &t.id,
+                        &t.secret_hash,
+                        &t.role.as_str(),
+                        &t.station_id,
+                        &t.label,
+                        &t.created_at.datetime(),
+                        &t.revoked_at.map(|r| r.datetime()),
+                    ],
+                )
+                .await
+                .map_err(map)?;
+            Ok(())
+        })
+    }
 
-/// One token by id.
-pub async fn get(client: &Object, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
-    let sql = format!("SELECT {TOKEN_COLUMNS} FROM tokens WHERE id = $1");
-    let stmt = client.prepare_cached(&sql).await.map_err(map)?;
-    let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
-    row.as_ref().map(rows::token).transpose()
-}
+    async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
+        let read = async {
+            op!(self, "token", |client| {
+                let sql = format!("SELECT {TOKEN_COLUMNS} FROM tokens WHERE id = $1");
+                let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+                let row = client.query_opt(&stmt, &[&id]).await.map_err(map)?;
+                row.as_ref().map(rows::token).transpose()
+            })
+        };
+        self.cache.token(id, read).await
+    }
 
-/// Every token, oldest first (ids are time-ordered).
-pub async fn list(client: &Object) -> Result<Vec<TokenRecord>, StoreError> {
-    let sql = format!("SELECT {TOKEN_COLUMNS} FROM tokens ORDER BY id");
-    let found = client.query(&sql, &[]).await.map_err(map)?;
-    found.iter().map(rows::token).collect()
-}
+    async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
+        op!(self, "tokens", |client| {
+            let sql = format!("SELECT {TOKEN_COLUMNS} FROM tokens ORDER BY id");
+            let found = client.query(&sql, &[]).await.map_err(map)?;
+            found.iter().map(rows::token).collect()
+        })
+    }
 
-/// Revokes an unrevoked token; whether there was one.
-pub async fn revoke(client: &Object, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
-    let n = client
-        .execute(
-            "UPDATE tokens SET revoked_at = $2 WHERE id = $1 AND revoked_at IS NULL",
-            &[&id, &at.datetime()],
-        )
-        .await
-        .map_err(map)?;
-    Ok(n == 1)
-}
+    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+        let this = self.clone();
+        let revoke = async move {
+            op!(this, "revoke_token", |client| {
+                let n = client
+                    .execute(
+                        "UPDATE tokens SET revoked_at = $2 WHERE id = $1 AND revoked_at IS NULL",
+                        &[&id, &at.datetime()],
+                    )
+                    .await
+                    .map_err(map)?;
+                Ok(n == 1)
+            })
+        };
+        self.cache.revoke_token(id, revoke).await
+    }
 
-/// Whether an unrevoked admin token exists.
-pub async fn has_admin(client: &Object) -> Result<bool, StoreError> {
-    let row = client
-        .query_one(
-            "SELECT EXISTS (SELECT 1 FROM tokens WHERE role = 'admin' AND revoked_at IS NULL)",
-            &[],
-        )
-        .await
-        .map_err(map)?;
-    Ok(row.get(0))
+    async fn has_admin_token(&self) -> Result<bool, StoreError> {
+        op!(self, "has_admin_token", |client| {
+            let row = client
+            .query_one(
+                "SELECT EXISTS (SELECT 1 FROM tokens WHERE role = 'admin' AND revoked_at IS NULL)",
+                &[],
+            )
+            .await
+            .map_err(map)?;
+            Ok(row.get(0))
+        })
+    }
 }

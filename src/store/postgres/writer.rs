@@ -51,7 +51,7 @@ use super::batch::{self, Outcome};
 use super::calibrations::{self, Row};
 use super::errors;
 use super::listen::Echoes;
-use crate::store::{IdempotencyKey, StoreError, Stored};
+use crate::store::{IdempotencyKey, SensorRow, StoreError, Stored};
 
 /// Writes waiting for the writer at most; one more is refused.
 pub const QUEUE: usize = 512;
@@ -63,11 +63,11 @@ pub const MAX_BATCH: usize = 64;
 struct Pending {
     row: Row,
     key: Option<IdempotencyKey>,
-    reply: oneshot::Sender<Result<Stored, StoreError>>,
+    reply: oneshot::Sender<Result<(Stored, Option<SensorRow>), StoreError>>,
 }
 
 impl Pending {
-    fn answer(self, out: Result<Stored, StoreError>) {
+    fn answer(self, out: Result<(Stored, Option<SensorRow>), StoreError>) {
         // The request may have gone (client away, timeout): its write
         // stands all the same.
         let _ = self.reply.send(out);
@@ -116,12 +116,13 @@ impl Writer {
     }
 
     /// Stores `row` (and completes `key`) in the next batch; answers after
-    /// its commit.
+    /// its commit, with its sensor's row as the batch left it when it was
+    /// stored.
     pub async fn insert(
         &self,
         row: Row,
         key: Option<IdempotencyKey>,
-    ) -> Result<Stored, StoreError> {
+    ) -> Result<(Stored, Option<SensorRow>), StoreError> {
         let (reply, answer) = oneshot::channel();
         let pending = Pending { row, key, reply };
         self.queue.try_send(pending).map_err(|e| match e {
@@ -228,7 +229,7 @@ async fn together(
     client: &mut Object,
     batch: &[Pending],
     echoes: Option<&Echoes>,
-) -> Result<Vec<Stored>, Failed> {
+) -> Result<Vec<(Stored, Option<SensorRow>)>, Failed> {
     let tx = client
         .transaction()
         .await

@@ -3,24 +3,27 @@
 
 use std::sync::LazyLock;
 
+use async_trait::async_trait;
 use bytes::Bytes;
 use rusqlite::{Connection, params};
 use uuid::Uuid;
 
+use super::SqliteStore;
 use super::errors::map;
 use super::rows::{self, SUMMARY_COLUMNS};
+use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    CalibrationSummary, HistoryQuery, IdempotencyKey, NewCalibration, Series, StoreError, Stored,
-    StoredSubmission,
+    CalibrationSummary, Calibrations, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration,
+    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission,
 };
-use crate::store::{NEWEST_FIRST, SENSOR_MERGE};
 
-/// The sensor's row after a calibration is stored, by [`SENSOR_MERGE`].
+/// The sensor's row after a calibration is stored, by [`SENSOR_MERGE`],
+/// answered ([`SENSOR_ROW`]).
 static UPSERT_SENSOR: LazyLock<String> = LazyLock::new(|| {
     format!(
         "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
          latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-         VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) {SENSOR_MERGE}"
+         VALUES (?1, 1, ?2, ?2, ?3, ?4, ?5, ?6) {SENSOR_MERGE} {SENSOR_ROW}"
     )
 });
 
@@ -73,12 +76,12 @@ fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
 /// transaction (the writer's savepoint, see [`super::writer`]) that the
 /// caller commits when the answer is [`Stored::New`] and rolls back
 /// otherwise: [`Stored::Existing`] has written a calibration row that must
-/// not stay.
-pub fn insert(
+/// not stay. With [`Stored::New`], the sensor's row as it left it.
+fn insert(
     tx: &Connection,
     n: NewCalibration,
     key: Option<IdempotencyKey>,
-) -> Result<Stored, StoreError> {
+) -> Result<(Stored, Option<SensorRow>), StoreError> {
     n.check()?;
     let id = n.id.to_string();
     let performed_at = n.performed_at.to_string();
@@ -137,10 +140,10 @@ pub fn insert(
             .ok_or_else(|| {
                 StoreError::corrupt("idempotency key", "vanished inside a transaction")
             })?;
-            return Ok(Stored::Existing(existing));
+            return Ok((Stored::Existing(existing), None));
         }
     }
-    rows::execute(
+    let row = rows::first(
         tx,
         &UPSERT_SENSOR,
         params![
@@ -151,61 +154,9 @@ pub fn insert(
             n.verdict.map(|v| v.as_str()),
             n.due_at.map(|t| t.to_string())
         ],
+        rows::sensor_row,
     )?;
-    Ok(Stored::New)
-}
-
-/// The stored result document.
-pub fn result(conn: &Connection, id: Uuid) -> Result<Option<Bytes>, StoreError> {
-    rows::first(
-        conn,
-        "SELECT result FROM calibrations WHERE id = ?1",
-        [id.to_string()],
-        |r| {
-            let text: String = r.get("result").map_err(map)?;
-            Ok(Bytes::from(text))
-        },
-    )
-}
-
-/// The stored submission.
-pub fn submission(conn: &Connection, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
-    rows::first(
-        conn,
-        "SELECT content_type, submission FROM calibrations WHERE id = ?1",
-        [id.to_string()],
-        |r| {
-            Ok(StoredSubmission {
-                content_type: r.get("content_type").map_err(map)?,
-                body: Bytes::from(r.get::<_, Vec<u8>>("submission").map_err(map)?),
-            })
-        },
-    )
-}
-
-/// One calibration's summary.
-pub fn summary(conn: &Connection, id: Uuid) -> Result<Option<CalibrationSummary>, StoreError> {
-    rows::first(conn, &SUMMARY, [id.to_string()], rows::summary)
-}
-
-/// A sensor's calibrations, newest `performed_at` first (ties: larger id).
-pub fn history(
-    conn: &Connection,
-    sensor_id: &str,
-    q: &HistoryQuery,
-) -> Result<Vec<CalibrationSummary>, StoreError> {
-    page(conn, &HISTORY, sensor_id, q, rows::summary)
-}
-
-/// The ids of the page [`history`] answers for `q`, in its order.
-pub fn history_ids(
-    conn: &Connection,
-    sensor_id: &str,
-    q: &HistoryQuery,
-) -> Result<Vec<Uuid>, StoreError> {
-    page(conn, &HISTORY_IDS, sensor_id, q, |row| {
-        rows::uuid(row, "id")
-    })
+    Ok((Stored::New, row))
 }
 
 /// One of the [`HISTORY_PAGE`] queries, bound to `q`.
@@ -226,73 +177,164 @@ fn page<T>(
     rows::all(conn, sql, params, decode)
 }
 
-/// A sensor's latest `limit` calibrations within `from..=to`, oldest first,
-/// and how many the window holds.
-pub fn series(
-    conn: &Connection,
-    sensor_id: &str,
-    from: Option<crate::domain::timestamp::Timestamp>,
-    to: Option<crate::domain::timestamp::Timestamp>,
-    limit: usize,
-) -> Result<Series, StoreError> {
-    let mut in_window = 0usize;
-    let mut items = rows::all(
-        conn,
-        &SERIES,
-        params![
-            sensor_id,
-            from.map(|t| t.to_string()),
-            to.map(|t| t.to_string()),
-            limit as i64
-        ],
-        |row| {
-            in_window = row.get::<_, i64>("in_window").map_err(map)? as usize;
-            rows::summary(row)
-        },
-    )?;
-    items.reverse();
-    Ok(Series { items, in_window })
-}
+#[async_trait]
+impl Calibrations for SqliteStore {
+    /// In the writer's next batch; the sensor's cached summary is brought
+    /// up to date once it is durable.
+    async fn insert_calibration(
+        &self,
+        n: NewCalibration,
+        key: Option<IdempotencyKey>,
+    ) -> Result<Stored, StoreError> {
+        n.check()?;
+        self.follow_the_file()?;
+        let this = self.clone();
+        let summary = CalibrationSummary::from(&n);
+        let write = async move {
+            this.write("insert_calibration", move |conn| {
+                let stored = insert(conn, n, key)?;
+                let keep = stored.0 == Stored::New;
+                Ok((stored, keep))
+            })
+            .await
+        };
+        self.cache.insert_calibration(summary, write).await
+    }
 
-/// The latest calibration of a sensor performed strictly before `before`.
-pub fn previous(
-    conn: &Connection,
-    sensor_id: &str,
-    before: crate::domain::timestamp::Timestamp,
-) -> Result<Option<CalibrationSummary>, StoreError> {
-    rows::first(
-        conn,
-        &PREVIOUS,
-        params![sensor_id, before.to_string()],
-        rows::summary,
-    )
-}
+    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
+        self.run("calibration_result", move |conn| {
+            rows::first(
+                conn,
+                "SELECT result FROM calibrations WHERE id = ?1",
+                [id.to_string()],
+                |r| {
+                    let text: String = r.get("result").map_err(map)?;
+                    Ok(Bytes::from(text))
+                },
+            )
+        })
+        .await
+    }
 
-/// Whole calibrations in id order after `after` (for copying a database).
-pub fn export(
-    conn: &Connection,
-    after: Option<Uuid>,
-    limit: usize,
-) -> Result<Vec<NewCalibration>, StoreError> {
-    let sql = format!(
-        "SELECT {} FROM calibrations c WHERE (?1 IS NULL OR c.id > ?1) ORDER BY c.id LIMIT ?2",
-        rows::RECORD_COLUMNS
-    );
-    rows::all(
-        conn,
-        &sql,
-        params![after.map(|a| a.to_string()), limit as i64],
-        rows::record,
-    )
-}
+    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
+        self.run("submission", move |conn| {
+            rows::first(
+                conn,
+                "SELECT content_type, submission FROM calibrations WHERE id = ?1",
+                [id.to_string()],
+                |r| {
+                    Ok(StoredSubmission {
+                        content_type: r.get("content_type").map_err(map)?,
+                        body: Bytes::from(r.get::<_, Vec<u8>>("submission").map_err(map)?),
+                    })
+                },
+            )
+        })
+        .await
+    }
 
-/// Whether the database holds no calibration, token or sensor type.
-pub fn is_empty(conn: &Connection) -> Result<bool, StoreError> {
-    conn.query_row(
-        "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
-         OR EXISTS (SELECT 1 FROM sensor_types))",
-        [],
-        |r| r.get(0),
-    )
-    .map_err(map)
+    async fn calibration_summary(
+        &self,
+        id: Uuid,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.run("calibration_summary", move |conn| {
+            rows::first(conn, &SUMMARY, [id.to_string()], rows::summary)
+        })
+        .await
+    }
+
+    async fn history(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<CalibrationSummary>, StoreError> {
+        self.run("history", move |conn| {
+            page(conn, &HISTORY, &sensor_id, &q, rows::summary)
+        })
+        .await
+    }
+
+    async fn history_ids(
+        &self,
+        sensor_id: String,
+        q: HistoryQuery,
+    ) -> Result<Vec<Uuid>, StoreError> {
+        self.run("history_ids", move |conn| {
+            page(conn, &HISTORY_IDS, &sensor_id, &q, |row| {
+                rows::uuid(row, "id")
+            })
+        })
+        .await
+    }
+
+    async fn series(
+        &self,
+        sensor_id: String,
+        from: Option<Timestamp>,
+        to: Option<Timestamp>,
+        limit: usize,
+    ) -> Result<Series, StoreError> {
+        self.run("series", move |conn| {
+            let mut in_window = 0usize;
+            let mut items = rows::all(
+                conn,
+                &SERIES,
+                params![
+                    sensor_id,
+                    from.map(|t| t.to_string()),
+                    to.map(|t| t.to_string()),
+                    limit as i64
+                ],
+                |row| {
+                    in_window = row.get::<_, i64>("in_window").map_err(map)? as usize;
+                    rows::summary(row)
+                },
+            )?;
+            items.reverse();
+            Ok(Series { items, in_window })
+        })
+        .await
+    }
+
+    /// From the sensor's cached summary when it can tell
+    /// ([`crate::store::cache::Cache::previous_calibration`]).
+    async fn previous_calibration(
+        &self,
+        sensor_id: String,
+        before: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.follow_the_file()?;
+        if let Some(hit) = self.cache.previous_calibration(&sensor_id, before) {
+            return Ok(Some(hit));
+        }
+        self.run("previous_calibration", move |conn| {
+            rows::first(
+                conn,
+                &PREVIOUS,
+                params![sensor_id, before.to_string()],
+                rows::summary,
+            )
+        })
+        .await
+    }
+
+    async fn export_calibrations(
+        &self,
+        after: Option<Uuid>,
+        limit: usize,
+    ) -> Result<Vec<NewCalibration>, StoreError> {
+        self.run("export_calibrations", move |conn| {
+            let sql = format!(
+                "SELECT {} FROM calibrations c WHERE (?1 IS NULL OR c.id > ?1) ORDER BY c.id LIMIT ?2",
+                rows::RECORD_COLUMNS
+            );
+            rows::all(
+                conn,
+                &sql,
+                params![after.map(|a| a.to_string()), limit as i64],
+                rows::record,
+            )
+        })
+        .await
+    }
 }

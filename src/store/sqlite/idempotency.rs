@@ -3,12 +3,16 @@
 //! calibration's own transaction ([`super::calibrations::insert`]),
 //! released when the request stores nothing.
 
+use async_trait::async_trait;
 use rusqlite::{Connection, params};
 
+use super::SqliteStore;
 use super::errors::map;
 use super::rows;
 use crate::domain::timestamp::Timestamp;
-use crate::store::{Claim, DoneKey, IDEMPOTENCY_RETENTION_SECONDS, IdempotencyKey, StoreError};
+use crate::store::{
+    Claim, DoneKey, IDEMPOTENCY_RETENTION_SECONDS, Idempotency, IdempotencyKey, StoreError,
+};
 
 /// What a key's row holds.
 struct KeyRow {
@@ -20,7 +24,7 @@ struct KeyRow {
 /// Claims `k` until `lease_until`; forgets keys past the retention period.
 /// Runs inside a transaction (the writer's savepoint) that the caller
 /// commits whatever the answer.
-pub fn claim(
+fn claim(
     tx: &Connection,
     k: &IdempotencyKey,
     now: Timestamp,
@@ -94,7 +98,7 @@ pub fn claim(
 
 /// Gives up a claimed key whose request stored nothing, if that request
 /// still holds its lease.
-pub fn release(conn: &Connection, k: &IdempotencyKey) -> Result<(), StoreError> {
+fn release(conn: &Connection, k: &IdempotencyKey) -> Result<(), StoreError> {
     conn.execute(
         "DELETE FROM idempotency_keys WHERE principal = ?1 AND key = ?2 \
          AND calibration_id IS NULL AND holder = ?3",
@@ -117,8 +121,27 @@ pub fn free_leases(conn: &Connection) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// Completed keys created at or after `since` (for copying a database).
-pub fn done(conn: &Connection, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
+#[async_trait]
+impl Idempotency for SqliteStore {
+    async fn claim_key(
+        &self,
+        k: IdempotencyKey,
+        now: Timestamp,
+        lease_until: Timestamp,
+    ) -> Result<Claim, StoreError> {
+        self.write("claim_key", move |conn| {
+            Ok((claim(conn, &k, now, lease_until)?, true))
+        })
+        .await
+    }
+
+    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
+        self.write("release_key", move |conn| Ok((release(conn, &key)?, true)))
+            .await
+    }
+
+    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
+        self.run("done_keys", move |conn| {
     rows::all(
         conn,
         "SELECT principal, key, request_hash, calibration_id, created_at FROM idempotency_keys \
@@ -139,11 +162,13 @@ pub fn done(conn: &Connection, since: Timestamp) -> Result<Vec<DoneKey>, StoreEr
             })
         },
     )
-}
+        })
+        .await
+    }
 
-/// Stores a completed key.
-pub fn put_done(conn: &Connection, k: &DoneKey) -> Result<(), StoreError> {
-    conn.execute(
+    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
+        self.run("put_done_key", move |conn| {
+            conn.execute(
         "INSERT INTO idempotency_keys (principal, key, request_hash, calibration_id, created_at) \
          VALUES (?1, ?2, ?3, ?4, ?5)",
         params![
@@ -155,5 +180,8 @@ pub fn put_done(conn: &Connection, k: &DoneKey) -> Result<(), StoreError> {
         ],
     )
     .map_err(map)?;
-    Ok(())
+            Ok(())
+        })
+        .await
+    }
 }

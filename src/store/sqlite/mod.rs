@@ -29,20 +29,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
 use async_trait::async_trait;
-use bytes::Bytes;
 use rusqlite::{Connection, OptionalExtension};
-use uuid::Uuid;
 
 use self::pool::Pool;
 use self::writer::Writer;
-use super::{
-    CalibrationSummary, Claim, DoneKey, HistoryQuery, IdempotencyKey, NewCalibration, SensorQuery,
-    SensorSummary, Series, Store, StoreError, Stored, StoredSubmission,
-};
-use crate::domain::sensor_types::SensorType;
-use crate::domain::session::SessionRecord;
-use crate::domain::timestamp::Timestamp;
-use crate::domain::tokens::TokenRecord;
+use super::cache::Cache;
+use super::{Database, StoreError};
 
 /// Free bytes the database's disk must have for the service to be ready,
 /// by default: room for thousands of submissions and a checkpoint.
@@ -85,6 +77,8 @@ pub struct SqliteStore {
     writer: Arc<Writer>,
     /// One permit per reader connection ([`READERS`]).
     readers: Arc<tokio::sync::Semaphore>,
+    /// Off unless [`cached`](Self::cached).
+    cache: Arc<Cache>,
 }
 
 impl SqliteStore {
@@ -113,7 +107,22 @@ impl SqliteStore {
             pool,
             writer,
             readers: Arc::new(tokio::sync::Semaphore::new(pool::READERS)),
+            cache: Arc::new(Cache::off()),
         })
+    }
+
+    /// The same store with a [`Cache`] of its own in front of its sensor
+    /// and token reads, as it serves: one process serves a SQLite file, so
+    /// every write passes through it. A clone made before shares the
+    /// database but not the cache.
+    pub fn cached(mut self) -> Self {
+        self.cache = Arc::new(Cache::new(true));
+        self
+    }
+
+    /// The cache (for tests).
+    pub fn cache(&self) -> &Cache {
+        &self.cache
     }
 
     /// The same store, ready only while its disk has `bytes` free.
@@ -127,12 +136,12 @@ impl SqliteStore {
         self.pool.opened()
     }
 
-    /// The pool's check that the file at the path is the one it serves,
-    /// for what answers without the pool (the caches in front of it): a
+    /// 503 when the file at the path is not the one served: what the cache
+    /// answers runs this first, so nothing is answered from memory that the
+    /// database no longer backs (a file removed, a backup moved over it). A
     /// good check stands for [`pool::RECHECK`].
-    pub fn file_check(&self) -> crate::store::cache::FileCheck {
-        let pool = self.pool.clone();
-        Arc::new(move || pool.check_recent())
+    fn follow_the_file(&self) -> Result<(), StoreError> {
+        self.pool.check_recent()
     }
 
     /// The database file.
@@ -186,7 +195,7 @@ impl SqliteStore {
 }
 
 #[async_trait]
-impl Store for SqliteStore {
+impl Database for SqliteStore {
     /// The database answers, and its disk has room for work: at least
     /// [`MIN_FREE_BYTES`] free (`statvfs`), and no write found it full in
     /// the last [`FULL_HOLD`].
@@ -216,199 +225,15 @@ impl Store for SqliteStore {
         .await
     }
 
-    async fn insert_calibration(
-        &self,
-        n: NewCalibration,
-        key: Option<IdempotencyKey>,
-    ) -> Result<Stored, StoreError> {
-        n.check()?;
-        self.write("insert_calibration", move |conn| {
-            let stored = calibrations::insert(conn, n, key)?;
-            let keep = stored == Stored::New;
-            Ok((stored, keep))
-        })
-        .await
-    }
-
-    async fn claim_key(
-        &self,
-        k: IdempotencyKey,
-        now: Timestamp,
-        lease_until: Timestamp,
-    ) -> Result<Claim, StoreError> {
-        self.write("claim_key", move |conn| {
-            Ok((idempotency::claim(conn, &k, now, lease_until)?, true))
-        })
-        .await
-    }
-
-    async fn release_key(&self, key: IdempotencyKey) -> Result<(), StoreError> {
-        self.write("release_key", move |conn| {
-            Ok((idempotency::release(conn, &key)?, true))
-        })
-        .await
-    }
-
-    async fn calibration_result(&self, id: Uuid) -> Result<Option<Bytes>, StoreError> {
-        self.run("calibration_result", move |conn| {
-            calibrations::result(conn, id)
-        })
-        .await
-    }
-
-    async fn submission(&self, id: Uuid) -> Result<Option<StoredSubmission>, StoreError> {
-        self.run("submission", move |conn| calibrations::submission(conn, id))
-            .await
-    }
-
-    async fn calibration_summary(
-        &self,
-        id: Uuid,
-    ) -> Result<Option<CalibrationSummary>, StoreError> {
-        self.run("calibration_summary", move |conn| {
-            calibrations::summary(conn, id)
-        })
-        .await
-    }
-
-    async fn sensors(&self, q: SensorQuery) -> Result<Vec<SensorSummary>, StoreError> {
-        self.run("sensors", move |conn| sensors::list(conn, &q))
-            .await
-    }
-
-    async fn sensor(
-        &self,
-        sensor_id: String,
-        now: Timestamp,
-    ) -> Result<Option<SensorSummary>, StoreError> {
-        self.run("sensor", move |conn| sensors::get(conn, &sensor_id, now))
-            .await
-    }
-
-    async fn series(
-        &self,
-        sensor_id: String,
-        from: Option<Timestamp>,
-        to: Option<Timestamp>,
-        limit: usize,
-    ) -> Result<Series, StoreError> {
-        self.run("series", move |conn| {
-            calibrations::series(conn, &sensor_id, from, to, limit)
-        })
-        .await
-    }
-
-    async fn previous_calibration(
-        &self,
-        sensor_id: String,
-        before: Timestamp,
-    ) -> Result<Option<CalibrationSummary>, StoreError> {
-        self.run("previous_calibration", move |conn| {
-            calibrations::previous(conn, &sensor_id, before)
-        })
-        .await
-    }
-
-    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError> {
-        self.run("put_sensor_type", move |conn| sensor_types::put(conn, &t))
-            .await
-    }
-
-    async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError> {
-        self.run("sensor_type", move |conn| sensor_types::get(conn, &type_id))
-            .await
-    }
-
-    async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError> {
-        self.run("sensor_types", |conn| sensor_types::list(conn))
-            .await
-    }
-
-    async fn assign_sensor_type(
-        &self,
-        sensor_id: String,
-        type_id: String,
-    ) -> Result<bool, StoreError> {
-        self.run("assign_sensor_type", move |conn| {
-            sensors::assign_type(conn, &sensor_id, &type_id)
-        })
-        .await
-    }
-
-    async fn history(
-        &self,
-        sensor_id: String,
-        q: HistoryQuery,
-    ) -> Result<Vec<CalibrationSummary>, StoreError> {
-        self.run("history", move |conn| {
-            calibrations::history(conn, &sensor_id, &q)
-        })
-        .await
-    }
-
-    async fn history_ids(
-        &self,
-        sensor_id: String,
-        q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError> {
-        self.run("history_ids", move |conn| {
-            calibrations::history_ids(conn, &sensor_id, &q)
-        })
-        .await
-    }
-
-    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
-        self.run("insert_token", move |conn| tokens::insert(conn, &t))
-            .await
-    }
-
-    async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError> {
-        self.run("token", move |conn| tokens::get(conn, id)).await
-    }
-
-    async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError> {
-        self.run("tokens", |conn| tokens::list(conn)).await
-    }
-
-    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
-        self.run("revoke_token", move |conn| tokens::revoke(conn, id, at))
-            .await
-    }
-
-    async fn has_admin_token(&self) -> Result<bool, StoreError> {
-        self.run("has_admin_token", |conn| tokens::has_admin(conn))
-            .await
-    }
-
-    async fn insert_session(&self, s: SessionRecord) -> Result<(), StoreError> {
-        self.run("insert_session", move |conn| sessions::insert(conn, &s))
-            .await
-    }
-
-    async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError> {
-        self.run("session", move |conn| sessions::get(conn, id_hash))
-            .await
-    }
-
-    async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError> {
-        self.run("delete_session", move |conn| {
-            sessions::delete(conn, id_hash)
-        })
-        .await
-    }
-
     async fn is_empty(&self) -> Result<bool, StoreError> {
-        self.run("is_empty", |conn| calibrations::is_empty(conn))
-            .await
-    }
-
-    async fn export_calibrations(
-        &self,
-        after: Option<Uuid>,
-        limit: usize,
-    ) -> Result<Vec<NewCalibration>, StoreError> {
-        self.run("export_calibrations", move |conn| {
-            calibrations::export(conn, after, limit)
+        self.run("is_empty", |conn| {
+            conn.query_row(
+                "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
+                 OR EXISTS (SELECT 1 FROM sensor_types))",
+                [],
+                |r| r.get(0),
+            )
+            .map_err(errors::map)
         })
         .await
     }
@@ -440,19 +265,10 @@ impl Store for SqliteStore {
         .await
     }
 
-    async fn done_keys(&self, since: Timestamp) -> Result<Vec<DoneKey>, StoreError> {
-        self.run("done_keys", move |conn| idempotency::done(conn, since))
-            .await
-    }
-
-    async fn put_done_key(&self, k: DoneKey) -> Result<(), StoreError> {
-        self.run("put_done_key", move |conn| idempotency::put_done(conn, &k))
-            .await
-    }
-
     /// `VACUUM INTO` a new file beside the database: one read transaction,
     /// so a consistent snapshot, while writes go on.
     async fn backup(&self) -> Result<Option<tempfile::NamedTempFile>, StoreError> {
+        self.follow_the_file()?;
         let dir = self
             .path()
             .parent()
@@ -480,6 +296,7 @@ impl Store for SqliteStore {
     }
 
     async fn close(&self) {
+        self.cache.close();
         let pool = self.pool.clone();
         let writer = self.writer.clone();
         let _ = tokio::task::spawn_blocking(move || {

@@ -12,7 +12,7 @@ use crate::domain::auth::Role;
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
-use crate::store::{CalibrationSummary, SensorSummary, StoreError};
+use crate::store::{CalibrationSummary, SensorRow, SensorSummary, StoreError};
 
 /// A column's value, by name (the name is the column's in errors).
 fn get<T: FromSql>(row: &Row<'_>, column: &str) -> Result<T, StoreError> {
@@ -167,6 +167,21 @@ pub fn sensor(row: &Row<'_>) -> Result<SensorSummary, StoreError> {
         due_at: optional_timestamp(row, "latest_due_at")?,
         status: decoded(row, "status", |s| Status::parse(s).ok_or("not a status"))?,
         latest,
+    })
+}
+
+/// A sensor's row as the sensors' upsert answers it
+/// ([`crate::store::SENSOR_ROW`]).
+pub fn sensor_row(row: &Row<'_>) -> Result<SensorRow, StoreError> {
+    Ok(SensorRow {
+        sensor_id: get(row, "sensor_id")?,
+        calibration_count: count(row, "calibration_count")?,
+        first_performed_at: timestamp(row, "first_performed_at")?,
+        latest_performed_at: timestamp(row, "latest_performed_at")?,
+        latest_calibration_id: uuid(row, "latest_calibration_id")?,
+        sensor_type: get(row, "sensor_type")?,
+        latest_verdict: verdict(row, "latest_verdict")?,
+        due_at: optional_timestamp(row, "latest_due_at")?,
     })
 }
 
