@@ -174,7 +174,7 @@ struct SubmitArgs {
 enum TokenCommand {
     /// Create a token and print it (once) as JSON.
     Create {
-        /// reader, station or admin.
+        /// reader, station, reviewer or admin.
         #[arg(long)]
         role: String,
         /// Bind a station token to this station id.
@@ -183,6 +183,10 @@ enum TokenCommand {
         /// A label to recognise the token by.
         #[arg(long)]
         label: Option<String>,
+        /// The name of the person who holds the token (what their
+        /// signatures print).
+        #[arg(long)]
+        holder: Option<String>,
         /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
         #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
         database: String,
@@ -212,10 +216,19 @@ pub fn main() -> ExitCode {
             role,
             station,
             label,
+            holder,
             database,
             create,
         }) => match existing(&database, create) {
-            Ok(()) => run_async(create_token(role, station, label, database)),
+            Ok(()) => run_async(create_token(
+                role,
+                TokenFlags {
+                    station,
+                    label,
+                    holder,
+                },
+                database,
+            )),
             Err(e) => {
                 eprintln!("accelcal: {e}");
                 ExitCode::from(2)
@@ -303,6 +316,7 @@ fn flags(invalid: &Invalid) -> String {
     let flag = |e: &FieldError| match e.pointer.as_str() {
         "/station_id" => "--station",
         "/label" => "--label",
+        "/holder" => "--holder",
         _ => "--role",
     };
     invalid
@@ -470,18 +484,25 @@ async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Resu
     }
 }
 
-async fn create_token(
-    role: String,
+/// `accelcal token create`'s optional flags.
+struct TokenFlags {
     station: Option<String>,
     label: Option<String>,
+    holder: Option<String>,
+}
+
+async fn create_token(
+    role: String,
+    flags_: TokenFlags,
     database: String,
 ) -> anyhow::Result<ExitCode> {
     let role = Role::parse(&role)
-        .ok_or_else(|| anyhow::anyhow!("--role must be reader, station or admin"))?;
+        .ok_or_else(|| anyhow::anyhow!("--role must be reader, station, reviewer or admin"))?;
     let request = TokenRequest {
         role,
-        station_id: station,
-        label,
+        station_id: flags_.station,
+        label: flags_.label,
+        holder: flags_.holder,
     }
     .check()
     .map_err(|invalid| anyhow::anyhow!("{}", flags(&invalid)))?;

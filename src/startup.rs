@@ -136,6 +136,7 @@ impl Application {
                 role: Role::Admin,
                 station_id: None,
                 label: Some("first admin (created at start)".into()),
+                holder: None,
             };
             let (record, created) =
                 issue(request, Timestamp::now()).context("creating the first admin token")?;

@@ -37,6 +37,9 @@ pub enum Role {
     Reader,
     /// Reader, plus submit calibrations.
     Station,
+    /// Station, plus review: approve, reject and withdraw calibrations
+    /// (issue 28), signed with the token's holder.
+    Reviewer,
     /// Everything, including token management.
     Admin,
 }
@@ -47,13 +50,14 @@ impl Role {
         match self {
             Role::Reader => "reader",
             Role::Station => "station",
+            Role::Reviewer => "reviewer",
             Role::Admin => "admin",
         }
     }
 
     /// Parses a wire name.
     pub fn parse(s: &str) -> Option<Role> {
-        [Role::Reader, Role::Station, Role::Admin]
+        [Role::Reader, Role::Station, Role::Reviewer, Role::Admin]
             .into_iter()
             .find(|r| r.as_str() == s)
     }
@@ -74,6 +78,8 @@ pub struct Principal {
     pub role: Role,
     /// The station a station token is bound to.
     pub station_id: Option<String>,
+    /// The person who holds the token, if it names one.
+    pub holder: Option<String>,
 }
 
 /// The principal id of the admin token given by configuration.
@@ -304,7 +310,9 @@ mod tests {
 
     #[test]
     fn roles_are_ordered() {
-        assert!(Role::Admin > Role::Station && Role::Station > Role::Reader);
+        assert!(Role::Admin > Role::Reviewer && Role::Reviewer > Role::Station);
+        assert!(Role::Station > Role::Reader);
+        assert_eq!(Role::parse("reviewer"), Some(Role::Reviewer));
         assert_eq!(Role::parse("station"), Some(Role::Station));
         assert_eq!(Role::parse("root"), None);
     }

@@ -9,6 +9,8 @@ pub const MAX_ID_CHARS: usize = 64;
 pub const MAX_UNIT_CHARS: usize = 32;
 /// Longest position or token label.
 pub const MAX_LABEL_CHARS: usize = 64;
+/// Longest name of a token's holder (the person behind it).
+pub const MAX_HOLDER_CHARS: usize = 128;
 /// Longest `notes`.
 pub const MAX_NOTES_CHARS: usize = 4096;
 /// Most positions in one tumble.

@@ -15,8 +15,8 @@ use utoipa::openapi::{Ref, RefOr};
 use utoipa::{PartialSchema, ToSchema};
 
 use super::limits::{
-    MAX_BATCHES, MAX_CROSS_G, MAX_GRAVITY_COMPONENT, MAX_ID_CHARS, MAX_LABEL_CHARS, MAX_OUTPUTS,
-    MAX_READING, MAX_RUNS, MAX_UNIT_CHARS,
+    MAX_BATCHES, MAX_CROSS_G, MAX_GRAVITY_COMPONENT, MAX_HOLDER_CHARS, MAX_ID_CHARS,
+    MAX_LABEL_CHARS, MAX_OUTPUTS, MAX_READING, MAX_RUNS, MAX_UNIT_CHARS,
 };
 use super::sensor_types::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR};
 
@@ -113,6 +113,11 @@ pub fn nullable_identifier() -> RefOr<Schema> {
 /// A label or `null`.
 pub fn nullable_label() -> RefOr<Schema> {
     nullable(line(MAX_LABEL_CHARS).into())
+}
+
+/// A token holder's name, or null (one line, at most 128 characters).
+pub fn nullable_holder() -> RefOr<Schema> {
+    nullable(line(MAX_HOLDER_CHARS).into())
 }
 
 /// An output unit (one line, at most 32 characters).

@@ -6,7 +6,7 @@ use uuid::Uuid;
 
 use super::auth::{self, Role};
 use super::field::{Errors, Invalid, Loc};
-use super::limits::{MAX_ID_CHARS, MAX_LABEL_CHARS};
+use super::limits::{MAX_HOLDER_CHARS, MAX_ID_CHARS, MAX_LABEL_CHARS};
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
@@ -25,6 +25,11 @@ pub struct TokenRequest {
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::nullable_label)]
     pub label: Option<String>,
+    /// The name of the person who holds the token (one line, at most 128
+    /// characters): what their signatures print.
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::nullable_holder)]
+    pub holder: Option<String>,
 }
 
 impl TokenRequest {
@@ -47,6 +52,11 @@ impl TokenRequest {
         {
             errors.add(root.key("label"), why);
         }
+        if let Some(h) = &self.holder
+            && let Err(why) = check_str(h, MAX_HOLDER_CHARS, Chars::Line)
+        {
+            errors.add(root.key("holder"), why);
+        }
         errors.finish(|| self)
     }
 }
@@ -64,6 +74,8 @@ pub struct TokenRecord {
     pub station_id: Option<String>,
     /// Free-text label.
     pub label: Option<String>,
+    /// The person who holds it.
+    pub holder: Option<String>,
     /// Creation time.
     pub created_at: Timestamp,
     /// Revocation time, if revoked.
@@ -82,6 +94,8 @@ pub struct TokenView {
     pub station_id: Option<String>,
     /// Label.
     pub label: Option<String>,
+    /// The person who holds it.
+    pub holder: Option<String>,
     /// When it was created.
     pub created_at: Timestamp,
     /// When it was revoked, if it was.
@@ -95,6 +109,7 @@ impl From<&TokenRecord> for TokenView {
             role: t.role,
             station_id: t.station_id.clone(),
             label: t.label.clone(),
+            holder: t.holder.clone(),
             created_at: t.created_at,
             revoked_at: t.revoked_at,
         }
@@ -114,6 +129,8 @@ pub struct CreatedToken {
     pub station_id: Option<String>,
     /// Label.
     pub label: Option<String>,
+    /// The person who holds it.
+    pub holder: Option<String>,
     /// When it was created.
     pub created_at: Timestamp,
 }
@@ -131,6 +148,7 @@ pub fn issue(
         role: req.role,
         station_id: req.station_id,
         label: req.label,
+        holder: req.holder,
         created_at: now,
         revoked_at: None,
     };
@@ -140,6 +158,7 @@ pub fn issue(
         role: record.role,
         station_id: record.station_id.clone(),
         label: record.label.clone(),
+        holder: record.holder.clone(),
         created_at: now,
     };
     Ok((record, created))
@@ -173,6 +192,18 @@ mod tests {
             ["/station_id", "/label"]
         );
         assert_eq!(check(r#"{"role": "root"}"#).unwrap_err(), ["/role"]);
+        // A holder names a person on one line, of any role.
+        let ok = check(r#"{"role": "reviewer", "holder": "Ana Ruiz-Pérez"}"#).unwrap();
+        assert_eq!(
+            (ok.role, ok.holder.as_deref()),
+            (Role::Reviewer, Some("Ana Ruiz-Pérez"))
+        );
+        let long = format!(r#"{{"role": "reader", "holder": "{}"}}"#, "x".repeat(129));
+        assert_eq!(check(&long).unwrap_err(), ["/holder"]);
+        assert_eq!(
+            check(r#"{"role": "reader", "holder": "a\nb"}"#).unwrap_err(),
+            ["/holder"]
+        );
         assert_eq!(check(r#"{}"#).unwrap_err(), ["/role"]);
     }
 

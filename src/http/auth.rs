@@ -80,6 +80,7 @@ pub async fn authenticate(
             id: ENV_ADMIN.to_owned(),
             role: Role::Admin,
             station_id: None,
+            holder: None,
         };
         return Ok((principal, *admin));
     }
@@ -131,6 +132,7 @@ async fn verify(
             id: record.id.simple().to_string(),
             role: record.role,
             station_id: record.station_id,
+            holder: record.holder,
         },
         auth::hash(secret),
     ))
@@ -152,6 +154,7 @@ pub async fn still_valid(
             id: ENV_ADMIN.to_owned(),
             role: Role::Admin,
             station_id: None,
+            holder: None,
         }));
     }
     let Ok(id) = uuid::Uuid::try_parse(principal_id) else {
@@ -165,6 +168,7 @@ pub async fn still_valid(
         id: record.id.simple().to_string(),
         role: record.role,
         station_id: record.station_id,
+        holder: record.holder,
     }))
 }
 

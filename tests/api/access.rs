@@ -1,5 +1,5 @@
 //! The access matrix: every endpoint (18) × {no token, malformed, revoked, reader,
-//! station, other station, admin} → the expected status.
+//! station, other station, reviewer, admin} → the expected status.
 
 use reqwest::{Method, StatusCode};
 use serde_json::{Value, json};
@@ -18,16 +18,19 @@ enum Who {
     Station,
     /// A station token bound to ST-B.
     OtherStation,
+    /// A reviewer (above a station, bound to none), with a holder.
+    Reviewer,
     Admin,
 }
 
-const EVERYONE: [Who; 7] = [
+const EVERYONE: [Who; 8] = [
     Who::NoToken,
     Who::Malformed,
     Who::Revoked,
     Who::Reader,
     Who::Station,
     Who::OtherStation,
+    Who::Reviewer,
     Who::Admin,
 ];
 
@@ -45,7 +48,7 @@ fn expected(who: Who, needs: Needs, ok: StatusCode) -> StatusCode {
     match (who, needs) {
         (NoToken | Malformed | Revoked, _) => StatusCode::UNAUTHORIZED,
         (_, Needs::Read) => ok,
-        (Station | Admin, Needs::SubmitAsA) => ok,
+        (Station | Reviewer | Admin, Needs::SubmitAsA) => ok,
         (Reader | OtherStation, Needs::SubmitAsA) => StatusCode::FORBIDDEN,
         (Admin, Needs::Admin) => ok,
         (_, Needs::Admin) => StatusCode::FORBIDDEN,
@@ -76,6 +79,17 @@ async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)]
             .status(),
         StatusCode::NO_CONTENT
     );
+    let reviewer: Value = app
+        .post(
+            "/v1/tokens",
+            ADMIN,
+            &json!({"role": "reviewer", "holder": "Ana Ruiz"}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    let reviewer = reviewer["token"].as_str().unwrap().to_owned();
     let tokens = [
         (Who::NoToken, None),
         (
@@ -92,6 +106,7 @@ async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)]
             Who::OtherStation,
             Some(app.token("station", Some("ST-B")).await),
         ),
+        (Who::Reviewer, Some(reviewer)),
         (Who::Admin, Some(app.token("admin", None).await)),
     ];
     let r = app

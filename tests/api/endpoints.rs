@@ -359,6 +359,48 @@ async fn tokens_are_created_listed_without_secrets_and_revoked(
         pointers(&problem(res, StatusCode::UNPROCESSABLE_ENTITY).await),
         ["/station_id"]
     );
+
+    // A reviewer named by its holder: shown when created and listed, kept
+    // across the store; a holder on two lines is refused, naming it.
+    let res = app
+        .post(
+            "/v1/tokens",
+            ADMIN,
+            &json!({"role": "reviewer", "holder": "Ana Ruiz-Pérez", "label": "QA"}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let reviewer: Value = res.json().await.unwrap();
+    assert_eq!(
+        (&reviewer["role"], &reviewer["holder"]),
+        (&json!("reviewer"), &json!("Ana Ruiz-Pérez"))
+    );
+    let list: Value = app.get("/v1/tokens", ADMIN).await.json().await.unwrap();
+    let listed = list["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["id"] == reviewer["id"])
+        .expect("the reviewer is listed");
+    assert_eq!(listed["holder"], "Ana Ruiz-Pérez");
+    assert_eq!(listed["role"], "reviewer");
+    assert_eq!(list["items"][0]["holder"], Value::Null);
+    let as_reviewer = reviewer["token"].as_str().unwrap();
+    assert_eq!(
+        app.get("/v1/tokens", as_reviewer).await.status(),
+        StatusCode::FORBIDDEN
+    );
+    let res = app
+        .post(
+            "/v1/tokens",
+            ADMIN,
+            &json!({"role": "reviewer", "holder": "Ana\nRuiz"}),
+        )
+        .await;
+    assert_eq!(
+        pointers(&problem(res, StatusCode::UNPROCESSABLE_ENTITY).await),
+        ["/holder"]
+    );
 }
 
 #[rstest]

@@ -100,6 +100,7 @@ async fn tokens(s: &dyn Store) {
         role: Role::Admin,
         station_id: None,
         label: Some("ops".into()),
+        holder: Some("Ana Ruiz-Pérez".into()),
         created_at: t("2026-11-22T00:00:00Z"),
         revoked_at: None,
     };
@@ -123,6 +124,20 @@ async fn tokens(s: &dyn Store) {
         Some(t("2026-11-22T01:00:00Z"))
     );
     assert!(!s.has_admin_token().await.unwrap());
+    // Every role is stored, a reviewer's too; no holder is kept as none.
+    let reviewer = TokenRecord {
+        id: Uuid::now_v7(),
+        role: Role::Reviewer,
+        holder: None,
+        label: None,
+        ..record
+    };
+    s.insert_token(reviewer.clone()).await.unwrap();
+    assert_eq!(s.token(reviewer.id).await.unwrap().unwrap(), reviewer);
+    assert!(
+        !s.has_admin_token().await.unwrap(),
+        "a reviewer is not an admin"
+    );
 }
 
 async fn idempotency(s: &dyn Store) {

@@ -123,7 +123,7 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1, 2, 3, 4, 5]);
+    assert_eq!(versions, [1, 2, 3, 4, 5, 6]);
     // Version 4: tokens' changes are notified.
     let triggers = c
         .query(
@@ -181,6 +181,7 @@ async fn postgres_replica_token_caches_follow_revocations() {
         role: Role::Reader,
         station_id: None,
         label: None,
+        holder: None,
         created_at: t("2026-11-22T00:00:00Z"),
         revoked_at: None,
     };

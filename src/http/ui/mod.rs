@@ -195,7 +195,11 @@ pub fn layout(title: &str, viewer: Option<&Viewer>, content: Markup) -> Markup {
                         }
                         @if let Some(v) = viewer {
                             div.who {
-                                span { "Signed in as " (v.principal.role) " " code { (short_id(&v.principal.id)) } }
+                                span {
+                                    "Signed in as "
+                                    @if let Some(h) = &v.principal.holder { (h) ", " }
+                                    (v.principal.role) " " code { (short_id(&v.principal.id)) }
+                                }
                                 form.inline method="post" action="/ui/logout" {
                                     input type="hidden" name="csrf" value=(v.csrf);
                                     button.link type="submit" { "Sign out" }

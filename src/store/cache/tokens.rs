@@ -142,6 +142,7 @@ mod tests {
             role: Role::Reader,
             station_id: None,
             label: None,
+            holder: None,
             created_at: Timestamp::parse("2026-01-01T00:00:00Z").unwrap(),
             revoked_at: None,
         }

@@ -16,6 +16,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0003_cheaper_writes.sql"),
     include_str!("migrations/0004_token_notify.sql"),
     include_str!("migrations/0005_imports.sql"),
+    include_str!("migrations/0006_token_holders.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -159,7 +159,8 @@ pub fn sensor_row(row: &Row) -> Result<SensorRow, StoreError> {
 }
 
 /// The columns of [`token`].
-pub const TOKEN_COLUMNS: &str = "id, secret_hash, role, station_id, label, created_at, revoked_at";
+pub const TOKEN_COLUMNS: &str =
+    "id, secret_hash, role, station_id, label, created_at, revoked_at, holder";
 
 /// A token from a row holding [`TOKEN_COLUMNS`].
 pub fn token(row: &Row) -> Result<TokenRecord, StoreError> {
@@ -170,6 +171,7 @@ pub fn token(row: &Row) -> Result<TokenRecord, StoreError> {
         role: Role::parse(role).ok_or_else(|| decode("role", "not a role"))?,
         station_id: get(row, "station_id")?,
         label: get(row, "label")?,
+        holder: get(row, "holder")?,
         created_at: timestamp(row, "created_at")?,
         revoked_at: optional_timestamp(row, "revoked_at")?,
     })

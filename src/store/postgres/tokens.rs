@@ -18,7 +18,7 @@ impl Tokens for PostgresStore {
             client
                 .execute(
                     &format!(
-                        "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7)"
+                        "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7, $8)"
                     ),
                     &[
                         &t.id,
@@ -28,6 +28,7 @@ impl Tokens for PostgresStore {
                         &t.label,
                         &t.created_at.datetime(),
                         &t.revoked_at.map(|r| r.datetime()),
+                        &t.holder,
                     ],
                 )
                 .await

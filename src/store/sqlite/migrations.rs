@@ -20,6 +20,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0006_lease_holders.sql"),
     include_str!("migrations/0007_large_columns_last.sql"),
     include_str!("migrations/0008_imports.sql"),
+    include_str!("migrations/0009_token_holders.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -186,7 +186,8 @@ pub fn sensor_row(row: &Row<'_>) -> Result<SensorRow, StoreError> {
 }
 
 /// The columns of [`token`].
-pub const TOKEN_COLUMNS: &str = "id, secret_hash, role, station_id, label, created_at, revoked_at";
+pub const TOKEN_COLUMNS: &str =
+    "id, secret_hash, role, station_id, label, created_at, revoked_at, holder";
 
 /// A token from a row holding [`TOKEN_COLUMNS`].
 pub fn token(row: &Row<'_>) -> Result<TokenRecord, StoreError> {
@@ -196,6 +197,7 @@ pub fn token(row: &Row<'_>) -> Result<TokenRecord, StoreError> {
         role: decoded(row, "role", |r| Role::parse(r).ok_or("not a role"))?,
         station_id: row.get("station_id").map_err(map)?,
         label: row.get("label").map_err(map)?,
+        holder: row.get("holder").map_err(map)?,
         created_at: timestamp(row, "created_at")?,
         revoked_at: optional_timestamp(row, "revoked_at")?,
     })

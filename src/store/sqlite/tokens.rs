@@ -18,7 +18,7 @@ impl Tokens for SqliteStore {
         self.run("insert_token", move |conn| {
             conn.execute(
                 &format!(
-                    "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7)"
+                    "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"
                 ),
                 params![
                     t.id.to_string(),
@@ -27,7 +27,8 @@ impl Tokens for SqliteStore {
                     t.station_id,
                     t.label,
                     t.created_at.to_string(),
-                    t.revoked_at.map(|r| r.to_string())
+                    t.revoked_at.map(|r| r.to_string()),
+                    t.holder
                 ],
             )
             .map_err(map)?;
