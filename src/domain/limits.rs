@@ -9,6 +9,8 @@ pub const MAX_ID_CHARS: usize = 64;
 pub const MAX_UNIT_CHARS: usize = 32;
 /// Longest position or token label.
 pub const MAX_LABEL_CHARS: usize = 64;
+/// Longest description, and longest name of an issuing laboratory.
+pub const MAX_DESCRIPTION_CHARS: usize = 256;
 /// Longest name of a token's holder (the person behind it).
 pub const MAX_HOLDER_CHARS: usize = 128;
 /// Longest `notes`.
@@ -61,6 +63,11 @@ pub const MAX_FUTURE_SECONDS: i64 = 5 * 60;
 pub const MAX_ANGLE_STD_ARCSEC: f64 = 3600.0;
 /// Largest relative uncertainty of gravity a stand may declare.
 pub const MAX_GRAVITY_REL_STD: f64 = 0.1;
+/// Local gravity values a standard may give, in m/s² (the Earth's surface
+/// spans about 9.76 to 9.84).
+pub const GRAVITY_M_S2: RangeInclusive<f64> = 9.7..=9.9;
+/// Largest uncertainty a thermometer may declare (1σ), in °C.
+pub const MAX_TEMPERATURE_STD_C: f64 = 10.0;
 /// Run temperatures accepted, in °C.
 pub const TEMPERATURE_C: RangeInclusive<f64> = -100.0..=200.0;
 /// Most outputs compensated in one request.

@@ -17,6 +17,7 @@ pub mod metrology;
 pub mod schema;
 pub mod sensor_types;
 pub mod session;
+pub mod standards;
 pub mod status;
 pub mod submission;
 pub mod text;

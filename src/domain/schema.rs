@@ -15,8 +15,9 @@ use utoipa::openapi::{Ref, RefOr};
 use utoipa::{PartialSchema, ToSchema};
 
 use super::limits::{
-    MAX_BATCHES, MAX_CROSS_G, MAX_GRAVITY_COMPONENT, MAX_HOLDER_CHARS, MAX_ID_CHARS,
-    MAX_LABEL_CHARS, MAX_OUTPUTS, MAX_READING, MAX_RUNS, MAX_UNIT_CHARS,
+    GRAVITY_M_S2, MAX_ANGLE_STD_ARCSEC, MAX_BATCHES, MAX_CROSS_G, MAX_DESCRIPTION_CHARS,
+    MAX_GRAVITY_COMPONENT, MAX_GRAVITY_REL_STD, MAX_HOLDER_CHARS, MAX_ID_CHARS, MAX_LABEL_CHARS,
+    MAX_NOTES_CHARS, MAX_OUTPUTS, MAX_READING, MAX_RUNS, MAX_TEMPERATURE_STD_C, MAX_UNIT_CHARS,
 };
 use super::sensor_types::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR};
 
@@ -262,4 +263,47 @@ pub fn interval_days() -> ObjectBuilder {
         .schema_type(SchemaType::from_iter([Type::Integer, Type::Null]))
         .minimum(Some(1.0))
         .maximum(Some(f64::from(MAX_INTERVAL_DAYS)))
+}
+
+/// A label that must be given (one line, at most 64 characters).
+pub fn label() -> ObjectBuilder {
+    line(MAX_LABEL_CHARS)
+}
+
+/// A description (one line, at most 256 characters).
+pub fn description() -> ObjectBuilder {
+    line(MAX_DESCRIPTION_CHARS)
+}
+
+/// Free text of at most 4096 characters.
+pub fn notes() -> ObjectBuilder {
+    text(MAX_NOTES_CHARS)
+}
+
+/// An optional number within `range`.
+fn optional_number(min: f64, max: f64) -> ObjectBuilder {
+    ObjectBuilder::new()
+        .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+        .minimum(Some(min))
+        .maximum(Some(max))
+}
+
+/// A tumble stand's indexing error, arcseconds, optional.
+pub fn angle_std_arcsec() -> ObjectBuilder {
+    optional_number(0.0, MAX_ANGLE_STD_ARCSEC)
+}
+
+/// A local gravity value, m/s², optional.
+pub fn gravity_m_s2() -> ObjectBuilder {
+    optional_number(*GRAVITY_M_S2.start(), *GRAVITY_M_S2.end())
+}
+
+/// A relative uncertainty of gravity, optional.
+pub fn gravity_rel_std() -> ObjectBuilder {
+    optional_number(0.0, MAX_GRAVITY_REL_STD)
+}
+
+/// A thermometer's uncertainty, °C, optional.
+pub fn temperature_std_c() -> ObjectBuilder {
+    optional_number(0.0, MAX_TEMPERATURE_STD_C)
 }

@@ -24,6 +24,7 @@ pub mod sensor_types;
 pub mod sensors;
 pub mod stability;
 pub mod stack;
+pub mod standards;
 pub mod throttle;
 pub mod tokens;
 pub mod ui;
@@ -232,6 +233,8 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(stability::report))
         .routes(routes!(sensor_types::list))
         .routes(routes!(sensor_types::get, sensor_types::put))
+        .routes(routes!(standards::list))
+        .routes(routes!(standards::get, standards::put))
         .routes(routes!(compute::identify))
         .routes(routes!(compute::fuse))
         .routes(routes!(tokens::create, tokens::list))

@@ -33,6 +33,8 @@ const PAGE: usize = 200;
 pub struct Copied {
     /// Sensor types.
     pub sensor_types: usize,
+    /// Reference standards.
+    pub standards: usize,
     /// Tokens.
     pub tokens: usize,
     /// Calibrations.
@@ -115,6 +117,15 @@ pub async fn copy(
         }
         to.put_sensor_type(t).await?;
         copied.sensor_types += 1;
+    }
+    for s in from.standards().await? {
+        let existing = to.standard(s.standard_id.clone()).await?;
+        if present(existing, &s, || format!("standard `{}`", s.standard_id))? {
+            copied.already_there += 1;
+            continue;
+        }
+        to.put_standard(s).await?;
+        copied.standards += 1;
     }
     for t in from.tokens().await? {
         let existing = to.token(t.id).await?;

@@ -29,6 +29,7 @@ pub use records::*;
 
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
+use crate::domain::standards::Standard;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 
@@ -41,19 +42,27 @@ pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
 /// hold an `Arc<dyn Store>` and bring the concerns they use into scope
 /// ([`prelude`]).
 pub trait Store:
-    Database + Calibrations + Sensors + SensorTypes + Tokens + Sessions + Idempotency
+    Database + Calibrations + Sensors + SensorTypes + Standards + Tokens + Sessions + Idempotency
 {
 }
 
 impl<T> Store for T where
-    T: Database + Calibrations + Sensors + SensorTypes + Tokens + Sessions + Idempotency
+    T: Database
+        + Calibrations
+        + Sensors
+        + SensorTypes
+        + Standards
+        + Tokens
+        + Sessions
+        + Idempotency
 {
 }
 
 /// Every concern trait, for `use crate::store::prelude::*`.
 pub mod prelude {
     pub use super::{
-        Calibrations, Database, Idempotency, SensorTypes, Sensors, Sessions, Store, Tokens,
+        Calibrations, Database, Idempotency, SensorTypes, Sensors, Sessions, Standards, Store,
+        Tokens,
     };
 }
 
@@ -63,7 +72,8 @@ pub mod prelude {
 pub trait Database: Send + Sync + 'static {
     /// Checks that the database answers.
     async fn ping(&self) -> Result<(), StoreError>;
-    /// Whether the database holds no calibration, token or sensor type.
+    /// Whether the database holds no calibration, token, sensor type or
+    /// standard.
     async fn is_empty(&self) -> Result<bool, StoreError>;
     /// The description of an `accelcal migrate` into this database that has
     /// not finished, if there is one.
@@ -172,6 +182,18 @@ pub trait SensorTypes: Send + Sync + 'static {
     async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
     /// Every sensor type, in id order.
     async fn sensor_types(&self) -> Result<Vec<SensorType>, StoreError>;
+}
+
+/// Reference standards: stands, reference accelerometers, thermometers,
+/// gravity values.
+#[async_trait]
+pub trait Standards: Send + Sync + 'static {
+    /// Creates or replaces a standard; true when it was created.
+    async fn put_standard(&self, s: Standard) -> Result<bool, StoreError>;
+    /// One standard.
+    async fn standard(&self, standard_id: String) -> Result<Option<Standard>, StoreError>;
+    /// Every standard, in id order.
+    async fn standards(&self) -> Result<Vec<Standard>, StoreError>;
 }
 
 /// Issued tokens (only the hash of each secret).

@@ -266,6 +266,17 @@ impl TestApp {
             .unwrap()
     }
 
+    /// PUT JSON with a token.
+    pub async fn put(&self, path: &str, token: &str, body: &Value) -> Response {
+        self.client
+            .put(self.url(path))
+            .bearer_auth(token)
+            .json(body)
+            .send()
+            .await
+            .unwrap()
+    }
+
     /// Submits and expects 201; returns the result.
     pub async fn submit(&self, token: &str, body: &Value) -> Value {
         let res = self.post("/v1/calibrations", token, body).await;

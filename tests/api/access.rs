@@ -1,4 +1,4 @@
-//! The access matrix: every endpoint (18) × {no token, malformed, revoked, reader,
+//! The access matrix: every endpoint (21) × {no token, malformed, revoked, reader,
 //! station, other station, reviewer, admin} → the expected status.
 
 use reqwest::{Method, StatusCode};
@@ -124,6 +124,10 @@ async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)]
         .await
         .unwrap();
     assert_eq!(created.status(), StatusCode::CREATED);
+    let stand: Value =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    let created = app.put("/v1/standards/STAND-1", ADMIN, &stand).await;
+    assert_eq!(created.status(), StatusCode::CREATED);
     let mut as_a = submission("M-2", "2026-01-01T00:00:00Z", 4);
     as_a["station_id"] = json!("ST-A");
 
@@ -230,6 +234,27 @@ async fn every_endpoint_against_every_kind_of_caller(#[values(Sqlite, Postgres)]
             Method::PUT,
             "/v1/sensor-types/NAV".into(),
             Some(nav.clone()),
+            Needs::Admin,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/standards".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::GET,
+            "/v1/standards/STAND-1".into(),
+            None,
+            Needs::Read,
+            StatusCode::OK,
+        ),
+        (
+            Method::PUT,
+            "/v1/standards/STAND-1".into(),
+            Some(stand.clone()),
             Needs::Admin,
             StatusCode::OK,
         ),

@@ -19,6 +19,7 @@ mod outage;
 mod paper;
 mod restart;
 mod round_three;
+mod standards;
 mod storage;
 mod traceability;
 mod ui;

@@ -75,6 +75,13 @@ async fn a_migrated_database_answers_every_get_identically() {
             put("/v1/sensor-types/NAV", nav).await.status(),
             StatusCode::CREATED
         );
+        let stand: Value =
+            serde_json::from_slice(&std::fs::read("examples/standard-stand.json").unwrap())
+                .unwrap();
+        assert_eq!(
+            put("/v1/standards/STAND-1", stand).await.status(),
+            StatusCode::CREATED
+        );
         let paper = std::fs::read("examples/paper-table1.json").unwrap();
         assert_eq!(
             post(paper, "application/json", None).await.status(),
@@ -147,7 +154,7 @@ async fn a_migrated_database_answers_every_get_identically() {
     let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied,
-        json!({"sensor_types": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
+        json!({"sensor_types": 1, "standards": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
     );
     let again = migrate(&from, &pg.url);
     assert_eq!(again.status.code(), Some(1));
@@ -170,6 +177,8 @@ async fn a_migrated_database_answers_every_get_identically() {
         "/v1/sensors?search=paper",
         "/v1/sensor-types",
         "/v1/sensor-types/NAV",
+        "/v1/standards",
+        "/v1/standards/STAND-1",
         "/v1/tokens",
     ]
     .map(String::from)
@@ -191,7 +200,7 @@ async fn a_migrated_database_answers_every_get_identically() {
             paths.push(format!("/v1/calibrations/{cid}/submission"));
         }
     }
-    assert_eq!(paths.len(), 6 + 2 * 4 + 3 * 2);
+    assert_eq!(paths.len(), 8 + 2 * 4 + 3 * 2);
     for path in &paths {
         let (x, y) = (get(&a.base, path).await, get(&b.base, path).await);
         assert_eq!(

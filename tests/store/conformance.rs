@@ -664,9 +664,39 @@ async fn series_and_previous(s: &dyn Store) {
     assert_eq!(ids(after_c).await, [b.id, a.id, older_id]);
 }
 
+/// Standards round-trip exactly, are listed in id order, and make a
+/// database not empty (`accelcal migrate` refuses to copy into it). Run
+/// first, on the empty store.
+async fn standards(s: &dyn Store) {
+    use accelcal::domain::standards::StandardBody;
+    let body: StandardBody =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    let stand = body.check("Z-STAND".into(), now()).unwrap();
+    assert!(s.standard("Z-STAND".into()).await.unwrap().is_none());
+    assert!(s.is_empty().await.unwrap());
+    assert!(s.put_standard(stand.clone()).await.unwrap(), "created");
+    assert_eq!(
+        s.standard("Z-STAND".into()).await.unwrap(),
+        Some(stand.clone())
+    );
+    let mut other = stand.clone();
+    other.standard_id = "A-STAND".into();
+    other.angle_std_arcsec = Some(0.25);
+    assert!(s.put_standard(other.clone()).await.unwrap());
+    let mut recalibrated = stand.clone();
+    recalibrated.due_at = t("2028-01-01T00:00:00Z");
+    assert!(
+        !s.put_standard(recalibrated.clone()).await.unwrap(),
+        "replaced"
+    );
+    assert_eq!(s.standards().await.unwrap(), [other, recalibrated]);
+    assert!(!s.is_empty().await.unwrap());
+}
+
 /// The whole suite, on a fresh, empty store.
 async fn conformance(s: Arc<dyn Store>) {
     s.ping().await.unwrap();
+    standards(s.as_ref()).await;
     calibrations_and_sensors(s.as_ref()).await;
     tokens(s.as_ref()).await;
     idempotency(s.as_ref()).await;

@@ -17,6 +17,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0004_token_notify.sql"),
     include_str!("migrations/0005_imports.sql"),
     include_str!("migrations/0006_token_holders.sql"),
+    include_str!("migrations/0007_standards.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -41,6 +41,7 @@ mod rows;
 mod sensor_types;
 mod sensors;
 mod sessions;
+mod standards;
 mod tokens;
 pub mod writer;
 
@@ -162,7 +163,7 @@ impl Database for PostgresStore {
             let row = c
                 .query_one(
                     "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
-                     OR EXISTS (SELECT 1 FROM sensor_types))",
+                     OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards))",
                     &[],
                 )
                 .await

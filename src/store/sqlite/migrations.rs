@@ -21,6 +21,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0007_large_columns_last.sql"),
     include_str!("migrations/0008_imports.sql"),
     include_str!("migrations/0009_token_holders.sql"),
+    include_str!("migrations/0010_standards.sql"),
 ];
 
 /// Brings the database to the latest schema.

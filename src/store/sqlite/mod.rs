@@ -6,7 +6,7 @@
 //! idempotency claims go through the [`writer`], which commits many in one
 //! transaction (group commit); other calls run on tokio's blocking pool over
 //! a small [`pool`] of connections. One file per
-//! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`tokens`],
+//! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`standards`], [`tokens`],
 //! [`sessions`], [`idempotency`];
 //! [`rows`] decodes rows by column name, [`errors`] maps the driver's errors.
 
@@ -20,6 +20,7 @@ mod rows;
 mod sensor_types;
 mod sensors;
 mod sessions;
+mod standards;
 mod tokens;
 pub mod writer;
 
@@ -229,7 +230,7 @@ impl Database for SqliteStore {
         self.run("is_empty", |conn| {
             conn.query_row(
                 "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
-                 OR EXISTS (SELECT 1 FROM sensor_types))",
+                 OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards))",
                 [],
                 |r| r.get(0),
             )

@@ -1,0 +1,397 @@
+//! Reference standards: the tumble stands (dividing heads), reference
+//! accelerometers, thermometers and local gravity values a laboratory
+//! calibrates with, each with the certificate that calibrated it, when it
+//! is due, the uncertainty parameters it contributes and a statement of its
+//! traceability (issue 29).
+//!
+//! A standard's uncertainty parameter depends on its kind and is required
+//! for it, refused for the others:
+//!
+//! | kind | parameter | meaning (1σ) |
+//! |---|---|---|
+//! | `tumble_stand` | `angle_std_arcsec` | indexing (angle) error of the head |
+//! | `gravity` | `gravity_m_s2`, `gravity_rel_std` | the local value of g and its relative uncertainty |
+//! | `thermometer` | `temperature_std_c` | the temperature reading's uncertainty |
+//! | `reference_accelerometer` | — | (its certificate carries its own) |
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::field::{Errors, Invalid, Loc};
+use super::limits::{
+    GRAVITY_M_S2, MAX_ANGLE_STD_ARCSEC, MAX_DESCRIPTION_CHARS, MAX_FUTURE_SECONDS,
+    MAX_GRAVITY_REL_STD, MAX_LABEL_CHARS, MAX_NOTES_CHARS, MAX_TEMPERATURE_STD_C,
+};
+use super::text::{Chars, check_str};
+use super::timestamp::Timestamp;
+
+/// What a reference standard is.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum StandardKind {
+    /// A tumble stand or dividing head.
+    TumbleStand,
+    /// A reference accelerometer.
+    ReferenceAccelerometer,
+    /// A thermometer.
+    Thermometer,
+    /// A local gravity value (a gravimetric survey's).
+    Gravity,
+}
+
+impl StandardKind {
+    /// The wire name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            StandardKind::TumbleStand => "tumble_stand",
+            StandardKind::ReferenceAccelerometer => "reference_accelerometer",
+            StandardKind::Thermometer => "thermometer",
+            StandardKind::Gravity => "gravity",
+        }
+    }
+}
+
+/// The certificate that calibrated a standard.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StandardCertificate {
+    /// The certificate's number (one line, at most 64 characters).
+    #[schema(schema_with = crate::domain::schema::label)]
+    pub number: String,
+    /// The laboratory that issued it (one line, at most 256 characters).
+    #[schema(schema_with = crate::domain::schema::description)]
+    pub issued_by: String,
+    /// When the standard was calibrated.
+    pub calibrated_at: Timestamp,
+}
+
+/// The body of `PUT /v1/standards/{standard_id}`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct StandardBody {
+    /// What it is.
+    pub kind: StandardKind,
+    /// What it is, in words (one line, at most 256 characters).
+    #[schema(schema_with = crate::domain::schema::description)]
+    pub description: String,
+    /// Its manufacturer (one line, at most 64 characters).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::nullable_label)]
+    pub manufacturer: Option<String>,
+    /// Its model (one line, at most 64 characters).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::nullable_label)]
+    pub model: Option<String>,
+    /// Its serial number (one line, at most 64 characters).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::nullable_label)]
+    pub serial: Option<String>,
+    /// The certificate that calibrated it.
+    pub certificate: StandardCertificate,
+    /// When its calibration runs out: a calibration performed after this
+    /// may not use it.
+    pub due_at: Timestamp,
+    /// A tumble stand's indexing error, arcseconds (1σ).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::angle_std_arcsec)]
+    pub angle_std_arcsec: Option<f64>,
+    /// A gravity value's g, in m/s².
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::gravity_m_s2)]
+    pub gravity_m_s2: Option<f64>,
+    /// A gravity value's relative uncertainty (1σ).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::gravity_rel_std)]
+    pub gravity_rel_std: Option<f64>,
+    /// A thermometer's uncertainty, °C (1σ).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::temperature_std_c)]
+    pub temperature_std_c: Option<f64>,
+    /// How its values are traceable to the SI (free text, at most 4096
+    /// characters): the chain of calibrations up to a national institute.
+    #[schema(schema_with = crate::domain::schema::notes)]
+    pub traceability: String,
+}
+
+/// A reference standard as stored and served.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Standard {
+    /// Its id.
+    pub standard_id: String,
+    /// What it is.
+    pub kind: StandardKind,
+    /// What it is, in words.
+    pub description: String,
+    /// Its manufacturer.
+    pub manufacturer: Option<String>,
+    /// Its model.
+    pub model: Option<String>,
+    /// Its serial number.
+    pub serial: Option<String>,
+    /// The certificate that calibrated it.
+    pub certificate: StandardCertificate,
+    /// When its calibration runs out.
+    pub due_at: Timestamp,
+    /// A tumble stand's indexing error, arcseconds (1σ).
+    pub angle_std_arcsec: Option<f64>,
+    /// A gravity value's g, in m/s².
+    pub gravity_m_s2: Option<f64>,
+    /// A gravity value's relative uncertainty (1σ).
+    pub gravity_rel_std: Option<f64>,
+    /// A thermometer's uncertainty, °C (1σ).
+    pub temperature_std_c: Option<f64>,
+    /// How its values are traceable to the SI.
+    pub traceability: String,
+    /// When it was last written.
+    pub updated_at: Timestamp,
+}
+
+/// One kind-specific parameter: its name, value, the kind that has it
+/// and its accepted range.
+struct Parameter {
+    name: &'static str,
+    value: Option<f64>,
+    kind: StandardKind,
+    range: std::ops::RangeInclusive<f64>,
+    unit: &'static str,
+}
+
+impl StandardBody {
+    /// Checks the body and makes the standard `standard_id` of it, written
+    /// at `now`; every problem is reported.
+    pub fn check(self, standard_id: String, now: Timestamp) -> Result<Standard, Invalid> {
+        let root = Loc::Root;
+        let mut errors = Errors::default();
+        let mut line = |at: Loc, value: &str, max: usize| {
+            if let Err(why) = check_str(value, max, Chars::Line) {
+                errors.add(at, why);
+            }
+        };
+        line(
+            root.key("description"),
+            &self.description,
+            MAX_DESCRIPTION_CHARS,
+        );
+        for (name, value) in [
+            ("manufacturer", &self.manufacturer),
+            ("model", &self.model),
+            ("serial", &self.serial),
+        ] {
+            if let Some(v) = value {
+                line(root.key(name), v, MAX_LABEL_CHARS);
+            }
+        }
+        let cert = root.key("certificate");
+        line(
+            cert.key("number"),
+            &self.certificate.number,
+            MAX_LABEL_CHARS,
+        );
+        line(
+            cert.key("issued_by"),
+            &self.certificate.issued_by,
+            MAX_DESCRIPTION_CHARS,
+        );
+        if let Err(why) = check_str(&self.traceability, MAX_NOTES_CHARS, Chars::Text) {
+            errors.add(root.key("traceability"), why);
+        }
+        let calibrated = self.certificate.calibrated_at;
+        if calibrated > now.plus_seconds(MAX_FUTURE_SECONDS) {
+            errors.add(
+                cert.key("calibrated_at"),
+                format!(
+                    "is in the future ({calibrated}): a standard is calibrated before it is used"
+                ),
+            );
+        }
+        if self.due_at <= calibrated {
+            errors.add(
+                root.key("due_at"),
+                format!(
+                    "must be after the certificate's `calibrated_at` ({calibrated}), not {}",
+                    self.due_at
+                ),
+            );
+        }
+        let parameters = [
+            Parameter {
+                name: "angle_std_arcsec",
+                value: self.angle_std_arcsec,
+                kind: StandardKind::TumbleStand,
+                range: 0.0..=MAX_ANGLE_STD_ARCSEC,
+                unit: " arcsec",
+            },
+            Parameter {
+                name: "gravity_m_s2",
+                value: self.gravity_m_s2,
+                kind: StandardKind::Gravity,
+                range: GRAVITY_M_S2,
+                unit: " m/s²",
+            },
+            Parameter {
+                name: "gravity_rel_std",
+                value: self.gravity_rel_std,
+                kind: StandardKind::Gravity,
+                range: 0.0..=MAX_GRAVITY_REL_STD,
+                unit: "",
+            },
+            Parameter {
+                name: "temperature_std_c",
+                value: self.temperature_std_c,
+                kind: StandardKind::Thermometer,
+                range: 0.0..=MAX_TEMPERATURE_STD_C,
+                unit: " °C",
+            },
+        ];
+        for p in &parameters {
+            let at = root.key(p.name);
+            match (p.value, p.kind == self.kind) {
+                (None, true) => errors.add(
+                    at,
+                    format!("is required for a `{}` standard", self.kind.as_str()),
+                ),
+                (Some(_), false) => errors.add(
+                    at,
+                    format!(
+                        "belongs to a `{}` standard, not a `{}` one",
+                        p.kind.as_str(),
+                        self.kind.as_str()
+                    ),
+                ),
+                (Some(v), true) if !p.range.contains(&v) => errors.add(
+                    at,
+                    format!(
+                        "must be from {}{unit} to {}{unit}, not {v}",
+                        p.range.start(),
+                        p.range.end(),
+                        unit = p.unit
+                    ),
+                ),
+                _ => {}
+            }
+        }
+        errors.finish(|| Standard {
+            standard_id,
+            kind: self.kind,
+            description: self.description,
+            manufacturer: self.manufacturer,
+            model: self.model,
+            serial: self.serial,
+            certificate: self.certificate,
+            due_at: self.due_at,
+            angle_std_arcsec: self.angle_std_arcsec,
+            gravity_m_s2: self.gravity_m_s2,
+            gravity_rel_std: self.gravity_rel_std,
+            temperature_std_c: self.temperature_std_c,
+            traceability: self.traceability,
+            updated_at: now,
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::typed::{BodyError, from_json};
+    use serde_json::{Value, json};
+
+    fn now() -> Timestamp {
+        Timestamp::parse("2026-11-25T00:00:00Z").unwrap()
+    }
+
+    fn stand() -> Value {
+        json!({
+            "kind": "tumble_stand",
+            "description": "Two-axis dividing head, 0.1 arcsec encoder",
+            "manufacturer": "Ideal Aerosmith",
+            "model": "2102",
+            "serial": "SN-4411",
+            "certificate": {"number": "CAL-2026-0117", "issued_by": "National Metrology Lab", "calibrated_at": "2026-01-17T00:00:00Z"},
+            "due_at": "2027-01-17T00:00:00Z",
+            "angle_std_arcsec": 2.5,
+            "traceability": "Angle traceable to the SI through NML's autocollimator (CAL-2026-0117)."
+        })
+    }
+
+    fn check(body: &Value) -> Result<Standard, Vec<String>> {
+        from_json::<StandardBody>(body.to_string().as_bytes())
+            .map_err(|e| match e {
+                BodyError::Invalid(i) => i,
+                BodyError::Syntax(s) => panic!("{s}"),
+            })
+            .and_then(|b| b.check("STAND-1".into(), now()))
+            .map_err(|i| i.errors.into_iter().map(|e| e.pointer).collect())
+    }
+
+    #[test]
+    fn a_stand_is_kept_as_given() {
+        let s = check(&stand()).unwrap();
+        assert_eq!(s.standard_id, "STAND-1");
+        assert_eq!(s.kind, StandardKind::TumbleStand);
+        assert_eq!(s.angle_std_arcsec, Some(2.5));
+        assert_eq!(s.certificate.number, "CAL-2026-0117");
+        assert_eq!(s.updated_at, now());
+    }
+
+    /// Each kind's parameter is required for it and refused for the others.
+    #[test]
+    fn a_kinds_parameters_are_its_own() {
+        let mut no_angle = stand();
+        no_angle.as_object_mut().unwrap().remove("angle_std_arcsec");
+        assert_eq!(check(&no_angle).unwrap_err(), ["/angle_std_arcsec"]);
+        let mut stray = stand();
+        stray["gravity_rel_std"] = json!(1e-6);
+        assert_eq!(check(&stray).unwrap_err(), ["/gravity_rel_std"]);
+        let mut gravity = stand();
+        gravity["kind"] = json!("gravity");
+        gravity.as_object_mut().unwrap().remove("angle_std_arcsec");
+        assert_eq!(
+            check(&gravity).unwrap_err(),
+            ["/gravity_m_s2", "/gravity_rel_std"]
+        );
+        gravity["gravity_m_s2"] = json!(9.80665);
+        gravity["gravity_rel_std"] = json!(2e-7);
+        assert_eq!(check(&gravity).unwrap().gravity_m_s2, Some(9.80665));
+        let mut thermometer = gravity.clone();
+        thermometer["kind"] = json!("thermometer");
+        assert_eq!(
+            check(&thermometer).unwrap_err(),
+            ["/gravity_m_s2", "/gravity_rel_std", "/temperature_std_c"]
+        );
+        let mut reference = stand();
+        reference["kind"] = json!("reference_accelerometer");
+        reference
+            .as_object_mut()
+            .unwrap()
+            .remove("angle_std_arcsec");
+        assert!(check(&reference).is_ok());
+    }
+
+    /// Ranges, dates and text are checked, each problem named.
+    #[test]
+    fn values_out_of_range_and_impossible_dates_are_named() {
+        let mut bad = stand();
+        bad["angle_std_arcsec"] = json!(-1);
+        bad["due_at"] = json!("2026-01-17T00:00:00Z");
+        bad["certificate"]["calibrated_at"] = json!("2026-01-17T00:00:00Z");
+        bad["serial"] = json!("a\u{7}");
+        bad["traceability"] = json!("");
+        assert_eq!(
+            check(&bad).unwrap_err(),
+            ["/serial", "/traceability", "/due_at", "/angle_std_arcsec"]
+        );
+        let mut future = stand();
+        future["certificate"]["calibrated_at"] = json!("2026-12-01T00:00:00Z");
+        future["due_at"] = json!("2027-12-01T00:00:00Z");
+        assert_eq!(check(&future).unwrap_err(), ["/certificate/calibrated_at"]);
+        let mut gravity = stand();
+        gravity["kind"] = json!("gravity");
+        gravity.as_object_mut().unwrap().remove("angle_std_arcsec");
+        gravity["gravity_m_s2"] = json!(9.0);
+        gravity["gravity_rel_std"] = json!(0.5);
+        assert_eq!(
+            check(&gravity).unwrap_err(),
+            ["/gravity_m_s2", "/gravity_rel_std"]
+        );
+    }
+}
