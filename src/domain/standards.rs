@@ -142,8 +142,160 @@ pub struct Standard {
     pub temperature_std_c: Option<f64>,
     /// How its values are traceable to the SI.
     pub traceability: String,
+    /// Its earlier certificates, newest first, each with the due date it
+    /// set: kept when a `PUT` brings a new certificate, so that a test
+    /// performed under an earlier one is still judged by it.
+    #[serde(default)]
+    pub earlier: Vec<CertificatePeriod>,
     /// When it was last written.
     pub updated_at: Timestamp,
+}
+
+/// A certificate and the due date it set: the period a standard was in
+/// calibration by it, `calibrated_at` to `due_at`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct CertificatePeriod {
+    /// The certificate.
+    pub certificate: StandardCertificate,
+    /// The due date it set.
+    pub due_at: Timestamp,
+}
+
+impl Standard {
+    /// This standard as written over `before` (the record it replaces, if
+    /// any): `before`'s certificate joins the earlier ones when this one's
+    /// differs.
+    pub fn replacing(mut self, before: Option<Standard>) -> Standard {
+        if let Some(b) = before {
+            self.earlier = b.earlier;
+            if b.certificate != self.certificate {
+                self.earlier.insert(
+                    0,
+                    CertificatePeriod {
+                        certificate: b.certificate,
+                        due_at: b.due_at,
+                    },
+                );
+            }
+        }
+        self
+    }
+
+    /// Whether a test performed at `at` may use this standard: `at` lies
+    /// within a period of calibration, `calibrated_at ≤ at ≤ due_at`, of its
+    /// certificate or an earlier one. `Err` says why not.
+    pub fn in_calibration_at(
+        &self,
+        at: Timestamp,
+    ) -> Result<(&StandardCertificate, Timestamp), String> {
+        let current = std::iter::once((&self.certificate, self.due_at));
+        let earlier = self.earlier.iter().map(|p| (&p.certificate, p.due_at));
+        if let Some(period) = current
+            .chain(earlier)
+            .find(|(c, due)| c.calibrated_at <= at && at <= *due)
+        {
+            return Ok(period);
+        }
+        let first = self
+            .earlier
+            .last()
+            .map_or(&self.certificate, |p| &p.certificate);
+        Err(if at < first.calibrated_at {
+            format!(
+                "standard `{}` was first calibrated on {} (certificate {}); a test performed \
+                 at {at} cannot have used it in calibration",
+                self.standard_id, first.calibrated_at, first.number
+            )
+        } else if at > self.due_at {
+            format!(
+                "standard `{}` was due on {} (certificate {}); a test performed at {at} used it \
+                 out of calibration — recalibrate it and record the new certificate \
+                 (PUT /v1/standards/{}), then repeat the test",
+                self.standard_id, self.due_at, self.certificate.number, self.standard_id
+            )
+        } else {
+            format!(
+                "standard `{}` was out of calibration at {at}: between the due date of one \
+                 certificate and the calibration of the next; repeat the test",
+                self.standard_id
+            )
+        })
+    }
+}
+
+/// A standard as a calibration used it: in its role, with the certificate
+/// it was in calibration by when the test was performed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct UsedStandard {
+    /// `stand`, `thermometer` or `gravity`.
+    pub role: String,
+    /// Its id.
+    pub standard_id: String,
+    /// What it is.
+    pub kind: StandardKind,
+    /// What it is, in words.
+    pub description: String,
+    /// Its serial number.
+    pub serial: Option<String>,
+    /// The certificate in force when the test was performed.
+    pub certificate: StandardCertificate,
+    /// The due date that certificate set.
+    pub due_at: Timestamp,
+    /// A stand's indexing error, arcseconds (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_std_arcsec: Option<f64>,
+    /// A gravity value's g, m/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity_m_s2: Option<f64>,
+    /// A gravity value's relative uncertainty (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity_rel_std: Option<f64>,
+    /// A thermometer's uncertainty, °C (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_std_c: Option<f64>,
+    /// Its statement of traceability.
+    pub traceability: String,
+}
+
+/// The kind a submission's `standards.<role>` must name.
+pub fn kind_for_role(role: &str) -> Option<StandardKind> {
+    match role {
+        "stand" => Some(StandardKind::TumbleStand),
+        "thermometer" => Some(StandardKind::Thermometer),
+        "gravity" => Some(StandardKind::Gravity),
+        _ => None,
+    }
+}
+
+impl Standard {
+    /// This standard used in `role` by a test performed at `at`: `Err`
+    /// (why) when it is not of the role's kind or not in calibration then.
+    pub fn used_as(&self, role: &str, at: Timestamp) -> Result<UsedStandard, String> {
+        let wanted = kind_for_role(role);
+        if wanted != Some(self.kind) {
+            return Err(format!(
+                "standard `{}` is a `{}`, not a `{}`",
+                self.standard_id,
+                self.kind.as_str(),
+                wanted.map_or(role.to_owned(), |k| k.as_str().to_owned())
+            ));
+        }
+        let (certificate, due_at) = self.in_calibration_at(at)?;
+        Ok(UsedStandard {
+            role: role.to_owned(),
+            standard_id: self.standard_id.clone(),
+            kind: self.kind,
+            description: self.description.clone(),
+            serial: self.serial.clone(),
+            certificate: certificate.clone(),
+            due_at,
+            angle_std_arcsec: self.angle_std_arcsec,
+            gravity_m_s2: self.gravity_m_s2,
+            gravity_rel_std: self.gravity_rel_std,
+            temperature_std_c: self.temperature_std_c,
+            traceability: self.traceability.clone(),
+        })
+    }
 }
 
 /// One kind-specific parameter: its name, value, the kind that has it
@@ -284,6 +436,7 @@ impl StandardBody {
             gravity_rel_std: self.gravity_rel_std,
             temperature_std_c: self.temperature_std_c,
             traceability: self.traceability,
+            earlier: Vec::new(),
             updated_at: now,
         })
     }
@@ -365,6 +518,71 @@ mod tests {
             .unwrap()
             .remove("angle_std_arcsec");
         assert!(check(&reference).is_ok());
+    }
+
+    fn at(s: &str) -> Timestamp {
+        Timestamp::parse(s).unwrap()
+    }
+
+    /// A test may use a standard within a period of calibration, by its
+    /// certificate or an earlier one kept when a new one was written; not
+    /// before its first calibration, after its due date, or in a gap
+    /// between two certificates.
+    #[test]
+    fn a_standard_is_in_calibration_between_its_certificates_dates() {
+        let first = check(&stand()).unwrap();
+        assert!(first.in_calibration_at(at("2026-06-01T00:00:00Z")).is_ok());
+        assert!(first.in_calibration_at(at("2026-01-17T00:00:00Z")).is_ok());
+        assert!(first.in_calibration_at(at("2027-01-17T00:00:00Z")).is_ok());
+        let early = first
+            .in_calibration_at(at("2026-01-16T23:59:59Z"))
+            .unwrap_err();
+        assert!(early.contains("first calibrated on"), "{early}");
+        let late = first
+            .in_calibration_at(at("2027-01-17T00:00:01Z"))
+            .unwrap_err();
+        assert!(
+            late.contains("was due on") && late.contains("CAL-2026-0117"),
+            "{late}"
+        );
+
+        // Recalibrated late: a month out of calibration, then a new
+        // certificate. The old period still holds; the gap does not.
+        let mut body = stand();
+        body["certificate"]["number"] = json!("CAL-2027-0200");
+        body["certificate"]["calibrated_at"] = json!("2027-02-17T00:00:00Z");
+        body["due_at"] = json!("2028-02-17T00:00:00Z");
+        let now = at("2027-02-18T00:00:00Z");
+        let second = from_json::<StandardBody>(body.to_string().as_bytes())
+            .unwrap()
+            .check("STAND-1".into(), now)
+            .unwrap()
+            .replacing(Some(first.clone()));
+        assert_eq!(second.earlier.len(), 1);
+        assert_eq!(
+            second
+                .in_calibration_at(at("2026-06-01T00:00:00Z"))
+                .unwrap()
+                .0
+                .number,
+            "CAL-2026-0117"
+        );
+        assert_eq!(
+            second
+                .in_calibration_at(at("2027-06-01T00:00:00Z"))
+                .unwrap()
+                .0
+                .number,
+            "CAL-2027-0200"
+        );
+        let gap = second
+            .in_calibration_at(at("2027-02-01T00:00:00Z"))
+            .unwrap_err();
+        assert!(gap.contains("between the due date"), "{gap}");
+        // Written again with the same certificate (a corrected serial):
+        // nothing joins the earlier ones.
+        let again = second.clone().replacing(Some(second.clone()));
+        assert_eq!(again.earlier, second.earlier);
     }
 
     /// Ranges, dates and text are checked, each problem named.

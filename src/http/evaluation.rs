@@ -12,10 +12,10 @@ use super::auth::station;
 use super::body::Body;
 use super::problem::Problem;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::field::{Invalid, Loc};
+use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::metrology::{Previous, assess_calibration};
 use crate::domain::sensor_types::SensorType;
-use crate::domain::submission::{Evaluated, ResultView, evaluate};
+use crate::domain::submission::{Evaluated, ResultView, StandIn, evaluate};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::store::NewCalibration;
@@ -82,6 +82,60 @@ async fn sensor_type(
     }
 }
 
+/// Resolves the standards `e` names against the registry, for a test
+/// performed at `performed_at`: each must exist, be of its role's kind and
+/// be in calibration then (by its certificate or an earlier one). The
+/// stand's indexing error and the gravity value's relative uncertainty
+/// become the submission's stand; every problem is a 422 naming the role.
+async fn resolve_standards(
+    state: &AppState,
+    e: &mut Evaluated,
+    performed_at: Timestamp,
+) -> Result<(), Problem> {
+    let Some(named) = e.submission.standards.clone() else {
+        return Ok(());
+    };
+    let mut errors = Errors::default();
+    let mut used = Vec::new();
+    let roles = [
+        ("stand", Some(named.stand)),
+        ("thermometer", named.thermometer),
+        ("gravity", named.gravity),
+    ];
+    let root = Loc::Root;
+    let standards_at = root.key("standards");
+    for (role, id) in roles {
+        let Some(id) = id else { continue };
+        let at = standards_at.key(role);
+        match state.store.standard(id.clone()).await? {
+            None => errors.add(
+                at,
+                format!(
+                    "no standard `{}`; an admin records it first (PUT /v1/standards/{})",
+                    echo(&id),
+                    echo(&id)
+                ),
+            ),
+            Some(s) => match s.used_as(role, performed_at) {
+                Ok(u) => used.push(u),
+                Err(why) => errors.add(at, why),
+            },
+        }
+    }
+    if !errors.is_empty() {
+        return Err(Problem::validation(errors.into_invalid()));
+    }
+    let angle = used.iter().find_map(|u| u.angle_std_arcsec);
+    let gravity = used.iter().find_map(|u| u.gravity_rel_std);
+    e.submission.stand = Some(StandIn {
+        id: used.first().map(|u| u.standard_id.clone()),
+        angle_std_arcsec: angle.unwrap_or(0.0),
+        gravity_rel_std: gravity.unwrap_or(0.0),
+    });
+    e.submission.standards_used = used;
+    Ok(())
+}
+
 /// Evaluates a body for `principal`; with `id`, also builds the record to
 /// store under that id.
 pub async fn assess(
@@ -94,7 +148,7 @@ pub async fn assess(
     let (bytes, content_type) = (body.bytes.clone(), body.content_type.clone());
     let size = bytes.len();
     let who = principal.clone();
-    let (evaluated, station_id) = state
+    let (mut evaluated, station_id) = state
         .compute_for(
             size,
             move || -> Result<(Evaluated, Option<String>), Problem> {
@@ -106,6 +160,7 @@ pub async fn assess(
         .await??;
     let sensor_type = sensor_type(state, principal, &evaluated, received_at).await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
+    resolve_standards(state, &mut evaluated, performed_at).await?;
     let previous = state
         .store
         .previous_calibration(evaluated.submission.sensor_id.clone(), performed_at)

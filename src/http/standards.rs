@@ -22,7 +22,8 @@ fn unknown_standard(standard_id: &str) -> Problem {
 
 /// `PUT /v1/standards/{standard_id}` (admin): creates (201) or replaces
 /// (200) a standard — a recalibration of it is a replacement with the new
-/// certificate and due date.
+/// certificate and due date; the certificate it replaces is kept among the
+/// standard's `earlier` ones, so tests performed under it still pass.
 #[utoipa::path(
     put,
     path = "/v1/standards/{standard_id}",
@@ -56,6 +57,8 @@ pub async fn put(
     let s = body
         .json::<StandardBody>()?
         .check(standard_id, Timestamp::now())?;
+    let before = state.store.standard(s.standard_id.clone()).await?;
+    let s = s.replacing(before);
     let created = state.store.put_standard(s.clone()).await?;
     tracing::info!(standard = %s.standard_id, created, by = %principal.id, "standard written");
     let status = if created {

@@ -8,7 +8,7 @@ use accelcal_core::{
 };
 
 use super::draft::{Draft, PositionDraft, Slot};
-use super::{PositionIn, StandIn, Submission};
+use super::{PositionIn, StandIn, StandardsIn, Submission};
 use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::limits::{DEFAULT_BATCHES, MAX_FUTURE_SECONDS};
 use crate::domain::timestamp::Timestamp;
@@ -223,6 +223,7 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         notes,
         sensor_type,
         stand,
+        standards,
         mut errors,
         not_an_object,
     } = draft;
@@ -230,6 +231,7 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         return Err(errors.into_invalid());
     }
     let root = Loc::Root;
+    let stand_given = stand.given();
     let mut hints = Hints {
         model_given: model.given(),
         batches_given: batches.given(),
@@ -324,6 +326,34 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
     } else {
         Some(temperatures.into_iter().flatten().collect())
     };
+    // Standards: the stand is named, and its uncertainties come from the
+    // registry, not the body.
+    let standards = match standards {
+        Slot::Value(named) => match named.stand {
+            Some(stand) => {
+                if stand_given {
+                    errors.add(
+                        root.key("stand"),
+                        "cannot be given with `standards`: the stand's uncertainties come from \
+                         the registry of standards (GET /v1/standards); give one or the other",
+                    );
+                }
+                Some(StandardsIn {
+                    stand,
+                    thermometer: named.thermometer,
+                    gravity: named.gravity,
+                })
+            }
+            None => {
+                errors.add(
+                    root.key("standards").key("stand"),
+                    "is required: the tumble stand or dividing head the test was performed on",
+                );
+                None
+            }
+        },
+        _ => None,
+    };
     if !errors.is_empty() {
         return Err(errors.into_invalid());
     }
@@ -381,6 +411,8 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             }),
             _ => None,
         },
+        standards,
+        standards_used: Vec::new(),
         temperatures_c,
         test,
     };

@@ -62,6 +62,17 @@ pub struct StandDraft {
     pub gravity_rel_std: Option<f64>,
 }
 
+/// The standards named, as given.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct StandardsDraft {
+    /// The stand's id.
+    pub stand: Option<String>,
+    /// The thermometer's id.
+    pub thermometer: Option<String>,
+    /// The gravity value's id.
+    pub gravity: Option<String>,
+}
+
 /// Everything read from a submission body.
 #[derive(Debug, Default)]
 pub struct Draft {
@@ -89,6 +100,8 @@ pub struct Draft {
     pub sensor_type: Slot<String>,
     /// `stand`.
     pub stand: Slot<StandDraft>,
+    /// `standards`.
+    pub standards: Slot<StandardsDraft>,
     /// Problems found while reading.
     pub errors: Errors,
     /// The body was not an object at all (nothing else is worth saying).

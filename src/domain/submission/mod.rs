@@ -37,6 +37,7 @@ pub const FIELDS: &[&str] = &[
     "notes",
     "sensor_type",
     "stand",
+    "standards",
 ];
 
 /// The media types a submission may come in.
@@ -110,8 +111,14 @@ pub struct Submission {
     pub notes: Option<String>,
     /// The sensor type named in the body, if any.
     pub sensor_type: Option<String>,
-    /// The tumble stand, if the body describes it.
+    /// The tumble stand, if the body describes it (or, once the standards
+    /// the body names are resolved, as the registry describes it).
     pub stand: Option<StandIn>,
+    /// The reference standards the body names, by id.
+    pub standards: Option<StandardsIn>,
+    /// Those standards as the registry describes them, once resolved
+    /// (empty until then, and for a body that names none).
+    pub standards_used: Vec<crate::domain::standards::UsedStandard>,
     /// Each run's temperature (°C), when the runs give them (all or none).
     pub temperatures_c: Option<Vec<f64>>,
     /// The tumble test handed to the core.
@@ -127,6 +134,18 @@ pub struct StandIn {
     pub angle_std_arcsec: f64,
     /// Relative uncertainty of the local gravity magnitude (default 0).
     pub gravity_rel_std: f64,
+}
+
+/// The reference standards a submission names (`standards`), by id: the
+/// tumble stand, and optionally a thermometer and a local gravity value.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct StandardsIn {
+    /// The tumble stand or dividing head.
+    pub stand: String,
+    /// The thermometer the run temperatures were read with.
+    pub thermometer: Option<String>,
+    /// The local gravity value.
+    pub gravity: Option<String>,
 }
 
 /// A submission with its calibration.

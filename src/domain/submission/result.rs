@@ -4,6 +4,8 @@ use accelcal_core::{Calibration, Gravity, Model, Mount};
 use serde::Serialize;
 use uuid::Uuid;
 
+use crate::domain::standards::UsedStandard;
+
 use super::{Evaluated, PositionIn, StandIn};
 use crate::domain::metrology::Metrology;
 use crate::domain::timestamp::Timestamp;
@@ -80,8 +82,13 @@ pub struct ResultView<'a> {
     pub positions: Vec<PositionOut>,
     /// The sensor type in force (named in the body, or the sensor's), if any.
     pub sensor_type: Option<&'a str>,
-    /// The tumble stand, when the body described it.
+    /// The tumble stand, when the body described it or named it among its
+    /// standards (then as the registry describes it).
     pub stand: Option<&'a StandIn>,
+    /// The reference standards the body named, as used: each with the
+    /// certificate it was in calibration by when the test was performed.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub standards: &'a [UsedStandard],
     /// The runs' temperatures (°C), when they were given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temperatures_c: Option<&'a [f64]>,
@@ -119,6 +126,7 @@ impl<'a> ResultView<'a> {
             positions: s.positions.iter().map(PositionOut::from).collect(),
             sensor_type,
             stand: s.stand.as_ref(),
+            standards: &s.standards_used,
             temperatures_c: s.temperatures_c.as_deref(),
             calibration: &e.calibration,
             metrology,

@@ -422,3 +422,27 @@ fn angles_in_radians_are_refused_with_the_degrees_to_send() {
     // One distinct angle is no tumble to judge.
     assert!(check::radians(&[]).is_none());
 }
+
+/// Naming standards needs the stand, and the stand's uncertainties may not
+/// also be given in the body; the names are kept for the registry.
+#[test]
+fn standards_name_the_stand_and_replace_the_bodys_stand() {
+    let mut named = paper();
+    named["standards"] = json!({"stand": "STAND-1", "thermometer": "T-7"});
+    let e = run(&named).unwrap();
+    assert_eq!(
+        e.submission.standards,
+        Some(StandardsIn {
+            stand: "STAND-1".into(),
+            thermometer: Some("T-7".into()),
+            gravity: None,
+        })
+    );
+    assert!(e.submission.standards_used.is_empty(), "resolved later");
+    let mut both = named.clone();
+    both["stand"] = json!({"angle_std_arcsec": 1});
+    assert_eq!(pointers(&both), ["/stand"]);
+    let mut no_stand = paper();
+    no_stand["standards"] = json!({"gravity": "G-BENCH"});
+    assert_eq!(pointers(&no_stand), ["/standards/stand"]);
+}

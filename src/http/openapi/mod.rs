@@ -62,6 +62,7 @@ impl Modify for Bearer {
             CalibrationPageSchema, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
+            crate::domain::standards::UsedStandard,
             crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,
         ),
         responses(

@@ -145,6 +145,16 @@ marker_schema!(
                 .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
                 .minimum(Some(0.0)).maximum(Some(MAX_GRAVITY_REL_STD)))
             .build().into()))
+        .property("standards", nullable(closed(ObjectBuilder::new())
+            .description(Some("The reference standards used, by id (GET /v1/standards): the stand, and optionally a \
+                thermometer and a local gravity value. Each must be of its role's kind and in calibration at \
+                `performed_at`; the stand's indexing error and the gravity value's relative uncertainty then \
+                come from the registry, so `stand` may not be given beside it."))
+            .property("stand", reference("Identifier"))
+            .property("thermometer", nullable(reference("Identifier")))
+            .property("gravity", nullable(reference("Identifier")))
+            .required("stand")
+            .build().into()))
         .required("sensor_id")
         .required("positions")
         .required("runs")
@@ -474,6 +484,7 @@ marker_schema!(
         .property("normalized", reference("Normalized"))
         .property("sensor_type", string_or_null().description(Some("The sensor type in force (named in the submission, or the sensor's).")))
         .property("stand", nullable(reference("StandOut")))
+        .property("standards", array(reference("UsedStandard")).description(Some("The reference standards the submission named, each with the certificate it was in calibration by when the test was performed; absent when it named none.")))
         .property("temperatures_c", array(of_type(Type::Number)).description(Some("The runs' temperatures, when given.")))
         .property("uncertainty", reference("Uncertainty"))
         .property("decision", nullable(reference("Decision")))

@@ -516,6 +516,15 @@ pub async fn page(
             @if let Some(s) = &d.stand {
                 div { dt { "Stand" } dd { (s.id.as_deref().unwrap_or("unnamed")) ": " (s.angle_std_arcsec) "″ indexing, " (s.gravity_rel_std) " in g" } }
             }
+            @for u in &d.standards {
+                div { dt { "Standard (" (u.role) ")" } dd {
+                    (u.standard_id) ", " (u.description)
+                    @if let Some(serial) = &u.serial { " (serial " (serial) ")" }
+                    ": certificate " (u.certificate.number) " of " (u.certificate.issued_by)
+                    ", calibrated " (when(&u.certificate.calibrated_at.to_string()))
+                    ", due " (when(&u.due_at.to_string()))
+                } }
+            }
         }
         p.no-print {
             a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" } " · "

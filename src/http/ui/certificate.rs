@@ -96,6 +96,24 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
                         div { dt { "Output unit" } dd { (d.unit) } }
                     }
+                    @if !d.standards.is_empty() {
+                        h2 { "Reference standards" }
+                        table {
+                            thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } th { "Traceability" } } }
+                            tbody {
+                                @for u in &d.standards {
+                                    tr {
+                                        td { (u.role) }
+                                        td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
+                                        td { (u.certificate.number) ", " (u.certificate.issued_by) }
+                                        td { (when(&u.certificate.calibrated_at.to_string())) }
+                                        td { (when(&u.due_at.to_string())) }
+                                        td { (u.traceability) }
+                                    }
+                                }
+                            }
+                        }
+                    }
                     h2 { "Method" }
                     p {
                         "Tumble test in the 1 g field on a dividing head (" (d.mount) " mount, "

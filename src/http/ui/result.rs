@@ -351,6 +351,9 @@ pub struct ResultDoc {
     /// The stand.
     #[serde(default)]
     pub stand: Option<StandDoc>,
+    /// The reference standards used, each with its certificate then.
+    #[serde(default)]
+    pub standards: Vec<crate::domain::standards::UsedStandard>,
     /// Run temperatures.
     #[serde(default)]
     pub temperatures_c: Option<Vec<f64>>,

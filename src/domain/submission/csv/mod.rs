@@ -16,9 +16,10 @@
 //! * Before the header, `# key: value` lines carry the submission's other
 //!   fields (`sensor_id`, `station_id`, `performed_at`, `unit`, `model` —
 //!   terms separated by spaces or commas —, `mount`, `batches`, `notes`,
-//!   `sensor_type`, and the stand as `stand_id`, `stand_angle_std_arcsec`,
-//!   `stand_gravity_rel_std`); an unknown key is refused like an unknown JSON
-//!   field. A `#` line without a colon is a comment; blank lines are skipped.
+//!   `sensor_type`, the stand as `stand_id`, `stand_angle_std_arcsec`,
+//!   `stand_gravity_rel_std`, and the standards used as `standard_stand`,
+//!   `standard_thermometer`, `standard_gravity`); an unknown key is refused
+//!   like an unknown JSON field. A `#` line without a colon is a comment; blank lines are skipped.
 //! * The first other line is the header. Columns, in any order: `run` (or
 //!   `test`), the position as `angle_deg` or as `a_i`, `a_p`, `a_o` (or
 //!   both), optional `label`, optional `direction` (informational),
@@ -44,7 +45,7 @@ use accelcal_core::Term;
 mod rows;
 
 use super::FIELDS;
-use super::draft::{Draft, Slot, StandDraft};
+use super::draft::{Draft, Slot, StandDraft, StandardsDraft};
 use super::json::{angle_std, gravity_std, mount, performed_at, term};
 use super::node::{Scalar, keep};
 use crate::domain::field::{Errors, Loc};
@@ -69,15 +70,21 @@ pub const COLUMNS: &[&str] = &[
 ];
 
 /// The submission fields a `# key: value` line may set: all but the two the
-/// rows themselves make up and the `stand` object, whose members are set by
-/// `stand_id`, `stand_angle_std_arcsec` and `stand_gravity_rel_std`.
+/// rows themselves make up, the `stand` object, whose members are set by
+/// `stand_id`, `stand_angle_std_arcsec` and `stand_gravity_rel_std`, and the
+/// `standards` object, whose members are `standard_stand`,
+/// `standard_thermometer` and `standard_gravity`.
 pub fn metadata_keys() -> impl Iterator<Item = &'static str> {
     FIELDS
         .iter()
         .copied()
-        .filter(|k| !matches!(*k, "positions" | "runs" | "stand"))
+        .filter(|k| !matches!(*k, "positions" | "runs" | "stand" | "standards"))
         .chain(STAND_KEYS)
+        .chain(STANDARD_KEYS)
 }
+
+/// The metadata keys of the `standards` object's members.
+const STANDARD_KEYS: [&str; 3] = ["standard_stand", "standard_thermometer", "standard_gravity"];
 
 /// The metadata keys of the `stand` object's members.
 const STAND_KEYS: [&str; 3] = [
@@ -202,6 +209,24 @@ fn set(draft: &mut Draft, key: &'static str, value: &str) {
             };
             draft.stand = if read.is_some() {
                 Slot::Value(stand)
+            } else {
+                Slot::Invalid
+            };
+        }
+        "standard_stand" | "standard_thermometer" | "standard_gravity" => {
+            let mut standards = match std::mem::take(&mut draft.standards) {
+                Slot::Value(v) => v,
+                _ => StandardsDraft::default(),
+            };
+            let id = keep(errors, at, s().string(MAX_ID_CHARS, Chars::Identifier));
+            let ok = id.is_some();
+            match key {
+                "standard_stand" => standards.stand = id,
+                "standard_thermometer" => standards.thermometer = id,
+                _ => standards.gravity = id,
+            }
+            draft.standards = if ok {
+                Slot::Value(standards)
             } else {
                 Slot::Invalid
             };

@@ -148,6 +148,34 @@ fn limits_are_checked_while_reading() {
 }
 
 #[test]
+fn standards_come_from_metadata() {
+    let text = "# standard_stand: STAND-1\n# standard_thermometer: T-7\n\
+                run,angle_deg,output\n1,0,1\n1,90,2\n";
+    let d = read(text.as_bytes()).unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(s) = &d.standards else {
+        panic!()
+    };
+    assert_eq!(
+        (
+            s.stand.as_deref(),
+            s.thermometer.as_deref(),
+            s.gravity.as_deref()
+        ),
+        (Some("STAND-1"), Some("T-7"), None)
+    );
+    let d = read(b"# standard_gravity: not an id\nrun,angle_deg,output\n1,0,1\n").unwrap();
+    let at: Vec<String> = d
+        .errors
+        .into_invalid()
+        .errors
+        .into_iter()
+        .map(|e| e.pointer)
+        .collect();
+    assert!(at.iter().any(|p| p == "/standard_gravity"), "{at:?}");
+}
+
+#[test]
 fn temperatures_and_the_stand_come_from_columns_and_metadata() {
     let text = "# sensor_type: NAV\n# stand_id: DH-1\n# stand_angle_std_arcsec: 3.5\n# stand_gravity_rel_std: 1e-5\n\
                 run,angle_deg,temperature_c,output\n1,0,20,1\n1,90,20,2\n2,0,30,1.1\n2,90,30,2.1\n";

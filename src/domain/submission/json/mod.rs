@@ -13,7 +13,7 @@ mod runs;
 use self::positions::Positions;
 use self::runs::Runs;
 use super::FIELDS;
-use super::draft::{Draft, Slot, StandDraft};
+use super::draft::{Draft, Slot, StandDraft, StandardsDraft};
 use super::node::{Any, Node, Scalar, Seed, elements, keep, scalar_fields};
 use crate::domain::field::{Errors, Loc};
 use crate::domain::limits::*;
@@ -79,6 +79,9 @@ impl<'de> Node<'de> for Top<'_> {
                 "runs" => d.runs = map.next_value_seed(Seed(Runs { errors, at }))?,
                 "model" => d.model = map.next_value_seed(Seed(ModelNode { errors, at }))?,
                 "stand" => d.stand = map.next_value_seed(Seed(StandNode { errors, at }))?,
+                "standards" => {
+                    d.standards = map.next_value_seed(Seed(StandardsNode { errors, at }))?
+                }
                 name => {
                     let Some(v) = value(map.next_value_seed(Seed(Any))?) else {
                         continue;
@@ -244,6 +247,56 @@ impl<'de> Node<'de> for StandNode<'_> {
         }
         Ok(if ok {
             Slot::Value(stand)
+        } else {
+            Slot::Invalid
+        })
+    }
+}
+
+/// The roles a submission's `standards` name a standard in.
+pub const STANDARD_ROLES: [&str; 3] = ["stand", "thermometer", "gravity"];
+
+/// `standards`: an object of `stand`, `thermometer`, `gravity`, each a
+/// standard's id.
+struct StandardsNode<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+}
+
+impl<'de> Node<'de> for StandardsNode<'_> {
+    type Out = Slot<StandardsDraft>;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        if v == Scalar::Null {
+            return Slot::Absent;
+        }
+        self.errors
+            .add(self.at, format!("must be an object, not {}", v.kind()));
+        Slot::Invalid
+    }
+    fn map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Out, A::Error> {
+        let Some(ids) = scalar_fields(map, self.errors, self.at, STANDARD_ROLES)? else {
+            return Ok(Slot::Invalid);
+        };
+        let (errors, at) = (self.errors, self.at);
+        let mut ok = true;
+        let mut ids = ids.into_iter();
+        let [stand, thermometer, gravity] = std::array::from_fn(|k| {
+            let given = ids.next().flatten()?;
+            let id = keep(
+                errors,
+                at.key(STANDARD_ROLES[k]),
+                given.string(MAX_ID_CHARS, Chars::Identifier),
+            );
+            ok &= id.is_some();
+            id
+        });
+        let standards = StandardsDraft {
+            stand,
+            thermometer,
+            gravity,
+        };
+        Ok(if ok {
+            Slot::Value(standards)
         } else {
             Slot::Invalid
         })

@@ -136,6 +136,35 @@ fn the_stands_uncertainties_are_not_negative() {
     assert_eq!(d.stand, Slot::Invalid);
 }
 
+/// `standards` names standards by id in three roles; anything else in it,
+/// or an id that is not one, is named.
+#[test]
+fn standards_are_named_by_id_in_their_roles() {
+    let d = read(br#"{"standards": {"stand": "STAND-1", "gravity": "G-BENCH"}}"#).unwrap();
+    assert!(d.errors.is_empty());
+    assert_eq!(
+        d.standards,
+        Slot::Value(StandardsDraft {
+            stand: Some("STAND-1".into()),
+            thermometer: None,
+            gravity: Some("G-BENCH".into()),
+        })
+    );
+    assert_eq!(
+        pointers(r#"{"standards": {"stand": "has space", "thermometer": 5}}"#),
+        ["/standards/stand", "/standards/thermometer"]
+    );
+    assert_eq!(
+        pointers(r#"{"standards": {"stand": "S", "oven": "X"}}"#),
+        ["/standards/oven"]
+    );
+    assert_eq!(pointers(r#"{"standards": "STAND-1"}"#), ["/standards"]);
+    assert_eq!(
+        read(br#"{"standards": null}"#).unwrap().standards,
+        Slot::Absent
+    );
+}
+
 #[test]
 fn the_runs_are_an_array_or_absent() {
     assert_eq!(no_problem(br#"{"runs": null}"#).runs, Slot::Absent);
