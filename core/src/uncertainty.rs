@@ -131,6 +131,18 @@ fn explicit_indexing(test: &TumbleTest) -> Vec<Vec<f64>> {
     changes
 }
 
+/// The coverage probability of an expanded uncertainty with coverage
+/// factor `k` when the measurand's distribution is normal (GUM G.1.3):
+///
+/// ```text
+/// p(k) = P(|X − μ| ≤ k·σ) = erf(k / √2)
+/// ```
+///
+/// so `p(1) ≈ 0.6827`, `p(2) ≈ 0.9545`, `p(3) ≈ 0.9973`.
+pub fn coverage_probability(k: f64) -> f64 {
+    statrs::function::erf::erf(k / std::f64::consts::SQRT_2)
+}
+
 /// The budget of the fused coefficients `fused` (standard errors
 /// `std_errors`) of `test`, for a stand and a coverage factor, with each
 /// term's `model` component (none for a term `model` does not list).

@@ -425,8 +425,22 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         accelcal_core::VERSION
     )));
     assert!(html.contains("PAPER-2005") && html.contains("k0, ki, kp"));
-    assert!(html.contains("-1.21615405"), "fused K1 to nine digits");
+    // K1 to the place of its expanded uncertainty's second significant
+    // digit (GUM 7.2.6), U to two digits, its unit, the coverage
+    // probability beside k, the end marker.
+    let ki = stored["fused"]["coefficients"]["ki"].as_f64().unwrap();
+    let u = stored["uncertainty"]["terms"]["ki"]["expanded"]
+        .as_f64()
+        .unwrap();
+    let decimals = (1 - u.log10().floor() as i32) as usize;
+    assert!(
+        html.contains(&format!(">{ki:.decimals$}<")) && html.contains(&format!(">{u:.decimals$}<")),
+        "K1 {ki:.decimals$} ± {u:.decimals$}"
+    );
+    assert!(html.contains(">output/g<"), "the unit of K1");
     assert!(html.contains("Expanded U (k = 2)"));
+    assert!(html.contains("k = 2, coverage probability ≈ 95.4 %"));
+    assert!(html.contains(&format!("End of certificate No. {id}")));
     assert_eq!(
         app.get(
             "/v1/calibrations/01a20000-0000-7000-8000-000000000000/certificate",

@@ -12,6 +12,7 @@
 // without their CSRF token are refused.
 
 import assert from 'node:assert/strict';
+import { execFileSync } from 'node:child_process';
 import { createHash } from 'node:crypto';
 import fs from 'node:fs';
 import path from 'node:path';
@@ -241,16 +242,32 @@ try {
   assert.ok(text.includes(`${BASE}/v1/calibrations/${recal.id}/certificate`), 'its own URL');
   assert.ok(text.includes('PAPER-2005') && text.includes('NAV') && text.includes('DH-1'), 'sensor, type, stand');
   assert.ok(/accelcal \d+\.\d+\.\d+/.test(text), 'the accelcal version');
-  const certRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelectorAll('td')[0].textContent, tr.querySelectorAll('td')[2].textContent]));
-  for (const [t, v, u] of certRows) {
-    close(num(v), recal.fused.coefficients[t], 5e-9, `certificate value of ${t}`);
-    close(num(u), recal.uncertainty.terms[t].expanded, 5e-5, `certificate U of ${t}`);
+  const certRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelectorAll('td')[0].textContent, tr.querySelectorAll('td')[2].textContent, tr.querySelectorAll('td')[3].textContent]));
+  const units = { k0: 'output', ki: 'output/g', kp: 'output/g', ko: 'output/g', kii: 'output/g²', kiii: 'output/g³' };
+  for (const [t, v, u, unit] of certRows) {
+    // Rounded to the place of U's second significant digit (GUM 7.2.6).
+    const expanded = recal.uncertainty.terms[t].expanded;
+    assert.ok(Math.abs(num(v) - recal.fused.coefficients[t]) <= expanded / 20, `certificate value of ${t}: ${v} is not ${recal.fused.coefficients[t]} to U/20`);
+    close(num(u), expanded, 0.05, `certificate U of ${t}`);
+    assert.equal(unit, units[t], `the unit of ${t}`);
   }
+  assert.ok(/k = 2, coverage probability ≈ 95\.4 %/.test(text), 'the coverage probability beside k');
+  assert.ok(text.includes('Environmental conditions') && text.includes('Metrological traceability'), 'conditions and traceability');
+  assert.ok(text.includes(`End of certificate No. ${recal.id}`), 'the end marker');
   const pdf = await page.pdf({ format: 'A4' });
   assert.ok(pdf.length > 10000, 'the certificate prints');
   fs.mkdirSync(SHOTS, { recursive: true });
-  fs.writeFileSync(path.join(SHOTS, 'certificate.pdf'), pdf);
-  ok('certificate: SHA-256, own URL, sensor, type, stand, version, values and U; prints to A4');
+  const pdfPath = path.join(SHOTS, 'certificate.pdf');
+  fs.writeFileSync(pdfPath, pdf);
+  // Every printed page carries the title and number, and "Page n of N".
+  const printed = execFileSync('pdftotext', ['-layout', pdfPath, '-'], { encoding: 'utf8' }).split('\f').filter((p) => p.trim());
+  assert.ok(printed.length >= 2, `the certificate prints on ${printed.length} pages`);
+  printed.forEach((p, i) => {
+    assert.ok(p.includes(`Calibration certificate No. ${recal.id}`), `page ${i + 1} carries the number`);
+    assert.ok(p.includes(`Page ${i + 1} of ${printed.length}`), `page ${i + 1} says "Page ${i + 1} of ${printed.length}"`);
+  });
+  assert.ok(printed[printed.length - 1].includes('End of certificate'), 'the end marker on the last page');
+  ok(`certificate: SHA-256, own URL, sensor, type, stand, version, values rounded to U with units, k and its probability; prints to A4 on ${printed.length} pages, each numbered`);
 
   // ---------------------------------- accessibility and screenshots
   const pages = {

@@ -3,7 +3,7 @@
 # Starts accelcal (and a second process on a database of its own, one-second
 # sessions, for the expiry check) with metrics on, runs tests/ui/browser.mjs
 # in Debian's chromium, then checks the scraped metrics with
-# `promtool check metrics`. Needs chromium, node/npm and promtool (.ci/run
+# `promtool check metrics`. Needs chromium, node/npm, promtool and pdftotext (.ci/run
 # installs them); screenshots land in target/ui-screenshots/.
 # Usage: tests/ui/run.sh [path/to/accelcal]
 set -euo pipefail

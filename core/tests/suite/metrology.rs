@@ -6,7 +6,7 @@ use accelcal_core::decision::Verdict;
 use accelcal_core::history::{Point, as_found, stability};
 use accelcal_core::quality::{Warning, assess};
 use accelcal_core::temperature::sensitivity;
-use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
+use accelcal_core::uncertainty::{ARCSEC, Stand, budget, coverage_probability};
 use accelcal_core::{
     Compensator, Design, Gravity, Model, Mount, Position, Reading, Run, Summary, Term, TermMap,
     TumbleTest,
@@ -49,6 +49,25 @@ fn test_of(truth: &TermMap<f64>, model: &Model, positions: Vec<Position>) -> Tum
 
 fn linear() -> TermMap<f64> {
     TermMap(vec![(K0, -8.4e-4), (Ki, -1.216), (Kp, 6.2e-3)])
+}
+
+/// The normal distribution's coverage probabilities, against the
+/// standard tables (GUM Table G.1: k = 1, 1.645, 1.960, 2, 2.576, 3;
+/// the values are Python's `math.erf(k / sqrt(2))`).
+#[test]
+fn coverage_probabilities_are_the_normal_distributions() {
+    for (k, p) in [
+        (1.0, 0.682_689_492_137_086),
+        (1.645, 0.900_030_188_921_757_2),
+        (1.960, 0.950_004_209_703_559),
+        (2.0, 0.954_499_736_103_642),
+        (2.576, 0.990_004_935_368_53),
+        (3.0, 0.997_300_203_936_740),
+    ] {
+        // statrs' erf is good to about 1e-10.
+        near(coverage_probability(k), p, 1e-9);
+    }
+    assert_eq!(coverage_probability(0.0), 0.0);
 }
 
 /// Four positions, linear model: by hand (module docs of `uncertainty`),

@@ -2,12 +2,17 @@
 //! `GET /v1/calibrations/{id}/certificate` with a bearer token, and
 //! `GET /ui/calibrations/{id}/certificate` from the pages.
 //!
-//! It states what a lab signs: the item (sensor, type), where and how it was
-//! calibrated (station, stand, method, model), when, the fused coefficients
-//! with their expanded uncertainty and coverage factor, the decision rule and
-//! verdict, as found, the due date — and what makes it verifiable: the
-//! SHA-256 of the stored submission, the accelcal version and the
-//! certificate's own URL. The document carries its stylesheet inline
+//! It states what a lab signs (ISO/IEC 17025 §7.8 where accelcal knows it):
+//! the item (sensor, type), where and how it was calibrated (station, stand,
+//! reference standards, method, model), when, the environmental conditions,
+//! the fused coefficients rounded to their expanded uncertainty (GUM 7.2.6)
+//! with units, the coverage factor and its probability, the decision rule
+//! and verdict, as found, the due date, the metrological traceability from
+//! the standards' statements — and what makes it verifiable: the SHA-256 of
+//! the stored submission, the accelcal version and the certificate's own
+//! URL. Printed, every page carries the title and number (a table header
+//! Chromium repeats) and "Page n of N" (the stylesheet's `@page
+//! certificate`), and the last ends with an end marker. The document carries its stylesheet inline
 //! (allowed by hash in its Content-Security-Policy), so a saved copy prints
 //! the same.
 
@@ -23,7 +28,7 @@ use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
 use super::calibration::{as_found, budget, decision, load, when};
-use super::format::{num, unc};
+use super::format::{num, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
 use super::{UiError, badge};
@@ -71,6 +76,14 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
             }
             body.certificate {
                 main {
+                    // The thead repeats on every printed page: the title
+                    // and the number; the page numbers are the stylesheet's
+                    // (`@page certificate`).
+                    table.cert-pages role="presentation" {
+                    thead { tr { td {
+                        div.cert-running { "Calibration certificate No. " (d.id) " · " (d.sensor_id) }
+                    } } }
+                    tbody { tr { td {
                     div.cert-head {
                         div {
                             h1 { "Calibration certificate" }
@@ -92,9 +105,14 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                             None => "not declared (no stand contribution)",
                         } } }
                         div { dt { "Performed" } dd { (when(&d.performed_at)) } }
-                        div { dt { "Received" } dd { (when(&d.received_at)) } }
+                        div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
                         div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
                         div { dt { "Output unit" } dd { (d.unit) } }
+                    }
+                    h2 { "Environmental conditions" }
+                    dl.facts {
+                        div { dt { "Temperature" } dd { (temperatures(d)) } }
+                        div { dt { "Local gravity" } dd { (local_gravity(d)) } }
                     }
                     @if !d.standards.is_empty() {
                         h2 { "Reference standards" }
@@ -124,25 +142,35 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         (PAPER) ". Uncertainty after the GUM: the fused standard error, the stand's indexing "
                         "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short of the data, "
                         "the model's own standard error, combined in quadrature and expanded"
-                        @if let Some(k) = coverage { " with coverage factor k = " (k) } "."
+                        @if let Some(k) = coverage { " with coverage factor k = " (k) ", " (probability(k)) } "."
                     }
                     h2 { "Results" }
                     div.table-wrap tabindex="0" role="region" aria-label="Fused coefficients" {
                         table #certificate-results {
-                            caption { "Fused coefficients (" (d.unit) ")" }
+                            caption {
+                                "Fused coefficients, each rounded to its expanded uncertainty's second significant digit"
+                                @if let Some(k) = coverage { " (k = " (k) ", " (probability(k)) ")" }
+                            }
                             thead { tr {
                                 th scope="col" { "Term" }
                                 th scope="col" .num { "Value" }
                                 th scope="col" .num { "Standard error" }
                                 th scope="col" .num { @match coverage { Some(k) => { "Expanded U (k = " (k) ")" }, None => "Expanded U" } }
+                                th scope="col" { "Unit" }
                             } }
                             tbody {
                                 @for (t, v) in d.fused.coefficients.iter() {
+                                    @let expanded = d.uncertainty.as_ref().and_then(|u| u.terms.get(t)).map(|b| b.expanded);
+                                    @let (value, u) = match expanded {
+                                        Some(u) => { let (v, u) = value_and_uncertainty(*v, u); (v, Some(u)) }
+                                        None => (num(*v), None),
+                                    };
                                     tr data-term=(t.name()) {
                                         th scope="row" { (t.name()) }
-                                        td.num { (num(*v)) }
+                                        td.num { (value) }
                                         td.num { (d.fused.std_errors.get(t).map_or("—".into(), |x| unc(*x))) }
-                                        td.num { (d.uncertainty.as_ref().and_then(|u| u.terms.get(t)).map_or("—".into(), |b| unc(b.expanded))) }
+                                        td.num { (u.unwrap_or_else(|| "—".into())) }
+                                        td { (term_unit(t, &d.unit)) }
                                     }
                                 }
                             }
@@ -157,7 +185,18 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         h2 { "As found" }
                         (as_found(d))
                     }
-                    h2 { "Traceability of this document" }
+                    h2 { "Metrological traceability" }
+                    @if d.standards.is_empty() {
+                        p { "No reference standard was named with this calibration: this certificate does not establish the metrological traceability of its results." }
+                    } @else {
+                        p { "The results are traceable to the SI through the reference standards listed above, each in calibration when the test was performed:" }
+                        ul {
+                            @for u in &d.standards {
+                                li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.traceability) }
+                            }
+                        }
+                    }
+                    h2 { "Verification of this document" }
                     dl.facts {
                         div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
                         div { dt { "Submission format" } dd { (c.content_type) } }
@@ -170,9 +209,60 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         p { "Calibrated by: ______________________   Date: ____________" }
                         p { "Approved by: ______________________   Date: ____________" }
                     }
+                    p.cert-end { "End of certificate No. " (d.id) }
+                    } } }
+                    }
                 }
             }
         }
+    }
+}
+
+/// The coverage probability of a coverage factor `k` for a normal
+/// distribution ([`accelcal_core::uncertainty::coverage_probability`]), as a
+/// certificate states it ("coverage probability ≈ 95.4 %").
+fn probability(k: f64) -> String {
+    let p = accelcal_core::uncertainty::coverage_probability(k) * 100.0;
+    format!("coverage probability ≈ {p:.1} % (normal distribution)")
+}
+
+/// The runs' temperatures as a range, or why there is none.
+fn temperatures(d: &ResultDoc) -> String {
+    match d.temperatures_c.as_deref() {
+        Some(t) if !t.is_empty() => {
+            let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let thermometer =
+                d.standards
+                    .iter()
+                    .find(|u| u.role == "thermometer")
+                    .map_or(String::new(), |u| {
+                        format!(
+                            ", read with {} (±{} °C, 1σ)",
+                            u.standard_id,
+                            u.temperature_std_c.unwrap_or(0.0)
+                        )
+                    });
+            if lo == hi {
+                format!("{lo} °C in every run{thermometer}")
+            } else {
+                format!("{lo} to {hi} °C over the runs{thermometer}")
+            }
+        }
+        _ => "not recorded with the submission".into(),
+    }
+}
+
+/// The local gravity value used, or what the model assumes.
+fn local_gravity(d: &ResultDoc) -> String {
+    match d.standards.iter().find(|u| u.role == "gravity") {
+        Some(u) => format!(
+            "g = {} m/s² (relative uncertainty {}, 1σ; standard {})",
+            u.gravity_m_s2.map_or("—".into(), |g| g.to_string()),
+            u.gravity_rel_std.map_or("—".into(), |r| r.to_string()),
+            u.standard_id
+        ),
+        None => "not stated: the positions are in units of the local g (1 g)".into(),
     }
 }
 

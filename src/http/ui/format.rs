@@ -96,6 +96,43 @@ pub fn unc(v: f64) -> String {
     sig(v, 5)
 }
 
+/// The unit of a coefficient of `term` for outputs in `unit`: the output's
+/// unit for `k0`, `unit/g` for the first-order terms, `unit/g²` for the
+/// second-order ones, `unit/g³` for `kiii`.
+pub fn term_unit(term: accelcal_core::Term, unit: &str) -> String {
+    match term.degree() {
+        0 => unit.to_owned(),
+        1 => format!("{unit}/g"),
+        2 => format!("{unit}/g²"),
+        n => format!("{unit}/g{}", if n == 3 { "³" } else { "ⁿ" }),
+    }
+}
+
+/// A value and its expanded uncertainty as a certificate states them
+/// (GUM 7.2.6): the uncertainty to two significant digits, the value to the
+/// same decimal place. Scientific notation shares one exponent, that of
+/// the value (or of the uncertainty when the value is zero), when fixed
+/// notation would need more than eight decimals.
+pub fn value_and_uncertainty(value: f64, u: f64) -> (String, String) {
+    if !value.is_finite() || !u.is_finite() || u <= 0.0 {
+        return (num(value), unc(u));
+    }
+    // The place of the uncertainty's second significant digit.
+    let place = u.abs().log10().floor() as i32 - 1;
+    if place >= -8 {
+        let decimals = (-place).max(0) as usize;
+        return (format!("{value:.decimals$}"), format!("{u:.decimals$}"));
+    }
+    let reference = if value == 0.0 { u } else { value };
+    let exponent = reference.abs().log10().floor() as i32;
+    let decimals = (exponent - place).max(0) as usize;
+    let scale = 10f64.powi(exponent);
+    (
+        format!("{:.decimals$}e{exponent}", value / scale),
+        format!("{:.decimals$}e{exponent}", u / scale),
+    )
+}
+
 /// An optional number.
 pub fn opt(v: Option<f64>, f: fn(f64) -> String) -> String {
     v.map_or_else(|| "—".into(), f)
@@ -123,6 +160,40 @@ pub fn date(t: &Timestamp) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Values round to the place of their uncertainty's second significant
+    /// digit; written out by hand.
+    #[test]
+    fn values_round_to_their_uncertainty() {
+        assert_eq!(
+            value_and_uncertainty(-1.216012345, 2.3287e-6),
+            ("-1.2160123".into(), "0.0000023".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(6.2341e-3, 2.4424e-5),
+            ("0.006234".into(), "0.000024".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(12.3456, 0.15),
+            ("12.35".into(), "0.15".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(1234.4, 27.0),
+            ("1234".into(), "27".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(-8.4e-10, 1.7e-11),
+            ("-8.40e-10".into(), "0.17e-10".into())
+        );
+        assert_eq!(
+            value_and_uncertainty(0.0, 1.7e-11),
+            ("0.0e-11".into(), "1.7e-11".into())
+        );
+        assert_eq!(term_unit(accelcal_core::Term::K0, "mA"), "mA");
+        assert_eq!(term_unit(accelcal_core::Term::Kp, "mA"), "mA/g");
+        assert_eq!(term_unit(accelcal_core::Term::Kio, "mA"), "mA/g²");
+        assert_eq!(term_unit(accelcal_core::Term::Kiii, "V"), "V/g³");
+    }
 
     #[test]
     fn numbers_keep_their_significant_digits() {
