@@ -18,7 +18,7 @@ use crate::domain::submission::{Media, ResultView, evaluate};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::{TokenRequest, issue};
 use crate::startup::{
-    Application, Config, Limits, Problem, Web, openapi_document, shutdown_signal,
+    Application, Config, Laboratory, Limits, Problem, Web, openapi_document, shutdown_signal,
 };
 use crate::telemetry::{self, LogFormat};
 
@@ -128,6 +128,20 @@ struct ServeArgs {
     /// name themselves under it, and https marks session cookies Secure.
     #[arg(long, env = "ACCELCAL_PUBLIC_URL")]
     public_url: Option<String>,
+    /// The laboratory's name, as its certificates name it.
+    #[arg(long, env = "ACCELCAL_LAB_NAME")]
+    lab_name: Option<String>,
+    /// The laboratory's address (one line; also the place of calibration).
+    #[arg(long, env = "ACCELCAL_LAB_ADDRESS")]
+    lab_address: Option<String>,
+    /// The laboratory's accreditation: body and number
+    /// ("DAkkS D-K-12345-01-00").
+    #[arg(long, env = "ACCELCAL_LAB_ACCREDITATION")]
+    lab_accreditation: Option<String>,
+    /// A logo for the certificates: a .png, .jpg or .svg file of at most
+    /// 256 KiB, read at start.
+    #[arg(long, env = "ACCELCAL_LAB_LOGO")]
+    lab_logo: Option<std::path::PathBuf>,
     /// Seconds a web-page session lasts after sign-in.
     #[arg(long, env = "ACCELCAL_SESSION_TTL", default_value_t = 8 * 3600)]
     session_ttl: u64,
@@ -302,6 +316,16 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
         web: Web {
             public_url: a.public_url.filter(|u| !u.is_empty()),
             session_ttl: Duration::from_secs(a.session_ttl.max(1)),
+            laboratory: Laboratory {
+                name: a.lab_name.filter(|n| !n.is_empty()),
+                address: a.lab_address.filter(|n| !n.is_empty()),
+                accreditation: a.lab_accreditation.filter(|n| !n.is_empty()),
+                logo: a
+                    .lab_logo
+                    .map(|p| Laboratory::logo_from(&p))
+                    .transpose()
+                    .map_err(|e| anyhow::anyhow!("--lab-logo {e}"))?,
+            },
         },
         metrics_listen: a.metrics_listen.filter(|m| !m.is_empty()),
         min_free_disk_bytes: a.min_free_disk_mib.saturating_mul(1024 * 1024),

@@ -25,7 +25,7 @@ use tokio::sync::Semaphore;
 
 pub use crate::http::openapi::document as openapi_document;
 pub use crate::http::problem::Problem;
-pub use crate::http::{Limits, Web};
+pub use crate::http::{Laboratory, Limits, Web};
 
 use crate::domain::auth::{self, Role};
 use crate::domain::timestamp::Timestamp;

@@ -133,6 +133,8 @@ pub struct Web {
     pub public_url: Option<String>,
     /// How long a web session lasts after sign-in.
     pub session_ttl: Duration,
+    /// Who issues the certificates.
+    pub laboratory: Laboratory,
 }
 
 impl Default for Web {
@@ -140,7 +142,63 @@ impl Default for Web {
         Web {
             public_url: None,
             session_ttl: Duration::from_secs(8 * 3600),
+            laboratory: Laboratory::default(),
         }
+    }
+}
+
+/// The calibration laboratory, as its certificates name it
+/// (`--lab-name`, `--lab-address`, `--lab-accreditation`, `--lab-logo`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Laboratory {
+    /// Its name.
+    pub name: Option<String>,
+    /// Its address, which is also the place of calibration.
+    pub address: Option<String>,
+    /// Its accreditation: body and number (`DAkkS D-K-12345-01-00`).
+    pub accreditation: Option<String>,
+    /// Its logo as a `data:` URI (PNG, JPEG or SVG, read at start).
+    pub logo: Option<String>,
+}
+
+/// Largest logo file accepted.
+pub const MAX_LOGO_BYTES: u64 = 256 * 1024;
+
+impl Laboratory {
+    /// The logo at `path` as a `data:` URI, by its extension; an error
+    /// names what is wrong with it.
+    pub fn logo_from(path: &std::path::Path) -> Result<String, String> {
+        use base64::Engine as _;
+        let media = match path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase)
+            .as_deref()
+        {
+            Some("png") => "image/png",
+            Some("jpg" | "jpeg") => "image/jpeg",
+            Some("svg") => "image/svg+xml",
+            _ => {
+                return Err(format!(
+                    "{}: a logo must be .png, .jpg or .svg",
+                    path.display()
+                ));
+            }
+        };
+        let size = std::fs::metadata(path)
+            .map_err(|e| format!("{}: {e}", path.display()))?
+            .len();
+        if size > MAX_LOGO_BYTES {
+            return Err(format!(
+                "{}: {size} bytes; a logo may have at most {MAX_LOGO_BYTES}",
+                path.display()
+            ));
+        }
+        let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
+        Ok(format!(
+            "data:{media};base64,{}",
+            base64::engine::general_purpose::STANDARD.encode(bytes)
+        ))
     }
 }
 
@@ -336,6 +394,44 @@ pub(crate) fn path_id(raw: &str, what: &str) -> Result<uuid::Uuid, Problem> {
             crate::domain::text::echo(raw)
         ))
     })
+}
+
+#[cfg(test)]
+mod laboratory_tests {
+    use super::*;
+
+    /// A logo is a PNG, JPEG or SVG file of at most 256 KiB; anything
+    /// else is refused naming the file and why.
+    #[test]
+    fn a_logo_is_a_small_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let png = dir.path().join("lab.PNG");
+        std::fs::write(&png, [0x89, b'P', b'N', b'G']).unwrap();
+        assert_eq!(
+            Laboratory::logo_from(&png).unwrap(),
+            "data:image/png;base64,iVBORw=="
+        );
+        let gif = dir.path().join("lab.gif");
+        std::fs::write(&gif, b"GIF89a").unwrap();
+        assert!(
+            Laboratory::logo_from(&gif)
+                .unwrap_err()
+                .contains(".png, .jpg or .svg")
+        );
+        let big = dir.path().join("big.jpg");
+        std::fs::write(&big, vec![0u8; MAX_LOGO_BYTES as usize + 1]).unwrap();
+        assert!(
+            Laboratory::logo_from(&big)
+                .unwrap_err()
+                .contains("at most 262144")
+        );
+        let missing = dir.path().join("none.svg");
+        assert!(
+            Laboratory::logo_from(&missing)
+                .unwrap_err()
+                .contains("none.svg")
+        );
+    }
 }
 
 #[cfg(test)]

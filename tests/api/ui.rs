@@ -231,6 +231,7 @@ async fn sessions_end_on_expiry_revocation_and_sign_out(
         c.web = Web {
             public_url: Some("https://cal.example.com".into()),
             session_ttl: Duration::from_secs(1),
+            ..Web::default()
         }
     })
     .await;
@@ -360,8 +361,19 @@ async fn unknown_pages_and_calibrations_are_pages_not_problems(
 #[rstest]
 #[tokio::test]
 async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engine) {
+    let dir = tempfile::tempdir().unwrap();
+    let logo_path = dir.path().join("logo.svg");
+    let logo_svg = r#"<svg xmlns="http://www.w3.org/2000/svg" width="10" height="10"/>"#;
+    std::fs::write(&logo_path, logo_svg).unwrap();
+    let logo = accelcal::startup::Laboratory::logo_from(&logo_path).unwrap();
     let app = TestApp::configured(engine, |c| {
-        c.web.public_url = Some("https://cal.example.com/".into())
+        c.web.public_url = Some("https://cal.example.com/".into());
+        c.web.laboratory = accelcal::startup::Laboratory {
+            name: Some("Inertial Test Lab & Co.".into()),
+            address: Some("Bahnhofstrasse 1, 8001 Zürich".into()),
+            accreditation: Some("SAS SCS 0999".into()),
+            logo: Some(logo),
+        };
     })
     .await;
     let body = serde_json::to_vec(&paper()).unwrap();
@@ -441,6 +453,17 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
     assert!(html.contains("Expanded U (k = 2)"));
     assert!(html.contains("k = 2, coverage probability ≈ 95.4 %"));
     assert!(html.contains(&format!("End of certificate No. {id}")));
+    // Who issues it, and where it was calibrated; the logo as embedded,
+    // which the policy allows.
+    assert!(
+        html.contains("Inertial Test Lab &amp; Co."),
+        "the laboratory"
+    );
+    assert!(html.contains("Accredited: SAS SCS 0999"));
+    assert!(html.contains("Place of calibration</dt><dd>Bahnhofstrasse 1, 8001 Zürich"));
+    let embedded = base64::engine::general_purpose::STANDARD.encode(logo_svg);
+    assert!(html.contains(&format!("src=\"data:image/svg+xml;base64,{embedded}\"")));
+    assert!(csp.contains("img-src data:"), "{csp}");
     assert_eq!(
         app.get(
             "/v1/calibrations/01a20000-0000-7000-8000-000000000000/certificate",

@@ -37,11 +37,12 @@ use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
 
 /// The certificate's Content-Security-Policy: its own inline stylesheet
-/// (by hash) and nothing else.
+/// (by hash), the laboratory's logo embedded as a `data:` image, and
+/// nothing else.
 static CSP: LazyLock<String> = LazyLock::new(|| {
     let hash = STANDARD.encode(Sha256::digest(STYLESHEET.as_bytes()));
     format!(
-        "default-src 'none'; style-src 'sha256-{hash}'; frame-ancestors 'none'; \
+        "default-src 'none'; style-src 'sha256-{hash}'; img-src data:; frame-ancestors 'none'; \
          base-uri 'none'; form-action 'none'"
     )
 });
@@ -60,6 +61,8 @@ pub struct Context {
     pub url: String,
     /// When this copy was produced.
     pub issued: Timestamp,
+    /// The laboratory that issues it.
+    pub laboratory: crate::http::Laboratory,
 }
 
 /// The certificate document.
@@ -86,8 +89,12 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     tbody { tr { td {
                     div.cert-head {
                         div {
+                            @if let Some(logo) = &c.laboratory.logo {
+                                img.cert-logo src=(logo) alt="Laboratory logo";
+                            }
                             h1 { "Calibration certificate" }
                             p.muted { "No. " code { (d.id) } }
+                            (laboratory(&c.laboratory))
                         }
                         div {
                             @if let Some(dec) = &d.decision {
@@ -100,6 +107,7 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         div { dt { "Sensor" } dd { strong { (d.sensor_id) } } }
                         div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
                         div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
+                        div { dt { "Place of calibration" } dd { (c.laboratory.address.as_deref().unwrap_or("the laboratory's (no address configured)")) } }
                         div { dt { "Stand" } dd { @match &d.stand {
                             Some(s) => { (s.id.as_deref().unwrap_or("unnamed")) ": indexing " (s.angle_std_arcsec) "″ (1σ), gravity " (s.gravity_rel_std) " (relative, 1σ)" },
                             None => "not declared (no stand contribution)",
@@ -226,6 +234,21 @@ fn probability(k: f64) -> String {
     format!("coverage probability ≈ {p:.1} % (normal distribution)")
 }
 
+/// Who issues the certificate: the laboratory's name, address and
+/// accreditation as configured, or that none is.
+fn laboratory(lab: &crate::http::Laboratory) -> Markup {
+    html! {
+        div.cert-lab {
+            @match &lab.name {
+                Some(name) => { p { strong { (name) } } },
+                None => { p.muted { "Laboratory not configured (--lab-name, --lab-address, --lab-accreditation)" } },
+            }
+            @if let Some(address) = &lab.address { p { (address) } }
+            @if let Some(accreditation) = &lab.accreditation { p { "Accredited: " (accreditation) } }
+        }
+    }
+}
+
 /// The runs' temperatures as a range, or why there is none.
 fn temperatures(d: &ResultDoc) -> String {
     match d.temperatures_c.as_deref() {
@@ -302,6 +325,7 @@ pub async fn respond(
         content_type: s.content_type,
         url: own_url(state, headers, &id),
         issued: Timestamp::now(),
+        laboratory: state.web.laboratory.clone(),
     };
     let mut res = render(&d, &ctx).into_string().into_response();
     let h = res.headers_mut();
