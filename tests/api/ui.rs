@@ -450,6 +450,10 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         "K1 {ki:.decimals$} ± {u:.decimals$}"
     );
     assert!(html.contains(">output/g<"), "the unit of K1");
+    assert!(
+        html.contains("k0 in output, ki in output/g, kp in output/g"),
+        "the budget's units"
+    );
     assert!(html.contains("Expanded U (k = 2)"));
     assert!(html.contains("k = 2, coverage probability ≈ 95.4 %"));
     assert!(html.contains(&format!("End of certificate No. {id}")));

@@ -120,7 +120,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
     html! {
         div.table-wrap tabindex="0" role="region" aria-label="Coefficients per run, mean and fused" {
             table #estimates .cards {
-                caption { "Per run and fused (as the paper's Table 2); coefficients in " (d.unit) }
+                caption { "Per run and fused (as the paper's Table 2); k0 in " (d.unit) ", the others in " (d.unit) " per g to their degree (ki, kp, ko in " (d.unit) "/g)" }
                 thead { tr {
                     th scope="col" { "" }
                     @for t in &terms { th scope="col" .num { (t.name()) } }
@@ -252,7 +252,14 @@ pub fn budget(d: &ResultDoc) -> Markup {
         @if let Some(u) = &d.uncertainty {
             div.table-wrap tabindex="0" role="region" aria-label="Uncertainty budget" {
                 table #budget .cards {
-                    caption { "Uncertainty budget (" (d.unit) "); expanded with k = " (u.coverage_factor) }
+                    caption {
+                        "Uncertainty budget, each term in its coefficient's unit ("
+                        @for (i, (t, _)) in u.terms.iter().enumerate() {
+                            @if i > 0 { ", " }
+                            (t.name()) " in " (super::format::term_unit(t, &d.unit))
+                        }
+                        "); expanded with k = " (u.coverage_factor)
+                    }
                     thead { tr {
                         th scope="col" { "Term" }
                         th scope="col" .num { "Statistical" }
@@ -288,7 +295,7 @@ pub fn decision(d: &ResultDoc) -> Markup {
             p { "Rule " strong { (dec.rule) } " (ILAC-G8); verdict " (badge(&dec.verdict, &dec.verdict)) }
             div.table-wrap tabindex="0" role="region" aria-label="Decision" {
                 table #decision .cards {
-                    caption { "Each limited coefficient against its limits (" (d.unit) ")" }
+                    caption { "Each limited coefficient against its limits, in its coefficient's unit (k0 in " (d.unit) ", ki, kp, ko in " (d.unit) "/g)" }
                     thead { tr {
                         th scope="col" { "Term" }
                         th scope="col" .num { "Value" }
