@@ -376,7 +376,10 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         };
     })
     .await;
-    let body = serde_json::to_vec(&paper()).unwrap();
+    let mut received = paper();
+    received["item_received_at"] = json!("2005-07-29T09:00:00Z");
+    received["item_condition"] = json!("sealed in its shipping case");
+    let body = serde_json::to_vec(&received).unwrap();
     let res = app
         .client
         .post(app.url("/v1/calibrations"))
@@ -464,6 +467,8 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         "the laboratory"
     );
     assert!(html.contains("Accredited: SAS SCS 0999"));
+    assert!(html.contains("Item received</dt><dd>2005-07-29 09:00 UTC"));
+    assert!(html.contains("Condition on receipt</dt><dd>sealed in its shipping case"));
     assert!(html.contains("Place of calibration</dt><dd>Bahnhofstrasse 1, 8001 Zürich"));
     let embedded = base64::engine::general_purpose::STANDARD.encode(logo_svg);
     assert!(html.contains(&format!("src=\"data:image/svg+xml;base64,{embedded}\"")));

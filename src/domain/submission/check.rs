@@ -224,6 +224,8 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         sensor_type,
         stand,
         standards,
+        item_received_at,
+        item_condition,
         mut errors,
         not_an_object,
     } = draft;
@@ -267,6 +269,28 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             None
         }
         // Within the forgiven skew: recorded as the time received.
+        Slot::Value(t) => Some(t.min(now)),
+        _ => None,
+    };
+    // The item is received before it is calibrated, and not in the future.
+    let item_received_at = match item_received_at {
+        Slot::Value(t) if t > now.plus_seconds(MAX_FUTURE_SECONDS) => {
+            errors.add(
+                root.key("item_received_at"),
+                format!("lies ahead of the server's clock ({now})"),
+            );
+            None
+        }
+        Slot::Value(t) if performed_at.is_some_and(|p| t > p) => {
+            errors.add(
+                root.key("item_received_at"),
+                format!(
+                    "is after the test was performed ({}): the item is received before it is calibrated",
+                    performed_at.map_or(String::new(), |p| p.to_string())
+                ),
+            );
+            None
+        }
         Slot::Value(t) => Some(t.min(now)),
         _ => None,
     };
@@ -413,6 +437,11 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         },
         standards,
         standards_used: Vec::new(),
+        item_received_at,
+        item_condition: match item_condition {
+            Slot::Value(c) => Some(c),
+            _ => None,
+        },
         temperatures_c,
         test,
     };

@@ -102,6 +102,10 @@ pub struct Draft {
     pub stand: Slot<StandDraft>,
     /// `standards`.
     pub standards: Slot<StandardsDraft>,
+    /// `item_received_at`, parsed.
+    pub item_received_at: Slot<Timestamp>,
+    /// `item_condition`.
+    pub item_condition: Slot<String>,
     /// Problems found while reading.
     pub errors: Errors,
     /// The body was not an object at all (nothing else is worth saying).

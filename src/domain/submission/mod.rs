@@ -38,6 +38,8 @@ pub const FIELDS: &[&str] = &[
     "sensor_type",
     "stand",
     "standards",
+    "item_received_at",
+    "item_condition",
 ];
 
 /// The media types a submission may come in.
@@ -116,6 +118,10 @@ pub struct Submission {
     pub stand: Option<StandIn>,
     /// The reference standards the body names, by id.
     pub standards: Option<StandardsIn>,
+    /// When the laboratory received the item (the sensor), if given.
+    pub item_received_at: Option<Timestamp>,
+    /// The item's condition on receipt, if given.
+    pub item_condition: Option<String>,
     /// Those standards as the registry describes them, once resolved
     /// (empty until then, and for a body that names none).
     pub standards_used: Vec<crate::domain::standards::UsedStandard>,

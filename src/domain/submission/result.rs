@@ -89,6 +89,12 @@ pub struct ResultView<'a> {
     /// certificate it was in calibration by when the test was performed.
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     pub standards: &'a [UsedStandard],
+    /// When the laboratory received the item, when the body said.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub item_received_at: Option<Timestamp>,
+    /// The item's condition on receipt, when the body said.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub item_condition: Option<&'a str>,
     /// The runs' temperatures (°C), when they were given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temperatures_c: Option<&'a [f64]>,
@@ -127,6 +133,8 @@ impl<'a> ResultView<'a> {
             sensor_type,
             stand: s.stand.as_ref(),
             standards: &s.standards_used,
+            item_received_at: s.item_received_at,
+            item_condition: s.item_condition.as_deref(),
             temperatures_c: s.temperatures_c.as_deref(),
             calibration: &e.calibration,
             metrology,

@@ -446,3 +446,40 @@ fn standards_name_the_stand_and_replace_the_bodys_stand() {
     no_stand["standards"] = json!({"gravity": "G-BENCH"});
     assert_eq!(pointers(&no_stand), ["/standards/stand"]);
 }
+
+/// The item's receipt: kept when given, refused after the test was
+/// performed or ahead of the clock; read from CSV metadata alike.
+#[test]
+fn the_items_receipt_precedes_its_calibration() {
+    let mut body = paper();
+    body["performed_at"] = json!("2026-06-02T08:00:00Z");
+    body["item_received_at"] = json!("2026-06-01T09:30:00Z");
+    body["item_condition"] = json!("no visible damage; connector cap missing");
+    let s = run(&body).unwrap().submission;
+    assert_eq!(
+        s.item_received_at,
+        Some(Timestamp::parse("2026-06-01T09:30:00Z").unwrap())
+    );
+    assert_eq!(
+        s.item_condition.as_deref(),
+        Some("no visible damage; connector cap missing")
+    );
+    let mut late = body.clone();
+    late["item_received_at"] = json!("2026-06-03T00:00:00Z");
+    assert_eq!(pointers(&late), ["/item_received_at"]);
+    let mut ahead = paper();
+    ahead["item_received_at"] = json!("2099-01-01T00:00:00Z");
+    assert_eq!(pointers(&ahead), ["/item_received_at"]);
+    let mut two_lines = body.clone();
+    two_lines["item_condition"] = json!("dented\ncase");
+    assert_eq!(pointers(&two_lines), ["/item_condition"]);
+    let csv = format!(
+        "# sensor_id: S-1\n# performed_at: 2026-06-02T08:00:00Z\n# item_received_at: 2026-06-01T09:30:00Z\n# item_condition: sealed\n{}",
+        include_str!("../../../core/tests/data/table1.csv")
+    );
+    let s = evaluate(Media::Csv, csv.as_bytes(), now())
+        .unwrap()
+        .submission;
+    assert_eq!(s.item_condition.as_deref(), Some("sealed"));
+    assert!(s.item_received_at.is_some());
+}

@@ -514,6 +514,12 @@ pub async fn page(
             div { dt { "Calibration id" } dd { code { (d.id) } } }
             div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
             div { dt { "Received" } dd { (when(&d.received_at)) } }
+            @if let Some(at) = &d.item_received_at {
+                div { dt { "Item received" } dd { (when(at)) } }
+            }
+            @if let Some(c) = &d.item_condition {
+                div { dt { "Condition on receipt" } dd { (c) } }
+            }
             div { dt { "Model" } dd { (d.model.join(", ")) " · " (d.mount) " mount" } }
             div { dt { "Runs, batches" } dd { (d.runs.len()) ", " (d.batches) } }
             div { dt { "Unit" } dd { (d.unit) } }

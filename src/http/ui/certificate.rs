@@ -112,6 +112,8 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                             Some(s) => { (s.id.as_deref().unwrap_or("unnamed")) ": indexing " (s.angle_std_arcsec) "″ (1σ), gravity " (s.gravity_rel_std) " (relative, 1σ)" },
                             None => "not declared (no stand contribution)",
                         } } }
+                        div { dt { "Item received" } dd { (d.item_received_at.as_deref().map_or("not recorded".into(), when)) } }
+                        div { dt { "Condition on receipt" } dd { (d.item_condition.as_deref().unwrap_or("not recorded")) } }
                         div { dt { "Performed" } dd { (when(&d.performed_at)) } }
                         div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
                         div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }

@@ -354,6 +354,12 @@ pub struct ResultDoc {
     /// The reference standards used, each with its certificate then.
     #[serde(default)]
     pub standards: Vec<crate::domain::standards::UsedStandard>,
+    /// When the laboratory received the item.
+    #[serde(default)]
+    pub item_received_at: Option<String>,
+    /// The item's condition on receipt.
+    #[serde(default)]
+    pub item_condition: Option<String>,
     /// Run temperatures.
     #[serde(default)]
     pub temperatures_c: Option<Vec<f64>>,

@@ -188,6 +188,10 @@ fn set(draft: &mut Draft, key: &'static str, value: &str) {
         "sensor_type" => {
             draft.sensor_type = slot(errors, at, s().string(MAX_ID_CHARS, Chars::Identifier))
         }
+        "item_received_at" => draft.item_received_at = slot(errors, at, performed_at(s())),
+        "item_condition" => {
+            draft.item_condition = slot(errors, at, s().string(MAX_DESCRIPTION_CHARS, Chars::Line))
+        }
         "stand_id" | "stand_angle_std_arcsec" | "stand_gravity_rel_std" => {
             let mut stand = match std::mem::take(&mut draft.stand) {
                 Slot::Value(v) => v,

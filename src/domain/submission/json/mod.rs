@@ -106,6 +106,13 @@ impl<'de> Node<'de> for Top<'_> {
                             d.sensor_type =
                                 slot(errors, at, v.string(MAX_ID_CHARS, Chars::Identifier))
                         }
+                        "item_received_at" => {
+                            d.item_received_at = slot(errors, at, performed_at(v))
+                        }
+                        "item_condition" => {
+                            d.item_condition =
+                                slot(errors, at, v.string(MAX_DESCRIPTION_CHARS, Chars::Line))
+                        }
                         other => unreachable_field(other),
                     }
                 }
