@@ -212,6 +212,16 @@ fn bounded(v: &Scalar, max: f64) -> Result<f64, String> {
     }
 }
 
+/// What an optional object member that came as a scalar reads as: absent
+/// when null, else invalid, saying so.
+fn optional_object<T>(errors: &mut Errors, at: Loc<'_>, v: Scalar) -> Slot<T> {
+    if v == Scalar::Null {
+        return Slot::Absent;
+    }
+    errors.add(at, format!("must be an object, not {}", v.kind()));
+    Slot::Invalid
+}
+
 /// `stand`: an object of `id`, `angle_std_arcsec`, `gravity_rel_std`.
 struct StandNode<'a> {
     errors: &'a mut Errors,
@@ -221,12 +231,7 @@ struct StandNode<'a> {
 impl<'de> Node<'de> for StandNode<'_> {
     type Out = Slot<StandDraft>;
     fn scalar(self, v: Scalar) -> Self::Out {
-        if v == Scalar::Null {
-            return Slot::Absent;
-        }
-        self.errors
-            .add(self.at, format!("must be an object, not {}", v.kind()));
-        Slot::Invalid
+        optional_object(self.errors, self.at, v)
     }
     fn map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Out, A::Error> {
         const KEYS: [&str; 3] = ["id", "angle_std_arcsec", "gravity_rel_std"];
@@ -273,12 +278,7 @@ struct StandardsNode<'a> {
 impl<'de> Node<'de> for StandardsNode<'_> {
     type Out = Slot<StandardsDraft>;
     fn scalar(self, v: Scalar) -> Self::Out {
-        if v == Scalar::Null {
-            return Slot::Absent;
-        }
-        self.errors
-            .add(self.at, format!("must be an object, not {}", v.kind()));
-        Slot::Invalid
+        optional_object(self.errors, self.at, v)
     }
     fn map<A: MapAccess<'de>>(self, map: A) -> Result<Self::Out, A::Error> {
         let Some(ids) = scalar_fields(map, self.errors, self.at, STANDARD_ROLES)? else {
