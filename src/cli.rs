@@ -14,6 +14,7 @@ use crate::domain::auth::Role;
 use crate::domain::field::{FieldError, Invalid};
 use crate::domain::limits::{DEFAULT_BODY_BUDGET_BYTES, DEFAULT_MAX_BODY_BYTES};
 use crate::domain::metrology::assess_calibration;
+use crate::domain::review::Basis;
 use crate::domain::submission::{Media, ResultView, evaluate};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::{TokenRequest, issue};
@@ -142,6 +143,11 @@ struct ServeArgs {
     /// 256 KiB, read at start.
     #[arg(long, env = "ACCELCAL_LAB_LOGO")]
     lab_logo: Option<std::path::PathBuf>,
+    /// Serve only approved calibrations: coefficients, compensation,
+    /// as-found and stability use approved calibrations only (by default
+    /// every calibration not rejected or withdrawn).
+    #[arg(long, env = "ACCELCAL_REQUIRE_APPROVAL")]
+    require_approval: bool,
     /// Seconds a web-page session lasts after sign-in.
     #[arg(long, env = "ACCELCAL_SESSION_TTL", default_value_t = 8 * 3600)]
     session_ttl: u64,
@@ -325,6 +331,11 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
                     .map(|p| Laboratory::logo_from(&p))
                     .transpose()
                     .map_err(|e| anyhow::anyhow!("--lab-logo {e}"))?,
+            },
+            basis: if a.require_approval {
+                Basis::ApprovedOnly
+            } else {
+                Basis::NotRejected
             },
         },
         metrics_listen: a.metrics_listen.filter(|m| !m.is_empty()),

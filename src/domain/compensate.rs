@@ -8,6 +8,7 @@ use uuid::Uuid;
 
 use super::field::{Errors, Invalid, Loc};
 use super::limits::{MAX_CROSS_G, MAX_OUTPUTS, MAX_READING};
+use super::review::{Basis, State};
 use super::timestamp::Timestamp;
 use super::usability::Usability;
 
@@ -58,6 +59,11 @@ pub struct Compensated {
     pub unit: String,
     /// One input acceleration (g) per output.
     pub a_i: Vec<f64>,
+    /// The calibration's state (one that does not count on `basis` is not
+    /// usable).
+    pub state: State,
+    /// Which calibrations are served: `not_rejected` or `approved_only`.
+    pub basis: Basis,
 }
 
 /// A cross-axis input of compensation.

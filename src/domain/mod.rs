@@ -14,6 +14,7 @@ pub mod field;
 pub mod fuse;
 pub mod limits;
 pub mod metrology;
+pub mod review;
 pub mod schema;
 pub mod sensor_types;
 pub mod session;

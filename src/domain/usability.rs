@@ -14,6 +14,7 @@ use accelcal_core::decision::Verdict;
 use serde::Serialize;
 use utoipa::ToSchema;
 
+use super::review::{Basis, State};
 use super::status::{DUE_SOON_DAYS, Status};
 use super::timestamp::Timestamp;
 
@@ -25,6 +26,13 @@ pub enum Reason {
     Failed,
     /// Its due date has passed.
     Overdue,
+    /// The calibration was withdrawn.
+    Withdrawn,
+    /// The calibration was rejected in review.
+    Rejected,
+    /// The calibration is not approved, and only approved ones are used
+    /// (`--require-approval`).
+    NotApproved,
 }
 
 /// One reason, with what it means for this calibration.
@@ -74,6 +82,28 @@ impl Usability {
         }
     }
 
+    /// The same, for a calibration in `state` when `basis` decides which
+    /// are used: one that does not count on it is not usable either.
+    pub fn in_state(mut self, state: State, basis: Basis) -> Self {
+        if state.counts(basis) {
+            return self;
+        }
+        let (reason, detail) = match state {
+            State::Withdrawn => (Reason::Withdrawn, "its calibration was withdrawn"),
+            State::Rejected => (Reason::Rejected, "its calibration was rejected in review"),
+            State::Submitted | State::Approved => (
+                Reason::NotApproved,
+                "its calibration is not approved, and only approved calibrations are used",
+            ),
+        };
+        self.reasons.push(Unusable {
+            reason,
+            detail: detail.to_owned(),
+        });
+        self.usable = false;
+        self
+    }
+
     /// The last instant up to which [`Usability::of`] answers as it does at
     /// `now`: 30 days before the due date (due soon after it) or the due
     /// date (overdue after it); `None` when the answer never changes.
@@ -91,6 +121,40 @@ mod tests {
 
     fn at(s: &str) -> Timestamp {
         Timestamp::parse(s).unwrap()
+    }
+
+    #[test]
+    fn calibrations_that_do_not_count_are_not_usable() {
+        let now = at("2026-06-01T00:00:00Z");
+        let good = || Usability::of(Some(Verdict::Pass), None, now);
+        let cases = [
+            (State::Submitted, Basis::NotRejected, None),
+            (State::Approved, Basis::NotRejected, None),
+            (State::Approved, Basis::ApprovedOnly, None),
+            (
+                State::Submitted,
+                Basis::ApprovedOnly,
+                Some(Reason::NotApproved),
+            ),
+            (
+                State::Withdrawn,
+                Basis::NotRejected,
+                Some(Reason::Withdrawn),
+            ),
+            (
+                State::Withdrawn,
+                Basis::ApprovedOnly,
+                Some(Reason::Withdrawn),
+            ),
+            (State::Rejected, Basis::NotRejected, Some(Reason::Rejected)),
+        ];
+        for (state, basis, reason) in cases {
+            let u = good().in_state(state, basis);
+            assert_eq!(u.usable, reason.is_none(), "{state:?} on {basis:?}");
+            assert_eq!(u.reasons.first().map(|r| r.reason), reason);
+            // The status is the calibration's, whatever its state.
+            assert_eq!(u.status, good().status);
+        }
     }
 
     #[test]

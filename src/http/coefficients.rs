@@ -20,6 +20,7 @@ use super::rendered::{APPLICATION_JSON, ById};
 use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
+use crate::domain::review::Basis;
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::usability::Usability;
@@ -54,11 +55,15 @@ pub struct Coefficients {
     /// Their standard errors.
     #[schema(value_type = crate::domain::schema::CoefficientMap)]
     std_errors: accelcal_core::TermMap<f64>,
+    /// Which calibrations are served: `not_rejected` (every calibration not
+    /// rejected or withdrawn) or `approved_only` (`--require-approval`).
+    basis: Basis,
 }
 
 impl Coefficients {
-    /// The coefficients of `summary`, judged at `now`.
-    fn of(summary: CalibrationSummary, now: Timestamp) -> Self {
+    /// The coefficients of `summary`, judged at `now`, served on `basis`
+    /// (which it counts on: it is the sensor's latest on it).
+    fn of(summary: CalibrationSummary, now: Timestamp, basis: Basis) -> Self {
         Coefficients {
             sensor_id: summary.sensor_id,
             calibration_id: summary.id,
@@ -70,6 +75,7 @@ impl Coefficients {
             model: summary.model,
             coefficients: summary.coefficients,
             std_errors: summary.std_errors,
+            basis,
         }
     }
 }
@@ -116,6 +122,24 @@ fn refuse_unusable(summary: &CalibrationSummary, u: &Usability) -> Result<(), Pr
     ))
 }
 
+/// A sensor's latest approved calibration, or 404 (`--require-approval`).
+async fn latest_approved(state: &AppState, sensor_id: &str) -> Result<CalibrationSummary, Problem> {
+    // The sensor first: an unknown one is told apart from one with
+    // nothing approved.
+    sensor(state, sensor_id).await?;
+    state
+        .store
+        .latest_approved(sensor_id.to_owned())
+        .await?
+        .ok_or_else(|| {
+            Problem::not_found(format!(
+                "sensor `{}` has no approved calibration (only approved calibrations are \
+                 served: --require-approval)",
+                echo(sensor_id)
+            ))
+        })
+}
+
 /// `GET /v1/sensors/{sensor_id}/coefficients`: the latest calibration's fused values.
 #[utoipa::path(
     get,
@@ -126,7 +150,9 @@ fn refuse_unusable(summary: &CalibrationSummary, u: &Usability) -> Result<(), Pr
     description = "With the calibration's verdict, due date, the sensor's status, \
         `usable` and the `reasons` why not: coefficients whose calibration failed \
         or is overdue are not usable. With `require=usable` such coefficients are \
-        a 409 instead.",
+        a 409 instead. The latest calibration is the latest not rejected or \
+        withdrawn, or with `--require-approval` the latest approved (`basis` \
+        says which); a sensor with none is a 404.",
     params(super::openapi::SensorIdPath, RequireQuery),
     responses(
         (status = 200, description = "The coefficients.", body = Coefficients),
@@ -145,6 +171,14 @@ pub async fn coefficients(
     require(&principal, Role::Reader)?;
     let usable = query.usable()?;
     let now = Timestamp::now();
+    if state.web.basis == Basis::ApprovedOnly {
+        let latest = latest_approved(&state, &sensor_id).await?;
+        if usable {
+            refuse_unusable(&latest, &Usability::of(latest.verdict, latest.due_at, now))?;
+        }
+        let body = state.rendered.get_or_render(latest, now, state.web.basis)?;
+        return Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response());
+    }
     // Which calibration is the latest, then its rendering if kept and still
     // right; the summary itself is read only to render, or to refuse.
     let id = latest_id(&state, &sensor_id).await?;
@@ -160,7 +194,7 @@ pub async fn coefficients(
             if usable {
                 refuse_unusable(&latest, &Usability::of(latest.verdict, latest.due_at, now))?;
             }
-            state.rendered.get_or_render(latest, now)?
+            state.rendered.get_or_render(latest, now, state.web.basis)?
         }
     };
     Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response())
@@ -188,24 +222,26 @@ impl Rendered {
         self.0.get_at(id, now)
     }
 
-    /// The rendered [`Coefficients`] of `latest` at `now`, from memory when
-    /// they were rendered before and are still right.
+    /// The rendered [`Coefficients`] of `latest` at `now` on `basis` (the
+    /// process's: one rendering per calibration), from memory when they
+    /// were rendered before and are still right.
     pub fn get_or_render(
         &self,
         latest: CalibrationSummary,
         now: Timestamp,
+        basis: Basis,
     ) -> Result<Bytes, Problem> {
         let id = latest.id;
         if let Some(body) = self.0.get_at(&id, now) {
             return Ok(body);
         }
         let until = Usability::valid_until(latest.due_at, now);
-        let body = Bytes::from(serde_json::to_vec(&Coefficients::of(latest, now)).map_err(
-            |e| {
+        let body = Bytes::from(
+            serde_json::to_vec(&Coefficients::of(latest, now, basis)).map_err(|e| {
                 tracing::error!(error = %e, "rendering coefficients failed");
                 Problem::internal()
-            },
-        )?);
+            })?,
+        );
         self.0.insert_until(id, body.clone(), until);
         Ok(body)
     }
@@ -257,7 +293,9 @@ pub async fn compensate(
     require(&principal, Role::Reader)?;
     let usable = query.usable()?;
     let request = body.json::<CompensateRequest>()?.check()?;
+    let basis = state.web.basis;
     let summary = match request.calibration_id {
+        None if basis == Basis::ApprovedOnly => latest_approved(&state, &sensor_id).await?,
         None => sensor(&state, &sensor_id).await?.latest,
         Some(id) => state
             .store
@@ -271,7 +309,8 @@ pub async fn compensate(
                 ))
             })?,
     };
-    let usability = Usability::of(summary.verdict, summary.due_at, Timestamp::now());
+    let usability = Usability::of(summary.verdict, summary.due_at, Timestamp::now())
+        .in_state(summary.state, basis);
     if usable {
         refuse_unusable(&summary, &usability)?;
     }
@@ -286,6 +325,8 @@ pub async fn compensate(
         due_at: summary.due_at,
         unit: summary.unit,
         a_i,
+        state: summary.state,
+        basis,
     }))
 }
 
@@ -306,7 +347,9 @@ mod tests {
     fn the_rendering_is_the_coefficients_document() {
         let r = Rendered::default();
         let now = Timestamp::parse("2026-06-01T00:00:00Z").unwrap();
-        let body = r.get_or_render(latest(1, -8.4e-4), now).unwrap();
+        let body = r
+            .get_or_render(latest(1, -8.4e-4), now, Basis::NotRejected)
+            .unwrap();
         let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
         assert_eq!(
             v,
@@ -323,14 +366,19 @@ mod tests {
                 "model": ["k0", "ki"],
                 "coefficients": {"k0": -8.4e-4, "ki": -1.216},
                 "std_errors": {"k0": 1e-6, "ki": 2e-6},
+                "basis": "not_rejected",
             })
         );
         // A second read of that calibration is the kept bytes.
-        let again = r.get_or_render(latest(1, 0.5), now).unwrap();
+        let again = r
+            .get_or_render(latest(1, 0.5), now, Basis::NotRejected)
+            .unwrap();
         assert_eq!(again, body);
         assert_eq!(r.len(), 1);
         // Another calibration is rendered on its own.
-        let other = r.get_or_render(latest(2, 0.5), now).unwrap();
+        let other = r
+            .get_or_render(latest(2, 0.5), now, Basis::NotRejected)
+            .unwrap();
         let v: serde_json::Value = serde_json::from_slice(&other).unwrap();
         assert_eq!(v["coefficients"]["k0"], 0.5);
         assert_eq!(r.len(), 2);
@@ -347,7 +395,9 @@ mod tests {
         s.verdict = Some(Verdict::Pass);
         s.due_at = Some(at("2026-07-01T00:00:00Z"));
         let read = |now: &str| {
-            let body = r.get_or_render(s.clone(), at(now)).unwrap();
+            let body = r
+                .get_or_render(s.clone(), at(now), Basis::NotRejected)
+                .unwrap();
             let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
             (
                 v["status"].as_str().unwrap().to_owned(),
@@ -376,7 +426,8 @@ mod tests {
     fn at_most_so_many_calibrations_are_kept() {
         let r = Rendered::default();
         for id in 0..(RENDERED as u128 + 10) {
-            r.get_or_render(latest(id, 0.0), Timestamp::now()).unwrap();
+            r.get_or_render(latest(id, 0.0), Timestamp::now(), Basis::NotRejected)
+                .unwrap();
         }
         assert_eq!(r.len(), RENDERED);
         // The newest is among them.

@@ -163,7 +163,11 @@ pub async fn assess(
     resolve_standards(state, &mut evaluated, performed_at).await?;
     let previous = state
         .store
-        .previous_calibration(evaluated.submission.sensor_id.clone(), performed_at)
+        .previous_calibration(
+            evaluated.submission.sensor_id.clone(),
+            performed_at,
+            state.web.basis,
+        )
         .await?
         .map(|c| Previous {
             id: c.id,

@@ -20,6 +20,7 @@ pub mod page;
 pub mod problem;
 pub mod query;
 pub mod rendered;
+pub mod reviews;
 pub mod sensor_types;
 pub mod sensors;
 pub mod stability;
@@ -111,8 +112,9 @@ pub struct Shared {
     pub web: Web,
     /// Coefficients answers rendered once per calibration.
     pub rendered: coefficients::Rendered,
-    /// Calibration summaries (history pages' items) rendered once each.
-    pub summaries: rendered::ById,
+    /// Calibration summaries (history pages' items) rendered once each, by
+    /// id and state.
+    pub summaries: rendered::ById<(uuid::Uuid, crate::domain::review::State)>,
     /// Failed authentications per client address.
     pub throttle: throttle::Throttle,
 }
@@ -135,6 +137,9 @@ pub struct Web {
     pub session_ttl: Duration,
     /// Who issues the certificates.
     pub laboratory: Laboratory,
+    /// Which calibrations coefficients, compensation, as-found and
+    /// stability use: approved ones only with `--require-approval`.
+    pub basis: crate::domain::review::Basis,
 }
 
 impl Default for Web {
@@ -143,6 +148,7 @@ impl Default for Web {
             public_url: None,
             session_ttl: Duration::from_secs(8 * 3600),
             laboratory: Laboratory::default(),
+            basis: crate::domain::review::Basis::default(),
         }
     }
 }
@@ -283,6 +289,9 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(calibrations::get))
         .routes(routes!(calibrations::certificate))
         .routes(routes!(calibrations::submission))
+        .routes(routes!(reviews::review))
+        .routes(routes!(reviews::withdraw))
+        .routes(routes!(reviews::signatures))
         .routes(routes!(sensors::list))
         .routes(routes!(sensors::get, sensors::update))
         .routes(routes!(sensors::history))

@@ -50,6 +50,8 @@ pub enum Kind {
     InFlight,
     /// 409: coefficients asked for with `require=usable` are not usable.
     NotUsable,
+    /// 409: the calibration's state does not allow the act.
+    StateConflict,
     /// 413: the body is too large.
     TooLarge,
     /// 429: too many failed authentications from the client's address.
@@ -68,7 +70,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 16] = [
+    pub const ALL: [Kind; 17] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -78,6 +80,7 @@ impl Kind {
         Kind::Timeout,
         Kind::InFlight,
         Kind::NotUsable,
+        Kind::StateConflict,
         Kind::TooLarge,
         Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
@@ -99,6 +102,7 @@ impl Kind {
             Kind::Timeout => "timeout",
             Kind::InFlight => "in-flight",
             Kind::NotUsable => "not-usable",
+            Kind::StateConflict => "state-conflict",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
@@ -121,6 +125,7 @@ impl Kind {
             Kind::Timeout => "Request timeout",
             Kind::InFlight => "Request in progress",
             Kind::NotUsable => "Coefficients not usable",
+            Kind::StateConflict => "Not allowed in the calibration's state",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
@@ -141,7 +146,7 @@ impl Kind {
             Kind::NotFound => StatusCode::NOT_FOUND,
             Kind::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
-            Kind::InFlight | Kind::NotUsable => StatusCode::CONFLICT,
+            Kind::InFlight | Kind::NotUsable | Kind::StateConflict => StatusCode::CONFLICT,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,

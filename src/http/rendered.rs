@@ -1,10 +1,12 @@
 //! Answers rendered once per stored calibration and kept by its id.
 //!
 //! A stored calibration never changes (both engines refuse an update of its
-//! row), so anything rendered from it alone — its coefficients document, its
-//! summary in a history page — cannot go stale, in this process or across
-//! replicas: an id means the same row everywhere. Which calibrations a read
-//! needs (the latest, a page) is still asked of the store on every read.
+//! row), so anything rendered from it alone — its coefficients document —
+//! cannot go stale, in this process or across replicas: an id means the
+//! same row everywhere. What also shows its state (a summary in a history
+//! page) is kept by id *and* state, the state being read with the ids.
+//! Which calibrations a read needs (the latest, a page) is still asked of
+//! the store on every read.
 //!
 //! Kept because it pays: without the kept renderings (and with axum's
 //! `Json`), a 20-item history page took 1 242 700 instructions instead of
@@ -12,6 +14,7 @@
 //! `info`, `benches/instructions.sh`).
 
 use std::collections::HashMap;
+use std::hash::Hash;
 use std::sync::Mutex;
 
 use axum::http::HeaderValue;
@@ -23,16 +26,17 @@ use crate::domain::timestamp::Timestamp;
 /// The `Content-Type` of a rendered JSON answer.
 pub static APPLICATION_JSON: HeaderValue = HeaderValue::from_static("application/json");
 
-/// Renderings by calibration id, at most `capacity`; when full, an arbitrary
-/// one makes room. A rendering that holds a time-dependent part (a status)
-/// is kept with the last instant it is right at.
+/// Renderings by calibration id (or by id and whatever else they show, `K`),
+/// at most `capacity`; when full, an arbitrary one makes room. A rendering
+/// that holds a time-dependent part (a status) is kept with the last
+/// instant it is right at.
 #[derive(Debug)]
-pub struct ById {
-    map: Mutex<HashMap<Uuid, (Bytes, Option<Timestamp>)>>,
+pub struct ById<K = Uuid> {
+    map: Mutex<HashMap<K, (Bytes, Option<Timestamp>)>>,
     capacity: usize,
 }
 
-impl ById {
+impl<K: Eq + Hash + Clone> ById<K> {
     /// Empty, keeping at most `capacity` renderings.
     pub fn new(capacity: usize) -> Self {
         ById {
@@ -42,13 +46,13 @@ impl ById {
     }
 
     /// The kept rendering of calibration `id`, if any (kept for ever).
-    pub fn get(&self, id: &Uuid) -> Option<Bytes> {
+    pub fn get(&self, id: &K) -> Option<Bytes> {
         self.lock().get(id).map(|(body, _)| body.clone())
     }
 
     /// The kept rendering of calibration `id`, if any and still right at
     /// `now`.
-    pub fn get_at(&self, id: &Uuid, now: Timestamp) -> Option<Bytes> {
+    pub fn get_at(&self, id: &K, now: Timestamp) -> Option<Bytes> {
         match self.lock().get(id) {
             Some((body, until)) if until.is_none_or(|t| now <= t) => Some(body.clone()),
             _ => None,
@@ -56,17 +60,17 @@ impl ById {
     }
 
     /// Keeps `body` as the rendering of calibration `id`, right for ever.
-    pub fn insert(&self, id: Uuid, body: Bytes) {
+    pub fn insert(&self, id: K, body: Bytes) {
         self.insert_until(id, body, None);
     }
 
     /// Keeps `body` as the rendering of calibration `id`, right up to
     /// `until` (for ever when `None`).
-    pub fn insert_until(&self, id: Uuid, body: Bytes, until: Option<Timestamp>) {
+    pub fn insert_until(&self, id: K, body: Bytes, until: Option<Timestamp>) {
         let mut map = self.lock();
         if map.len() >= self.capacity
             && !map.contains_key(&id)
-            && let Some(victim) = map.keys().next().copied()
+            && let Some(victim) = map.keys().next().cloned()
         {
             map.remove(&victim);
         }
@@ -84,11 +88,11 @@ impl ById {
     }
 
     /// Whether calibration `id`'s rendering is kept.
-    pub fn contains(&self, id: &Uuid) -> bool {
+    pub fn contains(&self, id: &K) -> bool {
         self.lock().contains_key(id)
     }
 
-    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<Uuid, (Bytes, Option<Timestamp>)>> {
+    fn lock(&self) -> std::sync::MutexGuard<'_, HashMap<K, (Bytes, Option<Timestamp>)>> {
         // Plain data: a panic elsewhere cannot leave it half-updated.
         self.map.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -100,7 +104,7 @@ mod tests {
 
     #[test]
     fn keeps_at_most_its_capacity_and_the_newest() {
-        let kept = ById::new(3);
+        let kept: ById = ById::new(3);
         assert!(kept.is_empty());
         for id in 0..10u128 {
             kept.insert(Uuid::from_u128(id), Bytes::from(id.to_string()));

@@ -13,7 +13,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::page::Page;
-use super::problem::Problem;
+use super::problem::{Kind, Problem};
 use super::query::{Params, instant, limit};
 use super::rendered::APPLICATION_JSON;
 use crate::domain::auth::{Principal, Role};
@@ -25,7 +25,8 @@ use crate::store::{HistoryQuery, SensorQuery, SensorSummary};
 
 fn unknown_sensor(sensor_id: &str) -> Problem {
     Problem::not_found(format!(
-        "no sensor `{}` has been calibrated",
+        "no sensor `{}` has a calibration in use (it was never calibrated, or every \
+         calibration of it was rejected or withdrawn)",
         echo(sensor_id)
     ))
 }
@@ -238,7 +239,28 @@ pub async fn history(
                 .map_err(|_| Problem::bad_parameter("after", "must be a calibration id (UUID)"))
         })
         .transpose()?;
-    sensor(&state, &sensor_id).await?;
+    match sensor(&state, &sensor_id).await {
+        Ok(_) => {}
+        // A sensor none of whose calibrations is in use any more (all
+        // rejected or withdrawn) still has its history.
+        Err(p) if p.kind == Kind::NotFound => {
+            let any = HistoryQuery {
+                from: None,
+                to: None,
+                before: None,
+                limit: 1,
+            };
+            if state
+                .store
+                .history_ids(sensor_id.clone(), any)
+                .await?
+                .is_empty()
+            {
+                return Err(p);
+            }
+        }
+        Err(p) => return Err(p),
+    }
     if let Some(id) = before {
         let known = state.store.calibration_summary(id).await?;
         if known.is_none_or(|c| c.sensor_id != sensor_id) {
@@ -261,7 +283,7 @@ pub async fn history(
         .await?;
     let kept: Option<Vec<Bytes>> = ids.iter().map(|id| state.summaries.get(id)).collect();
     let items = match kept {
-        Some(bodies) => ids.into_iter().zip(bodies).collect(),
+        Some(bodies) => ids.into_iter().map(|(id, _)| id).zip(bodies).collect(),
         None => {
             let mut items = Vec::new();
             for c in state.store.history(sensor_id, q).await? {
@@ -269,7 +291,7 @@ pub async fn history(
                     tracing::error!(error = %e, "rendering a calibration summary failed");
                     Problem::internal()
                 })?);
-                state.summaries.insert(c.id, body.clone());
+                state.summaries.insert((c.id, c.state), body.clone());
                 items.push((c.id, body));
             }
             items

@@ -92,7 +92,7 @@ pub async fn report_of(
     };
     let found = state
         .store
-        .series(sensor_id.to_owned(), from, to, MAX_SERIES)
+        .series(sensor_id.to_owned(), from, to, MAX_SERIES, state.web.basis)
         .await?;
     let omitted = found.in_window.saturating_sub(found.items.len());
     // One unit: the latest calibration's.

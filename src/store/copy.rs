@@ -3,7 +3,8 @@
 //!
 //! Everything a running service needs comes across: every sensor type, every
 //! token (its hash; revoked ones stay revoked), every calibration with its
-//! result and submission byte for byte, the sensors' assigned types, and the
+//! result and submission byte for byte and its signatures (replayed in order,
+//! through the same checks), the sensors' assigned types, and the
 //! completed idempotency keys still within their retention (so a station's
 //! retry after the move is still answered with its calibration). Sensor
 //! summaries are rebuilt by the same inserts that built them. Web sessions
@@ -22,7 +23,9 @@
 
 use serde::Serialize;
 
-use super::{DoneKey, IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Store, StoreError};
+use super::{DoneKey, IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Signed, Store, StoreError};
+use crate::domain::auth::Principal;
+use crate::domain::review::Act;
 use crate::domain::timestamp::Timestamp;
 
 /// Calibrations read and written per round trip.
@@ -39,6 +42,8 @@ pub struct Copied {
     pub tokens: usize,
     /// Calibrations.
     pub calibrations: usize,
+    /// Signatures on them (approvals, rejections, withdrawals).
+    pub signatures: usize,
     /// Sensors given their assigned type.
     pub typed_sensors: usize,
     /// Completed idempotency keys.
@@ -92,6 +97,41 @@ fn present<T: PartialEq>(
     }
 }
 
+/// Replays onto the target the signatures of calibration `id` it does not
+/// hold yet, in order, each through the same checks that admitted it
+/// ([`crate::domain::review::Act::check`]) and compared with the source's
+/// once recorded; how many were copied.
+async fn copy_signatures(
+    from: &dyn Store,
+    to: &dyn Store,
+    id: uuid::Uuid,
+) -> Result<usize, CopyError> {
+    let wanted = from.signatures(id).await?;
+    let there = to.signatures(id).await?;
+    let conflict = || CopyError::Conflict(format!("calibration `{id}`'s signatures"));
+    if there.len() > wanted.len() || wanted[..there.len()] != there[..] {
+        return Err(conflict());
+    }
+    for s in &wanted[there.len()..] {
+        let act = Act {
+            action: s.action,
+            signer: Principal {
+                id: s.token_id.clone(),
+                role: s.role,
+                station_id: None,
+                holder: s.holder.clone(),
+            },
+            at: s.signed_at,
+            comment: s.comment.clone(),
+        };
+        match to.sign(id, act).await? {
+            Signed::Done(copy, _) if copy == *s => {}
+            _ => return Err(conflict()),
+        }
+    }
+    Ok(wanted.len() - there.len())
+}
+
 /// Copies everything from `from` (described as `source`) into `to` (which
 /// must be empty unless `into_non_empty`, or the target of an unfinished
 /// copy), as of `now`.
@@ -142,13 +182,15 @@ pub async fn copy(
         let Some(last) = page.last() else { break };
         after = Some(last.id);
         for c in page {
-            let existing = to.calibration_result(c.id).await?;
-            if present(existing, &c.result, || format!("calibration `{}`", c.id))? {
+            let id = c.id;
+            let existing = to.calibration_result(id).await?;
+            if present(existing, &c.result, || format!("calibration `{id}`"))? {
                 copied.already_there += 1;
-                continue;
+            } else {
+                to.insert_calibration(c, None).await?;
+                copied.calibrations += 1;
             }
-            to.insert_calibration(c, None).await?;
-            copied.calibrations += 1;
+            copied.signatures += copy_signatures(from, to, id).await?;
         }
     }
     let mut after = None;

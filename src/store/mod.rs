@@ -27,6 +27,7 @@ use uuid::Uuid;
 pub use error::{BoxError, StoreError};
 pub use records::*;
 
+use crate::domain::review::{Act, Basis, Signature, State};
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
 use crate::domain::standards::Standard;
@@ -42,13 +43,22 @@ pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
 /// hold an `Arc<dyn Store>` and bring the concerns they use into scope
 /// ([`prelude`]).
 pub trait Store:
-    Database + Calibrations + Sensors + SensorTypes + Standards + Tokens + Sessions + Idempotency
+    Database
+    + Calibrations
+    + Reviews
+    + Sensors
+    + SensorTypes
+    + Standards
+    + Tokens
+    + Sessions
+    + Idempotency
 {
 }
 
 impl<T> Store for T where
     T: Database
         + Calibrations
+        + Reviews
         + Sensors
         + SensorTypes
         + Standards
@@ -61,8 +71,8 @@ impl<T> Store for T where
 /// Every concern trait, for `use crate::store::prelude::*`.
 pub mod prelude {
     pub use super::{
-        Calibrations, Database, Idempotency, SensorTypes, Sensors, Sessions, Standards, Store,
-        Tokens,
+        Calibrations, Database, Idempotency, Reviews, SensorTypes, Sensors, Sessions, Standards,
+        Store, Tokens,
     };
 }
 
@@ -117,30 +127,39 @@ pub trait Calibrations: Send + Sync + 'static {
         sensor_id: String,
         q: HistoryQuery,
     ) -> Result<Vec<CalibrationSummary>, StoreError>;
-    /// The ids of the calibrations [`Calibrations::history`] answers for
-    /// `q`, in its order: what a reader needs when it keeps the summaries
-    /// rendered by id (a stored calibration never changes).
+    /// The ids and states of the calibrations [`Calibrations::history`]
+    /// answers for `q`, in its order: what a reader needs when it keeps the
+    /// summaries rendered by id and state (a stored calibration never
+    /// changes; only its state does).
     async fn history_ids(
         &self,
         sensor_id: String,
         q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError>;
-    /// A sensor's latest `limit` calibrations performed within `from..=to`,
-    /// oldest first (ties by id), and how many the window holds: the series
-    /// of its stability.
+    ) -> Result<Vec<(Uuid, State)>, StoreError>;
+    /// A sensor's latest `limit` calibrations that count on `basis`,
+    /// performed within `from..=to`, oldest first (ties by id), and how many
+    /// the window holds: the series of its stability.
     async fn series(
         &self,
         sensor_id: String,
         from: Option<Timestamp>,
         to: Option<Timestamp>,
         limit: usize,
+        basis: Basis,
     ) -> Result<Series, StoreError>;
-    /// The sensor's calibration with the latest `performed_at` strictly
-    /// before `before` (ties: the larger id).
+    /// The sensor's calibration that counts on `basis` with the latest
+    /// `performed_at` strictly before `before` (ties: the larger id).
     async fn previous_calibration(
         &self,
         sensor_id: String,
         before: Timestamp,
+        basis: Basis,
+    ) -> Result<Option<CalibrationSummary>, StoreError>;
+    /// The sensor's latest approved calibration (what serves with
+    /// `--require-approval`; without it the sensor's own latest does).
+    async fn latest_approved(
+        &self,
+        sensor_id: String,
     ) -> Result<Option<CalibrationSummary>, StoreError>;
     /// Whole calibrations in id order, after `after` (for `accelcal migrate`).
     async fn export_calibrations(
@@ -148,6 +167,19 @@ pub trait Calibrations: Send + Sync + 'static {
         after: Option<Uuid>,
         limit: usize,
     ) -> Result<Vec<NewCalibration>, StoreError>;
+}
+
+/// Review: the signed acts on a calibration that change its state
+/// ([`crate::domain::review`]).
+#[async_trait]
+pub trait Reviews: Send + Sync + 'static {
+    /// Records `act` on calibration `id`: in one transaction, reads its
+    /// state and who submitted it, checks the act ([`Act::check`]), appends
+    /// the signature and computes its sensor's row again
+    /// ([`sensor_recompute`]); the sensor's cached summary is dropped.
+    async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError>;
+    /// A calibration's signatures, in order (none for an unknown one).
+    async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError>;
 }
 
 /// Sensors: each one's summary with its latest calibration, and its type.

@@ -8,6 +8,7 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::StoreError;
+use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 
@@ -97,6 +98,7 @@ impl From<&NewCalibration> for CalibrationSummary {
             verdict: n.verdict,
             due_at: n.due_at,
             expanded: n.expanded.clone(),
+            state: State::Submitted,
         }
     }
 }
@@ -148,6 +150,9 @@ pub struct CalibrationSummary {
     /// calibrations stored before uncertainty budgets).
     #[schema(value_type = Option<crate::domain::schema::CoefficientMap>)]
     pub expanded: Option<TermMap<f64>>,
+    /// Where it stands: `submitted`, `approved`, `rejected` or `withdrawn`
+    /// (only the first two count).
+    pub state: State,
 }
 
 #[cfg(test)]
@@ -172,6 +177,7 @@ impl CalibrationSummary {
             verdict: None,
             due_at: None,
             expanded: None,
+            state: State::Submitted,
         }
     }
 }
@@ -206,6 +212,79 @@ pub struct SensorSummary {
 /// queries of the latest, the previous and the history use; the sensors'
 /// merge ([`SENSOR_MERGE`]) keeps the latest by the same rule.
 pub const NEWEST_FIRST: &str = "ORDER BY c.performed_at DESC, c.id DESC";
+
+/// A calibration's state, in SQL over its row `c`: the state its last
+/// signature moved it to, `submitted` before any
+/// ([`crate::domain::review`]). A macro, to be spliced into the engines'
+/// column lists at compile time.
+#[macro_export]
+macro_rules! state_sql {
+    () => {
+        "coalesce((SELECT s.state FROM signatures s WHERE s.calibration_id = c.id \
+         ORDER BY s.seq DESC LIMIT 1), 'submitted')"
+    };
+}
+
+/// Whether calibration `c` counts on `basis`, in SQL: its state
+/// ([`state_sql!`]) is one [`State::counts`] admits — the one statement of
+/// the rule for every engine's query.
+pub fn counts(basis: Basis) -> &'static str {
+    match basis {
+        Basis::NotRejected => concat!(state_sql!(), " IN ('submitted', 'approved')"),
+        Basis::ApprovedOnly => concat!(state_sql!(), " = 'approved'"),
+    }
+}
+
+/// A sensor's row computed again from the calibrations that count
+/// ([`Basis::NotRejected`]), after one stopped counting or changed state;
+/// `p` is the engine's placeholder for the sensor's id (`?1`, `$1`). The
+/// same answer [`SENSOR_MERGE`] keeps incrementally: count, earliest,
+/// latest by [`NEWEST_FIRST`] with its verdict and due date. A sensor
+/// none of whose calibrations counts keeps its row with a count of 0 until
+/// [`sensor_forget`] removes it.
+pub fn sensor_recompute(p: &str) -> String {
+    let of = |column: &str| {
+        format!(
+            "(SELECT c.{column} FROM calibrations c WHERE c.sensor_id = sensors.sensor_id \
+             AND {} {NEWEST_FIRST} LIMIT 1)",
+            counts(Basis::NotRejected)
+        )
+    };
+    format!(
+        "UPDATE sensors SET \
+         calibration_count = (SELECT count(*) FROM calibrations c \
+           WHERE c.sensor_id = sensors.sensor_id AND {counting}), \
+         first_performed_at = coalesce((SELECT min(c.performed_at) FROM calibrations c \
+           WHERE c.sensor_id = sensors.sensor_id AND {counting}), first_performed_at), \
+         latest_calibration_id = coalesce({id}, latest_calibration_id), \
+         latest_performed_at = coalesce({performed}, latest_performed_at), \
+         latest_verdict = {verdict}, latest_due_at = {due} \
+         WHERE sensor_id = {p}",
+        counting = counts(Basis::NotRejected),
+        id = of("id"),
+        performed = of("performed_at"),
+        verdict = of("verdict"),
+        due = of("due_at"),
+    )
+}
+
+/// Removes a sensor's row when none of its calibrations counts any more
+/// (after [`sensor_recompute`]): it is then no sensor anyone lists or
+/// serves, though its calibrations stay, each with its state.
+pub fn sensor_forget(p: &str) -> String {
+    format!("DELETE FROM sensors WHERE sensor_id = {p} AND calibration_count = 0")
+}
+
+/// What recording a signed act came to.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Signed {
+    /// Recorded: the signature, and the calibration's sensor.
+    Done(Signature, String),
+    /// There is no such calibration.
+    NotFound,
+    /// The act is not allowed ([`crate::domain::review::Act::check`]).
+    Refused(Refusal),
+}
 
 /// How a sensor's upsert merges into its stored row (`sensors`) what
 /// `excluded` holds of its new calibrations (one, or several of a batch

@@ -301,6 +301,23 @@ impl TestApp {
     }
 }
 
+impl TestApp {
+    /// Creates a token with `role` held by the person `holder` and returns
+    /// its secret.
+    pub async fn held_token(&self, role: &str, holder: &str, station: Option<&str>) -> String {
+        let mut body = json!({ "role": role, "holder": holder });
+        if let Some(s) = station {
+            body["station_id"] = json!(s);
+        }
+        let res = self.post("/v1/tokens", ADMIN, &body).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+        res.json::<Value>().await.unwrap()["token"]
+            .as_str()
+            .unwrap()
+            .to_owned()
+    }
+}
+
 impl Drop for TestApp {
     fn drop(&mut self) {
         if let Some(tx) = self.stop.take() {

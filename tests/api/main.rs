@@ -18,6 +18,7 @@ mod metrology;
 mod outage;
 mod paper;
 mod restart;
+mod review;
 mod round_three;
 mod standards;
 mod storage;

@@ -683,3 +683,110 @@ async fn single_runs_and_misfits_are_shown(#[values(Sqlite, Postgres)] engine: E
     );
     assert!(cert.contains("data-label=\"Model\""), "certificate budget");
 }
+
+/// The review form on a calibration's page: a reviewer signs with the
+/// session's token typed again; the page and the certificate then show the
+/// signature, and a withdrawn calibration's certificate says so in its
+/// running header (on every printed page).
+#[rstest]
+#[tokio::test]
+async fn a_reviewer_signs_on_the_page(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let id = app.submit(ADMIN, &paper()).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let other = app.held_token("reviewer", "Olga Other", None).await;
+    let reader = app.token("reader", None).await;
+    let path = format!("/ui/calibrations/{id}");
+
+    // A reader sees the state, and no form.
+    let (session, _) = sign_in(&app, &reader).await;
+    let html = page(&app, &path, &session).await.text().await.unwrap();
+    assert!(html.contains(r#"<section id="review""#), "{html}");
+    assert!(html.contains("Not reviewed yet."));
+    assert!(!html.contains(r#"action="/ui/calibrations/"#));
+
+    let (session, _) = sign_in(&app, &rita).await;
+    let html = page(&app, &path, &session).await.text().await.unwrap();
+    assert!(html.contains(&format!(r#"action="/ui/calibrations/{id}/review""#)));
+    let csrf = hidden(&html, "csrf");
+    let sign = |form: Vec<(&'static str, String)>| {
+        browser()
+            .post(app.url(&format!("{path}/review")))
+            .header("cookie", format!("accelcal_session={session}"))
+            .form(&form)
+            .send()
+    };
+    // Another reviewer's token, no token, or no CSRF value: refused.
+    for (token, csrf) in [
+        (&other, &csrf),
+        (&String::new(), &csrf),
+        (&rita, &String::new()),
+    ] {
+        let res = sign(vec![
+            ("act", "approve".into()),
+            ("token", token.clone()),
+            ("csrf", csrf.clone()),
+        ])
+        .await
+        .unwrap();
+        assert!(res.status().is_client_error(), "{}", res.status());
+    }
+    let res = sign(vec![
+        ("act", "approve".into()),
+        ("comment", "Residuals checked.".into()),
+        ("token", rita.clone()),
+        ("csrf", csrf.clone()),
+    ])
+    .await
+    .unwrap();
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    assert_eq!(res.headers()[LOCATION], format!("{path}#review"));
+    let html = page(&app, &path, &session).await.text().await.unwrap();
+    assert!(html.contains(r#"<tr data-action="approve">"#), "{html}");
+    assert!(html.contains("Rita Reviewer") && html.contains("Residuals checked."));
+    let cert = page(&app, &format!("{path}/certificate"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(cert.contains("Review and signatures") && cert.contains("Rita Reviewer"));
+    assert!(!cert.contains("WITHDRAWN"));
+
+    // Withdrawn without a reason: 422, nothing signed; with one, the
+    // certificate's running header says so.
+    let res = sign(vec![
+        ("act", "withdraw".into()),
+        ("token", rita.clone()),
+        ("csrf", csrf.clone()),
+    ])
+    .await
+    .unwrap();
+    assert_eq!(res.status(), StatusCode::UNPROCESSABLE_ENTITY);
+    let res = sign(vec![
+        ("act", "withdraw".into()),
+        ("comment", "Stand found out of level.".into()),
+        ("token", rita.clone()),
+        ("csrf", csrf),
+    ])
+    .await
+    .unwrap();
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    let cert = page(&app, &format!("{path}/certificate"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    let header = &cert[cert.find("<thead>").unwrap()..cert.find("</thead>").unwrap()];
+    assert!(
+        header.contains("WITHDRAWN") && header.contains("Stand found out of level."),
+        "{header}"
+    );
+    let html = page(&app, &path, &session).await.text().await.unwrap();
+    assert!(
+        !html.contains(&format!(r#"action="/ui/calibrations/{id}/review""#)),
+        "final"
+    );
+}

@@ -83,16 +83,12 @@ async fn a_migrated_database_answers_every_get_identically() {
             StatusCode::CREATED
         );
         let paper = std::fs::read("examples/paper-table1.json").unwrap();
-        assert_eq!(
-            post(paper, "application/json", None).await.status(),
-            StatusCode::CREATED
-        );
-        assert_eq!(
-            post(recal.clone(), "application/json", Some("move-1"))
-                .await
-                .status(),
-            StatusCode::CREATED
-        );
+        let res = post(paper, "application/json", None).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+        let paper_id = res.json::<Value>().await.unwrap()["id"].clone();
+        let res = post(recal.clone(), "application/json", Some("move-1")).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+        let recal_id = res.json::<Value>().await.unwrap()["id"].clone();
         let csv = format!(
             "# sensor_id: LATER-1\n# model: k0 ki kp\n{}",
             std::fs::read_to_string("core/tests/data/table1.csv").unwrap()
@@ -122,6 +118,41 @@ async fn a_migrated_database_answers_every_get_identically() {
             )
             .await;
             assert_eq!(r.status(), StatusCode::CREATED);
+        }
+        // A reviewer approves the paper's calibration and withdraws its
+        // recalibration: both signatures come across.
+        let reviewer: Value = call(
+            &c,
+            reqwest::Method::POST,
+            format!("{}/v1/tokens", s.base),
+            Some((
+                "application/json",
+                json!({"role": "reviewer", "holder": "Rita Reviewer"})
+                    .to_string()
+                    .into_bytes(),
+            )),
+            None,
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+        for (id, act, body) in [
+            (&paper_id, "review", json!({"decision": "approve"})),
+            (&recal_id, "withdraw", json!({"reason": "Stand moved."})),
+        ] {
+            let r = c
+                .post(format!(
+                    "{}/v1/calibrations/{}/{act}",
+                    s.base,
+                    id.as_str().unwrap()
+                ))
+                .bearer_auth(reviewer["token"].as_str().unwrap())
+                .json(&body)
+                .send()
+                .await
+                .unwrap();
+            assert_eq!(r.status(), StatusCode::OK);
         }
         let tokens: Value = call(
             &c,
@@ -154,7 +185,7 @@ async fn a_migrated_database_answers_every_get_identically() {
     let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied,
-        json!({"sensor_types": 1, "standards": 1, "tokens": 2, "calibrations": 3, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
+        json!({"sensor_types": 1, "standards": 1, "tokens": 3, "calibrations": 3, "signatures": 2, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
     );
     let again = migrate(&from, &pg.url);
     assert_eq!(again.status.code(), Some(1));
@@ -198,9 +229,10 @@ async fn a_migrated_database_answers_every_get_identically() {
             let cid = cal["id"].as_str().unwrap();
             paths.push(format!("/v1/calibrations/{cid}"));
             paths.push(format!("/v1/calibrations/{cid}/submission"));
+            paths.push(format!("/v1/calibrations/{cid}/signatures"));
         }
     }
-    assert_eq!(paths.len(), 8 + 2 * 4 + 3 * 2);
+    assert_eq!(paths.len(), 8 + 2 * 4 + 3 * 3);
     for path in &paths {
         let (x, y) = (get(&a.base, path).await, get(&b.base, path).await);
         assert_eq!(

@@ -1,6 +1,7 @@
 //! The sensor cache: writes through this process keep their sensor cached.
 
 use super::*;
+use accelcal::domain::review::Basis;
 
 /// A replica behind its sensor cache and listener, as `store::open` builds
 /// it, with the cache at hand; waits until the listener is connected.
@@ -110,11 +111,11 @@ async fn writes_keep_their_sensor_cached(
         let before = t("2027-01-01T00:00:00Z");
         assert_eq!(
             store
-                .previous_calibration(sensor.into(), before)
+                .previous_calibration(sensor.into(), before, Basis::NotRejected)
                 .await
                 .unwrap(),
             reference
-                .previous_calibration(sensor.into(), before)
+                .previous_calibration(sensor.into(), before, Basis::NotRejected)
                 .await
                 .unwrap(),
             "{what}"

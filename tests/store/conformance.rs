@@ -1,6 +1,7 @@
 //! The conformance suite every engine runs, bare and behind the cache.
 
 use super::*;
+use accelcal::domain::review::Basis;
 
 async fn calibrations_and_sensors(s: &dyn Store) {
     let a = calibration("S-1", "2026-01-01T00:00:00Z");
@@ -561,7 +562,10 @@ async fn series_and_previous(s: &dyn Store) {
         )
     };
     assert_eq!(
-        ids(s.series("SER".into(), None, None, 10).await.unwrap()),
+        ids(s
+            .series("SER".into(), None, None, 10, Basis::NotRejected)
+            .await
+            .unwrap()),
         (vec![a.id, b.id, c.id], 3)
     );
     assert_eq!(
@@ -570,7 +574,8 @@ async fn series_and_previous(s: &dyn Store) {
                 "SER".into(),
                 Some(t("2026-01-15T00:00:00Z")),
                 Some(t("2026-03-01T00:00:00Z")),
-                10
+                10,
+                Basis::NotRejected
             )
             .await
             .unwrap()),
@@ -578,15 +583,21 @@ async fn series_and_previous(s: &dyn Store) {
     );
     // The limit keeps the latest, oldest first, and counts the window.
     assert_eq!(
-        ids(s.series("SER".into(), None, None, 2).await.unwrap()),
+        ids(s
+            .series("SER".into(), None, None, 2, Basis::NotRejected)
+            .await
+            .unwrap()),
         (vec![b.id, c.id], 3)
     );
     assert_eq!(
-        ids(s.series("NONE".into(), None, None, 10).await.unwrap()),
+        ids(s
+            .series("NONE".into(), None, None, 10, Basis::NotRejected)
+            .await
+            .unwrap()),
         (vec![], 0)
     );
     let prev = |at: &'static str| async move {
-        s.previous_calibration("SER".into(), t(at))
+        s.previous_calibration("SER".into(), t(at), Basis::NotRejected)
             .await
             .unwrap()
             .map(|x| x.id)
@@ -602,7 +613,9 @@ async fn series_and_previous(s: &dyn Store) {
     // the sensor cache, that read fills it, and the cache answers what it
     // can).
     let whole = |at: &'static str| async move {
-        s.previous_calibration("SER".into(), t(at)).await.unwrap()
+        s.previous_calibration("SER".into(), t(at), Basis::NotRejected)
+            .await
+            .unwrap()
     };
     let dates = [
         "2026-01-01T00:00:00Z",
@@ -693,6 +706,164 @@ async fn standards(s: &dyn Store) {
     assert!(!s.is_empty().await.unwrap());
 }
 
+/// Signed acts: checked against the state in the store's transaction,
+/// appended in order, and the sensor's row computed again from what still
+/// counts — its latest, count and earliest as a query of the survivors
+/// would find them.
+async fn reviews(s: &dyn Store) {
+    use accelcal::domain::auth::{Principal, Role};
+    use accelcal::domain::review::{Act, Action, Refusal, State};
+    use accelcal::store::{HistoryQuery, Signed};
+    let a = calibration("REV", "2026-01-01T00:00:00Z");
+    let mut b = calibration("REV", "2026-03-01T00:00:00Z");
+    b.verdict = Some(accelcal_core::decision::Verdict::Pass);
+    b.due_at = Some(t("2027-03-01T00:00:00Z"));
+    let c = calibration("REV", "2026-02-01T00:00:00Z");
+    for x in [&a, &b, &c] {
+        s.insert_calibration(x.clone(), None).await.unwrap();
+    }
+    let rita = Principal {
+        id: "0190aaaa000070008000000000000001".into(),
+        role: Role::Reviewer,
+        station_id: None,
+        holder: Some("Rita".into()),
+    };
+    let act = |action, comment: Option<&str>| Act {
+        action,
+        signer: rita.clone(),
+        at: t("2026-11-22T12:00:00Z"),
+        comment: comment.map(Into::into),
+    };
+    let done = |out: Signed| match out {
+        Signed::Done(sig, sensor) => {
+            assert_eq!(sensor, "REV");
+            sig
+        }
+        other => panic!("not signed: {other:?}"),
+    };
+    let sensor = || async { s.sensor("REV".into(), now()).await.unwrap() };
+    assert_eq!(sensor().await.unwrap().latest.id, b.id);
+
+    // Approving the latest changes its state, not which is latest.
+    let sig = done(s.sign(b.id, act(Action::Approve, None)).await.unwrap());
+    assert_eq!((sig.seq, sig.state), (1, State::Approved));
+    let now_b = sensor().await.unwrap();
+    assert_eq!(
+        (now_b.latest.id, now_b.latest.state),
+        (b.id, State::Approved)
+    );
+    assert_eq!(now_b.calibration_count, 3);
+    assert_eq!(
+        s.sign(b.id, act(Action::Approve, None)).await.unwrap(),
+        Signed::Refused(Refusal::State {
+            state: State::Approved,
+            target_past: "approved",
+            from: "submitted"
+        })
+    );
+    assert_eq!(
+        s.sign(Uuid::now_v7(), act(Action::Approve, None))
+            .await
+            .unwrap(),
+        Signed::NotFound
+    );
+
+    // Rejecting C and withdrawing B leave A: count, earliest, latest, and
+    // the latest's verdict and due date all A's.
+    done(s.sign(c.id, act(Action::Reject, Some("no"))).await.unwrap());
+    assert_eq!(sensor().await.unwrap().calibration_count, 2);
+    let sig = done(
+        s.sign(b.id, act(Action::Withdraw, Some("moved")))
+            .await
+            .unwrap(),
+    );
+    assert_eq!((sig.seq, sig.comment.as_deref()), (2, Some("moved")));
+    let left = sensor().await.unwrap();
+    assert_eq!(left.latest.id, a.id);
+    assert_eq!(left.calibration_count, 1);
+    assert_eq!(
+        (left.first_performed_at, left.latest_performed_at),
+        (a.performed_at, a.performed_at)
+    );
+    assert_eq!((left.latest_verdict, left.due_at), (None, None));
+
+    // What counts on each basis.
+    let far = t("2030-01-01T00:00:00Z");
+    let previous = |basis| async move {
+        s.previous_calibration("REV".into(), far, basis)
+            .await
+            .unwrap()
+            .map(|x| x.id)
+    };
+    assert_eq!(previous(Basis::NotRejected).await, Some(a.id));
+    assert_eq!(previous(Basis::ApprovedOnly).await, None);
+    assert_eq!(s.latest_approved("REV".into()).await.unwrap(), None);
+    done(s.sign(a.id, act(Action::Approve, None)).await.unwrap());
+    assert_eq!(previous(Basis::ApprovedOnly).await, Some(a.id));
+    assert_eq!(
+        s.latest_approved("REV".into()).await.unwrap().map(|x| x.id),
+        Some(a.id)
+    );
+    let series = s
+        .series("REV".into(), None, None, 10, Basis::ApprovedOnly)
+        .await
+        .unwrap();
+    assert_eq!(
+        series.items.iter().map(|x| x.id).collect::<Vec<_>>(),
+        [a.id]
+    );
+
+    // Withdrawn too: no sensor any more, the history whole with states.
+    done(
+        s.sign(a.id, act(Action::Withdraw, Some("gone")))
+            .await
+            .unwrap(),
+    );
+    assert!(sensor().await.is_none());
+    assert!(
+        s.latest_calibration_id("REV".into())
+            .await
+            .unwrap()
+            .is_none()
+    );
+    let q = HistoryQuery {
+        from: None,
+        to: None,
+        before: None,
+        limit: 10,
+    };
+    assert_eq!(
+        s.history_ids("REV".into(), q.clone()).await.unwrap(),
+        [
+            (b.id, State::Withdrawn),
+            (c.id, State::Rejected),
+            (a.id, State::Withdrawn)
+        ]
+    );
+    let states: Vec<State> = s
+        .history("REV".into(), q)
+        .await
+        .unwrap()
+        .iter()
+        .map(|x| x.state)
+        .collect();
+    assert_eq!(
+        states,
+        [State::Withdrawn, State::Rejected, State::Withdrawn]
+    );
+    let sigs = s.signatures(a.id).await.unwrap();
+    let acts: Vec<(u32, Action)> = sigs.iter().map(|x| (x.seq, x.action)).collect();
+    assert_eq!(acts, [(1, Action::Approve), (2, Action::Withdraw)]);
+    assert_eq!(sigs[0].holder.as_deref(), Some("Rita"));
+    assert_eq!(sigs[1].signed_at, t("2026-11-22T12:00:00Z"));
+
+    // A new calibration brings the sensor back, alone.
+    let d = calibration("REV", "2026-01-15T00:00:00Z");
+    s.insert_calibration(d.clone(), None).await.unwrap();
+    let back = sensor().await.unwrap();
+    assert_eq!((back.latest.id, back.calibration_count), (d.id, 1));
+}
+
 /// The whole suite, on a fresh, empty store.
 async fn conformance(s: Arc<dyn Store>) {
     s.ping().await.unwrap();
@@ -704,6 +875,7 @@ async fn conformance(s: Arc<dyn Store>) {
     numbers_round_trip_exactly(s.as_ref()).await;
     types_and_statuses(s.as_ref()).await;
     series_and_previous(s.as_ref()).await;
+    reviews(s.as_ref()).await;
     search(s.as_ref()).await;
     sessions(s.as_ref()).await;
     s.close().await;

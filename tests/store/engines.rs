@@ -3,6 +3,7 @@
 //! process are freed, the pool is reused.
 
 use super::*;
+use accelcal::domain::review::Basis;
 
 /// Many reads at once share the pool's reader connections: none is opened
 /// beyond them (an open parses the whole schema; churning connections under
@@ -22,7 +23,11 @@ async fn sqlite_concurrent_reads_reuse_the_pool() {
                 let store = store.clone();
                 tokio::spawn(async move {
                     store
-                        .previous_calibration("R-1".into(), t("2026-06-01T00:00:00Z"))
+                        .previous_calibration(
+                            "R-1".into(),
+                            t("2026-06-01T00:00:00Z"),
+                            Basis::NotRejected,
+                        )
                         .await
                 })
             })

@@ -81,6 +81,70 @@ async fn two_handles(a: Arc<dyn Store>, b: Arc<dyn Store>) {
         "the latest performed_at wins"
     );
     assert_eq!(hot.first_performed_at, t("2026-01-01T00:00:00Z"));
+
+    // Withdrawals through one handle racing inserts through the other: the
+    // sensor's row is what its surviving calibrations say, nothing lost.
+    let reviewer = accelcal::domain::auth::Principal {
+        id: "0190aaaa000070008000000000000002".into(),
+        role: Role::Reviewer,
+        station_id: None,
+        holder: Some("Rita".into()),
+    };
+    let more: Vec<NewCalibration> = (0..20)
+        .map(|i| calibration("HOT", &format!("2026-01-01T00:01:{i:02}Z")))
+        .collect();
+    let mut handles = Vec::new();
+    for (i, c) in more.iter().cloned().enumerate() {
+        let inserter = b.clone();
+        handles.push(tokio::spawn(async move {
+            inserter.insert_calibration(c, None).await.map(|_| ())
+        }));
+        // Withdraw half of the first forty, their latest among them.
+        let withdrawn = all[(i * 2 + 3) % 40].id;
+        let signer = a.clone();
+        let act = accelcal::domain::review::Act {
+            action: accelcal::domain::review::Action::Withdraw,
+            signer: reviewer.clone(),
+            at: now,
+            comment: Some("race".into()),
+        };
+        handles.push(tokio::spawn(async move {
+            match signer.sign(withdrawn, act).await? {
+                accelcal::store::Signed::Done(..) => Ok(()),
+                other => panic!("{other:?}"),
+            }
+        }));
+    }
+    for h in handles {
+        h.await.unwrap().unwrap();
+    }
+    let truth = a
+        .history(
+            "HOT".into(),
+            HistoryQuery {
+                from: None,
+                to: None,
+                before: None,
+                limit: 100,
+            },
+        )
+        .await
+        .unwrap();
+    let counting: Vec<_> = truth
+        .iter()
+        .filter(|c| c.state == accelcal::domain::review::State::Submitted)
+        .collect();
+    assert_eq!(truth.len(), 60);
+    assert_eq!(counting.len(), 40);
+    for s in [&a, &b] {
+        let hot = s.sensor("HOT".into(), now).await.unwrap().unwrap();
+        assert_eq!(hot.calibration_count, 40);
+        assert_eq!(hot.latest.id, counting[0].id, "newest first");
+        assert_eq!(
+            hot.first_performed_at,
+            counting.last().unwrap().performed_at
+        );
+    }
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
@@ -123,7 +187,7 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1, 2, 3, 4, 5, 6, 7]);
+    assert_eq!(versions, [1, 2, 3, 4, 5, 6, 7, 8]);
     // Version 4: tokens' changes are notified.
     let triggers = c
         .query(

@@ -269,6 +269,32 @@ try {
   assert.ok(printed[printed.length - 1].includes('End of certificate'), 'the end marker on the last page');
   ok(`certificate: SHA-256, own URL, sensor, type, stand, version, values rounded to U with units, k and its probability; prints to A4 on ${printed.length} pages, each numbered`);
 
+  // -------------------------------------------------------------- review
+  // A reviewer signs the paper's calibration on its page, typing the token
+  // again; the page then shows the state and the signature, and passes axe
+  // with the form on it.
+  const reviewer = (await must(201, api('POST', '/v1/tokens', { body: JSON.stringify({ role: 'reviewer', holder: 'Rita Reviewer' }) }), 'reviewer token')).token;
+  const rctx = await newContext({ viewport: { width: 1280, height: 900 } });
+  const rpage = await rctx.newPage();
+  await signIn(rpage, reviewer);
+  await rpage.goto(`/ui/calibrations/${paper.id}`);
+  assert.equal((await rpage.textContent('#review .badge')).trim(), 'submitted');
+  await axe(rpage, 'calibration with the review form');
+  await rpage.check('input[name=act][value=approve]');
+  await rpage.fill('#review-comment', 'Residuals and budget checked.');
+  await rpage.fill('#review-token', reviewer);
+  await Promise.all([rpage.waitForNavigation(), rpage.click('form.review button[type=submit]')]);
+  assert.equal((await rpage.textContent('#review .badge')).trim(), 'approved');
+  const signed = await rpage.$$eval('#signatures tbody tr', (trs) => trs.map((tr) => [...tr.querySelectorAll('td')].map((td) => td.textContent.trim())));
+  assert.equal(signed.length, 1);
+  assert.equal(signed[0][0], 'Rita Reviewer');
+  assert.equal(signed[0][1], 'reviewer');
+  assert.equal(signed[0][4], 'Residuals and budget checked.');
+  const record = await must(200, api('GET', `/v1/calibrations/${paper.id}/signatures`), 'signatures');
+  assert.equal(record.state, 'approved');
+  assert.equal(record.signatures[0].holder, 'Rita Reviewer');
+  ok('review: a reviewer signs on the page with the token typed again; the page and the API show the approval');
+
   // ---------------------------------- accessibility and screenshots
   const pages = {
     fleet: '/ui/sensors',

@@ -52,7 +52,7 @@ impl Modify for Bearer {
     ),
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
-    tags((name = "calibrations"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "compute"), (name = "tokens"), (name = "operations"), (name = "health")),
+    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "compute"), (name = "tokens"), (name = "operations"), (name = "health")),
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
@@ -67,7 +67,7 @@ impl Modify for Bearer {
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
-            UnsupportedMediaType, Invalid, NotUsable, Unavailable,
+            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Unavailable,
         ),
     ),
     modifiers(&Bearer),

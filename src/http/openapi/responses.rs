@@ -51,6 +51,10 @@ problem_response!(
     NotUsable,
     "Asked `require=usable`, and the coefficients are not usable (failed or overdue): `detail` says why."
 );
+problem_response!(
+    StateConflict,
+    "The calibration's state does not allow this (approving a withdrawn one, withdrawing twice): `detail` names the state."
+);
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
 
 /// Implements `IntoResponses` for a set of the reusable problem answers that

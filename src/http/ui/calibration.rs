@@ -21,7 +21,7 @@ use super::format::{Notation, given, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Series, XAxis};
 use super::result::{LackOfFitDoc, ResultDoc, WarningDoc};
 use super::session::Viewer;
-use super::{Html, UiError, badge, layout};
+use super::{Html, UiError, badge, layout, review};
 use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
@@ -38,6 +38,26 @@ pub async fn load(state: &AppState, raw_id: &str) -> Result<ResultDoc, Problem> 
         tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
         Problem::internal()
     })
+}
+
+/// A calibration's state and signatures.
+pub async fn record(
+    state: &AppState,
+    raw_id: &str,
+) -> Result<
+    (
+        crate::domain::review::State,
+        Vec<crate::domain::review::Signature>,
+    ),
+    Problem,
+> {
+    let id = path_id(raw_id, "calibration")?;
+    let summary = state
+        .store
+        .calibration_summary(id)
+        .await?
+        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    Ok((summary.state, state.store.signatures(id).await?))
 }
 
 /// A stored instant, as the pages print it.
@@ -502,13 +522,18 @@ pub async fn page(
     Path(id): Path<String>,
 ) -> Result<Html, UiError> {
     let d = load(&state, &id).await?;
+    let (review_state, signatures) = record(&state, &id).await?;
     let content = html! {
         p.muted {
             a href="/ui/sensors" { "Fleet" } " / "
             a href={"/ui/sensors/" (d.sensor_id)} { (d.sensor_id) } " / calibration"
         }
         h1 { "Calibration of " (d.sensor_id) " "
-            @if let Some(dec) = &d.decision { (badge(&dec.verdict, &dec.verdict)) } }
+            @if let Some(dec) = &d.decision { (badge(&dec.verdict, &dec.verdict)) }
+            " " (review::state_badge(review_state)) }
+        @if let Some(n) = review::notice(review_state, &signatures) {
+            p.notice.error role="status" { (n) }
+        }
         p.lead { "Performed " (when(&d.performed_at)) }
         dl.facts {
             div { dt { "Calibration id" } dd { code { (d.id) } } }
@@ -562,6 +587,7 @@ pub async fn page(
         (temperature(&d))
         h2 { "Residuals" }
         (residuals(&d))
+        (review::section(&d.id.to_string(), review_state, &signatures, &viewer))
     };
     Ok(Html::ok(layout(
         &format!("Calibration of {}", d.sensor_id),

@@ -31,7 +31,7 @@ use super::calibration::{as_found, budget, decision, load, when};
 use super::format::{num, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
-use super::{UiError, badge};
+use super::{UiError, badge, review};
 use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
@@ -63,11 +63,16 @@ pub struct Context {
     pub issued: Timestamp,
     /// The laboratory that issues it.
     pub laboratory: crate::http::Laboratory,
+    /// The calibration's state.
+    pub state: crate::domain::review::State,
+    /// Its signatures, in order.
+    pub signatures: Vec<crate::domain::review::Signature>,
 }
 
 /// The certificate document.
 pub fn render(d: &ResultDoc, c: &Context) -> Markup {
     let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
+    let notice = review::notice(c.state, &c.signatures);
     html! {
         (DOCTYPE)
         html lang="en" {
@@ -85,6 +90,9 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     table.cert-pages role="presentation" {
                     thead { tr { td {
                         div.cert-running { "Calibration certificate No. " (d.id) " · " (d.sensor_id) }
+                        @if let Some(n) = &notice {
+                            div.cert-withdrawn role="status" { (n) }
+                        }
                     } } }
                     tbody { tr { td {
                     div.cert-head {
@@ -100,6 +108,7 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                             @if let Some(dec) = &d.decision {
                                 p { "Verdict " (badge(&dec.verdict, &dec.verdict)) }
                             }
+                            p { "State " (review::state_badge(c.state)) }
                         }
                     }
                     h2 { "Item and calibration" }
@@ -215,9 +224,11 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
                         div { dt { "This certificate" } dd.sha { (c.url) } }
                     }
-                    div.signatures {
-                        p { "Calibrated by: ______________________   Date: ____________" }
-                        p { "Approved by: ______________________   Date: ____________" }
+                    h2 { "Review and signatures" }
+                    @if c.signatures.is_empty() {
+                        p { "Not reviewed: this certificate carries no approval. A reviewer approves it in accelcal, and a copy issued afterwards shows the signature here." }
+                    } @else {
+                        (review::signatures_table(&c.signatures))
                     }
                     p.cert-end { "End of certificate No. " (d.id) }
                     } } }
@@ -322,7 +333,10 @@ pub async fn respond(
         .submission(id)
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    let (state_now, signatures) = super::calibration::record(state, raw_id).await?;
     let ctx = Context {
+        state: state_now,
+        signatures,
         submission_sha256: hex::encode(Sha256::digest(&s.body)),
         content_type: s.content_type,
         url: own_url(state, headers, &id),

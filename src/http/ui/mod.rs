@@ -21,6 +21,7 @@ pub mod fleet;
 pub mod format;
 pub mod plot;
 pub mod result;
+pub mod review;
 pub mod sensor;
 pub mod session;
 
@@ -53,6 +54,7 @@ pub fn router() -> Router<AppState> {
             get(calibration::submission),
         )
         .route("/calibrations/{id}/certificate", get(certificate::ui_page))
+        .route("/calibrations/{id}/review", post(review::sign))
         .route("/assets/{file}", get(assets::serve))
         .fallback(not_found)
 }

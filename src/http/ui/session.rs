@@ -230,7 +230,7 @@ struct LoginForm {
 }
 
 /// Refuses a form post the browser says came from another site.
-fn cross_site(headers: &HeaderMap) -> bool {
+pub(super) fn cross_site(headers: &HeaderMap) -> bool {
     headers
         .get("sec-fetch-site")
         .and_then(|v| v.to_str().ok())

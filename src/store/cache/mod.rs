@@ -204,6 +204,28 @@ impl Cache {
         self.sensors.invalidate(sensor_id);
     }
 
+    /// Runs `write`, which changes what is stored of `sensor_id` other than
+    /// by a new calibration (a review: its latest's state, or which is its
+    /// latest), in a task of its own: reads do not fill the sensor's entry
+    /// while it runs, and the entry is dropped at its end, whatever it
+    /// answered — so that no read from before the write stays cached.
+    pub async fn changing<T: Send + 'static>(
+        &self,
+        sensor_id: &str,
+        write: impl Future<Output = Result<T, StoreError>> + Send + 'static,
+    ) -> Result<T, StoreError> {
+        let cache = self.sensors.clone();
+        let sensor_id = sensor_id.to_owned();
+        tokio::spawn(async move {
+            let writing = cache.write(&sensor_id);
+            let out = write.await;
+            writing.settle(None);
+            out
+        })
+        .await
+        .map_err(|e| StoreError::Unavailable(Box::new(e)))?
+    }
+
     /// A token: the cached record, or what `read` finds (kept when the
     /// rules of [`tokens`] allow).
     pub async fn token(

@@ -23,11 +23,23 @@ use uuid::Uuid;
 use super::PostgresStore;
 use super::errors::map;
 use super::rows::{self, RECORD_COLUMNS, SUMMARY_COLUMNS};
+use crate::domain::review::{Basis, State};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
     CalibrationSummary, Calibrations, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration,
-    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission, observe,
+    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission, counts,
+    observe,
 };
+
+/// A sensor's latest calibration that counts on `basis` performed strictly
+/// before `$2` (`$2` NULL: the latest of all).
+fn previous_sql(basis: Basis) -> String {
+    format!(
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND {} \
+         AND ($2::timestamptz IS NULL OR c.performed_at < $2) {NEWEST_FIRST} LIMIT 1",
+        counts(basis)
+    )
+}
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
     serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
@@ -392,11 +404,18 @@ impl Calibrations for PostgresStore {
         &self,
         sensor_id: String,
         q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError> {
+    ) -> Result<Vec<(Uuid, State)>, StoreError> {
         op!(self, "history_ids", |client| {
-            let sql = format!("SELECT c.id {}", *HISTORY_PAGE);
+            let sql = format!(
+                "SELECT c.id, {} AS state {}",
+                crate::state_sql!(),
+                *HISTORY_PAGE
+            );
             let found = page(&client, &sql, &sensor_id, &q).await?;
-            found.iter().map(|r| rows::get(r, "id")).collect()
+            found
+                .iter()
+                .map(|r| Ok((rows::get(r, "id")?, rows::state(r)?)))
+                .collect()
         })
     }
 
@@ -406,14 +425,16 @@ impl Calibrations for PostgresStore {
         from: Option<Timestamp>,
         to: Option<Timestamp>,
         limit: usize,
+        basis: Basis,
     ) -> Result<Series, StoreError> {
         op!(self, "series", |client| {
             let sql = format!(
                 "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
-             WHERE c.sensor_id = $1 \
+             WHERE c.sensor_id = $1 AND {} \
              AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
              AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-             {NEWEST_FIRST} LIMIT $4"
+             {NEWEST_FIRST} LIMIT $4",
+                counts(basis)
             );
             let stmt = client.prepare_cached(&sql).await.map_err(map)?;
             let found = client
@@ -441,23 +462,44 @@ impl Calibrations for PostgresStore {
     }
 
     /// From the sensor's cached summary when it can tell
-    /// ([`crate::store::cache::Cache::previous_calibration`]).
+    /// ([`crate::store::cache::Cache::previous_calibration`]; the cache
+    /// holds the sensor's latest on [`Basis::NotRejected`]).
     async fn previous_calibration(
         &self,
         sensor_id: String,
         before: Timestamp,
+        basis: Basis,
     ) -> Result<Option<CalibrationSummary>, StoreError> {
-        if let Some(hit) = self.cache.previous_calibration(&sensor_id, before) {
+        if basis == Basis::NotRejected
+            && let Some(hit) = self.cache.previous_calibration(&sensor_id, before)
+        {
             return Ok(Some(hit));
         }
         op!(self, "previous_calibration", |client| {
-            let sql = format!(
-                "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND c.performed_at < $2 \
-             {NEWEST_FIRST} LIMIT 1"
-            );
-            let stmt = client.prepare_cached(&sql).await.map_err(map)?;
+            let stmt = client
+                .prepare_cached(&previous_sql(basis))
+                .await
+                .map_err(map)?;
             let row = client
-                .query_opt(&stmt, &[&sensor_id, &before.datetime()])
+                .query_opt(&stmt, &[&sensor_id, &Some(before.datetime())])
+                .await
+                .map_err(map)?;
+            row.as_ref().map(rows::summary).transpose()
+        })
+    }
+
+    async fn latest_approved(
+        &self,
+        sensor_id: String,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        op!(self, "latest_approved", |client| {
+            let stmt = client
+                .prepare_cached(&previous_sql(Basis::ApprovedOnly))
+                .await
+                .map_err(map)?;
+            let none: Option<time::OffsetDateTime> = None;
+            let row = client
+                .query_opt(&stmt, &[&sensor_id, &none])
                 .await
                 .map_err(map)?;
             row.as_ref().map(rows::summary).transpose()

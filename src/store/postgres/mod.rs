@@ -37,6 +37,7 @@ mod errors;
 mod idempotency;
 pub mod listen;
 mod migrations;
+mod reviews;
 mod rows;
 mod sensor_types;
 mod sensors;

@@ -7,6 +7,7 @@ use tokio_postgres::types::FromSql;
 
 use super::errors::decode;
 use crate::domain::auth::Role;
+use crate::domain::review::{Action, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
@@ -57,10 +58,14 @@ fn verdict(row: &Row, column: &str) -> Result<Option<Verdict>, StoreError> {
 }
 
 /// The columns of [`summary`], from `calibrations c`.
-pub const SUMMARY_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+pub const SUMMARY_COLUMNS: &str = concat!(
+    "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded";
+     c.expanded::text AS expanded, ",
+    crate::state_sql!(),
+    " AS state"
+);
 
 /// A calibration summary from a row holding [`SUMMARY_COLUMNS`].
 pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
@@ -79,14 +84,19 @@ pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
         verdict: verdict(row, "verdict")?,
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+        state: state(row)?,
     })
 }
 
 /// The columns of [`record`]: everything stored for a calibration.
-pub const RECORD_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+pub const RECORD_COLUMNS: &str = concat!(
+    "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded, c.result, c.submission, c.content_type, c.submitted_by";
+     c.expanded::text AS expanded, c.result, c.submission, c.content_type, c.submitted_by, ",
+    crate::state_sql!(),
+    " AS state"
+);
 
 /// A whole calibration from a row holding [`RECORD_COLUMNS`].
 pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
@@ -174,5 +184,28 @@ pub fn token(row: &Row) -> Result<TokenRecord, StoreError> {
         holder: get(row, "holder")?,
         created_at: timestamp(row, "created_at")?,
         revoked_at: optional_timestamp(row, "revoked_at")?,
+    })
+}
+
+/// A calibration's state, from the column `state`.
+pub fn state(row: &Row) -> Result<State, StoreError> {
+    let text: &str = get(row, "state")?;
+    State::parse(text).ok_or_else(|| decode("state", "not a state"))
+}
+
+/// A signature, from a row of `signatures`.
+pub fn signature(row: &Row) -> Result<Signature, StoreError> {
+    let action: &str = get(row, "action")?;
+    let role: &str = get(row, "role")?;
+    Ok(Signature {
+        seq: u32::try_from(get::<i32>(row, "seq")?).map_err(|e| decode("seq", e))?,
+        action: Action::parse(action).ok_or_else(|| decode("action", "not an action"))?,
+        state: state(row)?,
+        meaning: get(row, "meaning")?,
+        token_id: get(row, "token_id")?,
+        role: Role::parse(role).ok_or_else(|| decode("role", "not a role"))?,
+        holder: get(row, "holder")?,
+        signed_at: timestamp(row, "signed_at")?,
+        comment: get(row, "comment")?,
     })
 }

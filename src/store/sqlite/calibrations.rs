@@ -11,10 +11,11 @@ use uuid::Uuid;
 use super::SqliteStore;
 use super::errors::map;
 use super::rows::{self, SUMMARY_COLUMNS};
+use crate::domain::review::{Basis, State};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
     CalibrationSummary, Calibrations, HistoryQuery, IdempotencyKey, NEWEST_FIRST, NewCalibration,
-    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission,
+    SENSOR_MERGE, SENSOR_ROW, SensorRow, Series, StoreError, Stored, StoredSubmission, counts,
 };
 
 /// The sensor's row after a calibration is stored, by [`SENSOR_MERGE`],
@@ -47,26 +48,36 @@ static HISTORY_PAGE: LazyLock<String> = LazyLock::new(|| {
 static HISTORY: LazyLock<String> =
     LazyLock::new(|| format!("SELECT {SUMMARY_COLUMNS} {}", *HISTORY_PAGE));
 
-/// The ids of a page of a sensor's history.
-static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| format!("SELECT c.id {}", *HISTORY_PAGE));
+/// The ids and states of a page of a sensor's history.
+static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| {
+    format!(
+        "SELECT c.id, {} AS state {}",
+        crate::state_sql!(),
+        *HISTORY_PAGE
+    )
+});
 
-/// A sensor's calibrations within `?2..=?3`, oldest first.
-static SERIES: LazyLock<String> = LazyLock::new(|| {
+/// A sensor's latest calibrations that count on `basis` within
+/// `?2..=?3`, at most `?4`.
+fn series_sql(basis: Basis) -> String {
     format!(
         "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
-         WHERE c.sensor_id = ?1 \
+         WHERE c.sensor_id = ?1 AND {} \
          AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         {NEWEST_FIRST} LIMIT ?4"
+         {NEWEST_FIRST} LIMIT ?4",
+        counts(basis)
     )
-});
+}
 
-/// A sensor's latest calibration performed strictly before `?2`.
-static PREVIOUS: LazyLock<String> = LazyLock::new(|| {
+/// A sensor's latest calibration that counts on `basis` performed strictly
+/// before `?2` (`?2` NULL: the latest of all).
+fn previous_sql(basis: Basis) -> String {
     format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND c.performed_at < ?2 \
-         {NEWEST_FIRST} LIMIT 1"
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND {} \
+         AND (?2 IS NULL OR c.performed_at < ?2) {NEWEST_FIRST} LIMIT 1",
+        counts(basis)
     )
-});
+}
 
 fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
     serde_json::to_string(v).map_err(|e| StoreError::Refused(e.to_string()))
@@ -258,10 +269,10 @@ impl Calibrations for SqliteStore {
         &self,
         sensor_id: String,
         q: HistoryQuery,
-    ) -> Result<Vec<Uuid>, StoreError> {
+    ) -> Result<Vec<(Uuid, State)>, StoreError> {
         self.run("history_ids", move |conn| {
             page(conn, &HISTORY_IDS, &sensor_id, &q, |row| {
-                rows::uuid(row, "id")
+                Ok((rows::uuid(row, "id")?, rows::state(row)?))
             })
         })
         .await
@@ -273,12 +284,13 @@ impl Calibrations for SqliteStore {
         from: Option<Timestamp>,
         to: Option<Timestamp>,
         limit: usize,
+        basis: Basis,
     ) -> Result<Series, StoreError> {
         self.run("series", move |conn| {
             let mut in_window = 0usize;
             let mut items = rows::all(
                 conn,
-                &SERIES,
+                &series_sql(basis),
                 params![
                     sensor_id,
                     from.map(|t| t.to_string()),
@@ -297,21 +309,40 @@ impl Calibrations for SqliteStore {
     }
 
     /// From the sensor's cached summary when it can tell
-    /// ([`crate::store::cache::Cache::previous_calibration`]).
+    /// ([`crate::store::cache::Cache::previous_calibration`]; the cache
+    /// holds the sensor's latest on [`Basis::NotRejected`]).
     async fn previous_calibration(
         &self,
         sensor_id: String,
         before: Timestamp,
+        basis: Basis,
     ) -> Result<Option<CalibrationSummary>, StoreError> {
         self.follow_the_file()?;
-        if let Some(hit) = self.cache.previous_calibration(&sensor_id, before) {
+        if basis == Basis::NotRejected
+            && let Some(hit) = self.cache.previous_calibration(&sensor_id, before)
+        {
             return Ok(Some(hit));
         }
         self.run("previous_calibration", move |conn| {
             rows::first(
                 conn,
-                &PREVIOUS,
+                &previous_sql(basis),
                 params![sensor_id, before.to_string()],
+                rows::summary,
+            )
+        })
+        .await
+    }
+
+    async fn latest_approved(
+        &self,
+        sensor_id: String,
+    ) -> Result<Option<CalibrationSummary>, StoreError> {
+        self.run("latest_approved", move |conn| {
+            rows::first(
+                conn,
+                &previous_sql(Basis::ApprovedOnly),
+                params![sensor_id, None::<String>],
                 rows::summary,
             )
         })

@@ -22,6 +22,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0008_imports.sql"),
     include_str!("migrations/0009_token_holders.sql"),
     include_str!("migrations/0010_standards.sql"),
+    include_str!("migrations/0011_signatures.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -16,6 +16,7 @@ mod holder;
 mod idempotency;
 mod migrations;
 mod pool;
+mod reviews;
 mod rows;
 mod sensor_types;
 mod sensors;

@@ -9,6 +9,7 @@ use super::errors::map;
 use accelcal_core::decision::Verdict;
 
 use crate::domain::auth::Role;
+use crate::domain::review::{Action, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
@@ -71,9 +72,13 @@ fn count(row: &Row<'_>, column: &str) -> Result<u64, StoreError> {
 }
 
 /// The columns of [`summary`], from `calibrations c`.
-pub const SUMMARY_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+pub const SUMMARY_COLUMNS: &str = concat!(
+    "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded";
+     c.expanded, ",
+    crate::state_sql!(),
+    " AS state"
+);
 
 fn verdict(row: &Row<'_>, column: &str) -> Result<Option<Verdict>, StoreError> {
     let text: Option<String> = get(row, column)?;
@@ -105,13 +110,18 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
         verdict: verdict(row, "verdict")?,
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+        state: state(row)?,
     })
 }
 
 /// The columns of [`record`]: everything stored for a calibration.
-pub const RECORD_COLUMNS: &str = "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
+pub const RECORD_COLUMNS: &str = concat!(
+    "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded, c.result, c.submission, c.content_type, c.submitted_by";
+     c.expanded, c.result, c.submission, c.content_type, c.submitted_by, ",
+    crate::state_sql!(),
+    " AS state"
+);
 
 /// A whole calibration from a row holding [`RECORD_COLUMNS`].
 pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError> {
@@ -242,6 +252,27 @@ pub fn first<T>(
     let mut stmt = conn.prepare_cached(sql).map_err(map)?;
     let mut rows = stmt.query(params).map_err(map)?;
     rows.next().map_err(map)?.map(decode).transpose()
+}
+
+/// A calibration's state, from the column `state`.
+pub fn state(row: &Row<'_>) -> Result<State, StoreError> {
+    decoded(row, "state", |s| State::parse(s).ok_or("not a state"))
+}
+
+/// A signature, from a row of `signatures`.
+pub fn signature(row: &Row<'_>) -> Result<Signature, StoreError> {
+    Ok(Signature {
+        seq: u32::try_from(get::<i64>(row, "seq")?)
+            .map_err(|e| StoreError::corrupt("column `seq`", e))?,
+        action: decoded(row, "action", |a| Action::parse(a).ok_or("not an action"))?,
+        state: state(row)?,
+        meaning: get(row, "meaning")?,
+        token_id: get(row, "token_id")?,
+        role: decoded(row, "role", |r| Role::parse(r).ok_or("not a role"))?,
+        holder: get(row, "holder")?,
+        signed_at: timestamp(row, "signed_at")?,
+        comment: get(row, "comment")?,
+    })
 }
 
 #[cfg(test)]

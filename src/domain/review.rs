@@ -1,0 +1,573 @@
+//! Review of stored calibrations: their state, the acts that change it, who
+//! may perform each, and which calibrations count (issue 28).
+//!
+//! A stored calibration never changes; what happens to it afterwards is a
+//! list of signed acts beside it, append-only. Its state is the state the
+//! last state-changing act moved it to, `submitted` before any:
+//!
+//! ```text
+//!             approve            withdraw
+//! submitted ───────────▶ approved ───────▶ withdrawn
+//!     │ reject                               ▲
+//!     └──────▶ rejected        submitted ────┘ withdraw
+//! ```
+//!
+//! * `approve` and `reject` are a reviewer's decision on a `submitted`
+//!   calibration, by someone other than who submitted it ([`Identity`]);
+//! * `withdraw` takes a calibration that counts (`submitted` or
+//!   `approved`) out of use for good, with a reason; the one who submitted
+//!   it may withdraw it (a reviewer taking back their own error vouches for
+//!   nothing);
+//! * `rejected` and `withdrawn` are final.
+//!
+//! Which calibrations a reader uses is the [`Basis`]: every calibration not
+//! rejected or withdrawn, or (with `--require-approval`) approved ones only.
+
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::auth::{Principal, Role};
+use super::field::Invalid;
+use super::text::{Chars, check_str};
+use super::timestamp::Timestamp;
+
+/// Longest comment or reason, in characters.
+pub const MAX_COMMENT_CHARS: usize = 2000;
+
+/// A reviewer's decision (`POST /v1/calibrations/{id}/review`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Decision {
+    /// Release the results for use.
+    Approve,
+    /// The results are not to be used.
+    Reject,
+}
+
+/// The body of `POST /v1/calibrations/{id}/review`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct ReviewBody {
+    /// `approve` or `reject`.
+    pub decision: Decision,
+    /// The reviewer's comment: optional when approving, required when
+    /// rejecting (why); at most 2 000 characters.
+    #[serde(default)]
+    #[schema(max_length = 2000)]
+    pub comment: Option<String>,
+}
+
+/// The body of `POST /v1/calibrations/{id}/withdraw`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct WithdrawBody {
+    /// Why it is withdrawn (printed on its certificate); at most 2 000
+    /// characters.
+    #[schema(min_length = 1, max_length = 2000)]
+    pub reason: String,
+}
+
+/// A comment or reason, checked: `required` ones may not be absent.
+fn comment(text: Option<String>, field: &str, required: bool) -> Result<Option<String>, Invalid> {
+    match text {
+        None if required => Err(Invalid::one(format!("/{field}"), "is required: say why")),
+        None => Ok(None),
+        Some(t) => check_str(t.trim(), MAX_COMMENT_CHARS, Chars::Text)
+            .map(|()| Some(t.trim().to_owned()))
+            .map_err(|why| Invalid::one(format!("/{field}"), why)),
+    }
+}
+
+impl ReviewBody {
+    /// The act it asks for, signed by `signer` at `at`.
+    pub fn act(self, signer: Principal, at: Timestamp) -> Result<Act, Invalid> {
+        let action = match self.decision {
+            Decision::Approve => Action::Approve,
+            Decision::Reject => Action::Reject,
+        };
+        Ok(Act {
+            action,
+            signer,
+            at,
+            comment: comment(self.comment, "comment", action == Action::Reject)?,
+        })
+    }
+}
+
+impl WithdrawBody {
+    /// The withdrawal it asks for, signed by `signer` at `at`.
+    pub fn act(self, signer: Principal, at: Timestamp) -> Result<Act, Invalid> {
+        Ok(Act {
+            action: Action::Withdraw,
+            signer,
+            at,
+            comment: comment(Some(self.reason), "reason", true)?,
+        })
+    }
+}
+
+/// Where a calibration stands.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum State {
+    /// Stored, not yet reviewed.
+    Submitted,
+    /// Approved by a reviewer.
+    Approved,
+    /// Rejected by a reviewer: never counts.
+    Rejected,
+    /// Withdrawn: kept, but no longer anyone's latest, baseline or point.
+    Withdrawn,
+}
+
+impl State {
+    /// The wire and stored name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            State::Submitted => "submitted",
+            State::Approved => "approved",
+            State::Rejected => "rejected",
+            State::Withdrawn => "withdrawn",
+        }
+    }
+
+    /// Parses a stored name.
+    pub fn parse(s: &str) -> Option<State> {
+        [
+            State::Submitted,
+            State::Approved,
+            State::Rejected,
+            State::Withdrawn,
+        ]
+        .into_iter()
+        .find(|x| x.as_str() == s)
+    }
+
+    /// Whether a calibration in this state is used on `basis`.
+    pub fn counts(self, basis: Basis) -> bool {
+        match basis {
+            Basis::NotRejected => matches!(self, State::Submitted | State::Approved),
+            Basis::ApprovedOnly => self == State::Approved,
+        }
+    }
+}
+
+/// An act that changes a calibration's state.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Action {
+    /// A reviewer approves it.
+    Approve,
+    /// A reviewer rejects it.
+    Reject,
+    /// A reviewer or admin withdraws it.
+    Withdraw,
+}
+
+impl Action {
+    /// The stored name.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Action::Approve => "approve",
+            Action::Reject => "reject",
+            Action::Withdraw => "withdraw",
+        }
+    }
+
+    /// Parses a stored name.
+    pub fn parse(s: &str) -> Option<Action> {
+        [Action::Approve, Action::Reject, Action::Withdraw]
+            .into_iter()
+            .find(|a| a.as_str() == s)
+    }
+
+    /// The state the act moves a calibration to.
+    pub fn target(self) -> State {
+        match self {
+            Action::Approve => State::Approved,
+            Action::Reject => State::Rejected,
+            Action::Withdraw => State::Withdrawn,
+        }
+    }
+
+    /// What signing it means, in the words the pages and the certificate
+    /// print beside the signature.
+    pub fn meaning(self) -> &'static str {
+        match self {
+            Action::Approve => "Approved: the results were reviewed and are released for use",
+            Action::Reject => "Rejected: the results were reviewed and are not to be used",
+            Action::Withdraw => "Withdrawn: the results are no longer to be used",
+        }
+    }
+}
+
+/// Which calibrations coefficients, compensation, as-found and stability use.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum Basis {
+    /// Every calibration not rejected or withdrawn (the default).
+    #[default]
+    NotRejected,
+    /// Approved calibrations only (`--require-approval`).
+    ApprovedOnly,
+}
+
+/// The person behind a token, for the rule that nobody reviews their own
+/// work: the holder's name when the token names one, the token otherwise.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Identity {
+    /// A named holder.
+    Holder(String),
+    /// A token without a holder (or the configured admin token).
+    Token(String),
+}
+
+impl Identity {
+    /// Who holds the token `token_id` (its holder when it names one).
+    pub fn of(token_id: &str, holder: Option<&str>) -> Identity {
+        match holder {
+            Some(h) => Identity::Holder(h.to_owned()),
+            None => Identity::Token(token_id.to_owned()),
+        }
+    }
+
+    /// Whether two identities are the same person: the same holder name, or
+    /// the same token.
+    fn same(&self, token_id: &str, other: &Identity, other_token: &str) -> bool {
+        token_id == other_token || self == other
+    }
+}
+
+/// One signed act on a calibration.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct Signature {
+    /// Its place in the calibration's list, from 1.
+    #[schema(minimum = 1)]
+    pub seq: u32,
+    /// What was done.
+    pub action: Action,
+    /// The state it moved the calibration to.
+    pub state: State,
+    /// What signing it means.
+    pub meaning: String,
+    /// The signing token's id (`env-admin` for the configured admin token).
+    pub token_id: String,
+    /// The signing token's role.
+    pub role: Role,
+    /// The person who holds that token, if it names one.
+    pub holder: Option<String>,
+    /// When it was signed.
+    pub signed_at: Timestamp,
+    /// The reviewer's comment, or the reason of a withdrawal.
+    pub comment: Option<String>,
+}
+
+/// A signature about to be recorded: the act and who signs it, when.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Act {
+    /// What is done.
+    pub action: Action,
+    /// Who signs.
+    pub signer: Principal,
+    /// When.
+    pub at: Timestamp,
+    /// Comment or reason.
+    pub comment: Option<String>,
+}
+
+/// Who submitted a calibration.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Submitter {
+    /// The submitting token's id.
+    pub token_id: String,
+    /// Its holder, if it named one.
+    pub holder: Option<String>,
+}
+
+/// Why an act is refused.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum Refusal {
+    /// The signer's role does not allow the act.
+    #[error("a {role} token may not {verb} a calibration: it takes a reviewer or admin token")]
+    Role {
+        /// The signer's role.
+        role: Role,
+        /// The act.
+        verb: &'static str,
+    },
+    /// The signer submitted the calibration.
+    #[error(
+        "the calibration was submitted by the same person ({who}); another reviewer must {verb} it"
+    )]
+    OwnWork {
+        /// The holder or token.
+        who: String,
+        /// The act.
+        verb: &'static str,
+    },
+    /// The calibration's state does not allow the act.
+    #[error("the calibration is {}: only a {from} calibration can be {}", .state.as_str(), .target_past)]
+    State {
+        /// Its state.
+        state: State,
+        /// What the act would have made it.
+        target_past: &'static str,
+        /// The states it can be done from, in words.
+        from: &'static str,
+    },
+}
+
+impl Refusal {
+    /// Whether it is a matter of permission (403) rather than of the
+    /// calibration's state (409).
+    pub fn is_permission(&self) -> bool {
+        !matches!(self, Refusal::State { .. })
+    }
+}
+
+impl Act {
+    /// The signature this act records on a calibration in `state`
+    /// submitted by `submitter`, as the `seq`-th — or why it may not be
+    /// recorded.
+    pub fn check(
+        &self,
+        state: State,
+        submitter: &Submitter,
+        seq: u32,
+    ) -> Result<Signature, Refusal> {
+        let verb = self.action.as_str();
+        if self.signer.role < Role::Reviewer {
+            return Err(Refusal::Role {
+                role: self.signer.role,
+                verb,
+            });
+        }
+        let (allowed, from) = match self.action {
+            Action::Approve | Action::Reject => (state == State::Submitted, "submitted"),
+            Action::Withdraw => (
+                matches!(state, State::Submitted | State::Approved),
+                "submitted or approved",
+            ),
+        };
+        if !allowed {
+            return Err(Refusal::State {
+                state,
+                target_past: self.action.target().as_str(),
+                from,
+            });
+        }
+        let signer = Identity::of(&self.signer.id, self.signer.holder.as_deref());
+        let author = Identity::of(&submitter.token_id, submitter.holder.as_deref());
+        if self.action != Action::Withdraw
+            && signer.same(&self.signer.id, &author, &submitter.token_id)
+        {
+            let who = match author {
+                Identity::Holder(h) => h,
+                Identity::Token(t) => format!("token {t}"),
+            };
+            return Err(Refusal::OwnWork { who, verb });
+        }
+        Ok(Signature {
+            seq,
+            action: self.action,
+            state: self.action.target(),
+            meaning: self.action.meaning().to_owned(),
+            token_id: self.signer.id.clone(),
+            role: self.signer.role,
+            holder: self.signer.holder.clone(),
+            signed_at: self.at,
+            comment: self.comment.clone(),
+        })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn principal(id: &str, role: Role, holder: Option<&str>) -> Principal {
+        Principal {
+            id: id.into(),
+            role,
+            station_id: None,
+            holder: holder.map(Into::into),
+        }
+    }
+
+    fn act(action: Action, signer: Principal) -> Act {
+        Act {
+            action,
+            signer,
+            at: Timestamp::parse("2026-11-25T10:00:00Z").unwrap(),
+            comment: Some("checked".into()),
+        }
+    }
+
+    fn by(token: &str, holder: Option<&str>) -> Submitter {
+        Submitter {
+            token_id: token.into(),
+            holder: holder.map(Into::into),
+        }
+    }
+
+    /// Every (action, state) pair against the diagram in the module's doc.
+    #[test]
+    fn the_transitions_are_the_diagrams() {
+        let reviewer = principal("r", Role::Reviewer, Some("R. Eviewer"));
+        let submitter = by("s", Some("S. Tation"));
+        let states = [
+            State::Submitted,
+            State::Approved,
+            State::Rejected,
+            State::Withdrawn,
+        ];
+        let expected = [
+            (Action::Approve, [Some(State::Approved), None, None, None]),
+            (Action::Reject, [Some(State::Rejected), None, None, None]),
+            (
+                Action::Withdraw,
+                [Some(State::Withdrawn), Some(State::Withdrawn), None, None],
+            ),
+        ];
+        for (action, targets) in expected {
+            for (state, target) in states.iter().zip(targets) {
+                let out = act(action, reviewer.clone()).check(*state, &submitter, 3);
+                match target {
+                    Some(t) => {
+                        let s = out.unwrap();
+                        assert_eq!((s.state, s.seq, s.action), (t, 3, action));
+                        assert_eq!(s.holder.as_deref(), Some("R. Eviewer"));
+                    }
+                    None => assert!(
+                        matches!(out, Err(Refusal::State { state: s, .. }) if s == *state),
+                        "{action:?} from {state:?}"
+                    ),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn readers_and_stations_may_not_sign() {
+        for role in [Role::Reader, Role::Station] {
+            for action in [Action::Approve, Action::Reject, Action::Withdraw] {
+                let out = act(action, principal("x", role, None)).check(
+                    State::Submitted,
+                    &by("s", None),
+                    1,
+                );
+                let e = out.unwrap_err();
+                assert!(e.is_permission());
+                assert!(e.to_string().contains("reviewer or admin"), "{e}");
+            }
+        }
+        let admin = act(Action::Approve, principal("a", Role::Admin, None));
+        assert!(admin.check(State::Submitted, &by("s", None), 1).is_ok());
+    }
+
+    #[test]
+    fn nobody_reviews_their_own_work() {
+        let cases = [
+            // Same holder on two tokens.
+            (
+                principal("r", Role::Reviewer, Some("Ann")),
+                by("s", Some("Ann")),
+                true,
+            ),
+            // The same token, with or without a holder.
+            (principal("t", Role::Admin, None), by("t", None), true),
+            (
+                principal("t", Role::Admin, Some("Ann")),
+                by("t", Some("Ann")),
+                true,
+            ),
+            // Different holders; different tokens without holders.
+            (
+                principal("r", Role::Reviewer, Some("Bob")),
+                by("s", Some("Ann")),
+                false,
+            ),
+            (principal("r", Role::Reviewer, None), by("s", None), false),
+            (
+                principal("r", Role::Reviewer, Some("Ann")),
+                by("s", None),
+                false,
+            ),
+        ];
+        for (signer, submitter, own) in cases {
+            for action in [Action::Approve, Action::Reject] {
+                let out = act(action, signer.clone()).check(State::Submitted, &submitter, 1);
+                assert_eq!(
+                    matches!(out, Err(Refusal::OwnWork { .. })),
+                    own,
+                    "{signer:?} {submitter:?}"
+                );
+            }
+            // Withdrawing one's own calibration is allowed.
+            assert!(
+                act(Action::Withdraw, signer)
+                    .check(State::Approved, &submitter, 1)
+                    .is_ok()
+            );
+        }
+    }
+
+    #[test]
+    fn bodies_say_what_is_missing_or_wrong() {
+        let at = Timestamp::parse("2026-11-25T10:00:00Z").unwrap();
+        let signer = principal("r", Role::Reviewer, None);
+        let review = |json: serde_json::Value| {
+            serde_json::from_value::<ReviewBody>(json)
+                .unwrap()
+                .act(signer.clone(), at)
+        };
+        let a = review(serde_json::json!({"decision": "approve"})).unwrap();
+        assert_eq!((a.action, a.comment), (Action::Approve, None));
+        let e = review(serde_json::json!({"decision": "reject"})).unwrap_err();
+        assert_eq!(e.errors[0].pointer, "/comment");
+        let a = review(serde_json::json!({"decision": "reject", "comment": "  drift  "})).unwrap();
+        assert_eq!(a.comment.as_deref(), Some("drift"));
+        let e = review(serde_json::json!({"decision": "reject", "comment": "   "})).unwrap_err();
+        assert!(e.errors[0].detail.contains("empty"), "{e:?}");
+        let long = "x".repeat(MAX_COMMENT_CHARS + 1);
+        let e = review(serde_json::json!({"decision": "approve", "comment": long})).unwrap_err();
+        assert!(e.errors[0].detail.contains("at most 2000"), "{e:?}");
+        assert!(
+            serde_json::from_value::<ReviewBody>(serde_json::json!({"decision": "maybe"})).is_err()
+        );
+        let w = serde_json::from_value::<WithdrawBody>(
+            serde_json::json!({"reason": "wrong sensor id"}),
+        )
+        .unwrap()
+        .act(signer.clone(), at)
+        .unwrap();
+        assert_eq!(
+            (w.action, w.comment.as_deref()),
+            (Action::Withdraw, Some("wrong sensor id"))
+        );
+        let e = serde_json::from_value::<WithdrawBody>(serde_json::json!({"reason": ""}))
+            .unwrap()
+            .act(signer, at)
+            .unwrap_err();
+        assert_eq!(e.errors[0].pointer, "/reason");
+    }
+
+    #[test]
+    fn what_counts_on_each_basis() {
+        use State::*;
+        let not_rejected: Vec<bool> = [Submitted, Approved, Rejected, Withdrawn]
+            .iter()
+            .map(|s| s.counts(Basis::NotRejected))
+            .collect();
+        let approved: Vec<bool> = [Submitted, Approved, Rejected, Withdrawn]
+            .iter()
+            .map(|s| s.counts(Basis::ApprovedOnly))
+            .collect();
+        assert_eq!(not_rejected, [true, true, false, false]);
+        assert_eq!(approved, [false, true, false, false]);
+        for s in [Submitted, Approved, Rejected, Withdrawn] {
+            assert_eq!(State::parse(s.as_str()), Some(s));
+        }
+        assert_eq!(State::parse("superseded"), None);
+    }
+}

@@ -1,0 +1,135 @@
+//! Reviews: signed acts on a calibration, checked against its state in the
+//! transaction that records them, and its sensor's row computed again.
+
+use async_trait::async_trait;
+use rusqlite::{Connection, params};
+use uuid::Uuid;
+
+use super::SqliteStore;
+use super::rows;
+use crate::domain::review::{Act, Signature, Submitter};
+use crate::store::{Reviews, Signed, StoreError, sensor_forget, sensor_recompute};
+
+/// The columns of [`rows::signature`].
+const SIGNATURE_COLUMNS: &str =
+    "seq, action, state, meaning, token_id, role, holder, signed_at, comment";
+
+/// Records `act` on calibration `id` inside the writer's transaction; the
+/// answer, and whether to commit.
+fn sign(conn: &Connection, id: Uuid, act: &Act) -> Result<(Signed, bool), StoreError> {
+    let found = rows::first(
+        conn,
+        concat!(
+            "SELECT c.sensor_id, c.submitted_by, ",
+            crate::state_sql!(),
+            " AS state, (SELECT coalesce(max(s.seq), 0) FROM signatures s \
+             WHERE s.calibration_id = c.id) AS last FROM calibrations c WHERE c.id = ?1"
+        ),
+        [id.to_string()],
+        |r| {
+            Ok((
+                r.get::<_, String>("sensor_id")
+                    .map_err(super::errors::map)?,
+                r.get::<_, String>("submitted_by")
+                    .map_err(super::errors::map)?,
+                rows::state(r)?,
+                r.get::<_, i64>("last").map_err(super::errors::map)?,
+            ))
+        },
+    )?;
+    let Some((sensor_id, submitted_by, state, last)) = found else {
+        return Ok((Signed::NotFound, false));
+    };
+    let holder = match Uuid::try_parse(&submitted_by) {
+        Ok(token) => rows::first(
+            conn,
+            "SELECT holder FROM tokens WHERE id = ?1",
+            [token.to_string()],
+            |r| {
+                r.get::<_, Option<String>>("holder")
+                    .map_err(super::errors::map)
+            },
+        )?
+        .flatten(),
+        Err(_) => None,
+    };
+    let submitter = Submitter {
+        token_id: submitted_by,
+        holder,
+    };
+    let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
+    let signature = match act.check(state, &submitter, seq) {
+        Ok(s) => s,
+        Err(refusal) => return Ok((Signed::Refused(refusal), false)),
+    };
+    insert(conn, id, &signature)?;
+    rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
+    rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
+    Ok((Signed::Done(signature, sensor_id), true))
+}
+
+/// Appends a signature.
+fn insert(conn: &Connection, id: Uuid, s: &Signature) -> Result<(), StoreError> {
+    rows::execute(
+        conn,
+        &format!(
+            "INSERT INTO signatures (calibration_id, {SIGNATURE_COLUMNS}) \
+             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)"
+        ),
+        params![
+            id.to_string(),
+            s.seq,
+            s.action.as_str(),
+            s.state.as_str(),
+            s.meaning,
+            s.token_id,
+            s.role.as_str(),
+            s.holder,
+            s.signed_at.to_string(),
+            s.comment
+        ],
+    )?;
+    Ok(())
+}
+
+#[async_trait]
+impl Reviews for SqliteStore {
+    /// In the writer's next batch, the sensor's cached summary held back
+    /// and dropped ([`crate::store::cache::Cache::changing`]).
+    async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError> {
+        self.follow_the_file()?;
+        // A calibration's sensor never changes: read it first, to know
+        // which cached entry the write concerns.
+        let sensor = self
+            .run("calibration_sensor", move |conn| {
+                rows::first(
+                    conn,
+                    "SELECT sensor_id FROM calibrations WHERE id = ?1",
+                    [id.to_string()],
+                    |r| r.get::<_, String>("sensor_id").map_err(super::errors::map),
+                )
+            })
+            .await?;
+        let Some(sensor) = sensor else {
+            return Ok(Signed::NotFound);
+        };
+        let this = self.clone();
+        let write = async move { this.write("sign", move |conn| sign(conn, id, &act)).await };
+        self.cache.changing(&sensor, write).await
+    }
+
+    async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError> {
+        self.run("signatures", move |conn| {
+            rows::all(
+                conn,
+                &format!(
+                    "SELECT {SIGNATURE_COLUMNS} FROM signatures WHERE calibration_id = ?1 \
+                     ORDER BY seq"
+                ),
+                [id.to_string()],
+                rows::signature,
+            )
+        })
+        .await
+    }
+}
