@@ -8,8 +8,9 @@
 //! ```text
 //!             approve            withdraw
 //! submitted ───────────▶ approved ───────▶ withdrawn
-//!     │ reject                               ▲
-//!     └──────▶ rejected        submitted ────┘ withdraw
+//!  │  │ reject             │ supersede
+//!  │  └──────▶ rejected    └─────────────▶ superseded
+//!  └── withdraw ▶ withdrawn, supersede ▶ superseded
 //! ```
 //!
 //! * `approve` and `reject` are a reviewer's decision on a `submitted`
@@ -18,7 +19,12 @@
 //!   `approved`) out of use for good, with a reason; the one who submitted
 //!   it may withdraw it (a reviewer taking back their own error vouches for
 //!   nothing);
-//! * `rejected` and `withdrawn` are final.
+//! * `supersede` replaces a calibration that counts by a corrected one,
+//!   stored in the same transaction, which records what it supersedes and
+//!   why: a reviewer or admin may, and so may the very token that submitted
+//!   it within [`SUPERSEDE_WINDOW_SECONDS`] of its submission (a station
+//!   correcting its own upload before anyone relied on it);
+//! * `rejected`, `withdrawn` and `superseded` are final.
 //!
 //! Which calibrations a reader uses is the [`Basis`]: every calibration not
 //! rejected or withdrawn, or (with `--require-approval`) approved ones only.
@@ -31,12 +37,26 @@ use super::field::Invalid;
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
+/// How long after a submission the station token that made it may
+/// supersede it itself (24 h); afterwards a reviewer does.
+pub const SUPERSEDE_WINDOW_SECONDS: i64 = 24 * 3600;
+
+/// What a superseding calibration records of the one it replaces.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, ToSchema)]
+pub struct Supersedes {
+    /// The calibration (and certificate number) it replaces.
+    pub calibration_id: uuid::Uuid,
+    /// Why.
+    pub reason: String,
+}
+
 /// Longest comment or reason, in characters.
 pub const MAX_COMMENT_CHARS: usize = 2000;
 
 /// A reviewer's decision (`POST /v1/calibrations/{id}/review`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, ToSchema)]
 #[serde(rename_all = "lowercase")]
+#[schema(as = ReviewDecision)]
 pub enum Decision {
     /// Release the results for use.
     Approve,
@@ -53,7 +73,7 @@ pub struct ReviewBody {
     /// The reviewer's comment: optional when approving, required when
     /// rejecting (why); at most 2 000 characters.
     #[serde(default)]
-    #[schema(max_length = 2000)]
+    #[schema(schema_with = crate::domain::schema::nullable_comment)]
     pub comment: Option<String>,
 }
 
@@ -63,7 +83,7 @@ pub struct ReviewBody {
 pub struct WithdrawBody {
     /// Why it is withdrawn (printed on its certificate); at most 2 000
     /// characters.
-    #[schema(min_length = 1, max_length = 2000)]
+    #[schema(schema_with = crate::domain::schema::reason)]
     pub reason: String,
 }
 
@@ -75,6 +95,27 @@ fn comment(text: Option<String>, field: &str, required: bool) -> Result<Option<S
         Some(t) => check_str(t.trim(), MAX_COMMENT_CHARS, Chars::Text)
             .map(|()| Some(t.trim().to_owned()))
             .map_err(|why| Invalid::one(format!("/{field}"), why)),
+    }
+}
+
+/// The reason of a supersession (a query parameter), checked: present,
+/// free text, at most [`MAX_COMMENT_CHARS`].
+pub fn check_reason(text: Option<&str>) -> Result<String, String> {
+    let t = text.map(str::trim).unwrap_or_default();
+    check_str(t, MAX_COMMENT_CHARS, Chars::Text)
+        .map(|()| t.to_owned())
+        .map_err(|why| format!("the reason {why}"))
+}
+
+/// The supersession of a calibration by the corrected one `by`, signed by
+/// `signer` at `at`, for `reason` (checked by [`check_reason`]).
+pub fn supersession(reason: String, signer: Principal, at: Timestamp, by: uuid::Uuid) -> Act {
+    Act {
+        action: Action::Supersede,
+        signer,
+        at,
+        comment: Some(reason),
+        superseded_by: Some(by),
     }
 }
 
@@ -90,6 +131,7 @@ impl ReviewBody {
             signer,
             at,
             comment: comment(self.comment, "comment", action == Action::Reject)?,
+            superseded_by: None,
         })
     }
 }
@@ -102,6 +144,7 @@ impl WithdrawBody {
             signer,
             at,
             comment: comment(Some(self.reason), "reason", true)?,
+            superseded_by: None,
         })
     }
 }
@@ -118,6 +161,8 @@ pub enum State {
     Rejected,
     /// Withdrawn: kept, but no longer anyone's latest, baseline or point.
     Withdrawn,
+    /// Replaced by a corrected calibration: kept, and no longer counts.
+    Superseded,
 }
 
 impl State {
@@ -128,6 +173,7 @@ impl State {
             State::Approved => "approved",
             State::Rejected => "rejected",
             State::Withdrawn => "withdrawn",
+            State::Superseded => "superseded",
         }
     }
 
@@ -138,6 +184,7 @@ impl State {
             State::Approved,
             State::Rejected,
             State::Withdrawn,
+            State::Superseded,
         ]
         .into_iter()
         .find(|x| x.as_str() == s)
@@ -162,6 +209,11 @@ pub enum Action {
     Reject,
     /// A reviewer or admin withdraws it.
     Withdraw,
+    /// A corrected calibration replaces it.
+    Supersede,
+    /// Its submission, computed again with the current method, gave every
+    /// number the same (the state is kept).
+    Confirm,
 }
 
 impl Action {
@@ -171,22 +223,32 @@ impl Action {
             Action::Approve => "approve",
             Action::Reject => "reject",
             Action::Withdraw => "withdraw",
+            Action::Supersede => "supersede",
+            Action::Confirm => "confirm",
         }
     }
 
     /// Parses a stored name.
     pub fn parse(s: &str) -> Option<Action> {
-        [Action::Approve, Action::Reject, Action::Withdraw]
-            .into_iter()
-            .find(|a| a.as_str() == s)
+        [
+            Action::Approve,
+            Action::Reject,
+            Action::Withdraw,
+            Action::Supersede,
+            Action::Confirm,
+        ]
+        .into_iter()
+        .find(|a| a.as_str() == s)
     }
 
-    /// The state the act moves a calibration to.
-    pub fn target(self) -> State {
+    /// The state the act moves a calibration in `state` to.
+    pub fn target(self, state: State) -> State {
         match self {
             Action::Approve => State::Approved,
             Action::Reject => State::Rejected,
             Action::Withdraw => State::Withdrawn,
+            Action::Supersede => State::Superseded,
+            Action::Confirm => state,
         }
     }
 
@@ -197,6 +259,12 @@ impl Action {
             Action::Approve => "Approved: the results were reviewed and are released for use",
             Action::Reject => "Rejected: the results were reviewed and are not to be used",
             Action::Withdraw => "Withdrawn: the results are no longer to be used",
+            Action::Supersede => {
+                "Superseded: replaced by a corrected calibration, whose results are to be used instead"
+            }
+            Action::Confirm => {
+                "Confirmed: computed again from the stored submission with the current method, every number the same"
+            }
         }
     }
 }
@@ -205,7 +273,8 @@ impl Action {
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum Basis {
-    /// Every calibration not rejected or withdrawn (the default).
+    /// Every calibration not rejected, withdrawn or superseded (the
+    /// default).
     #[default]
     NotRejected,
     /// Approved calibrations only (`--require-approval`).
@@ -258,8 +327,12 @@ pub struct Signature {
     pub holder: Option<String>,
     /// When it was signed.
     pub signed_at: Timestamp,
-    /// The reviewer's comment, or the reason of a withdrawal.
+    /// The reviewer's comment, or the reason of a withdrawal or
+    /// supersession.
     pub comment: Option<String>,
+    /// For a supersession: the calibration that replaces this one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub superseded_by: Option<uuid::Uuid>,
 }
 
 /// A signature about to be recorded: the act and who signs it, when.
@@ -273,22 +346,29 @@ pub struct Act {
     pub at: Timestamp,
     /// Comment or reason.
     pub comment: Option<String>,
+    /// For a supersession: the calibration that replaces the one acted on.
+    pub superseded_by: Option<uuid::Uuid>,
 }
 
-/// Who submitted a calibration.
+/// Who submitted a calibration, and when.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Submitter {
     /// The submitting token's id.
     pub token_id: String,
     /// Its holder, if it named one.
     pub holder: Option<String>,
+    /// When accelcal received it.
+    pub received_at: Timestamp,
 }
 
 /// Why an act is refused.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum Refusal {
     /// The signer's role does not allow the act.
-    #[error("a {role} token may not {verb} a calibration: it takes a reviewer or admin token")]
+    #[error(
+        "a {role} token may not {verb} this calibration: it takes a reviewer or admin token \
+         (or, to supersede, the token that submitted it, within 24 h)"
+    )]
     Role {
         /// The signer's role.
         role: Role,
@@ -336,7 +416,12 @@ impl Act {
         seq: u32,
     ) -> Result<Signature, Refusal> {
         let verb = self.action.as_str();
-        if self.signer.role < Role::Reviewer {
+        // The submitting token may supersede its own calibration within the
+        // window; otherwise it takes a reviewer.
+        let own_correction = self.action == Action::Supersede
+            && self.signer.id == submitter.token_id
+            && self.at <= submitter.received_at.plus_seconds(SUPERSEDE_WINDOW_SECONDS);
+        if self.signer.role < Role::Reviewer && !own_correction {
             return Err(Refusal::Role {
                 role: self.signer.role,
                 verb,
@@ -344,7 +429,7 @@ impl Act {
         }
         let (allowed, from) = match self.action {
             Action::Approve | Action::Reject => (state == State::Submitted, "submitted"),
-            Action::Withdraw => (
+            Action::Withdraw | Action::Supersede | Action::Confirm => (
                 matches!(state, State::Submitted | State::Approved),
                 "submitted or approved",
             ),
@@ -352,13 +437,16 @@ impl Act {
         if !allowed {
             return Err(Refusal::State {
                 state,
-                target_past: self.action.target().as_str(),
+                target_past: match self.action {
+                    Action::Confirm => "confirmed",
+                    other => other.target(state).as_str(),
+                },
                 from,
             });
         }
         let signer = Identity::of(&self.signer.id, self.signer.holder.as_deref());
         let author = Identity::of(&submitter.token_id, submitter.holder.as_deref());
-        if self.action != Action::Withdraw
+        if matches!(self.action, Action::Approve | Action::Reject)
             && signer.same(&self.signer.id, &author, &submitter.token_id)
         {
             let who = match author {
@@ -370,13 +458,14 @@ impl Act {
         Ok(Signature {
             seq,
             action: self.action,
-            state: self.action.target(),
+            state: self.action.target(state),
             meaning: self.action.meaning().to_owned(),
             token_id: self.signer.id.clone(),
             role: self.signer.role,
             holder: self.signer.holder.clone(),
             signed_at: self.at,
             comment: self.comment.clone(),
+            superseded_by: self.superseded_by,
         })
     }
 }
@@ -400,6 +489,7 @@ mod tests {
             signer,
             at: Timestamp::parse("2026-11-25T10:00:00Z").unwrap(),
             comment: Some("checked".into()),
+            superseded_by: None,
         }
     }
 
@@ -407,6 +497,7 @@ mod tests {
         Submitter {
             token_id: token.into(),
             holder: holder.map(Into::into),
+            received_at: Timestamp::parse("2026-11-24T10:00:00Z").unwrap(),
         }
     }
 
@@ -420,13 +511,36 @@ mod tests {
             State::Approved,
             State::Rejected,
             State::Withdrawn,
+            State::Superseded,
         ];
         let expected = [
-            (Action::Approve, [Some(State::Approved), None, None, None]),
-            (Action::Reject, [Some(State::Rejected), None, None, None]),
+            (
+                Action::Approve,
+                [Some(State::Approved), None, None, None, None],
+            ),
+            (
+                Action::Reject,
+                [Some(State::Rejected), None, None, None, None],
+            ),
             (
                 Action::Withdraw,
-                [Some(State::Withdrawn), Some(State::Withdrawn), None, None],
+                [
+                    Some(State::Withdrawn),
+                    Some(State::Withdrawn),
+                    None,
+                    None,
+                    None,
+                ],
+            ),
+            (
+                Action::Supersede,
+                [
+                    Some(State::Superseded),
+                    Some(State::Superseded),
+                    None,
+                    None,
+                    None,
+                ],
             ),
         ];
         for (action, targets) in expected {
@@ -445,6 +559,53 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The submitting token corrects its own calibration within 24 h of
+    /// its submission (received 2026-11-24T10:00Z); after that, and for any
+    /// other station, it takes a reviewer.
+    #[test]
+    fn a_station_supersedes_its_own_calibration_within_a_day() {
+        let station = principal("s", Role::Station, Some("Sam"));
+        let supersede = |signer: Principal, at: &str| {
+            supersession(
+                "wrong sensor id".into(),
+                signer,
+                Timestamp::parse(at).unwrap(),
+                uuid::Uuid::from_u128(9),
+            )
+        };
+        let own = by("s", Some("Sam"));
+        let s = supersede(station.clone(), "2026-11-25T10:00:00Z")
+            .check(State::Submitted, &own, 1)
+            .unwrap();
+        assert_eq!(
+            (s.state, s.superseded_by),
+            (State::Superseded, Some(uuid::Uuid::from_u128(9)))
+        );
+        let late =
+            supersede(station.clone(), "2026-11-25T10:00:01Z").check(State::Submitted, &own, 1);
+        assert!(matches!(late, Err(Refusal::Role { .. })), "{late:?}");
+        let other = supersede(
+            principal("t", Role::Station, Some("Sam")),
+            "2026-11-24T11:00:00Z",
+        )
+        .check(State::Submitted, &own, 1);
+        assert!(matches!(other, Err(Refusal::Role { .. })), "{other:?}");
+        // A reviewer may, at any time, even their own; never twice.
+        let reviewer = principal("s", Role::Reviewer, Some("Sam"));
+        assert!(
+            supersede(reviewer.clone(), "2027-01-01T00:00:00Z")
+                .check(State::Approved, &own, 2)
+                .is_ok()
+        );
+        for state in [State::Superseded, State::Withdrawn, State::Rejected] {
+            let out = supersede(reviewer.clone(), "2027-01-01T00:00:00Z").check(state, &own, 2);
+            assert!(matches!(out, Err(Refusal::State { .. })), "{state:?}");
+        }
+        assert_eq!(check_reason(Some("  moved  ")), Ok("moved".into()));
+        assert!(check_reason(None).is_err());
+        assert!(check_reason(Some(" ")).is_err());
     }
 
     #[test]
@@ -555,19 +716,14 @@ mod tests {
     #[test]
     fn what_counts_on_each_basis() {
         use State::*;
-        let not_rejected: Vec<bool> = [Submitted, Approved, Rejected, Withdrawn]
-            .iter()
-            .map(|s| s.counts(Basis::NotRejected))
-            .collect();
-        let approved: Vec<bool> = [Submitted, Approved, Rejected, Withdrawn]
-            .iter()
-            .map(|s| s.counts(Basis::ApprovedOnly))
-            .collect();
-        assert_eq!(not_rejected, [true, true, false, false]);
-        assert_eq!(approved, [false, true, false, false]);
-        for s in [Submitted, Approved, Rejected, Withdrawn] {
+        let all = [Submitted, Approved, Rejected, Withdrawn, Superseded];
+        let not_rejected: Vec<bool> = all.iter().map(|s| s.counts(Basis::NotRejected)).collect();
+        let approved: Vec<bool> = all.iter().map(|s| s.counts(Basis::ApprovedOnly)).collect();
+        assert_eq!(not_rejected, [true, true, false, false, false]);
+        assert_eq!(approved, [false, true, false, false, false]);
+        for s in all {
             assert_eq!(State::parse(s.as_str()), Some(s));
         }
-        assert_eq!(State::parse("superseded"), None);
+        assert_eq!(State::parse("deleted"), None);
     }
 }

@@ -217,6 +217,27 @@ pub fn text(max: usize) -> ObjectBuilder {
         ))
 }
 
+/// Free text that says something: as [`text`], with at least one
+/// character that is not white space (what [`crate::domain::review`]
+/// requires of a comment or reason).
+pub fn said(max: usize) -> ObjectBuilder {
+    text(max).pattern(Some(SAID))
+}
+
+/// The pattern of [`said`]: text with no control characters but tab and
+/// line breaks, at least one of its characters not white space.
+pub const SAID: &str = r"^[^\u0000-\u0008\u000B\u000C\u000E-\u001F\u007F-\u009F]*[^\s\u0000-\u001F\u007F-\u009F][^\u0000-\u0008\u000B\u000C\u000E-\u001F\u007F-\u009F]*$";
+
+/// A review's comment, or null.
+pub fn nullable_comment() -> RefOr<Schema> {
+    nullable(said(crate::domain::review::MAX_COMMENT_CHARS).into())
+}
+
+/// A withdrawal's or supersession's reason.
+pub fn reason() -> ObjectBuilder {
+    said(crate::domain::review::MAX_COMMENT_CHARS)
+}
+
 marker_schema!(
     /// A decision rule.
     RuleSchema => of_type(Type::String)

@@ -30,6 +30,8 @@ pub enum Reason {
     Withdrawn,
     /// The calibration was rejected in review.
     Rejected,
+    /// The calibration was superseded by a corrected one.
+    Superseded,
     /// The calibration is not approved, and only approved ones are used
     /// (`--require-approval`).
     NotApproved,
@@ -91,6 +93,10 @@ impl Usability {
         let (reason, detail) = match state {
             State::Withdrawn => (Reason::Withdrawn, "its calibration was withdrawn"),
             State::Rejected => (Reason::Rejected, "its calibration was rejected in review"),
+            State::Superseded => (
+                Reason::Superseded,
+                "its calibration was superseded by a corrected one",
+            ),
             State::Submitted | State::Approved => (
                 Reason::NotApproved,
                 "its calibration is not approved, and only approved calibrations are used",

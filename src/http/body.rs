@@ -75,6 +75,15 @@ impl FromRequest<AppState> for Body {
 }
 
 impl Body {
+    /// A stored submission read again as the body it was (for reprocessing).
+    pub fn stored(content_type: String, bytes: Bytes) -> Result<Body, Problem> {
+        Ok(Body {
+            media: media(&content_type)?,
+            bytes,
+            content_type,
+        })
+    }
+
     /// The body as a JSON value of type `T` (refusing CSV with 415).
     pub fn json<T: DeserializeOwned>(&self) -> Result<T, Problem> {
         if self.media != Media::Json {

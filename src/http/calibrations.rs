@@ -193,7 +193,7 @@ pub async fn submit(
     };
     let received_at = Timestamp::now();
     let id = Uuid::now_v7();
-    let assessed = assess(&state, &principal, body, received_at, Some(id)).await?;
+    let assessed = assess(&state, &principal, body, received_at, Some(id), None).await?;
     let (sensor_id, result) = (assessed.sensor_id, assessed.result);
     let Some(rec) = assessed.record else {
         return Err(Problem::internal());

@@ -42,7 +42,7 @@ pub async fn identify(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    let assessed = assess(&state, &principal, body, Timestamp::now(), None).await?;
+    let assessed = assess(&state, &principal, body, Timestamp::now(), None, None).await?;
     Ok((
         [(axum::http::header::CONTENT_TYPE, "application/json")],
         assessed.result,

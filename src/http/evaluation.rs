@@ -14,6 +14,7 @@ use super::problem::Problem;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::metrology::{Previous, assess_calibration};
+use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::submission::{Evaluated, ResultView, StandIn, evaluate};
 use crate::domain::text::echo;
@@ -137,13 +138,15 @@ async fn resolve_standards(
 }
 
 /// Evaluates a body for `principal`; with `id`, also builds the record to
-/// store under that id.
+/// store under that id — which, with `supersedes`, records the calibration
+/// it corrects.
 pub async fn assess(
     state: &AppState,
     principal: &Principal,
     body: Body,
     received_at: Timestamp,
     id: Option<Uuid>,
+    supersedes: Option<Supersedes>,
 ) -> Result<Assessed, Problem> {
     let (bytes, content_type) = (body.bytes.clone(), body.content_type.clone());
     let size = bytes.len();
@@ -181,7 +184,7 @@ pub async fn assess(
             let type_id = sensor_type.as_ref().map(|t| t.type_id.as_str());
             let metrology =
                 assess_calibration(e, performed_at, sensor_type.as_ref(), previous.as_ref())?;
-            let view = ResultView::new(
+            let mut view = ResultView::new(
                 e,
                 id,
                 station_id.as_deref(),
@@ -189,6 +192,7 @@ pub async fn assess(
                 type_id,
                 &metrology,
             );
+            view.supersedes = supersedes;
             let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
                 tracing::error!(error = %err, "a result did not serialise");
                 Problem::internal()

@@ -83,6 +83,10 @@ fn describe() {
         "accelcal_verdicts_total",
         "Verdicts of stored calibrations of typed sensors."
     );
+    describe_counter!(
+        "accelcal_reviews_total",
+        "Signatures recorded on calibrations: approve, reject, withdraw, supersede."
+    );
     describe_histogram!(
         "accelcal_storage_operation_duration_seconds",
         Unit::Seconds,

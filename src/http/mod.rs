@@ -291,6 +291,8 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(calibrations::submission))
         .routes(routes!(reviews::review))
         .routes(routes!(reviews::withdraw))
+        .routes(routes!(reviews::supersede))
+        .routes(routes!(reviews::reprocess))
         .routes(routes!(reviews::signatures))
         .routes(routes!(sensors::list))
         .routes(routes!(sensors::get, sensors::update))

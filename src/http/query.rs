@@ -42,6 +42,9 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Params<T> {
                 if let Some(name) = named("duplicate field `") {
                     return Problem::bad_parameter(&name, "is given more than once");
                 }
+                if let Some(name) = named("missing field `") {
+                    return Problem::bad_parameter(&name, "is required");
+                }
                 let name = e
                     .path()
                     .iter()

@@ -9,19 +9,28 @@
 
 use axum::Json;
 use axum::extract::{Path, State};
-use serde::Serialize;
-use utoipa::ToSchema;
+use axum::response::Response;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
 use uuid::Uuid;
 
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
+use super::evaluation::assess;
 use super::path_id;
 use super::problem::{Kind, Problem};
+use super::query::Params;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::review::{Act, ReviewBody, Signature, State as ReviewState, WithdrawBody};
+use crate::domain::review::{
+    Act, Action, ReviewBody, Signature, State as ReviewState, Supersedes, WithdrawBody,
+    check_reason, supersession,
+};
+use crate::domain::submission::Method;
 use crate::domain::timestamp::Timestamp;
 use crate::store::Signed;
+use crate::store::{CalibrationSummary, NewCalibration};
+use accelcal_core::TermMap;
 
 /// What an act came to: the calibration's new state and the signature.
 #[derive(Debug, Serialize, ToSchema)]
@@ -53,19 +62,23 @@ fn unknown(id: Uuid) -> Problem {
 /// pages' review form).
 pub(crate) async fn record(state: &AppState, id: Uuid, act: Act) -> Result<Reviewed, Problem> {
     let action = act.action;
-    match state.store.sign(id, act).await? {
-        Signed::Done(signature, sensor_id) => {
-            metrics::counter!("accelcal_reviews_total", "action" => action.as_str()).increment(1);
-            tracing::info!(
-                calibration = %id, sensor = %sensor_id, action = action.as_str(),
-                by = %signature.token_id, "calibration signed"
-            );
-            Ok(Reviewed {
-                calibration_id: id,
-                state: signature.state,
-                signature,
-            })
-        }
+    let reviewed = outcome(state.store.sign(id, act).await?, id)?;
+    metrics::counter!("accelcal_reviews_total", "action" => action.as_str()).increment(1);
+    tracing::info!(
+        calibration = %id, action = action.as_str(),
+        by = %reviewed.signature.token_id, "calibration signed"
+    );
+    Ok(reviewed)
+}
+
+/// The answer to what the store made of an act on calibration `id`.
+fn outcome(signed: Signed, id: Uuid) -> Result<Reviewed, Problem> {
+    match signed {
+        Signed::Done(signature, _) => Ok(Reviewed {
+            calibration_id: id,
+            state: signature.state,
+            signature,
+        }),
         Signed::NotFound => Err(unknown(id)),
         Signed::Refused(why) if why.is_permission() => Err(Problem::forbidden(why.to_string())),
         Signed::Refused(why) => Err(Problem::new(Kind::StateConflict, why.to_string())),
@@ -146,6 +159,266 @@ pub async fn withdraw(
     record(&state, id, act).await.map(Json)
 }
 
+/// The query of `POST /v1/calibrations/{id}/supersede` (its pattern is
+/// [`crate::domain::schema::SAID`], written out because the derive takes a
+/// literal; a test holds them equal).
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct SupersedeQuery {
+    /// Why the calibration is superseded (printed on both certificates);
+    /// 1–2 000 characters.
+    #[param(
+        min_length = 1,
+        max_length = 2000,
+        pattern = r"^[^\u0000-\u0008\u000B\u000C\u000E-\u001F\u007F-\u009F]*[^\s\u0000-\u001F\u007F-\u009F][^\u0000-\u0008\u000B\u000C\u000E-\u001F\u007F-\u009F]*$"
+    )]
+    reason: String,
+}
+
+/// `POST /v1/calibrations/{id}/supersede`: a corrected submission replaces
+/// a calibration.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations/{id}/supersede",
+    tag = "review",
+    operation_id = "supersedeCalibration",
+    summary = "Replace a calibration by a corrected submission.",
+    description = "The body is a submission, as for `POST /v1/calibrations` (JSON or \
+        CSV, of any sensor: a wrong sensor id is corrected so). It is computed and \
+        stored as a new calibration that records what it `supersedes` and why, while \
+        the old one becomes `superseded` (it stays, marked, and stops counting) — both \
+        in one transaction, or neither. A reviewer or admin may supersede any \
+        `submitted` or `approved` calibration; the station token that submitted one \
+        may supersede it itself within 24 h of its submission. A calibration is \
+        superseded once (409 afterwards, as for a `rejected` or `withdrawn` one).",
+    params(super::openapi::CalibrationIdPath, SupersedeQuery),
+    request_body(content(
+        (super::openapi::SubmissionSchema = "application/json"),
+        (super::openapi::RawBodySchema = "text/csv"),
+    )),
+    responses(
+        (status = 201, description = "The corrected calibration, stored; the old one superseded.",
+            body = super::openapi::StoredCalibrationSchema,
+            headers(("Location" = String, description = "The new calibration's URL."))),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::StateConflict),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn supersede(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(id): Path<String>,
+    Params(query): Params<SupersedeQuery>,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Station)?;
+    let old = path_id(&id, "calibration")?;
+    let reason =
+        check_reason(Some(&query.reason)).map_err(|why| Problem::bad_parameter("reason", why))?;
+    // Known before anything is computed; its state is checked where the
+    // act is recorded.
+    if state.store.calibration_summary(old).await?.is_none() {
+        return Err(unknown(old));
+    }
+    let received_at = Timestamp::now();
+    let new = Uuid::now_v7();
+    let supersedes = Supersedes {
+        calibration_id: old,
+        reason: reason.clone(),
+    };
+    let assessed = assess(
+        &state,
+        &principal,
+        body,
+        received_at,
+        Some(new),
+        Some(supersedes),
+    )
+    .await?;
+    let Some(record) = assessed.record else {
+        return Err(Problem::internal());
+    };
+    let act = supersession(reason, principal, received_at, new);
+    outcome(state.store.supersede(old, record, act).await?, old)?;
+    tracing::info!(calibration = %old, by = %new, "calibration superseded");
+    metrics::counter!("accelcal_reviews_total", "action" => "supersede").increment(1);
+    Ok(super::calibrations::created(new, assessed.result))
+}
+
+/// What reprocessing came to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
+#[serde(rename_all = "lowercase")]
+pub enum Outcome {
+    /// Every number the same: the calibration is confirmed as it is.
+    Confirmed,
+    /// Some number differs: a new calibration supersedes it.
+    Superseded,
+}
+
+/// The answer of `POST /v1/calibrations/{id}/reprocess`.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct Reprocessed {
+    /// The calibration reprocessed.
+    calibration_id: Uuid,
+    /// `confirmed` or `superseded`.
+    outcome: Outcome,
+    /// The calibration that supersedes it, when a number differs.
+    replacement_id: Option<Uuid>,
+    /// What differs (`ki coefficient`, `k0 expanded uncertainty`, …); empty
+    /// when confirmed.
+    changed: Vec<String>,
+    /// The signature recorded on it.
+    signature: Signature,
+}
+
+/// What differs between a stored calibration and its submission computed
+/// again: the model, unit, runs, and every fused coefficient, standard
+/// error and expanded uncertainty, compared bit for bit.
+fn differences(old: &CalibrationSummary, new: &NewCalibration) -> Vec<String> {
+    let mut changed = Vec::new();
+    if old.model != new.model {
+        changed.push("model".to_owned());
+    }
+    if old.unit != new.unit {
+        changed.push("unit".to_owned());
+    }
+    if old.runs != new.runs {
+        changed.push("runs".to_owned());
+    }
+    let none = TermMap(Vec::new());
+    for (what, a, b) in [
+        ("coefficient", &old.coefficients, &new.coefficients),
+        ("standard error", &old.std_errors, &new.std_errors),
+        (
+            "expanded uncertainty",
+            old.expanded.as_ref().unwrap_or(&none),
+            new.expanded.as_ref().unwrap_or(&none),
+        ),
+    ] {
+        for (term, x) in b.iter() {
+            if a.get(term).is_none_or(|y| y.to_bits() != x.to_bits()) {
+                changed.push(format!("{} {what}", term.name()));
+            }
+        }
+        for (term, _) in a.iter().filter(|(t, _)| b.get(*t).is_none()) {
+            changed.push(format!("{} {what}", term.name()));
+        }
+    }
+    changed
+}
+
+/// `POST /v1/calibrations/{id}/reprocess`.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations/{id}/reprocess",
+    tag = "review",
+    operation_id = "reprocessCalibration",
+    summary = "Compute a stored submission again with the current method (reviewer or admin).",
+    description = "The stored submission is evaluated again as it was received (same \
+        body, same reception time) with this accelcal's method. When every number — \
+        model, unit, runs, each fused coefficient, standard error and expanded \
+        uncertainty, bit for bit — is the same, a `confirm` signature records it \
+        and the state is kept; otherwise a new calibration supersedes it, with the \
+        reason \"reprocessed with accelcal … (core …)\" and what changed. Only a \
+        `submitted` or `approved` calibration is reprocessed (409 otherwise). The \
+        sensor's type and the standards are today's: a submission they now refuse \
+        (a type in another unit, a standard removed) is a 422 saying why, and \
+        nothing is recorded.",
+    params(super::openapi::CalibrationIdPath),
+    responses(
+        (status = 200, description = "Confirmed, or superseded (`replacement_id`).", body = Reprocessed),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::StateConflict),
+        (status = 422, response = super::openapi::Invalid),
+        super::openapi::Always,
+    )
+)]
+pub async fn reprocess(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(id): Path<String>,
+) -> Result<Json<Reprocessed>, Problem> {
+    require(&principal, Role::Reviewer)?;
+    let id = path_id(&id, "calibration")?;
+    let old = state
+        .store
+        .calibration_summary(id)
+        .await?
+        .ok_or_else(|| unknown(id))?;
+    let stored = state
+        .store
+        .submission(id)
+        .await?
+        .ok_or_else(|| unknown(id))?;
+    let body = Body::stored(stored.content_type, stored.body)?;
+    let method = Method::CURRENT;
+    let reason = format!(
+        "reprocessed with accelcal {} (core {})",
+        method.accelcal, method.core
+    );
+    let new = Uuid::now_v7();
+    let supersedes = Supersedes {
+        calibration_id: id,
+        reason: reason.clone(),
+    };
+    // As it was received: the same body at the same reception time.
+    let assessed = assess(
+        &state,
+        &principal,
+        body,
+        old.received_at,
+        Some(new),
+        Some(supersedes),
+    )
+    .await?;
+    let Some(record) = assessed.record else {
+        return Err(Problem::internal());
+    };
+    let changed = differences(&old, &record);
+    let now = Timestamp::now();
+    let (signed, replacement_id) = if changed.is_empty() {
+        let act = Act {
+            action: Action::Confirm,
+            signer: principal,
+            at: now,
+            comment: Some(reason),
+            superseded_by: None,
+        };
+        (state.store.sign(id, act).await?, None)
+    } else {
+        let why = format!("{reason}: {} changed", changed.join(", "));
+        let act = supersession(why, principal, now, new);
+        (state.store.supersede(id, record, act).await?, Some(new))
+    };
+    let reviewed = outcome(signed, id)?;
+    let result = if replacement_id.is_some() {
+        Outcome::Superseded
+    } else {
+        Outcome::Confirmed
+    };
+    let action = if replacement_id.is_some() {
+        "supersede"
+    } else {
+        "confirm"
+    };
+    metrics::counter!("accelcal_reviews_total", "action" => action).increment(1);
+    tracing::info!(calibration = %id, outcome = ?result, "calibration reprocessed");
+    Ok(Json(Reprocessed {
+        calibration_id: id,
+        outcome: result,
+        replacement_id,
+        changed,
+        signature: reviewed.signature,
+    }))
+}
+
 /// `GET /v1/calibrations/{id}/signatures`.
 #[utoipa::path(
     get,
@@ -178,4 +451,20 @@ pub async fn signatures(
         state: summary.state,
         signatures,
     }))
+}
+
+#[cfg(test)]
+mod tests {
+    use utoipa::IntoParams;
+
+    use super::*;
+
+    #[test]
+    fn the_reason_parameter_is_the_schema_of_a_reason() {
+        let params = SupersedeQuery::into_params(|| None);
+        let reason = params.iter().find(|p| p.name == "reason").unwrap();
+        assert!(matches!(reason.required, utoipa::openapi::Required::True));
+        let schema = serde_json::to_value(&reason.schema).unwrap();
+        assert_eq!(schema["pattern"], crate::domain::schema::SAID);
+    }
 }

@@ -123,6 +123,7 @@ async fn copy_signatures(
             },
             at: s.signed_at,
             comment: s.comment.clone(),
+            superseded_by: s.superseded_by,
         };
         match to.sign(id, act).await? {
             Signed::Done(copy, _) if copy == *s => {}

@@ -178,6 +178,15 @@ pub trait Reviews: Send + Sync + 'static {
     /// the signature and computes its sensor's row again
     /// ([`sensor_recompute`]); the sensor's cached summary is dropped.
     async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError>;
+    /// Supersedes calibration `id` by `replacement`: as [`Reviews::sign`]
+    /// with a `supersede` act, storing the replacement (a new calibration,
+    /// of any sensor) in the same transaction — both or neither.
+    async fn supersede(
+        &self,
+        id: Uuid,
+        replacement: NewCalibration,
+        act: Act,
+    ) -> Result<Signed, StoreError>;
     /// A calibration's signatures, in order (none for an unknown one).
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError>;
 }

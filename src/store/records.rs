@@ -214,7 +214,7 @@ pub struct SensorSummary {
 pub const NEWEST_FIRST: &str = "ORDER BY c.performed_at DESC, c.id DESC";
 
 /// A calibration's state, in SQL over its row `c`: the state its last
-/// signature moved it to, `submitted` before any
+/// signature left it in, `submitted` before any
 /// ([`crate::domain::review`]). A macro, to be spliced into the engines'
 /// column lists at compile time.
 #[macro_export]

@@ -486,3 +486,330 @@ async fn require_approval_serves_approved_calibrations_only(
         1
     );
 }
+
+#[rstest]
+#[tokio::test]
+async fn a_corrected_submission_supersedes_once(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let station = app.held_token("station", "Sam Station", Some("ST-1")).await;
+    let other_station = app.held_token("station", "Olga Other", Some("ST-2")).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let mut wrong = submission("WRONG-1", "2026-01-01T00:00:00Z", 4);
+    wrong["station_id"] = json!("ST-1");
+    let a = app.submit(&station, &wrong).await["id"].clone();
+    let supersede = |id: &Value, reason: &str| {
+        format!(
+            "/v1/calibrations/{}/supersede?reason={}",
+            id.as_str().unwrap(),
+            reason.replace(' ', "%20")
+        )
+    };
+    let mut right = wrong.clone();
+    right["sensor_id"] = json!("RIGHT-1");
+
+    // No reason, another station, an unknown calibration: refused, nothing
+    // stored.
+    let p = problem(
+        app.post(
+            &format!("/v1/calibrations/{}/supersede", a.as_str().unwrap()),
+            &station,
+            &right,
+        )
+        .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "reason", "{p}");
+    problem(
+        app.post(&supersede(&a, "wrong sensor"), &other_station, &right)
+            .await,
+        StatusCode::FORBIDDEN,
+    )
+    .await;
+    problem(
+        app.post(
+            "/v1/calibrations/01900000-0000-7000-8000-000000000000/supersede?reason=x",
+            &rita,
+            &right,
+        )
+        .await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    problem(
+        app.get("/v1/sensors/RIGHT-1", ADMIN).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+
+    // The station that submitted it corrects the sensor id itself.
+    let res = app
+        .post(&supersede(&a, "wrong sensor id"), &station, &right)
+        .await;
+    let status = res.status();
+    let location = res.headers().get("location").cloned();
+    let text = res.text().await.unwrap();
+    assert_eq!(status, StatusCode::CREATED, "{text}");
+    let b: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        location.unwrap().to_str().unwrap(),
+        format!("/v1/calibrations/{}", b["id"].as_str().unwrap())
+    );
+    assert_eq!(
+        b["supersedes"],
+        json!({"calibration_id": a, "reason": "wrong sensor id"})
+    );
+    assert_eq!(b["sensor_id"], "RIGHT-1");
+    assert_eq!(
+        app.get_json("/v1/sensors/RIGHT-1", ADMIN).await["latest"]["id"],
+        b["id"]
+    );
+    problem(
+        app.get("/v1/sensors/WRONG-1", ADMIN).await,
+        StatusCode::NOT_FOUND,
+    )
+    .await;
+    let record = app
+        .get_json(
+            &format!("/v1/calibrations/{}/signatures", a.as_str().unwrap()),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(record["state"], "superseded");
+    assert_eq!(record["signatures"][0]["superseded_by"], b["id"]);
+    assert_eq!(record["signatures"][0]["holder"], "Sam Station");
+    assert_eq!(record["signatures"][0]["role"], "station");
+
+    // Superseding twice is a 409, and stores nothing.
+    let p = problem(
+        app.post(&supersede(&a, "again"), &rita, &right).await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(
+        p["detail"].as_str().unwrap().contains("is superseded"),
+        "{p}"
+    );
+    let history = app
+        .get_json("/v1/sensors/RIGHT-1/calibrations", ADMIN)
+        .await;
+    assert_eq!(history["items"].as_array().unwrap().len(), 1);
+
+    // A reviewer supersedes an approved calibration; the old certificate
+    // says so on every page, the new one names what it replaces.
+    let b = b["id"].clone();
+    act(
+        &app,
+        &rita,
+        &review(&b),
+        json!({"decision": "approve"}),
+        StatusCode::OK,
+    )
+    .await;
+    let mut corrected = right.clone();
+    corrected["performed_at"] = json!("2026-01-02T00:00:00Z");
+    let res = app
+        .post(&supersede(&b, "performed a day later"), &rita, &corrected)
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let c: Value = res.json().await.unwrap();
+    let sensor = app.get_json("/v1/sensors/RIGHT-1", ADMIN).await;
+    assert_eq!(
+        (
+            sensor["latest"]["id"].clone(),
+            sensor["calibration_count"].clone()
+        ),
+        (c["id"].clone(), json!(1))
+    );
+    let old = app
+        .get(
+            &format!("/v1/calibrations/{}/certificate", b.as_str().unwrap()),
+            ADMIN,
+        )
+        .await
+        .text()
+        .await
+        .unwrap();
+    let header = &old[old.find("<thead>").unwrap()..old.find("</thead>").unwrap()];
+    assert!(
+        header.contains("SUPERSEDED") && header.contains(c["id"].as_str().unwrap()),
+        "{header}"
+    );
+    let new = app
+        .get(
+            &format!("/v1/calibrations/{}/certificate", c["id"].as_str().unwrap()),
+            ADMIN,
+        )
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        new.contains(&format!(
+            "replaces certificate No. <code>{}</code>",
+            b.as_str().unwrap()
+        )),
+        "the replaced certificate"
+    );
+    // Neither withdrawn nor approved afterwards.
+    act(
+        &app,
+        &rita,
+        &withdraw(&b),
+        json!({"reason": "x"}),
+        StatusCode::CONFLICT,
+    )
+    .await;
+}
+
+#[rstest]
+#[tokio::test]
+async fn reprocessing_confirms_or_supersedes(#[values(Sqlite, Postgres)] engine: Engine) {
+    use accelcal_core::{Term, TermMap};
+    let app = TestApp::spawn(engine).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let station = app.token("station", None).await;
+    let reprocess = |id: &Value| format!("/v1/calibrations/{}/reprocess", id.as_str().unwrap());
+
+    // The same method gives the same numbers: confirmed, state kept.
+    let a = app.submit(ADMIN, &paper()).await["id"].clone();
+    problem(
+        app.post(&reprocess(&a), &station, &json!({})).await,
+        StatusCode::FORBIDDEN,
+    )
+    .await;
+    let r = act(&app, &rita, &reprocess(&a), json!({}), StatusCode::OK).await;
+    assert_eq!(r["outcome"], "confirmed");
+    assert_eq!(r["changed"], json!([]));
+    assert_eq!(r["replacement_id"], Value::Null);
+    assert_eq!(r["signature"]["action"], "confirm");
+    assert_eq!(r["signature"]["state"], "submitted");
+    act(
+        &app,
+        &rita,
+        &review(&a),
+        json!({"decision": "approve"}),
+        StatusCode::OK,
+    )
+    .await;
+    let r = act(&app, &rita, &reprocess(&a), json!({}), StatusCode::OK).await;
+    assert_eq!(
+        (r["outcome"].clone(), r["signature"]["state"].clone()),
+        (json!("confirmed"), json!("approved"))
+    );
+    let record = app
+        .get_json(
+            &format!("/v1/calibrations/{}/signatures", a.as_str().unwrap()),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(record["state"], "approved");
+    assert_eq!(record["signatures"].as_array().unwrap().len(), 3);
+
+    // A calibration stored by an older method (its ki off by 1e-9): the
+    // submission computed again supersedes it with today's numbers — those
+    // /v1/identify gives for the same body.
+    let mut body = paper();
+    body["sensor_id"] = json!("OLD-METHOD");
+    let truth = act(&app, ADMIN, "/v1/identify", body.clone(), StatusCode::OK).await;
+    let f = |v: &Value| v.as_f64().unwrap();
+    let terms = [Term::K0, Term::Ki, Term::Kp];
+    let map = |m: &Value, bump: f64| {
+        TermMap(
+            terms
+                .iter()
+                .map(|t| {
+                    (
+                        *t,
+                        f(&m[t.name()]) + if *t == Term::Ki { bump } else { 0.0 },
+                    )
+                })
+                .collect(),
+        )
+    };
+    let store = accelcal::store::open(&app.db().url).await.unwrap();
+    let old_id = uuid::Uuid::now_v7();
+    let at = accelcal::domain::timestamp::Timestamp::parse("2026-11-01T00:00:00Z").unwrap();
+    store
+        .insert_calibration(
+            accelcal::store::NewCalibration {
+                id: old_id,
+                sensor_id: "OLD-METHOD".into(),
+                station_id: None,
+                performed_at: accelcal::domain::timestamp::Timestamp::parse("2005-08-01T00:00:00Z")
+                    .unwrap(),
+                received_at: at,
+                unit: truth["unit"].as_str().unwrap().into(),
+                model: accelcal_core::Model::new(terms.to_vec()).unwrap(),
+                runs: 6,
+                coefficients: map(&truth["fused"]["coefficients"], 1e-9),
+                std_errors: map(&truth["fused"]["std_errors"], 0.0),
+                result: bytes::Bytes::from(truth.to_string()),
+                submission: bytes::Bytes::from(body.to_string()),
+                content_type: "application/json".into(),
+                submitted_by: "env-admin".into(),
+                sensor_type: None,
+                assigns_type: false,
+                verdict: None,
+                due_at: None,
+                expanded: Some(TermMap(
+                    terms
+                        .iter()
+                        .map(|t| (*t, f(&truth["uncertainty"]["terms"][t.name()]["expanded"])))
+                        .collect(),
+                )),
+            },
+            None,
+        )
+        .await
+        .unwrap();
+    store.close().await;
+    let old = json!(old_id.to_string());
+    let r = act(&app, &rita, &reprocess(&old), json!({}), StatusCode::OK).await;
+    assert_eq!(r["outcome"], "superseded");
+    assert_eq!(r["changed"], json!(["ki coefficient"]));
+    let new = r["replacement_id"].clone();
+    let result = app
+        .get_json(
+            &format!("/v1/calibrations/{}", new.as_str().unwrap()),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(
+        result["fused"], truth["fused"],
+        "today's numbers, bit for bit"
+    );
+    assert_eq!(
+        result["received_at"], "2026-11-01T00:00:00.000000Z",
+        "as it was received"
+    );
+    assert_eq!(result["supersedes"]["calibration_id"], old);
+    assert!(
+        result["supersedes"]["reason"]
+            .as_str()
+            .unwrap()
+            .starts_with("reprocessed with accelcal ")
+    );
+    let sig = &r["signature"];
+    assert_eq!(sig["superseded_by"], new);
+    assert!(
+        sig["comment"]
+            .as_str()
+            .unwrap()
+            .ends_with(": ki coefficient changed"),
+        "{sig}"
+    );
+    assert_eq!(
+        app.get_json("/v1/sensors/OLD-METHOD", ADMIN).await["latest"]["id"],
+        new
+    );
+    // Superseded now: no second reprocessing.
+    act(
+        &app,
+        &rita,
+        &reprocess(&old),
+        json!({}),
+        StatusCode::CONFLICT,
+    )
+    .await;
+}

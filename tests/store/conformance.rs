@@ -733,6 +733,7 @@ async fn reviews(s: &dyn Store) {
         signer: rita.clone(),
         at: t("2026-11-22T12:00:00Z"),
         comment: comment.map(Into::into),
+        superseded_by: None,
     };
     let done = |out: Signed| match out {
         Signed::Done(sig, sensor) => {
@@ -862,6 +863,52 @@ async fn reviews(s: &dyn Store) {
     s.insert_calibration(d.clone(), None).await.unwrap();
     let back = sensor().await.unwrap();
     assert_eq!((back.latest.id, back.calibration_count), (d.id, 1));
+
+    // Supersession: the replacement and the act, both or neither.
+    let supersede = |by: Uuid| {
+        accelcal::domain::review::supersession(
+            "corrected".into(),
+            rita.clone(),
+            t("2026-11-22T13:00:00Z"),
+            by,
+        )
+    };
+    let refused = calibration("REV-FIXED", "2026-01-15T00:00:00Z");
+    assert!(matches!(
+        s.supersede(a.id, refused.clone(), supersede(refused.id))
+            .await
+            .unwrap(),
+        Signed::Refused(Refusal::State {
+            state: State::Withdrawn,
+            ..
+        })
+    ));
+    assert!(
+        s.calibration_result(refused.id).await.unwrap().is_none(),
+        "nothing stored"
+    );
+    assert!(s.sensor("REV-FIXED".into(), now()).await.unwrap().is_none());
+    let fixed = calibration("REV-FIXED", "2026-01-15T00:00:00Z");
+    let sig = done_of(
+        s.supersede(d.id, fixed.clone(), supersede(fixed.id))
+            .await
+            .unwrap(),
+    );
+    assert_eq!(
+        (sig.state, sig.superseded_by),
+        (State::Superseded, Some(fixed.id))
+    );
+    assert!(sensor().await.is_none(), "REV has nothing left that counts");
+    let f = s.sensor("REV-FIXED".into(), now()).await.unwrap().unwrap();
+    assert_eq!((f.latest.id, f.calibration_count), (fixed.id, 1));
+    assert_eq!(s.signatures(d.id).await.unwrap(), [sig]);
+}
+
+fn done_of(out: accelcal::store::Signed) -> accelcal::domain::review::Signature {
+    match out {
+        accelcal::store::Signed::Done(sig, _) => sig,
+        other => panic!("not signed: {other:?}"),
+    }
 }
 
 /// The whole suite, on a fresh, empty store.

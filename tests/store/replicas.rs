@@ -107,6 +107,7 @@ async fn two_handles(a: Arc<dyn Store>, b: Arc<dyn Store>) {
             signer: reviewer.clone(),
             at: now,
             comment: Some("race".into()),
+            superseded_by: None,
         };
         handles.push(tokio::spawn(async move {
             match signer.sign(withdrawn, act).await? {

@@ -16,7 +16,7 @@ mod result;
 
 pub use check::check;
 pub use draft::{Draft, PositionDraft, RunDraft, Slot, StandDraft};
-pub use result::{PositionOut, ResultView};
+pub use result::{Method, PositionOut, ResultView};
 
 use accelcal_core::{Calibration, Gravity, Mount, TumbleTest};
 

@@ -98,6 +98,9 @@ pub struct ResultView<'a> {
     /// The runs' temperatures (°C), when they were given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub temperatures_c: Option<&'a [f64]>,
+    /// The calibration this one supersedes, and why (a correction).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub supersedes: Option<crate::domain::review::Supersedes>,
     /// Condition number, runs, mean, fused, normalized.
     #[serde(flatten)]
     pub calibration: &'a Calibration,
@@ -136,6 +139,7 @@ impl<'a> ResultView<'a> {
             item_received_at: s.item_received_at,
             item_condition: s.item_condition.as_deref(),
             temperatures_c: s.temperatures_c.as_deref(),
+            supersedes: None,
             calibration: &e.calibration,
             metrology,
         }

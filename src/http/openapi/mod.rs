@@ -62,7 +62,7 @@ impl Modify for Bearer {
             CalibrationPageSchema, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
-            crate::domain::standards::UsedStandard,
+            crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,
             crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,
         ),
         responses(
@@ -76,7 +76,8 @@ pub struct ApiDoc;
 
 /// The document as YAML, deterministic (keys sorted), with the version of
 /// this build and the JSON Schema conditional utoipa has no builder for:
-/// only a station token may be bound to a station.
+/// only a station token may be bound to a station, and a rejection needs
+/// its comment.
 pub fn document() -> String {
     let mut doc = ApiDoc::openapi();
     doc.merge(super::api_routes().into_openapi());
@@ -99,6 +100,26 @@ pub fn document() -> String {
         map.insert(
             "then".into(),
             conditional(json!({"properties": {"station_id": {"type": "null"}}})),
+        );
+    }
+    // A rejection says why: `comment` is required with `reject`.
+    if let Some(map) = value
+        .get_mut("components")
+        .and_then(|c| c.get_mut("schemas"))
+        .and_then(|s| s.get_mut("ReviewBody"))
+        .and_then(|t| t.as_mapping_mut())
+    {
+        map.insert(
+            "if".into(),
+            conditional(
+                json!({"properties": {"decision": {"const": "reject"}}, "required": ["decision"]}),
+            ),
+        );
+        map.insert(
+            "then".into(),
+            conditional(
+                json!({"required": ["comment"], "properties": {"comment": {"type": "string"}}}),
+            ),
         );
     }
     fix_links(&mut value);

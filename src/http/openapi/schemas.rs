@@ -493,6 +493,7 @@ marker_schema!(
         .property("item_condition", of_type(Type::String).description(Some("The item's condition on receipt; absent when the submission did not say.")))
         .property("standards", array(reference("UsedStandard")).description(Some("The reference standards the submission named, each with the certificate it was in calibration by when the test was performed; absent when it named none.")))
         .property("temperatures_c", array(of_type(Type::Number)).description(Some("The runs' temperatures, when given.")))
+        .property("supersedes", reference("Supersedes"))
         .property("uncertainty", reference("Uncertainty"))
         .property("decision", nullable(reference("Decision")))
         .property("as_found", nullable(reference("AsFound")))

@@ -534,6 +534,13 @@ pub async fn page(
         @if let Some(n) = review::notice(review_state, &signatures) {
             p.notice.error role="status" { (n) }
         }
+        @if let Some(s) = &d.supersedes {
+            p.notice role="note" {
+                "This calibration supersedes "
+                a href={"/ui/calibrations/" (s.calibration_id)} { code { (s.calibration_id) } }
+                ": " (s.reason)
+            }
+        }
         p.lead { "Performed " (when(&d.performed_at)) }
         dl.facts {
             div { dt { "Calibration id" } dd { code { (d.id) } } }

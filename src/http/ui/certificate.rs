@@ -102,6 +102,9 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                             }
                             h1 { "Calibration certificate" }
                             p.muted { "No. " code { (d.id) } }
+                            @if let Some(s) = &d.supersedes {
+                                p.cert-replaces { "This certificate replaces certificate No. " code { (s.calibration_id) } ", which is superseded and no longer to be used. Reason: " (s.reason) }
+                            }
                             (laboratory(&c.laboratory))
                         }
                         div {

@@ -363,6 +363,9 @@ pub struct ResultDoc {
     /// Run temperatures.
     #[serde(default)]
     pub temperatures_c: Option<Vec<f64>>,
+    /// The calibration this one supersedes, and why.
+    #[serde(default)]
+    pub supersedes: Option<crate::domain::review::Supersedes>,
     /// Condition number of the design.
     pub condition_number: f64,
     /// Per run.

@@ -32,7 +32,7 @@ use crate::http::{AppState, path_id};
 pub fn state_badge(state: ReviewState) -> Markup {
     let class = match state {
         ReviewState::Approved => "pass",
-        ReviewState::Rejected | ReviewState::Withdrawn => "fail",
+        ReviewState::Rejected | ReviewState::Withdrawn | ReviewState::Superseded => "fail",
         ReviewState::Submitted => "unknown",
     };
     badge(class, state.as_str())
@@ -46,8 +46,8 @@ pub fn signer(s: &Signature) -> String {
     }
 }
 
-/// The notice a withdrawn or rejected calibration carries on its page and
-/// on every page of its certificate: the act, and why.
+/// The notice a withdrawn, rejected or superseded calibration carries on
+/// its page and on every page of its certificate: the act, and why.
 pub fn notice(state: ReviewState, signatures: &[Signature]) -> Option<String> {
     let last = signatures.iter().rev().find(|s| s.state == state)?;
     let why = last.comment.as_deref().unwrap_or("no reason given");
@@ -60,6 +60,15 @@ pub fn notice(state: ReviewState, signatures: &[Signature]) -> Option<String> {
         ReviewState::Rejected => Some(format!(
             "REJECTED in review {} by {}: {why}",
             when(&last.signed_at.to_string()),
+            signer(last)
+        )),
+        ReviewState::Superseded => Some(format!(
+            "SUPERSEDED {} by {} (signed by {}): {why}",
+            when(&last.signed_at.to_string()),
+            last.superseded_by.map_or_else(
+                || "a corrected calibration".to_owned(),
+                |id| format!("certificate No. {id}")
+            ),
             signer(last)
         )),
         ReviewState::Submitted | ReviewState::Approved => None,
@@ -105,7 +114,7 @@ pub fn section(id: &str, state: ReviewState, signatures: &[Signature], viewer: &
             (Action::Withdraw, "Withdraw: take the results out of use"),
         ],
         ReviewState::Approved => &[(Action::Withdraw, "Withdraw: take the results out of use")],
-        ReviewState::Rejected | ReviewState::Withdrawn => &[],
+        ReviewState::Rejected | ReviewState::Withdrawn | ReviewState::Superseded => &[],
     };
     html! {
         section #review aria-labelledby="review-title" {
@@ -198,6 +207,13 @@ pub async fn sign(
         }
         .act(signer, now)
         .map_err(Problem::from)?,
+        Action::Supersede | Action::Confirm => {
+            return Err(Problem::bad_request(
+                "choose approve, reject or withdraw (a calibration is superseded by \
+                 POST /v1/calibrations/{id}/supersede, reprocessed by …/reprocess)",
+            )
+            .into());
+        }
         Action::Withdraw => WithdrawBody {
             reason: comment.unwrap_or_default(),
         }

@@ -204,22 +204,24 @@ impl Cache {
         self.sensors.invalidate(sensor_id);
     }
 
-    /// Runs `write`, which changes what is stored of `sensor_id` other than
-    /// by a new calibration (a review: its latest's state, or which is its
-    /// latest), in a task of its own: reads do not fill the sensor's entry
-    /// while it runs, and the entry is dropped at its end, whatever it
+    /// Runs `write`, which changes what is stored of `sensors` other than
+    /// by a new calibration alone (a review: a latest's state, or which is
+    /// latest), in a task of its own: reads do not fill their entries while
+    /// it runs, and the entries are dropped at its end, whatever it
     /// answered — so that no read from before the write stays cached.
     pub async fn changing<T: Send + 'static>(
         &self,
-        sensor_id: &str,
+        sensors: &[String],
         write: impl Future<Output = Result<T, StoreError>> + Send + 'static,
     ) -> Result<T, StoreError> {
         let cache = self.sensors.clone();
-        let sensor_id = sensor_id.to_owned();
+        let sensors = sensors.to_vec();
         tokio::spawn(async move {
-            let writing = cache.write(&sensor_id);
+            let writing: Vec<_> = sensors.iter().map(|s| cache.write(s)).collect();
             let out = write.await;
-            writing.settle(None);
+            for w in writing {
+                w.settle(None);
+            }
             out
         })
         .await

@@ -4,21 +4,30 @@
 //! sensor's row computed again.
 
 use async_trait::async_trait;
-use deadpool_postgres::GenericClient;
+use deadpool_postgres::{GenericClient, Transaction};
 use uuid::Uuid;
 
 use super::PostgresStore;
+use super::calibrations::{Row, Written, write};
 use super::errors::map;
 use super::rows;
 use crate::domain::review::{Act, Signature, Submitter};
-use crate::store::{Reviews, Signed, StoreError, sensor_forget, sensor_recompute};
+use crate::domain::timestamp::Timestamp;
+use crate::store::{NewCalibration, Reviews, Signed, StoreError, sensor_forget, sensor_recompute};
 
 /// The columns of [`rows::signature`].
 const SIGNATURE_COLUMNS: &str =
-    "seq, action, state, meaning, token_id, role, holder, signed_at, comment";
+    "seq, action, state, meaning, token_id, role, holder, signed_at, comment, superseded_by";
 
-/// Records `act` on calibration `id` within the transaction `tx`.
-async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, StoreError> {
+/// Records `act` on calibration `id` within the transaction `tx` — after
+/// storing `replacement`, the calibration that supersedes it, when there is
+/// one.
+async fn sign(
+    tx: &Transaction<'_>,
+    id: Uuid,
+    act: &Act,
+    replacement: Option<&Row>,
+) -> Result<Signed, StoreError> {
     let locked = tx
         .query_opt(
             "SELECT id FROM calibrations WHERE id = $1 FOR NO KEY UPDATE",
@@ -32,7 +41,7 @@ async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, St
     let row = tx
         .query_one(
             concat!(
-                "SELECT c.sensor_id, c.submitted_by, ",
+                "SELECT c.sensor_id, c.submitted_by, c.received_at, ",
                 crate::state_sql!(),
                 " AS state, (SELECT coalesce(max(s.seq), 0) FROM signatures s \
                  WHERE s.calibration_id = c.id) AS last FROM calibrations c WHERE c.id = $1"
@@ -43,6 +52,8 @@ async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, St
         .map_err(map)?;
     let sensor_id: String = rows::get(&row, "sensor_id")?;
     let submitted_by: String = rows::get(&row, "submitted_by")?;
+    let received_at =
+        Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(&row, "received_at")?);
     let state = rows::state(&row)?;
     let last: i32 = rows::get(&row, "last")?;
     let holder = match Uuid::try_parse(&submitted_by) {
@@ -58,17 +69,29 @@ async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, St
     let submitter = Submitter {
         token_id: submitted_by,
         holder,
+        received_at,
     };
     let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let s = match act.check(state, &submitter, seq) {
         Ok(s) => s,
         Err(refusal) => return Ok(Signed::Refused(refusal)),
     };
+    if let Some(r) = replacement {
+        match write(tx, r, None).await? {
+            Written::New(_) => {}
+            _ => {
+                return Err(StoreError::corrupt(
+                    "calibrations",
+                    "a replacement without a key was not stored",
+                ));
+            }
+        }
+    }
     let seq = i32::try_from(s.seq).map_err(|e| StoreError::corrupt("signatures", e))?;
     tx.execute(
         &format!(
             "INSERT INTO signatures (calibration_id, {SIGNATURE_COLUMNS}) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)"
+             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)"
         ),
         &[
             &id,
@@ -81,6 +104,7 @@ async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, St
             &s.holder,
             &s.signed_at.datetime(),
             &s.comment,
+            &s.superseded_by,
         ],
     )
     .await
@@ -104,12 +128,14 @@ async fn sign(tx: &impl GenericClient, id: Uuid, act: &Act) -> Result<Signed, St
     Ok(Signed::Done(s, sensor_id))
 }
 
-#[async_trait]
-impl Reviews for PostgresStore {
-    /// In a transaction of its own, the sensor's cached summary held back
-    /// and dropped ([`crate::store::cache::Cache::changing`]); the sensor's
-    /// row being written, every other replica drops it too.
-    async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError> {
+impl PostgresStore {
+    /// [`Reviews::sign`], with the replacement of a supersession.
+    async fn record(
+        &self,
+        id: Uuid,
+        act: Act,
+        replacement: Option<Row>,
+    ) -> Result<Signed, StoreError> {
         // A calibration's sensor never changes: read it first, to know
         // which cached entry the write concerns.
         let sensor: Result<Option<String>, StoreError> =
@@ -124,18 +150,44 @@ impl Reviews for PostgresStore {
         let Some(sensor) = sensor? else {
             return Ok(Signed::NotFound);
         };
+        // A replacement may be of another sensor (a wrong sensor id
+        // corrected): both entries are held back and dropped.
+        let mut sensors = vec![sensor];
+        if let Some(r) = &replacement {
+            sensors.push(r.sensor_id().to_owned());
+        }
         let this = self.clone();
         let write = async move {
             op!(this, "sign", |client| {
                 let tx = client.transaction().await.map_err(map)?;
-                let out = sign(&tx, id, &act).await?;
+                let out = sign(&tx, id, &act, replacement.as_ref()).await?;
                 if matches!(out, Signed::Done(..)) {
                     tx.commit().await.map_err(map)?;
                 }
                 Ok(out)
             })
         };
-        self.cache.changing(&sensor, write).await
+        self.cache.changing(&sensors, write).await
+    }
+}
+
+#[async_trait]
+impl Reviews for PostgresStore {
+    /// In a transaction of its own, the sensor's cached summary held back
+    /// and dropped ([`crate::store::cache::Cache::changing`]); the sensor's
+    /// row being written, every other replica drops it too.
+    async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError> {
+        self.record(id, act, None).await
+    }
+
+    async fn supersede(
+        &self,
+        id: Uuid,
+        replacement: NewCalibration,
+        act: Act,
+    ) -> Result<Signed, StoreError> {
+        let row = Row::new(replacement)?;
+        self.record(id, act, Some(row)).await
     }
 
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError> {

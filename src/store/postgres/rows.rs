@@ -207,5 +207,6 @@ pub fn signature(row: &Row) -> Result<Signature, StoreError> {
         holder: get(row, "holder")?,
         signed_at: timestamp(row, "signed_at")?,
         comment: get(row, "comment")?,
+        superseded_by: get(row, "superseded_by")?,
     })
 }

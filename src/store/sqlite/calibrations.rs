@@ -88,7 +88,7 @@ fn json<T: serde::Serialize>(v: &T) -> Result<String, StoreError> {
 /// caller commits when the answer is [`Stored::New`] and rolls back
 /// otherwise: [`Stored::Existing`] has written a calibration row that must
 /// not stay. With [`Stored::New`], the sensor's row as it left it.
-fn insert(
+pub(super) fn insert(
     tx: &Connection,
     n: NewCalibration,
     key: Option<IdempotencyKey>,

@@ -272,6 +272,10 @@ pub fn signature(row: &Row<'_>) -> Result<Signature, StoreError> {
         holder: get(row, "holder")?,
         signed_at: timestamp(row, "signed_at")?,
         comment: get(row, "comment")?,
+        superseded_by: get::<Option<String>>(row, "superseded_by")?
+            .map(|t| Uuid::try_parse(&t))
+            .transpose()
+            .map_err(|e| StoreError::corrupt("column `superseded_by`", e))?,
     })
 }
 

@@ -1,18 +1,20 @@
 -- Version 8 (issue 28): the signed acts on a calibration — approval,
--- rejection, withdrawal — append-only beside the calibration, which never
--- changes. A calibration's state is the state its last signature moved it
--- to, 'submitted' before any (src/store/records.rs, state_sql!).
+-- rejection, withdrawal, supersession, confirmation — append-only beside
+-- the calibration, which never changes. A calibration's state is the state
+-- its last signature left it in (a confirmation keeps it), 'submitted'
+-- before any (src/store/records.rs, state_sql!).
 CREATE TABLE signatures (
     calibration_id  uuid NOT NULL REFERENCES calibrations (id),
     seq             integer NOT NULL CHECK (seq >= 1),
-    action          text NOT NULL CHECK (action IN ('approve', 'reject', 'withdraw')),
-    state           text NOT NULL CHECK (state IN ('approved', 'rejected', 'withdrawn')),
+    action          text NOT NULL CHECK (action IN ('approve', 'reject', 'withdraw', 'supersede', 'confirm')),
+    state           text NOT NULL CHECK (state IN ('submitted', 'approved', 'rejected', 'withdrawn', 'superseded')),
     meaning         text NOT NULL,
     token_id        text NOT NULL,
     role            text NOT NULL,
     holder          text,
     signed_at       timestamptz NOT NULL,
     comment         text,
+    superseded_by   uuid,
     PRIMARY KEY (calibration_id, seq)
 );
 
