@@ -10,6 +10,7 @@
 
 pub mod auth;
 pub mod compensate;
+pub mod customers;
 pub mod field;
 pub mod fuse;
 pub mod limits;

@@ -116,6 +116,11 @@ pub fn nullable_label() -> RefOr<Schema> {
     nullable(line(MAX_LABEL_CHARS).into())
 }
 
+/// A description or `null` (one line, at most 256 characters).
+pub fn nullable_description() -> RefOr<Schema> {
+    nullable(description().into())
+}
+
 /// A token holder's name, or null (one line, at most 128 characters).
 pub fn nullable_holder() -> RefOr<Schema> {
     nullable(line(MAX_HOLDER_CHARS).into())

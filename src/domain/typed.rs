@@ -45,6 +45,14 @@ fn quoted_member<'m>(message: &'m str, lead: &str) -> Option<&'m str> {
 
 /// Reads `bytes` as one JSON value of type `T`.
 pub fn from_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, BodyError> {
+    // Every body is a JSON object; serde would also read a struct from an
+    // array of its fields in order (and one of optional fields from `[]`).
+    if bytes.iter().find(|b| !b.is_ascii_whitespace()) == Some(&b'[') {
+        return Err(BodyError::Invalid(Invalid::one(
+            Loc::Root,
+            "must be a JSON object, not an array",
+        )));
+    }
     let mut de = serde_json::Deserializer::from_slice(bytes);
     let result = serde_path_to_error::deserialize::<_, T>(&mut de);
     match result {
@@ -122,6 +130,26 @@ mod tests {
             Err(BodyError::Invalid(i)) => (i.errors[0].pointer.clone(), i.errors[0].detail.clone()),
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn an_array_is_not_an_object() {
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct AllOptional {
+            #[serde(default)]
+            a: Option<String>,
+        }
+        for body in ["[]", " \n[null]"] {
+            match from_json::<AllOptional>(body.as_bytes()) {
+                Err(BodyError::Invalid(i)) => {
+                    assert_eq!(i.errors[0].pointer, "");
+                    assert!(i.errors[0].detail.contains("JSON object"));
+                }
+                other => panic!("{body}: {other:?}"),
+            }
+        }
+        assert!(from_json::<AllOptional>(b"{}").is_ok());
     }
 
     #[test]

@@ -12,6 +12,7 @@ pub mod calibrations;
 pub mod coefficients;
 pub mod compute;
 pub mod connection;
+pub mod customers;
 pub mod evaluation;
 pub mod health;
 pub mod metrics;
@@ -302,6 +303,9 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(stability::report))
         .routes(routes!(sensor_types::list))
         .routes(routes!(sensor_types::get, sensor_types::put))
+        .routes(routes!(customers::list_customers))
+        .routes(routes!(customers::get_customer, customers::put_customer))
+        .routes(routes!(customers::get_item, customers::put_item))
         .routes(routes!(standards::list))
         .routes(routes!(standards::get, standards::put))
         .routes(routes!(compute::identify))

@@ -1,8 +1,8 @@
 //! Copying one database into another (`accelcal migrate`): SQLite to
 //! PostgreSQL when a deployment outgrows one machine, or any engine to any.
 //!
-//! Everything a running service needs comes across: every sensor type, every
-//! token (its hash; revoked ones stay revoked), every calibration with its
+//! Everything a running service needs comes across: every sensor type,
+//! standard, customer and item, every token (its hash; revoked ones stay revoked), every calibration with its
 //! result and submission byte for byte and its signatures (replayed in order,
 //! through the same checks), the sensors' assigned types, and the
 //! completed idempotency keys still within their retention (so a station's
@@ -38,6 +38,10 @@ pub struct Copied {
     pub sensor_types: usize,
     /// Reference standards.
     pub standards: usize,
+    /// Customers.
+    pub customers: usize,
+    /// Items behind sensor ids.
+    pub items: usize,
     /// Tokens.
     pub tokens: usize,
     /// Calibrations.
@@ -167,6 +171,24 @@ pub async fn copy(
         }
         to.put_standard(s).await?;
         copied.standards += 1;
+    }
+    for c in from.customers().await? {
+        let existing = to.customer(c.customer_id.clone()).await?;
+        if present(existing, &c, || format!("customer `{}`", c.customer_id))? {
+            copied.already_there += 1;
+            continue;
+        }
+        to.put_customer(c).await?;
+        copied.customers += 1;
+    }
+    for i in from.items().await? {
+        let existing = to.item(i.sensor_id.clone()).await?;
+        if present(existing, &i, || format!("sensor `{}`'s item", i.sensor_id))? {
+            copied.already_there += 1;
+            continue;
+        }
+        to.put_item(i).await?;
+        copied.items += 1;
     }
     for t in from.tokens().await? {
         let existing = to.token(t.id).await?;

@@ -27,6 +27,7 @@ use uuid::Uuid;
 pub use error::{BoxError, StoreError};
 pub use records::*;
 
+use crate::domain::customers::{Customer, Item};
 use crate::domain::review::{Act, Basis, Signature, State};
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
@@ -46,6 +47,7 @@ pub trait Store:
     Database
     + Calibrations
     + Reviews
+    + Customers
     + Sensors
     + SensorTypes
     + Standards
@@ -59,6 +61,7 @@ impl<T> Store for T where
     T: Database
         + Calibrations
         + Reviews
+        + Customers
         + Sensors
         + SensorTypes
         + Standards
@@ -71,8 +74,8 @@ impl<T> Store for T where
 /// Every concern trait, for `use crate::store::prelude::*`.
 pub mod prelude {
     pub use super::{
-        Calibrations, Database, Idempotency, Reviews, SensorTypes, Sensors, Sessions, Standards,
-        Store, Tokens,
+        Calibrations, Customers, Database, Idempotency, Reviews, SensorTypes, Sensors, Sessions,
+        Standards, Store, Tokens,
     };
 }
 
@@ -82,8 +85,8 @@ pub mod prelude {
 pub trait Database: Send + Sync + 'static {
     /// Checks that the database answers.
     async fn ping(&self) -> Result<(), StoreError>;
-    /// Whether the database holds no calibration, token, sensor type or
-    /// standard.
+    /// Whether the database holds no calibration, token, sensor type,
+    /// standard, customer or item.
     async fn is_empty(&self) -> Result<bool, StoreError>;
     /// The description of an `accelcal migrate` into this database that has
     /// not finished, if there is one.
@@ -235,6 +238,23 @@ pub trait Standards: Send + Sync + 'static {
     async fn standard(&self, standard_id: String) -> Result<Option<Standard>, StoreError>;
     /// Every standard, in id order.
     async fn standards(&self) -> Result<Vec<Standard>, StoreError>;
+}
+
+/// Customers, and the items behind sensor ids (issue 29).
+#[async_trait]
+pub trait Customers: Send + Sync + 'static {
+    /// Creates or replaces a customer; true when it was created.
+    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError>;
+    /// One customer.
+    async fn customer(&self, customer_id: String) -> Result<Option<Customer>, StoreError>;
+    /// Every customer, in id order.
+    async fn customers(&self) -> Result<Vec<Customer>, StoreError>;
+    /// Creates or replaces the item behind a sensor id; true when created.
+    async fn put_item(&self, i: Item) -> Result<bool, StoreError>;
+    /// The item behind a sensor id.
+    async fn item(&self, sensor_id: String) -> Result<Option<Item>, StoreError>;
+    /// Every item, in sensor id order.
+    async fn items(&self) -> Result<Vec<Item>, StoreError>;
 }
 
 /// Issued tokens (only the hash of each secret).

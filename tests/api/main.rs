@@ -9,6 +9,7 @@ mod access;
 mod client;
 mod contract;
 mod corpus;
+mod customers;
 mod endpoints;
 mod errors;
 mod hardening;

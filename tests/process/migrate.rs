@@ -82,6 +82,24 @@ async fn a_migrated_database_answers_every_get_identically() {
             put("/v1/standards/STAND-1", stand).await.status(),
             StatusCode::CREATED
         );
+        assert_eq!(
+            put(
+                "/v1/customers/ACME",
+                json!({"name": "Acme Navigation", "due_date_agreed": true})
+            )
+            .await
+            .status(),
+            StatusCode::CREATED
+        );
+        assert_eq!(
+            put(
+                "/v1/sensors/PAPER-2005/item",
+                json!({"serial": "QA-1", "customer": "ACME"})
+            )
+            .await
+            .status(),
+            StatusCode::CREATED
+        );
         let paper = std::fs::read("examples/paper-table1.json").unwrap();
         let res = post(paper, "application/json", None).await;
         assert_eq!(res.status(), StatusCode::CREATED);
@@ -185,7 +203,7 @@ async fn a_migrated_database_answers_every_get_identically() {
     let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied,
-        json!({"sensor_types": 1, "standards": 1, "tokens": 3, "calibrations": 3, "signatures": 2, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
+        json!({"sensor_types": 1, "standards": 1, "customers": 1, "items": 1, "tokens": 3, "calibrations": 3, "signatures": 2, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
     );
     let again = migrate(&from, &pg.url);
     assert_eq!(again.status.code(), Some(1));
@@ -210,6 +228,8 @@ async fn a_migrated_database_answers_every_get_identically() {
         "/v1/sensor-types/NAV",
         "/v1/standards",
         "/v1/standards/STAND-1",
+        "/v1/customers",
+        "/v1/sensors/PAPER-2005/item",
         "/v1/tokens",
     ]
     .map(String::from)
@@ -232,7 +252,7 @@ async fn a_migrated_database_answers_every_get_identically() {
             paths.push(format!("/v1/calibrations/{cid}/signatures"));
         }
     }
-    assert_eq!(paths.len(), 8 + 2 * 4 + 3 * 3);
+    assert_eq!(paths.len(), 10 + 2 * 4 + 3 * 3);
     for path in &paths {
         let (x, y) = (get(&a.base, path).await, get(&b.base, path).await);
         assert_eq!(

@@ -911,10 +911,55 @@ fn done_of(out: accelcal::store::Signed) -> accelcal::domain::review::Signature 
     }
 }
 
+/// Customers and items: created, replaced, read back as written.
+async fn customers(s: &dyn Store) {
+    use accelcal::domain::customers::{Customer, Item};
+    let at = t("2026-11-25T00:00:00Z");
+    let acme = Customer {
+        customer_id: "ACME".into(),
+        name: "Acme Navigation".into(),
+        address: Some("1 Gyro Way".into()),
+        contact: None,
+        due_date_agreed: false,
+        updated_at: at,
+    };
+    assert!(s.put_customer(acme.clone()).await.unwrap(), "created");
+    let agreed = Customer {
+        due_date_agreed: true,
+        updated_at: t("2026-11-26T00:00:00Z"),
+        ..acme.clone()
+    };
+    assert!(!s.put_customer(agreed.clone()).await.unwrap(), "replaced");
+    assert_eq!(
+        s.customer("ACME".into()).await.unwrap(),
+        Some(agreed.clone())
+    );
+    assert_eq!(s.customer("NOPE".into()).await.unwrap(), None);
+    let beta = Customer {
+        customer_id: "BETA".into(),
+        ..acme
+    };
+    s.put_customer(beta.clone()).await.unwrap();
+    assert_eq!(s.customers().await.unwrap(), [agreed, beta]);
+    let item = Item {
+        sensor_id: "ITEM-1".into(),
+        manufacturer: Some("Honeywell".into()),
+        model: Some("QA-3000".into()),
+        serial: Some("Ω-1".into()),
+        customer: Some("ACME".into()),
+        updated_at: at,
+    };
+    assert!(s.put_item(item.clone()).await.unwrap());
+    assert_eq!(s.item("ITEM-1".into()).await.unwrap(), Some(item.clone()));
+    assert_eq!(s.items().await.unwrap(), [item]);
+    assert!(!s.is_empty().await.unwrap());
+}
+
 /// The whole suite, on a fresh, empty store.
 async fn conformance(s: Arc<dyn Store>) {
     s.ping().await.unwrap();
     standards(s.as_ref()).await;
+    customers(s.as_ref()).await;
     calibrations_and_sensors(s.as_ref()).await;
     tokens(s.as_ref()).await;
     idempotency(s.as_ref()).await;

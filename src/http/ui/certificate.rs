@@ -3,11 +3,12 @@
 //! `GET /ui/calibrations/{id}/certificate` from the pages.
 //!
 //! It states what a lab signs (ISO/IEC 17025 §7.8 where accelcal knows it):
-//! the item (sensor, type), where and how it was calibrated (station, stand,
+//! the customer and the item (manufacturer, model, serial, sensor, type), where and how it was calibrated (station, stand,
 //! reference standards, method, model), when, the environmental conditions,
 //! the fused coefficients rounded to their expanded uncertainty (GUM 7.2.6)
 //! with units, the coverage factor and its probability, the decision rule
-//! and verdict, as found, the due date, the metrological traceability from
+//! and verdict, as found, the due date (only when no customer is recorded or
+//! the customer agreed to one), the metrological traceability from
 //! the standards' statements — and what makes it verifiable: the SHA-256 of
 //! the stored submission, the accelcal version and the certificate's own
 //! URL. Printed, every page carries the title and number (a table header
@@ -67,6 +68,10 @@ pub struct Context {
     pub state: crate::domain::review::State,
     /// Its signatures, in order.
     pub signatures: Vec<crate::domain::review::Signature>,
+    /// The item behind the sensor id, when recorded.
+    pub item: Option<crate::domain::customers::Item>,
+    /// The item's customer, when recorded.
+    pub customer: Option<crate::domain::customers::Customer>,
 }
 
 /// The certificate document.
@@ -116,6 +121,11 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     }
                     h2 { "Item and calibration" }
                     dl.facts {
+                        div { dt { "Customer" } dd { @match &c.customer {
+                            Some(cu) => { (cu.name) @if let Some(a) = &cu.address { ", " (a) } },
+                            None => "not recorded",
+                        } } }
+                        div { dt { "Item" } dd { (c.item.as_ref().map_or("not described".into(), |i| i.describe())) } }
                         div { dt { "Sensor" } dd { strong { (d.sensor_id) } } }
                         div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
                         div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
@@ -128,7 +138,13 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         div { dt { "Condition on receipt" } dd { (d.item_condition.as_deref().unwrap_or("not recorded")) } }
                         div { dt { "Performed" } dd { (when(&d.performed_at)) } }
                         div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
-                        div { dt { "Due" } dd { (d.due_at.as_deref().map_or("—".into(), when)) } }
+                        div { dt { "Due" } dd {
+                            @if c.customer.as_ref().is_none_or(|cu| cu.due_date_agreed) {
+                                (d.due_at.as_deref().map_or("—".into(), when))
+                            } @else {
+                                "not stated (no due date was agreed with the customer)"
+                            }
+                        } }
                         div { dt { "Output unit" } dd { (d.unit) } }
                     }
                     h2 { "Environmental conditions" }
@@ -337,7 +353,14 @@ pub async fn respond(
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
     let (state_now, signatures) = super::calibration::record(state, raw_id).await?;
+    let item = state.store.item(d.sensor_id.clone()).await?;
+    let customer = match item.as_ref().and_then(|i| i.customer.clone()) {
+        Some(id) => state.store.customer(id).await?,
+        None => None,
+    };
     let ctx = Context {
+        item,
+        customer,
         state: state_now,
         signatures,
         submission_sha256: hex::encode(Sha256::digest(&s.body)),

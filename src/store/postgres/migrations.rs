@@ -19,6 +19,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0006_token_holders.sql"),
     include_str!("migrations/0007_standards.sql"),
     include_str!("migrations/0008_signatures.sql"),
+    include_str!("migrations/0009_customers.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -33,6 +33,8 @@ macro_rules! op {
 mod batch;
 mod calibrations;
 pub mod connect;
+mod customers;
+mod definitions;
 mod errors;
 mod idempotency;
 pub mod listen;
@@ -164,7 +166,8 @@ impl Database for PostgresStore {
             let row = c
                 .query_one(
                     "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
-                     OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards))",
+                     OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards) \
+                 OR EXISTS (SELECT 1 FROM customers) OR EXISTS (SELECT 1 FROM items))",
                     &[],
                 )
                 .await

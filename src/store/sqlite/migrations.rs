@@ -23,6 +23,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0009_token_holders.sql"),
     include_str!("migrations/0010_standards.sql"),
     include_str!("migrations/0011_signatures.sql"),
+    include_str!("migrations/0012_customers.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -11,6 +11,8 @@
 //! [`rows`] decodes rows by column name, [`errors`] maps the driver's errors.
 
 mod calibrations;
+mod customers;
+mod definitions;
 mod errors;
 mod holder;
 mod idempotency;
@@ -231,7 +233,8 @@ impl Database for SqliteStore {
         self.run("is_empty", |conn| {
             conn.query_row(
                 "SELECT NOT (EXISTS (SELECT 1 FROM calibrations) OR EXISTS (SELECT 1 FROM tokens) \
-                 OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards))",
+                 OR EXISTS (SELECT 1 FROM sensor_types) OR EXISTS (SELECT 1 FROM standards) \
+                 OR EXISTS (SELECT 1 FROM customers) OR EXISTS (SELECT 1 FROM items))",
                 [],
                 |r| r.get(0),
             )

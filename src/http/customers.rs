@@ -1,0 +1,223 @@
+//! Customers (`PUT` by admins, read by everyone) and the item behind each
+//! sensor id (issue 29 item 4): who a certificate is for, and what was
+//! calibrated.
+
+use axum::Json;
+use axum::extract::{Path, State};
+use axum::http::StatusCode;
+use serde::Serialize;
+use utoipa::ToSchema;
+
+use super::AppState;
+use super::auth::require;
+use super::body::Body;
+use super::problem::Problem;
+use crate::domain::auth::{Principal, Role};
+use crate::domain::customers::{Customer, CustomerBody, Item, ItemBody};
+use crate::domain::field::Invalid;
+use crate::domain::limits::MAX_ID_CHARS;
+use crate::domain::text::{Chars, check_str, echo};
+use crate::domain::timestamp::Timestamp;
+
+fn unknown_customer(customer_id: &str) -> Problem {
+    Problem::not_found(format!("no customer `{}`", echo(customer_id)))
+}
+
+/// 201 when created, 200 when replaced.
+fn written(created: bool) -> StatusCode {
+    if created {
+        StatusCode::CREATED
+    } else {
+        StatusCode::OK
+    }
+}
+
+/// Refuses (400) an id in the path that cannot be one.
+fn path_identifier(id: &str, what: &str) -> Result<(), Problem> {
+    check_str(id, MAX_ID_CHARS, Chars::Identifier)
+        .map_err(|why| Problem::bad_request(format!("the {what} id {why}")))
+}
+
+/// `PUT /v1/customers/{customer_id}` (admin).
+#[utoipa::path(
+    put,
+    path = "/v1/customers/{customer_id}",
+    tag = "customers",
+    operation_id = "putCustomer",
+    summary = "Create or replace a customer (admin).",
+    params(("customer_id" = crate::domain::schema::Identifier, Path, description = "The customer's id.")),
+    request_body(content((CustomerBody = "application/json",
+        example = json!({"name": "Acme Navigation GmbH", "address": "1 Gyro Way, 80331 Munich",
+            "contact": "Dr. K. Lee", "due_date_agreed": true})))),
+    responses(
+        (status = 200, description = "Replaced.", body = Customer),
+        (status = 201, description = "Created.", body = Customer),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 403, response = super::openapi::Forbidden),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn put_customer(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(customer_id): Path<String>,
+    body: Body,
+) -> Result<(StatusCode, Json<Customer>), Problem> {
+    require(&principal, Role::Admin)?;
+    path_identifier(&customer_id, "customer")?;
+    let c = body
+        .json::<CustomerBody>()?
+        .check(customer_id, Timestamp::now())?;
+    let created = state.store.put_customer(c.clone()).await?;
+    tracing::info!(customer = %c.customer_id, created, by = %principal.id, "customer written");
+    Ok((written(created), Json(c)))
+}
+
+/// A list of customers.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct CustomerList {
+    /// Every customer, in id order.
+    items: Vec<Customer>,
+}
+
+/// `GET /v1/customers`.
+#[utoipa::path(
+    get,
+    path = "/v1/customers",
+    tag = "customers",
+    operation_id = "listCustomers",
+    summary = "Every customer.",
+    responses(
+        (status = 200, description = "The customers.", body = CustomerList),
+        super::openapi::Always,
+    )
+)]
+pub async fn list_customers(
+    State(state): State<AppState>,
+    principal: Principal,
+) -> Result<Json<CustomerList>, Problem> {
+    require(&principal, Role::Reader)?;
+    Ok(Json(CustomerList {
+        items: state.store.customers().await?,
+    }))
+}
+
+/// `GET /v1/customers/{customer_id}`.
+#[utoipa::path(
+    get,
+    path = "/v1/customers/{customer_id}",
+    tag = "customers",
+    operation_id = "getCustomer",
+    summary = "One customer.",
+    params(("customer_id" = crate::domain::schema::Identifier, Path, description = "The customer's id.")),
+    responses(
+        (status = 200, description = "The customer.", body = Customer),
+        (status = 404, response = super::openapi::NotFound),
+        super::openapi::Always,
+    )
+)]
+pub async fn get_customer(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(customer_id): Path<String>,
+) -> Result<Json<Customer>, Problem> {
+    require(&principal, Role::Reader)?;
+    if check_str(&customer_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
+        return Err(unknown_customer(&customer_id));
+    }
+    state
+        .store
+        .customer(customer_id.clone())
+        .await?
+        .map(Json)
+        .ok_or_else(|| unknown_customer(&customer_id))
+}
+
+/// `PUT /v1/sensors/{sensor_id}/item` (admin): what the sensor id is.
+#[utoipa::path(
+    put,
+    path = "/v1/sensors/{sensor_id}/item",
+    tag = "customers",
+    operation_id = "putItem",
+    summary = "Record the item behind a sensor id: manufacturer, model, serial number, customer (admin).",
+    description = "May be recorded before the sensor is first calibrated (when the item \
+        arrives). A customer named must exist (422 otherwise). Certificates print the \
+        item and its customer.",
+    params(super::openapi::SensorIdPath),
+    request_body(content((ItemBody = "application/json",
+        example = json!({"manufacturer": "Honeywell", "model": "QA-3000", "serial": "QA-12345",
+            "customer": "ACME"})))),
+    responses(
+        (status = 200, description = "Replaced.", body = Item),
+        (status = 201, description = "Created.", body = Item),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 403, response = super::openapi::Forbidden),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn put_item(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(sensor_id): Path<String>,
+    body: Body,
+) -> Result<(StatusCode, Json<Item>), Problem> {
+    require(&principal, Role::Admin)?;
+    path_identifier(&sensor_id, "sensor")?;
+    let item = body
+        .json::<ItemBody>()?
+        .check(sensor_id, Timestamp::now())?;
+    if let Some(c) = &item.customer
+        && state.store.customer(c.clone()).await?.is_none()
+    {
+        return Err(Problem::validation(Invalid::one(
+            "/customer",
+            format!(
+                "no customer `{}`; an admin records it first (PUT /v1/customers/{})",
+                echo(c),
+                echo(c)
+            ),
+        )));
+    }
+    let created = state.store.put_item(item.clone()).await?;
+    tracing::info!(sensor = %item.sensor_id, created, by = %principal.id, "item written");
+    Ok((written(created), Json(item)))
+}
+
+/// `GET /v1/sensors/{sensor_id}/item`.
+#[utoipa::path(
+    get,
+    path = "/v1/sensors/{sensor_id}/item",
+    tag = "customers",
+    operation_id = "getItem",
+    summary = "The item behind a sensor id.",
+    params(super::openapi::SensorIdPath),
+    responses(
+        (status = 200, description = "The item.", body = Item),
+        (status = 404, response = super::openapi::NotFound),
+        super::openapi::Always,
+    )
+)]
+pub async fn get_item(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(sensor_id): Path<String>,
+) -> Result<Json<Item>, Problem> {
+    require(&principal, Role::Reader)?;
+    let none = || {
+        Problem::not_found(format!(
+            "no item recorded for sensor `{}`",
+            echo(&sensor_id)
+        ))
+    };
+    if check_str(&sensor_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
+        return Err(none());
+    }
+    state
+        .store
+        .item(sensor_id.clone())
+        .await?
+        .map(Json)
+        .ok_or_else(none)
+}

@@ -1,0 +1,57 @@
+//! Customers, and the items behind sensor ids, stored as their JSON
+//! definitions.
+
+use async_trait::async_trait;
+
+use super::PostgresStore;
+use super::definitions::{self, Table};
+use crate::domain::customers::{Customer, Item};
+use crate::store::{Customers, StoreError};
+
+const CUSTOMERS: Table = Table {
+    name: "customers",
+    key: "customer_id",
+};
+
+const ITEMS: Table = Table {
+    name: "items",
+    key: "sensor_id",
+};
+
+#[async_trait]
+impl Customers for PostgresStore {
+    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError> {
+        op!(self, "put_customer", |client| {
+            definitions::put(&client, &CUSTOMERS, &c.customer_id, &c, c.updated_at).await
+        })
+    }
+
+    async fn customer(&self, customer_id: String) -> Result<Option<Customer>, StoreError> {
+        op!(self, "customer", |client| {
+            definitions::one(&client, &CUSTOMERS, &customer_id).await
+        })
+    }
+
+    async fn customers(&self) -> Result<Vec<Customer>, StoreError> {
+        op!(self, "customers", |client| {
+            definitions::all(&client, &CUSTOMERS).await
+        })
+    }
+
+    async fn put_item(&self, i: Item) -> Result<bool, StoreError> {
+        op!(self, "put_item", |client| {
+            definitions::put(&client, &ITEMS, &i.sensor_id, &i, i.updated_at).await
+        })
+    }
+
+    async fn item(&self, sensor_id: String) -> Result<Option<Item>, StoreError> {
+        op!(self, "item", |client| {
+            definitions::one(&client, &ITEMS, &sensor_id).await
+        })
+    }
+
+    async fn items(&self) -> Result<Vec<Item>, StoreError> {
+        op!(self, "items", |client| definitions::all(&client, &ITEMS)
+            .await)
+    }
+}

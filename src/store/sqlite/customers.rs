@@ -1,0 +1,68 @@
+//! Customers, and the items behind sensor ids, stored as their JSON
+//! definitions.
+
+use async_trait::async_trait;
+
+use super::SqliteStore;
+use super::definitions::{self, Table};
+use crate::domain::customers::{Customer, Item};
+use crate::store::{Customers, StoreError};
+
+const CUSTOMERS: Table = Table {
+    name: "customers",
+    key: "customer_id",
+    what: "a customer",
+};
+
+const ITEMS: Table = Table {
+    name: "items",
+    key: "sensor_id",
+    what: "an item",
+};
+
+#[async_trait]
+impl Customers for SqliteStore {
+    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError> {
+        self.run("put_customer", move |conn| {
+            definitions::put(
+                conn,
+                &CUSTOMERS,
+                &c.customer_id,
+                &c,
+                &c.updated_at.to_string(),
+            )
+        })
+        .await
+    }
+
+    async fn customer(&self, customer_id: String) -> Result<Option<Customer>, StoreError> {
+        self.run("customer", move |conn| {
+            definitions::one(conn, &CUSTOMERS, &customer_id)
+        })
+        .await
+    }
+
+    async fn customers(&self) -> Result<Vec<Customer>, StoreError> {
+        self.run("customers", |conn| definitions::all(conn, &CUSTOMERS))
+            .await
+    }
+
+    async fn put_item(&self, i: Item) -> Result<bool, StoreError> {
+        self.run("put_item", move |conn| {
+            definitions::put(conn, &ITEMS, &i.sensor_id, &i, &i.updated_at.to_string())
+        })
+        .await
+    }
+
+    async fn item(&self, sensor_id: String) -> Result<Option<Item>, StoreError> {
+        self.run("item", move |conn| {
+            definitions::one(conn, &ITEMS, &sensor_id)
+        })
+        .await
+    }
+
+    async fn items(&self) -> Result<Vec<Item>, StoreError> {
+        self.run("items", |conn| definitions::all(conn, &ITEMS))
+            .await
+    }
+}
