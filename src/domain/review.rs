@@ -3,7 +3,7 @@
 //!
 //! A stored calibration never changes; what happens to it afterwards is a
 //! list of signed acts beside it, append-only. Its state is the state the
-//! last state-changing act moved it to, `submitted` before any:
+//! last act left it in, `submitted` before any:
 //!
 //! ```text
 //!             approve            withdraw
@@ -24,10 +24,13 @@
 //!   why: a reviewer or admin may, and so may the very token that submitted
 //!   it within [`SUPERSEDE_WINDOW_SECONDS`] of its submission (a station
 //!   correcting its own upload before anyone relied on it);
+//! * `confirm` records that the stored submission, computed again with the
+//!   current method, gave every number the same; it keeps the state;
 //! * `rejected`, `withdrawn` and `superseded` are final.
 //!
 //! Which calibrations a reader uses is the [`Basis`]: every calibration not
-//! rejected or withdrawn, or (with `--require-approval`) approved ones only.
+//! rejected, withdrawn or superseded, or (with `--require-approval`)
+//! approved ones only.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
