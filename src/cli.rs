@@ -10,6 +10,7 @@ use std::time::Duration;
 
 use clap::{Args, Parser, Subcommand};
 
+use crate::domain::audit::Actor;
 use crate::domain::auth::Role;
 use crate::domain::field::{FieldError, Invalid};
 use crate::domain::limits::{DEFAULT_BODY_BUDGET_BYTES, DEFAULT_MAX_BODY_BYTES};
@@ -57,6 +58,9 @@ enum Command {
     /// recovery; the API's /v1/tokens does the same online).
     #[command(subcommand)]
     Token(TokenCommand),
+    /// The audit trail (README, "Records and audit").
+    #[command(subcommand)]
+    Audit(AuditCommand),
     /// Print the OpenAPI document (the committed openapi.yaml is this output).
     Openapi,
     /// Copy every calibration, sensor type, token and live idempotency key
@@ -191,6 +195,19 @@ struct SubmitArgs {
 }
 
 #[derive(Debug, Subcommand)]
+enum AuditCommand {
+    /// Recompute the audit trail's hash chain and check every stored
+    /// calibration against the digests its entry recorded; print the head
+    /// (keep it elsewhere) and exit 0, or name the first entry that does not
+    /// hold and exit 1.
+    Verify {
+        /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
+        #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
+        database: String,
+    },
+}
+
+#[derive(Debug, Subcommand)]
 enum TokenCommand {
     /// Create a token and print it (once) as JSON.
     Create {
@@ -260,6 +277,7 @@ pub fn main() -> ExitCode {
             to,
             into_non_empty,
         } => run_async(migrate(from, to, into_non_empty)),
+        Command::Audit(AuditCommand::Verify { database }) => run_async(verify_audit(database)),
         Command::Openapi => out(&openapi_document()),
     }
 }
@@ -519,6 +537,23 @@ async fn migrate(from: String, to: String, into_non_empty: bool) -> anyhow::Resu
     }
 }
 
+async fn verify_audit(database: String) -> anyhow::Result<ExitCode> {
+    use anyhow::Context;
+    existing(&database, false)?;
+    let store = crate::store::open(&database)
+        .await
+        .with_context(|| format!("opening {database}"))?;
+    let verified = crate::store::audit::verify(store.as_ref()).await;
+    store.close().await;
+    match verified {
+        Ok(v) => Ok(out(&serde_json::to_string_pretty(&v)?)),
+        Err(e) => {
+            eprintln!("accelcal: the audit trail does not verify: {e}");
+            Ok(ExitCode::FAILURE)
+        }
+    }
+}
+
 /// `accelcal token create`'s optional flags.
 struct TokenFlags {
     station: Option<String>,
@@ -543,7 +578,7 @@ async fn create_token(
     .map_err(|invalid| anyhow::anyhow!("{}", flags(&invalid)))?;
     let store = crate::store::open(&database).await?;
     let (record, created) = issue(request, Timestamp::now())?;
-    store.insert_token(record).await?;
+    store.insert_token(record, Actor::command_line()).await?;
     store.close().await;
     Ok(out(&serde_json::to_string_pretty(&created)?))
 }

@@ -114,6 +114,16 @@ impl Application {
             .await
             .with_context(|| format!("opening database {}", config.database))?;
         store::copy::refuse_unfinished(store.as_ref()).await?;
+        // The settings that change decisions, in the audit trail when they
+        // differ from those the service last started with.
+        let mut settings = serde_json::Map::new();
+        settings.insert(
+            "require_approval".into(),
+            (config.web.basis == crate::domain::review::Basis::ApprovedOnly).into(),
+        );
+        if store.configure(settings).await? {
+            tracing::info!(basis = ?config.web.basis, "configuration recorded in the audit trail");
+        }
         if let Some(url) = &config.web.public_url
             && !(url.starts_with("http://") || url.starts_with("https://"))
         {
@@ -140,7 +150,10 @@ impl Application {
             };
             let (record, created) =
                 issue(request, Timestamp::now()).context("creating the first admin token")?;
-            state.store.insert_token(record).await?;
+            state
+                .store
+                .insert_token(record, crate::domain::audit::Actor::service())
+                .await?;
             println!(
                 "accelcal: no admin token was configured or stored; created one (shown only now):"
             );

@@ -8,6 +8,7 @@
 //! HTTP API, the command line — import from here; nothing here imports
 //! from them.
 
+pub mod audit;
 pub mod auth;
 pub mod compensate;
 pub mod customers;

@@ -12,6 +12,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
+use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::customers::{Customer, CustomerBody, Item, ItemBody};
 use crate::domain::field::Invalid;
@@ -69,7 +70,10 @@ pub async fn put_customer(
     let c = body
         .json::<CustomerBody>()?
         .check(customer_id, Timestamp::now())?;
-    let created = state.store.put_customer(c.clone()).await?;
+    let created = state
+        .store
+        .put_customer(c.clone(), Actor::from(&principal))
+        .await?;
     tracing::info!(customer = %c.customer_id, created, by = %principal.id, "customer written");
     Ok((written(created), Json(c)))
 }
@@ -180,7 +184,10 @@ pub async fn put_item(
             ),
         )));
     }
-    let created = state.store.put_item(item.clone()).await?;
+    let created = state
+        .store
+        .put_item(item.clone(), Actor::from(&principal))
+        .await?;
     tracing::info!(sensor = %item.sensor_id, created, by = %principal.id, "item written");
     Ok((written(created), Json(item)))
 }

@@ -5,6 +5,7 @@
 //! handler in the resource's module, one `.route` line in [`router`] and one
 //! line in [`openapi`]'s list of paths.
 
+pub mod audit;
 pub mod auth;
 pub mod backup;
 pub mod body;
@@ -313,6 +314,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(tokens::create, tokens::list))
         .routes(routes!(tokens::revoke))
         .routes(routes!(backup::backup))
+        .routes(routes!(audit::list))
 }
 
 /// The probes and the document itself (no admission, no token).

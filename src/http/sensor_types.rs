@@ -10,6 +10,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
+use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::sensor_types::{SensorType, SensorTypeBody};
@@ -53,7 +54,10 @@ pub async fn put(
     let t = body
         .json::<SensorTypeBody>()?
         .check(type_id, Timestamp::now())?;
-    let created = state.store.put_sensor_type(t.clone()).await?;
+    let created = state
+        .store
+        .put_sensor_type(t.clone(), Actor::from(&principal))
+        .await?;
     tracing::info!(sensor_type = %t.type_id, created, by = %principal.id, "sensor type written");
     let status = if created {
         StatusCode::CREATED

@@ -16,6 +16,7 @@ use super::page::Page;
 use super::problem::{Kind, Problem};
 use super::query::{Params, instant, limit};
 use super::rendered::APPLICATION_JSON;
+use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::status::Status;
@@ -387,7 +388,7 @@ pub async fn update(
     }
     if !state
         .store
-        .assign_sensor_type(sensor_id.clone(), type_id.clone())
+        .assign_sensor_type(sensor_id.clone(), type_id.clone(), Actor::from(&principal))
         .await?
     {
         return Err(unknown_sensor(&sensor_id));

@@ -10,6 +10,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
+use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::standards::{Standard, StandardBody};
@@ -59,7 +60,10 @@ pub async fn put(
         .check(standard_id, Timestamp::now())?;
     let before = state.store.standard(s.standard_id.clone()).await?;
     let s = s.replacing(before);
-    let created = state.store.put_standard(s.clone()).await?;
+    let created = state
+        .store
+        .put_standard(s.clone(), Actor::from(&principal))
+        .await?;
     tracing::info!(standard = %s.standard_id, created, by = %principal.id, "standard written");
     let status = if created {
         StatusCode::CREATED

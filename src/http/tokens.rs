@@ -10,6 +10,7 @@ use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
 use super::{AppState, path_id};
+use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::{CreatedToken, TokenRequest, TokenView, issue};
@@ -42,7 +43,10 @@ pub async fn create(
         tracing::error!(error = %e, "no randomness for a token");
         Problem::internal()
     })?;
-    state.store.insert_token(record).await?;
+    state
+        .store
+        .insert_token(record, Actor::from(&principal))
+        .await?;
     tracing::info!(token_id = %created.id, role = %created.role, by = %principal.id, "token created");
     Ok((StatusCode::CREATED, Json(created)))
 }
@@ -105,7 +109,11 @@ pub async fn revoke(
 ) -> Result<StatusCode, Problem> {
     require(&principal, Role::Admin)?;
     let id = path_id(&id, "token")?;
-    if state.store.revoke_token(id, Timestamp::now()).await? {
+    if state
+        .store
+        .revoke_token(id, Timestamp::now(), Actor::from(&principal))
+        .await?
+    {
         tracing::info!(token_id = %id, by = %principal.id, "token revoked");
         Ok(StatusCode::NO_CONTENT)
     } else {

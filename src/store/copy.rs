@@ -9,7 +9,10 @@
 //! retry after the move is still answered with its calibration). Sensor
 //! summaries are rebuilt by the same inserts that built them. Web sessions
 //! and in-flight leases are not copied: people sign in again, and a request
-//! in flight at the move had its process stopped.
+//! in flight at the move had its process stopped. Nor is the audit trail:
+//! the target's own chain records the copy (each calibration and signature
+//! by its original actor, every other row by the operator who ran the
+//! command), and the source keeps its chain, `accelcal audit verify`-able.
 //!
 //! **Interrupted, resumed, never silent.** The target is marked as being
 //! imported into before the first row is copied, and the mark is removed
@@ -24,6 +27,7 @@
 use serde::Serialize;
 
 use super::{DoneKey, IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Signed, Store, StoreError};
+use crate::domain::audit::Actor;
 use crate::domain::auth::Principal;
 use crate::domain::review::Act;
 use crate::domain::timestamp::Timestamp;
@@ -160,7 +164,7 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_sensor_type(t).await?;
+        to.put_sensor_type(t, Actor::command_line()).await?;
         copied.sensor_types += 1;
     }
     for s in from.standards().await? {
@@ -169,7 +173,7 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_standard(s).await?;
+        to.put_standard(s, Actor::command_line()).await?;
         copied.standards += 1;
     }
     for c in from.customers().await? {
@@ -178,7 +182,7 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_customer(c).await?;
+        to.put_customer(c, Actor::command_line()).await?;
         copied.customers += 1;
     }
     for i in from.items().await? {
@@ -187,7 +191,7 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_item(i).await?;
+        to.put_item(i, Actor::command_line()).await?;
         copied.items += 1;
     }
     for t in from.tokens().await? {
@@ -196,7 +200,7 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.insert_token(t).await?;
+        to.insert_token(t, Actor::command_line()).await?;
         copied.tokens += 1;
     }
     let mut after = None;
@@ -239,7 +243,8 @@ pub async fn copy(
                 copied.already_there += 1;
                 continue;
             }
-            to.assign_sensor_type(s.sensor_id, t).await?;
+            to.assign_sensor_type(s.sensor_id, t, Actor::command_line())
+                .await?;
             copied.typed_sensors += 1;
         }
     }

@@ -12,6 +12,7 @@
 //! beside `sqlite/`, with its migrations, one file per concern, and one line
 //! in [`open`].
 
+pub mod audit;
 pub mod cache;
 pub mod copy;
 mod error;
@@ -24,9 +25,11 @@ use std::sync::Arc;
 use async_trait::async_trait;
 use uuid::Uuid;
 
+pub use audit::AuditQuery;
 pub use error::{BoxError, StoreError};
 pub use records::*;
 
+use crate::domain::audit::{Actor, Entry};
 use crate::domain::customers::{Customer, Item};
 use crate::domain::review::{Act, Basis, Signature, State};
 use crate::domain::sensor_types::SensorType;
@@ -45,6 +48,7 @@ pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
 /// ([`prelude`]).
 pub trait Store:
     Database
+    + Audit
     + Calibrations
     + Reviews
     + Customers
@@ -59,6 +63,7 @@ pub trait Store:
 
 impl<T> Store for T where
     T: Database
+        + Audit
         + Calibrations
         + Reviews
         + Customers
@@ -74,8 +79,8 @@ impl<T> Store for T where
 /// Every concern trait, for `use crate::store::prelude::*`.
 pub mod prelude {
     pub use super::{
-        Calibrations, Customers, Database, Idempotency, Reviews, SensorTypes, Sensors, Sessions,
-        Standards, Store, Tokens,
+        Audit, Calibrations, Customers, Database, Idempotency, Reviews, SensorTypes, Sensors,
+        Sessions, Standards, Store, Tokens,
     };
 }
 
@@ -103,6 +108,24 @@ pub trait Database: Send + Sync + 'static {
     }
     /// Flushes and closes (at shutdown).
     async fn close(&self);
+}
+
+/// The audit trail ([`crate::domain::audit`]): every method below that
+/// changes what is stored appends its entry in its own transaction (a
+/// calibration stored, a signature, a token issued or revoked, a definition
+/// put, a sensor retyped), with the actor it is given or, for a
+/// submission, its token's; here it is read.
+#[async_trait]
+pub trait Audit: Send + Sync + 'static {
+    /// The entries `q` selects, in sequence order.
+    async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError>;
+    /// Appends `service.configure` with `settings` (the settings that change
+    /// decisions) unless the last such entry recorded the same; true when
+    /// it appended.
+    async fn configure(
+        &self,
+        settings: serde_json::Map<String, serde_json::Value>,
+    ) -> Result<bool, StoreError>;
 }
 
 /// Calibrations: the durable insert and every read of them.
@@ -214,6 +237,7 @@ pub trait Sensors: Send + Sync + 'static {
         &self,
         sensor_id: String,
         type_id: String,
+        by: Actor,
     ) -> Result<bool, StoreError>;
 }
 
@@ -221,7 +245,7 @@ pub trait Sensors: Send + Sync + 'static {
 #[async_trait]
 pub trait SensorTypes: Send + Sync + 'static {
     /// Creates or replaces a sensor type; true when it was created.
-    async fn put_sensor_type(&self, t: SensorType) -> Result<bool, StoreError>;
+    async fn put_sensor_type(&self, t: SensorType, by: Actor) -> Result<bool, StoreError>;
     /// One sensor type.
     async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
     /// Every sensor type, in id order.
@@ -233,7 +257,7 @@ pub trait SensorTypes: Send + Sync + 'static {
 #[async_trait]
 pub trait Standards: Send + Sync + 'static {
     /// Creates or replaces a standard; true when it was created.
-    async fn put_standard(&self, s: Standard) -> Result<bool, StoreError>;
+    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError>;
     /// One standard.
     async fn standard(&self, standard_id: String) -> Result<Option<Standard>, StoreError>;
     /// Every standard, in id order.
@@ -244,13 +268,13 @@ pub trait Standards: Send + Sync + 'static {
 #[async_trait]
 pub trait Customers: Send + Sync + 'static {
     /// Creates or replaces a customer; true when it was created.
-    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError>;
+    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError>;
     /// One customer.
     async fn customer(&self, customer_id: String) -> Result<Option<Customer>, StoreError>;
     /// Every customer, in id order.
     async fn customers(&self) -> Result<Vec<Customer>, StoreError>;
     /// Creates or replaces the item behind a sensor id; true when created.
-    async fn put_item(&self, i: Item) -> Result<bool, StoreError>;
+    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError>;
     /// The item behind a sensor id.
     async fn item(&self, sensor_id: String) -> Result<Option<Item>, StoreError>;
     /// Every item, in sensor id order.
@@ -261,13 +285,13 @@ pub trait Customers: Send + Sync + 'static {
 #[async_trait]
 pub trait Tokens: Send + Sync + 'static {
     /// Stores a new token.
-    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError>;
+    async fn insert_token(&self, t: TokenRecord, by: Actor) -> Result<(), StoreError>;
     /// One token by id.
     async fn token(&self, id: Uuid) -> Result<Option<TokenRecord>, StoreError>;
     /// Every token, oldest first.
     async fn tokens(&self) -> Result<Vec<TokenRecord>, StoreError>;
     /// Revokes a token; false when there is no such unrevoked token.
-    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError>;
+    async fn revoke_token(&self, id: Uuid, at: Timestamp, by: Actor) -> Result<bool, StoreError>;
     /// Whether an unrevoked admin token exists.
     async fn has_admin_token(&self) -> Result<bool, StoreError>;
 }

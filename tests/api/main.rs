@@ -6,6 +6,7 @@
 //! what does not depend on the engine, on SQLite.
 
 mod access;
+mod audit;
 mod client;
 mod contract;
 mod corpus;

@@ -789,4 +789,23 @@ async fn a_reviewer_signs_on_the_page(#[values(Sqlite, Postgres)] engine: Engine
         !html.contains(&format!(r#"action="/ui/calibrations/{id}/review""#)),
         "final"
     );
+    // The reviewer sees the calibration's own audit trail: stored, approved,
+    // withdrawn, each by whom; a reader does not.
+    let trail = &html[html.find(r#"<table id="audit">"#).expect("a trail")..];
+    let rows: Vec<&str> = trail
+        .match_indices(r#"<tr data-action=""#)
+        .map(|(i, m)| trail[i + m.len()..].split('"').next().unwrap())
+        .collect();
+    assert_eq!(
+        rows,
+        [
+            "calibration.submitted",
+            "calibration.approve",
+            "calibration.withdraw"
+        ]
+    );
+    assert!(trail.contains("Rita Reviewer"));
+    let (session, _) = sign_in(&app, &reader).await;
+    let html = page(&app, &path, &session).await.text().await.unwrap();
+    assert!(!html.contains(r#"id="audit""#));
 }

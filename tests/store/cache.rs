@@ -44,7 +44,7 @@ async fn writes_keep_their_sensor_cached(
     settle: std::time::Duration,
 ) {
     store
-        .put_sensor_type(sensor_type("NAV", 365))
+        .put_sensor_type(sensor_type("NAV", 365), admin())
         .await
         .unwrap();
     let sensor = "KEEP";

@@ -105,17 +105,17 @@ async fn tokens(s: &dyn Store) {
         created_at: t("2026-11-22T00:00:00Z"),
         revoked_at: None,
     };
-    s.insert_token(record.clone()).await.unwrap();
+    s.insert_token(record.clone(), admin()).await.unwrap();
     assert_eq!(s.token(record.id).await.unwrap().unwrap(), record);
     assert!(s.has_admin_token().await.unwrap());
     assert_eq!(s.tokens().await.unwrap(), vec![record.clone()]);
     assert!(
-        s.revoke_token(record.id, t("2026-11-22T01:00:00Z"))
+        s.revoke_token(record.id, t("2026-11-22T01:00:00Z"), admin())
             .await
             .unwrap()
     );
     assert!(
-        !s.revoke_token(record.id, t("2026-11-22T02:00:00Z"))
+        !s.revoke_token(record.id, t("2026-11-22T02:00:00Z"), admin())
             .await
             .unwrap(),
         "revoked once only"
@@ -133,7 +133,7 @@ async fn tokens(s: &dyn Store) {
         label: None,
         ..record
     };
-    s.insert_token(reviewer.clone()).await.unwrap();
+    s.insert_token(reviewer.clone(), admin()).await.unwrap();
     assert_eq!(s.token(reviewer.id).await.unwrap().unwrap(), reviewer);
     assert!(
         !s.has_admin_token().await.unwrap(),
@@ -407,11 +407,15 @@ pub(crate) fn sensor_type(id: &str, interval_days: u32) -> SensorType {
 /// which must agree.
 async fn types_and_statuses(s: &dyn Store) {
     assert!(
-        s.put_sensor_type(sensor_type("NAV", 365)).await.unwrap(),
+        s.put_sensor_type(sensor_type("NAV", 365), admin())
+            .await
+            .unwrap(),
         "created"
     );
     assert!(
-        !s.put_sensor_type(sensor_type("NAV", 180)).await.unwrap(),
+        !s.put_sensor_type(sensor_type("NAV", 180), admin())
+            .await
+            .unwrap(),
         "replaced"
     );
     assert_eq!(
@@ -422,7 +426,9 @@ async fn types_and_statuses(s: &dyn Store) {
             .interval_days,
         180
     );
-    s.put_sensor_type(sensor_type("AAA", 30)).await.unwrap();
+    s.put_sensor_type(sensor_type("AAA", 30), admin())
+        .await
+        .unwrap();
     let ids: Vec<String> = s
         .sensor_types()
         .await
@@ -524,12 +530,12 @@ async fn types_and_statuses(s: &dyn Store) {
     }
     // Assigning a type: only to an existing sensor; it applies from then on.
     assert!(
-        s.assign_sensor_type("ST-UNKNOWN".into(), "AAA".into())
+        s.assign_sensor_type("ST-UNKNOWN".into(), "AAA".into(), admin())
             .await
             .unwrap()
     );
     assert!(
-        !s.assign_sensor_type("NO-SUCH".into(), "AAA".into())
+        !s.assign_sensor_type("NO-SUCH".into(), "AAA".into(), admin())
             .await
             .unwrap()
     );
@@ -687,7 +693,10 @@ async fn standards(s: &dyn Store) {
     let stand = body.check("Z-STAND".into(), now()).unwrap();
     assert!(s.standard("Z-STAND".into()).await.unwrap().is_none());
     assert!(s.is_empty().await.unwrap());
-    assert!(s.put_standard(stand.clone()).await.unwrap(), "created");
+    assert!(
+        s.put_standard(stand.clone(), admin()).await.unwrap(),
+        "created"
+    );
     assert_eq!(
         s.standard("Z-STAND".into()).await.unwrap(),
         Some(stand.clone())
@@ -695,11 +704,11 @@ async fn standards(s: &dyn Store) {
     let mut other = stand.clone();
     other.standard_id = "A-STAND".into();
     other.angle_std_arcsec = Some(0.25);
-    assert!(s.put_standard(other.clone()).await.unwrap());
+    assert!(s.put_standard(other.clone(), admin()).await.unwrap());
     let mut recalibrated = stand.clone();
     recalibrated.due_at = t("2028-01-01T00:00:00Z");
     assert!(
-        !s.put_standard(recalibrated.clone()).await.unwrap(),
+        !s.put_standard(recalibrated.clone(), admin()).await.unwrap(),
         "replaced"
     );
     assert_eq!(s.standards().await.unwrap(), [other, recalibrated]);
@@ -923,13 +932,19 @@ async fn customers(s: &dyn Store) {
         due_date_agreed: false,
         updated_at: at,
     };
-    assert!(s.put_customer(acme.clone()).await.unwrap(), "created");
+    assert!(
+        s.put_customer(acme.clone(), admin()).await.unwrap(),
+        "created"
+    );
     let agreed = Customer {
         due_date_agreed: true,
         updated_at: t("2026-11-26T00:00:00Z"),
         ..acme.clone()
     };
-    assert!(!s.put_customer(agreed.clone()).await.unwrap(), "replaced");
+    assert!(
+        !s.put_customer(agreed.clone(), admin()).await.unwrap(),
+        "replaced"
+    );
     assert_eq!(
         s.customer("ACME".into()).await.unwrap(),
         Some(agreed.clone())
@@ -939,7 +954,7 @@ async fn customers(s: &dyn Store) {
         customer_id: "BETA".into(),
         ..acme
     };
-    s.put_customer(beta.clone()).await.unwrap();
+    s.put_customer(beta.clone(), admin()).await.unwrap();
     assert_eq!(s.customers().await.unwrap(), [agreed, beta]);
     let item = Item {
         sensor_id: "ITEM-1".into(),
@@ -949,7 +964,7 @@ async fn customers(s: &dyn Store) {
         customer: Some("ACME".into()),
         updated_at: at,
     };
-    assert!(s.put_item(item.clone()).await.unwrap());
+    assert!(s.put_item(item.clone(), admin()).await.unwrap());
     assert_eq!(s.item("ITEM-1".into()).await.unwrap(), Some(item.clone()));
     assert_eq!(s.items().await.unwrap(), [item]);
     assert!(!s.is_empty().await.unwrap());
@@ -970,6 +985,7 @@ async fn conformance(s: Arc<dyn Store>) {
     reviews(s.as_ref()).await;
     search(s.as_ref()).await;
     sessions(s.as_ref()).await;
+    super::audit::trail(s.as_ref()).await;
     s.close().await;
 }
 

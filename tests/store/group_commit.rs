@@ -279,7 +279,11 @@ async fn postgres_a_batch_stores_what_one_at_a_time_stores() {
     let done = calibration("F-1", "2026-06-01T00:00:00Z");
     for s in stores {
         for t in ["NAV", "GYR"] {
-            assert!(s.put_sensor_type(super::sensor_type(t, 365)).await.unwrap());
+            assert!(
+                s.put_sensor_type(super::sensor_type(t, 365), super::admin())
+                    .await
+                    .unwrap()
+            );
         }
         let first = s
             .insert_calibration(done.clone(), Some(key("done", 1)))

@@ -13,6 +13,7 @@
 
 use std::sync::Arc;
 
+mod audit;
 mod cache;
 mod conformance;
 mod engines;
@@ -64,6 +65,15 @@ fn calibration(sensor: &str, performed_at: &str) -> NewCalibration {
         verdict: None,
         due_at: None,
         expanded: Some(TermMap(vec![(Term::K0, 2e-6), (Term::Ki, 4e-6)])),
+    }
+}
+
+/// The actor of the tests' administrative writes.
+fn admin() -> accelcal::domain::audit::Actor {
+    accelcal::domain::audit::Actor {
+        token_id: "0190aaaa000070008000000000000009".into(),
+        role: "admin".into(),
+        holder: Some("Ada".into()),
     }
 }
 

@@ -188,7 +188,7 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, [1, 2, 3, 4, 5, 6, 7, 8, 9]);
+    assert_eq!(versions, [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]);
     // Version 4: tokens' changes are notified.
     let triggers = c
         .query(
@@ -251,7 +251,7 @@ async fn postgres_replica_token_caches_follow_revocations() {
         revoked_at: None,
     };
     for n in [1, 2] {
-        a.insert_token(token(n)).await.unwrap();
+        a.insert_token(token(n), admin()).await.unwrap();
         assert_eq!(b.token(Uuid::from_u128(n)).await.unwrap(), Some(token(n)));
         assert!(
             b_tokens.contains(Uuid::from_u128(n)),
@@ -265,7 +265,11 @@ async fn postgres_replica_token_caches_follow_revocations() {
     );
 
     let at = t("2026-11-22T01:00:00Z");
-    assert!(a.revoke_token(Uuid::from_u128(1), at).await.unwrap());
+    assert!(
+        a.revoke_token(Uuid::from_u128(1), at, admin())
+            .await
+            .unwrap()
+    );
     assert_eq!(
         a.token(Uuid::from_u128(1))
             .await
@@ -303,7 +307,11 @@ async fn postgres_replica_token_caches_follow_revocations() {
         b_tokens.is_empty(),
         "a cache without its listener is emptied"
     );
-    assert!(a.revoke_token(Uuid::from_u128(2), at).await.unwrap());
+    assert!(
+        a.revoke_token(Uuid::from_u128(2), at, admin())
+            .await
+            .unwrap()
+    );
     assert_eq!(
         b.token(Uuid::from_u128(2))
             .await

@@ -52,14 +52,14 @@ impl Modify for Bearer {
     ),
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
-    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "operations"), (name = "health")),
+    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "audit"), (name = "operations"), (name = "health")),
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
             MountSchema, PositionInSchema, ReadingInSchema, RunInSchema, SubmissionSchema, RawBodySchema, RunResultSchema,
             MeanEstimateSchema, BatchSchema, FusedEstimateSchema, EstimatesSchema, NormalizedSchema,
             PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, SensorPageSchema,
-            CalibrationPageSchema, super::problem::ProblemBody, crate::domain::field::FieldError,
+            CalibrationPageSchema, AuditPageSchema, super::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
             crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,

@@ -546,3 +546,8 @@ marker_schema!(
     /// One page of a sensor's calibrations.
     CalibrationPageSchema => page("CalibrationSummary")
 );
+
+marker_schema!(
+    /// One page of the audit trail.
+    AuditPageSchema => page("AuditEntry")
+);

@@ -523,6 +523,16 @@ pub async fn page(
 ) -> Result<Html, UiError> {
     let d = load(&state, &id).await?;
     let (review_state, signatures) = record(&state, &id).await?;
+    let trail = if viewer.principal.role >= crate::domain::auth::Role::Reviewer {
+        let q = crate::store::AuditQuery {
+            object: Some(crate::domain::audit::calibration(d.id)),
+            limit: crate::domain::limits::MAX_PAGE,
+            ..crate::store::AuditQuery::default()
+        };
+        Some(state.store.audit(q).await?)
+    } else {
+        None
+    };
     let content = html! {
         p.muted {
             a href="/ui/sensors" { "Fleet" } " / "
@@ -595,6 +605,7 @@ pub async fn page(
         h2 { "Residuals" }
         (residuals(&d))
         (review::section(&d.id.to_string(), review_state, &signatures, &viewer))
+        @if let Some(entries) = &trail { (review::trail(entries)) }
     };
     Ok(Html::ok(layout(
         &format!("Calibration of {}", d.sensor_id),

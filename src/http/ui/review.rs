@@ -153,6 +153,43 @@ pub fn section(id: &str, state: ReviewState, signatures: &[Signature], viewer: &
     }
 }
 
+/// A calibration's own audit trail (for reviewers and admins): every
+/// entry about it, with the first characters of its hash.
+pub fn trail(entries: &[crate::domain::audit::Entry]) -> Markup {
+    html! {
+        section #trail aria-labelledby="trail-title" {
+            h2 #trail-title { "Audit trail" }
+            p.muted { "Entries of the tamper-evident trail about this calibration; "
+                "the whole trail is at " code { "GET /v1/audit" } "." }
+            div.table-wrap tabindex="0" role="region" aria-label="Audit trail" {
+                table #audit {
+                    caption { "Audit entries, in order" }
+                    thead { tr {
+                        th scope="col" { "No." }
+                        th scope="col" { "When" }
+                        th scope="col" { "Who" }
+                        th scope="col" { "Role" }
+                        th scope="col" { "Action" }
+                        th scope="col" { "Hash" }
+                    } }
+                    tbody {
+                        @for e in entries {
+                            tr data-action=(e.action) {
+                                td.num { (e.seq) }
+                                td { (when(&e.at.to_string())) }
+                                td { (e.actor.holder.clone().unwrap_or_else(|| format!("token {}", e.actor.token_id))) }
+                                td { (e.actor.role) }
+                                td { (e.action) }
+                                td { code title=(e.hash) { (e.hash.get(..12).unwrap_or(&e.hash)) "…" } }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
+
 #[derive(Debug, Default, Deserialize)]
 struct SignForm {
     #[serde(default)]

@@ -4,7 +4,8 @@
 //! [`calibrations::write`](super::calibrations::write) for each calibration:
 //! two or four statements each, every one a Bind, an Execute and a Sync that
 //! PostgreSQL plans, runs, answers and flushes on its own. Here a batch of
-//! `n` calibrations is at most four statements, whatever `n`:
+//! `n` calibrations is at most four statements, whatever `n`, and its audit
+//! entries:
 //!
 //! 1. the idempotency keys of the batch, looked at under their row locks
 //!    (`FOR UPDATE`) in one `SELECT`; a key already completed is the answer
@@ -14,7 +15,8 @@
 //!    (`… WHERE idempotency_keys.calibration_id IS NULL`);
 //! 4. one upsert of every sensor the batch wrote, each with the batch's
 //!    calibrations of it aggregated in SQL ([`UPSERT_SENSORS`]) and merged
-//!    into its row by [`SENSOR_MERGE`], answering the rows.
+//!    into its row by [`SENSOR_MERGE`], answering the rows;
+//! 5. their `calibration.submitted` entries appended to the audit trail.
 //!
 //! What is stored is what the writes one after the other would have stored:
 //! a sensor's summary is `count`, the least `performed_at`, the latest
@@ -37,7 +39,8 @@ use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
 use crate::store::{
-    IdempotencyKey, NEWEST_FIRST, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError, Stored,
+    IdempotencyKey, NEWEST_FIRST, NewCalibration, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError,
+    Stored,
 };
 
 /// What writing a batch inside an open transaction came to.
@@ -156,6 +159,11 @@ pub async fn write(
 
     // 4. The sensors' summaries.
     let (pid, merged) = upsert_sensors(tx, &rows).await?;
+
+    // 5. Their entries in the audit trail, last (the trail's lock is taken
+    // after every row lock: super::audit).
+    let written: Vec<&NewCalibration> = rows.iter().map(|r| r.new_calibration()).collect();
+    super::audit::append(tx, super::audit::stored(tx, &written).await?).await?;
     let answers = batch
         .iter()
         .zip(answers)

@@ -246,8 +246,8 @@ pub async fn write(
     Ok(Written::New(rows::sensor_row(&merged)?))
 }
 
-/// Stores one calibration, its sensor's summary and its key in a
-/// transaction of its own; the commit returns once it is durable
+/// Stores one calibration, its sensor's summary, its key and its audit
+/// entry in a transaction of its own; the commit returns once it is durable
 /// (`synchronous_commit=on`). Of two requests completing one key at once,
 /// the second waits for the first's row lock, finds the key completed, and
 /// stores nothing.
@@ -259,6 +259,8 @@ pub async fn insert(
     let tx = client.transaction().await.map_err(map)?;
     match write(&tx, row, key).await? {
         Written::New(sensor) => {
+            let events = super::audit::stored(&tx, &[&row.n]).await?;
+            super::audit::append(&tx, events).await?;
             tx.commit().await.map_err(map)?;
             Ok((Stored::New, Some(sensor)))
         }

@@ -5,24 +5,37 @@ use async_trait::async_trait;
 
 use super::PostgresStore;
 use super::definitions::{self, Table};
+use crate::domain::audit::Actor;
 use crate::domain::customers::{Customer, Item};
 use crate::store::{Customers, StoreError};
 
 const CUSTOMERS: Table = Table {
     name: "customers",
     key: "customer_id",
+    kind: "customer",
+    object: "customers/",
 };
 
 const ITEMS: Table = Table {
     name: "items",
     key: "sensor_id",
+    kind: "item",
+    object: "items/",
 };
 
 #[async_trait]
 impl Customers for PostgresStore {
-    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError> {
+    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError> {
         op!(self, "put_customer", |client| {
-            definitions::put(&client, &CUSTOMERS, &c.customer_id, &c, c.updated_at).await
+            definitions::put(
+                &mut client,
+                &CUSTOMERS,
+                &c.customer_id,
+                &c,
+                c.updated_at,
+                by,
+            )
+            .await
         })
     }
 
@@ -38,9 +51,9 @@ impl Customers for PostgresStore {
         })
     }
 
-    async fn put_item(&self, i: Item) -> Result<bool, StoreError> {
+    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError> {
         op!(self, "put_item", |client| {
-            definitions::put(&client, &ITEMS, &i.sensor_id, &i, i.updated_at).await
+            definitions::put(&mut client, &ITEMS, &i.sensor_id, &i, i.updated_at, by).await
         })
     }
 

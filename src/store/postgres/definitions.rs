@@ -1,5 +1,6 @@
-//! Records stored as their JSON definition under an id — standards,
-//! customers, items: one upsert and two reads, parameterised by table.
+//! Records stored as their JSON definition under an id — sensor types,
+//! standards, customers, items: one audited upsert and two reads,
+//! parameterised by table.
 
 use deadpool_postgres::Object;
 use serde::Serialize;
@@ -7,6 +8,7 @@ use serde::de::DeserializeOwned;
 
 use super::errors::{decode, map};
 use super::rows;
+use crate::domain::audit::Actor;
 use crate::domain::timestamp::Timestamp;
 use crate::store::StoreError;
 
@@ -17,6 +19,10 @@ pub struct Table {
     pub name: &'static str,
     /// Its primary key.
     pub key: &'static str,
+    /// Its kind in the audit trail (`{kind}.put`).
+    pub kind: &'static str,
+    /// The prefix of its object path in the audit trail (`standards/`).
+    pub object: &'static str,
 }
 
 fn parse<T: DeserializeOwned>(row: &tokio_postgres::Row) -> Result<T, StoreError> {
@@ -24,17 +30,20 @@ fn parse<T: DeserializeOwned>(row: &tokio_postgres::Row) -> Result<T, StoreError
     serde_json::from_str(text).map_err(|e| decode("definition", e))
 }
 
-/// Creates or replaces the record `id`; true when it was created.
+/// Creates or replaces the record `id` and appends `{kind}.put` to the
+/// audit trail, in one transaction; true when it was created.
 pub async fn put<T: Serialize>(
-    client: &Object,
+    client: &mut Object,
     t: &Table,
     id: &str,
     record: &T,
     updated_at: Timestamp,
+    by: Actor,
 ) -> Result<bool, StoreError> {
     let definition =
         serde_json::to_string(record).map_err(|e| StoreError::Refused(e.to_string()))?;
-    let row = client
+    let tx = client.transaction().await.map_err(map)?;
+    let row = tx
         .query_one(
             &format!(
                 "INSERT INTO {0} ({1}, definition, updated_at) VALUES ($1, $2::text::json, $3) \
@@ -46,7 +55,12 @@ pub async fn put<T: Serialize>(
         )
         .await
         .map_err(map)?;
-    rows::get(&row, "created")
+    let created: bool = rows::get(&row, "created")?;
+    let path = format!("{}{id}", t.object);
+    let event = crate::store::audit::put(t.kind, path, created, record, updated_at, by);
+    super::audit::append(&tx, vec![event]).await?;
+    tx.commit().await.map_err(map)?;
+    Ok(created)
 }
 
 /// The record `id`.

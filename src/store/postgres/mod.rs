@@ -30,6 +30,7 @@ macro_rules! op {
     }};
 }
 
+mod audit;
 mod batch;
 mod calibrations;
 pub mod connect;

@@ -125,6 +125,13 @@ async fn sign(
     tx.execute(&sensor_forget("$1"), &[&sensor_id])
         .await
         .map_err(map)?;
+    // The audit trail last (its lock after every row lock: super::audit).
+    let mut events = match replacement {
+        Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
+        None => Vec::new(),
+    };
+    events.push(crate::store::audit::signed(id, &s, state));
+    super::audit::append(tx, events).await?;
     Ok(Signed::Done(s, sensor_id))
 }
 

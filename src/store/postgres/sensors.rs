@@ -8,6 +8,7 @@ use uuid::Uuid;
 use super::PostgresStore;
 use super::errors::map;
 use super::rows;
+use crate::domain::audit::Actor;
 use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{SensorQuery, SensorSummary, Sensors, StoreError};
@@ -78,15 +79,23 @@ impl Sensors for PostgresStore {
         &self,
         sensor_id: String,
         type_id: String,
+        by: Actor,
     ) -> Result<bool, StoreError> {
         let out = op!(self, "assign_sensor_type", |client| {
-            let n = client
+            let tx = client.transaction().await.map_err(map)?;
+            let n = tx
                 .execute(
                     "UPDATE sensors SET sensor_type = $2 WHERE sensor_id = $1",
                     &[&sensor_id, &type_id],
                 )
                 .await
                 .map_err(map)?;
+            if n == 1 {
+                let event =
+                    crate::store::audit::retyped(&sensor_id, &type_id, Timestamp::now(), by);
+                super::audit::append(&tx, vec![event]).await?;
+                tx.commit().await.map_err(map)?;
+            }
             Ok(n == 1)
         });
         self.cache.sensor_changed(&sensor_id);

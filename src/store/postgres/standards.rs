@@ -4,19 +4,30 @@ use async_trait::async_trait;
 
 use super::PostgresStore;
 use super::definitions::{self, Table};
+use crate::domain::audit::Actor;
 use crate::domain::standards::Standard;
 use crate::store::{Standards, StoreError};
 
 const STANDARDS: Table = Table {
     name: "standards",
     key: "standard_id",
+    kind: "standard",
+    object: "standards/",
 };
 
 #[async_trait]
 impl Standards for PostgresStore {
-    async fn put_standard(&self, s: Standard) -> Result<bool, StoreError> {
+    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError> {
         op!(self, "put_standard", |client| {
-            definitions::put(&client, &STANDARDS, &s.standard_id, &s, s.updated_at).await
+            definitions::put(
+                &mut client,
+                &STANDARDS,
+                &s.standard_id,
+                &s,
+                s.updated_at,
+                by,
+            )
+            .await
         })
     }
 

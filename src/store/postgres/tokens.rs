@@ -7,32 +7,36 @@ use uuid::Uuid;
 use super::PostgresStore;
 use super::errors::map;
 use super::rows::{self, TOKEN_COLUMNS};
+use crate::domain::audit::Actor;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 use crate::store::{StoreError, Tokens};
 
 #[async_trait]
 impl Tokens for PostgresStore {
-    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
+    async fn insert_token(&self, t: TokenRecord, by: Actor) -> Result<(), StoreError> {
         op!(self, "insert_token", |client| {
-            client
-                .execute(
-                    &format!(
-                        "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7, $8)"
-                    ),
-                    &[
-                        &t.id,
-                        &t.secret_hash,
-                        &t.role.as_str(),
-                        &t.station_id,
-                        &t.label,
-                        &t.created_at.datetime(),
-                        &t.revoked_at.map(|r| r.datetime()),
-                        &t.holder,
-                    ],
-                )
-                .await
-                .map_err(map)?;
+            let tx = client.transaction().await.map_err(map)?;
+            tx.execute(
+                &format!(
+                    "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES ($1, $2, $3, $4, $5, $6, $7, $8)"
+                ),
+                &[
+                    &t.id,
+                    &t.secret_hash,
+                    &t.role.as_str(),
+                    &t.station_id,
+                    &t.label,
+                    &t.created_at.datetime(),
+                    &t.revoked_at.map(|r| r.datetime()),
+                    &t.holder,
+                ],
+            )
+            .await
+            .map_err(map)?;
+            let event = crate::store::audit::token_created(&t, by);
+            super::audit::append(&tx, vec![event]).await?;
+            tx.commit().await.map_err(map)?;
             Ok(())
         })
     }
@@ -57,17 +61,23 @@ impl Tokens for PostgresStore {
         })
     }
 
-    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+    async fn revoke_token(&self, id: Uuid, at: Timestamp, by: Actor) -> Result<bool, StoreError> {
         let this = self.clone();
         let revoke = async move {
             op!(this, "revoke_token", |client| {
-                let n = client
+                let tx = client.transaction().await.map_err(map)?;
+                let n = tx
                     .execute(
                         "UPDATE tokens SET revoked_at = $2 WHERE id = $1 AND revoked_at IS NULL",
                         &[&id, &at.datetime()],
                     )
                     .await
                     .map_err(map)?;
+                if n == 1 {
+                    let event = crate::store::audit::token_revoked(id, at, by);
+                    super::audit::append(&tx, vec![event]).await?;
+                    tx.commit().await.map_err(map)?;
+                }
                 Ok(n == 1)
             })
         };

@@ -167,6 +167,8 @@ pub(super) fn insert(
         ],
         rows::sensor_row,
     )?;
+    let by = super::audit::submitter(tx, &n.submitted_by)?;
+    super::audit::append(tx, crate::store::audit::stored(&n, by))?;
     Ok((Stored::New, row))
 }
 

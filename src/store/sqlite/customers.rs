@@ -5,6 +5,7 @@ use async_trait::async_trait;
 
 use super::SqliteStore;
 use super::definitions::{self, Table};
+use crate::domain::audit::Actor;
 use crate::domain::customers::{Customer, Item};
 use crate::store::{Customers, StoreError};
 
@@ -12,25 +13,24 @@ const CUSTOMERS: Table = Table {
     name: "customers",
     key: "customer_id",
     what: "a customer",
+    kind: "customer",
+    object: "customers/",
 };
 
 const ITEMS: Table = Table {
     name: "items",
     key: "sensor_id",
     what: "an item",
+    kind: "item",
+    object: "items/",
 };
 
 #[async_trait]
 impl Customers for SqliteStore {
-    async fn put_customer(&self, c: Customer) -> Result<bool, StoreError> {
-        self.run("put_customer", move |conn| {
-            definitions::put(
-                conn,
-                &CUSTOMERS,
-                &c.customer_id,
-                &c,
-                &c.updated_at.to_string(),
-            )
+    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError> {
+        self.write("put_customer", move |conn| {
+            let created = definitions::put(conn, &CUSTOMERS, &c.customer_id, &c, c.updated_at, by)?;
+            Ok((created, true))
         })
         .await
     }
@@ -47,9 +47,10 @@ impl Customers for SqliteStore {
             .await
     }
 
-    async fn put_item(&self, i: Item) -> Result<bool, StoreError> {
-        self.run("put_item", move |conn| {
-            definitions::put(conn, &ITEMS, &i.sensor_id, &i, &i.updated_at.to_string())
+    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError> {
+        self.write("put_item", move |conn| {
+            let created = definitions::put(conn, &ITEMS, &i.sensor_id, &i, i.updated_at, by)?;
+            Ok((created, true))
         })
         .await
     }

@@ -1,12 +1,15 @@
-//! Records stored as their JSON definition under an id — standards,
-//! customers, items: one upsert and two reads, parameterised by table.
+//! Records stored as their JSON definition under an id — sensor types,
+//! standards, customers, items: one audited upsert and two reads,
+//! parameterised by table.
 
 use rusqlite::{Connection, params};
 use serde::Serialize;
 use serde::de::DeserializeOwned;
 
 use super::errors::map;
-use super::rows;
+use super::{audit, rows};
+use crate::domain::audit::Actor;
+use crate::domain::timestamp::Timestamp;
 use crate::store::StoreError;
 
 /// A table of definitions: its name and its key column (fixed strings,
@@ -18,6 +21,10 @@ pub struct Table {
     pub key: &'static str,
     /// What one record is, for errors.
     pub what: &'static str,
+    /// Its kind in the audit trail (`{kind}.put`).
+    pub kind: &'static str,
+    /// The prefix of its object path in the audit trail (`standards/`).
+    pub object: &'static str,
 }
 
 fn decode<T: DeserializeOwned>(row: &rusqlite::Row<'_>, what: &str) -> Result<T, StoreError> {
@@ -25,13 +32,15 @@ fn decode<T: DeserializeOwned>(row: &rusqlite::Row<'_>, what: &str) -> Result<T,
     serde_json::from_str(&text).map_err(|e| StoreError::corrupt(what, e))
 }
 
-/// Creates or replaces the record `id`; true when it was created.
+/// Creates or replaces the record `id` and appends `{kind}.put` to the
+/// audit trail, in the writer's transaction; true when it was created.
 pub fn put<T: Serialize>(
     conn: &Connection,
     t: &Table,
     id: &str,
     record: &T,
-    updated_at: &str,
+    updated_at: Timestamp,
+    by: Actor,
 ) -> Result<bool, StoreError> {
     let definition =
         serde_json::to_string(record).map_err(|e| StoreError::Refused(e.to_string()))?;
@@ -49,9 +58,12 @@ pub fn put<T: Serialize>(
              updated_at = excluded.updated_at",
             t.name, t.key
         ),
-        params![id, definition, updated_at],
+        params![id, definition, updated_at.to_string()],
     )
     .map_err(map)?;
+    let path = format!("{}{id}", t.object);
+    let event = crate::store::audit::put(t.kind, path, !existed, record, updated_at, by);
+    audit::append(conn, event)?;
     Ok(!existed)
 }
 

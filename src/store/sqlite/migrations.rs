@@ -24,6 +24,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0010_standards.sql"),
     include_str!("migrations/0011_signatures.sql"),
     include_str!("migrations/0012_customers.sql"),
+    include_str!("migrations/0013_audit.sql"),
 ];
 
 /// Brings the database to the latest schema.

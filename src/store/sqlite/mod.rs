@@ -6,10 +6,11 @@
 //! idempotency claims go through the [`writer`], which commits many in one
 //! transaction (group commit); other calls run on tokio's blocking pool over
 //! a small [`pool`] of connections. One file per
-//! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`standards`], [`tokens`],
+//! concern: [`calibrations`], [`sensors`], [`sensor_types`], [`standards`], [`tokens`], [`audit`],
 //! [`sessions`], [`idempotency`];
 //! [`rows`] decodes rows by column name, [`errors`] maps the driver's errors.
 
+mod audit;
 mod calibrations;
 mod customers;
 mod definitions;

@@ -87,6 +87,7 @@ fn sign(
         }
     }
     insert(conn, id, &signature)?;
+    super::audit::append(conn, crate::store::audit::signed(id, &signature, state))?;
     rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
     rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
     Ok((Signed::Done(signature, sensor_id), true))

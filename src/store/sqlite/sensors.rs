@@ -9,6 +9,7 @@ use uuid::Uuid;
 use super::SqliteStore;
 use super::errors::map;
 use super::rows;
+use crate::domain::audit::Actor;
 use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{SensorQuery, SensorSummary, Sensors, StoreError};
@@ -82,18 +83,23 @@ impl Sensors for SqliteStore {
         &self,
         sensor_id: String,
         type_id: String,
+        by: Actor,
     ) -> Result<bool, StoreError> {
         self.follow_the_file()?;
         let id = sensor_id.clone();
         let out = self
-            .run("assign_sensor_type", move |conn| {
+            .write("assign_sensor_type", move |conn| {
                 let n = conn
                     .execute(
                         "UPDATE sensors SET sensor_type = ?2 WHERE sensor_id = ?1",
-                        [id, type_id],
+                        [&id, &type_id],
                     )
                     .map_err(map)?;
-                Ok(n == 1)
+                if n == 1 {
+                    let event = crate::store::audit::retyped(&id, &type_id, Timestamp::now(), by);
+                    super::audit::append(conn, event)?;
+                }
+                Ok((n == 1, true))
             })
             .await;
         self.cache.sensor_changed(&sensor_id);

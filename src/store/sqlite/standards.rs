@@ -4,6 +4,7 @@ use async_trait::async_trait;
 
 use super::SqliteStore;
 use super::definitions::{self, Table};
+use crate::domain::audit::Actor;
 use crate::domain::standards::Standard;
 use crate::store::{Standards, StoreError};
 
@@ -11,19 +12,16 @@ const STANDARDS: Table = Table {
     name: "standards",
     key: "standard_id",
     what: "a standard",
+    kind: "standard",
+    object: "standards/",
 };
 
 #[async_trait]
 impl Standards for SqliteStore {
-    async fn put_standard(&self, s: Standard) -> Result<bool, StoreError> {
-        self.run("put_standard", move |conn| {
-            definitions::put(
-                conn,
-                &STANDARDS,
-                &s.standard_id,
-                &s,
-                &s.updated_at.to_string(),
-            )
+    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError> {
+        self.write("put_standard", move |conn| {
+            let created = definitions::put(conn, &STANDARDS, &s.standard_id, &s, s.updated_at, by)?;
+            Ok((created, true))
         })
         .await
     }

@@ -5,17 +5,18 @@ use async_trait::async_trait;
 use rusqlite::params;
 use uuid::Uuid;
 
-use super::SqliteStore;
 use super::errors::map;
 use super::rows::{self, TOKEN_COLUMNS};
+use super::{SqliteStore, audit};
+use crate::domain::audit::Actor;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
 use crate::store::{StoreError, Tokens};
 
 #[async_trait]
 impl Tokens for SqliteStore {
-    async fn insert_token(&self, t: TokenRecord) -> Result<(), StoreError> {
-        self.run("insert_token", move |conn| {
+    async fn insert_token(&self, t: TokenRecord, by: Actor) -> Result<(), StoreError> {
+        self.write("insert_token", move |conn| {
             conn.execute(
                 &format!(
                     "INSERT INTO tokens ({TOKEN_COLUMNS}) VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8)"
@@ -32,7 +33,8 @@ impl Tokens for SqliteStore {
                 ],
             )
             .map_err(map)?;
-            Ok(())
+            audit::append(conn, crate::store::audit::token_created(&t, by))?;
+            Ok(((), true))
         })
         .await
     }
@@ -55,18 +57,21 @@ impl Tokens for SqliteStore {
         .await
     }
 
-    async fn revoke_token(&self, id: Uuid, at: Timestamp) -> Result<bool, StoreError> {
+    async fn revoke_token(&self, id: Uuid, at: Timestamp, by: Actor) -> Result<bool, StoreError> {
         self.follow_the_file()?;
         let this = self.clone();
         let revoke = async move {
-            this.run("revoke_token", move |conn| {
+            this.write("revoke_token", move |conn| {
                 let n = conn
                     .execute(
                         "UPDATE tokens SET revoked_at = ?2 WHERE id = ?1 AND revoked_at IS NULL",
                         params![id.to_string(), at.to_string()],
                     )
                     .map_err(map)?;
-                Ok(n == 1)
+                if n == 1 {
+                    audit::append(conn, crate::store::audit::token_revoked(id, at, by))?;
+                }
+                Ok((n == 1, true))
             })
             .await
         };

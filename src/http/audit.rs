@@ -1,0 +1,159 @@
+//! `GET /v1/audit`: the audit trail (issue 28 item 6), for reviewers and
+//! admins, filtered by object, actor and time, in sequence order.
+//!
+//! Each entry carries its `prev` and `hash` ([`crate::domain::audit`]), so
+//! that anyone can check a page against the documented canonical form;
+//! `accelcal audit verify` checks the whole chain in the database.
+
+use axum::Json;
+use axum::extract::State;
+use serde::{Deserialize, Serialize};
+use utoipa::{IntoParams, ToSchema};
+
+use super::AppState;
+use super::auth::require;
+use super::page::Page;
+use super::problem::Problem;
+use super::query::{Params, instant, limit};
+use crate::domain::audit::{Actor, Entry};
+use crate::domain::auth::{Principal, Role};
+use crate::domain::text::{Chars, check_str};
+use crate::domain::timestamp::Timestamp;
+use crate::store::AuditQuery;
+
+/// Longest `object` or `actor` filter, in characters.
+const MAX_FILTER_CHARS: usize = 200;
+
+/// One entry of the audit trail.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AuditEntry {
+    /// Its place in the chain, from 1, without gaps.
+    #[schema(minimum = 1)]
+    seq: i64,
+    /// When it happened.
+    at: Timestamp,
+    /// Who did it.
+    actor: Actor,
+    /// What was done: `calibration.submitted`, `calibration.approve`,
+    /// `calibration.reject`, `calibration.withdraw`, `calibration.supersede`,
+    /// `calibration.confirm`, `token.create`, `token.revoke`,
+    /// `sensor_type.put`, `sensor.retype`, `standard.put`, `customer.put`,
+    /// `item.put` or `service.configure`.
+    action: String,
+    /// What it was done to: `calibrations/{id}`, `tokens/{id}`,
+    /// `sensor-types/{id}`, `sensors/{id}`, `standards/{id}`,
+    /// `customers/{id}`, `items/{sensor_id}` or `service`.
+    object: String,
+    /// The change, as recorded.
+    #[schema(value_type = Object)]
+    change: serde_json::Value,
+    /// The previous entry's hash (64 zeros for the first).
+    prev: String,
+    /// SHA-256 (hex) of the entry's canonical form, which names `prev`.
+    hash: String,
+}
+
+impl From<Entry> for AuditEntry {
+    fn from(e: Entry) -> AuditEntry {
+        let change = serde_json::from_str(&e.change).unwrap_or(serde_json::Value::String(e.change));
+        AuditEntry {
+            seq: e.seq,
+            at: e.at,
+            actor: e.actor,
+            action: e.action,
+            object: e.object,
+            change,
+            prev: e.prev,
+            hash: e.hash,
+        }
+    }
+}
+
+/// The query of `GET /v1/audit`.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct AuditParams {
+    /// Only entries about this object, e.g. `calibrations/{id}`.
+    #[param(value_type = Option<String>, min_length = 1, max_length = 200)]
+    object: Option<String>,
+    /// Only entries by this token id or holder.
+    #[param(value_type = Option<String>, min_length = 1, max_length = 200)]
+    actor: Option<String>,
+    /// Only entries at or after this instant (RFC 3339).
+    #[param(value_type = Option<String>, format = DateTime)]
+    from: Option<String>,
+    /// Only entries at or before this instant (RFC 3339).
+    #[param(value_type = Option<String>, format = DateTime)]
+    to: Option<String>,
+    /// The `next` cursor of the previous page (the last sequence number it
+    /// held).
+    #[param(value_type = Option<String>, pattern = "^[0-9]{1,18}$")]
+    after: Option<String>,
+    /// Page size.
+    #[param(value_type = Option<u32>, minimum = 1, maximum = 500, default = 50)]
+    limit: Option<String>,
+}
+
+fn filter(name: &str, raw: Option<String>) -> Result<Option<String>, Problem> {
+    raw.map(|s| {
+        check_str(&s, MAX_FILTER_CHARS, Chars::Line)
+            .map(|()| s)
+            .map_err(|why| Problem::bad_parameter(name, why))
+    })
+    .transpose()
+}
+
+impl AuditParams {
+    fn store_query(self) -> Result<(AuditQuery, usize), Problem> {
+        let limit = limit(self.limit.as_deref())?;
+        let after = match self.after.as_deref() {
+            None => 0,
+            Some(a) => a.parse::<i64>().ok().filter(|n| *n >= 0).ok_or_else(|| {
+                Problem::bad_parameter("after", "must be a sequence number (0 or more)")
+            })?,
+        };
+        Ok((
+            AuditQuery {
+                object: filter("object", self.object)?,
+                actor: filter("actor", self.actor)?,
+                from: instant("from", self.from.as_deref())?,
+                to: instant("to", self.to.as_deref())?,
+                after,
+                limit: limit + 1,
+            },
+            limit,
+        ))
+    }
+}
+
+/// `GET /v1/audit`.
+#[utoipa::path(
+    get,
+    path = "/v1/audit",
+    tag = "audit",
+    operation_id = "listAudit",
+    summary = "The audit trail, in sequence order (reviewer or admin).",
+    params(AuditParams),
+    responses(
+        (status = 200, description = "One page.", body = super::openapi::AuditPageSchema),
+        (status = 400, response = super::openapi::BadRequest),
+        (status = 403, response = super::openapi::Forbidden),
+        super::openapi::Always,
+    )
+)]
+pub async fn list(
+    State(state): State<AppState>,
+    principal: Principal,
+    Params(q): Params<AuditParams>,
+) -> Result<Json<Page<AuditEntry>>, Problem> {
+    require(&principal, Role::Reviewer)?;
+    let (query, limit) = q.store_query()?;
+    let entries = state.store.audit(query).await?;
+    let entries = entries.into_iter().map(AuditEntry::from).collect();
+    Ok(Json(Page::from_overfetch(
+        entries,
+        limit,
+        |e: &AuditEntry| e.seq.to_string(),
+    )))
+}

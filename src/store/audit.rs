@@ -1,0 +1,267 @@
+//! What each stored act appends to the audit trail ([`crate::domain::audit`]),
+//! and how the trail is read: shared by both engines, which append the
+//! events below in the transaction of the act.
+
+use serde::Serialize;
+use serde_json::{Map, Value, json};
+use sha2::{Digest, Sha256};
+use uuid::Uuid;
+
+use super::{NewCalibration, StoreError};
+use crate::domain::audit::{self, Actor, Event};
+use crate::domain::review::{Signature, State};
+use crate::domain::timestamp::Timestamp;
+
+/// Which entries to read, in sequence order.
+#[derive(Debug, Clone, Default)]
+pub struct AuditQuery {
+    /// Only entries about this object (`calibrations/{id}`, `tokens/{id}`,
+    /// `sensors/{id}`, …).
+    pub object: Option<String>,
+    /// Only entries by this token id or holder.
+    pub actor: Option<String>,
+    /// Only entries at or after this instant.
+    pub from: Option<Timestamp>,
+    /// Only entries at or before this instant.
+    pub to: Option<Timestamp>,
+    /// Only entries after this sequence number (the page's cursor).
+    pub after: i64,
+    /// Page size.
+    pub limit: usize,
+}
+
+fn object(change: Value) -> Map<String, Value> {
+    match change {
+        Value::Object(m) => m,
+        other => Map::from_iter([("value".to_owned(), other)]),
+    }
+}
+
+fn sha256(bytes: &[u8]) -> String {
+    hex::encode(Sha256::digest(bytes))
+}
+
+/// `calibration.submitted`: a calibration stored, by the token that
+/// submitted it, at its reception; the change names its sensor and the
+/// SHA-256 of its submission and of its result document, so that the trail
+/// also vouches for the stored bytes.
+pub fn stored(n: &NewCalibration, by: Actor) -> Event {
+    Event::new(
+        n.received_at,
+        by,
+        "calibration.submitted",
+        audit::calibration(n.id),
+        object(json!({
+            "sensor_id": n.sensor_id,
+            "station_id": n.station_id,
+            "performed_at": n.performed_at.to_string(),
+            "submission_sha256": sha256(&n.submission),
+            "result_sha256": sha256(&n.result),
+        })),
+    )
+}
+
+/// `calibration.{approve, reject, withdraw, supersede, confirm}`: a
+/// signature, by its signer, from the state `from`.
+pub fn signed(id: Uuid, s: &Signature, from: State) -> Event {
+    Event::new(
+        s.signed_at,
+        Actor {
+            token_id: s.token_id.clone(),
+            role: s.role.as_str().into(),
+            holder: s.holder.clone(),
+        },
+        &format!("calibration.{}", s.action.as_str()),
+        audit::calibration(id),
+        object(json!({
+            "from": from.as_str(),
+            "to": s.state.as_str(),
+            "meaning": s.meaning,
+            "comment": s.comment,
+            "superseded_by": s.superseded_by,
+        })),
+    )
+}
+
+/// `{kind}.put`: a definition (sensor type, standard, customer, item)
+/// created or replaced, with the whole new definition.
+pub fn put<T: Serialize>(
+    kind: &str,
+    object_path: String,
+    created: bool,
+    definition: &T,
+    at: Timestamp,
+    by: Actor,
+) -> Event {
+    let definition = serde_json::to_value(definition).unwrap_or(Value::Null);
+    Event::new(
+        at,
+        by,
+        &format!("{kind}.put"),
+        object_path,
+        object(json!({ "created": created, "definition": definition })),
+    )
+}
+
+/// `sensor.retype`: a sensor given a type.
+pub fn retyped(sensor_id: &str, type_id: &str, at: Timestamp, by: Actor) -> Event {
+    Event::new(
+        at,
+        by,
+        "sensor.retype",
+        format!("sensors/{sensor_id}"),
+        object(json!({ "sensor_type": type_id })),
+    )
+}
+
+/// `token.create`: a token issued (never its secret or hash).
+pub fn token_created(t: &crate::domain::tokens::TokenRecord, by: Actor) -> Event {
+    Event::new(
+        t.created_at,
+        by,
+        "token.create",
+        format!("tokens/{}", t.id),
+        object(json!({
+            "role": t.role.as_str(),
+            "station_id": t.station_id,
+            "label": t.label,
+            "holder": t.holder,
+        })),
+    )
+}
+
+/// `token.revoke`: a token revoked.
+pub fn token_revoked(id: Uuid, at: Timestamp, by: Actor) -> Event {
+    Event::new(at, by, "token.revoke", format!("tokens/{id}"), Map::new())
+}
+
+/// `service.configure`: the settings that change decisions, as the service
+/// started with them (appended when they differ from the last recorded).
+pub fn configured(settings: Map<String, Value>, at: Timestamp) -> Event {
+    Event::new(
+        at,
+        Actor::service(),
+        "service.configure",
+        "service".into(),
+        settings,
+    )
+}
+
+/// The actor of a submission: its token with role and holder from the
+/// tokens table (`role`, `holder` as read there; `None` when the token is
+/// not there — the configured admin token, or a database copied without
+/// it).
+pub fn submitter(token_id: &str, found: Option<(String, Option<String>)>) -> Actor {
+    match found {
+        Some((role, holder)) => Actor {
+            token_id: token_id.to_owned(),
+            role,
+            holder,
+        },
+        None if token_id == crate::domain::auth::ENV_ADMIN => Actor {
+            token_id: token_id.to_owned(),
+            role: "admin".into(),
+            holder: None,
+        },
+        None => Actor {
+            token_id: token_id.to_owned(),
+            role: "unknown".into(),
+            holder: None,
+        },
+    }
+}
+
+/// What [`verify`] found in an intact trail.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
+pub struct Verified {
+    /// Entries checked.
+    pub entries: i64,
+    /// The last entry's sequence number (0 for an empty trail).
+    pub head_seq: i64,
+    /// The last entry's hash: what to keep elsewhere, so that a trail cut
+    /// short can be told from this one.
+    pub head_hash: String,
+    /// Calibrations whose stored submission and result were checked
+    /// against the SHA-256 their `calibration.submitted` entry recorded.
+    pub calibrations: i64,
+}
+
+/// Why [`verify`] failed: the chain broken, or a calibration's stored bytes
+/// no longer those its entry vouched for.
+#[derive(Debug, thiserror::Error)]
+pub enum VerifyError {
+    /// The database could not be read.
+    #[error(transparent)]
+    Store(#[from] StoreError),
+    /// The chain does not hold at an entry.
+    #[error(transparent)]
+    Broken(#[from] audit::Broken),
+}
+
+/// Entries read per round trip by [`verify`].
+const VERIFY_PAGE: usize = 1000;
+
+/// Recomputes the whole chain of `store`'s trail, in sequence order
+/// ([`audit::Chain`]), and checks each `calibration.submitted` entry's
+/// SHA-256 of the submission and result against the bytes stored now.
+pub async fn verify(store: &dyn super::Store) -> Result<Verified, VerifyError> {
+    let mut chain = audit::Chain::default();
+    let mut calibrations = 0;
+    loop {
+        let page = store
+            .audit(AuditQuery {
+                after: chain.head.0,
+                limit: VERIFY_PAGE,
+                ..AuditQuery::default()
+            })
+            .await?;
+        if page.is_empty() {
+            break;
+        }
+        for e in &page {
+            chain.check(e)?;
+            if e.action == "calibration.submitted" {
+                check_stored(store, e).await?;
+                calibrations += 1;
+            }
+        }
+    }
+    Ok(Verified {
+        entries: chain.head.0,
+        head_seq: chain.head.0,
+        head_hash: chain.head.1,
+        calibrations,
+    })
+}
+
+/// Checks the calibration of a `calibration.submitted` entry against the
+/// digests it recorded.
+async fn check_stored(store: &dyn super::Store, e: &audit::Entry) -> Result<(), VerifyError> {
+    let broken = |why: String| audit::Broken { seq: e.seq, why };
+    let id = e
+        .object
+        .strip_prefix("calibrations/")
+        .and_then(|id| Uuid::try_parse(id).ok())
+        .ok_or_else(|| broken(format!("its object {} is not a calibration", e.object)))?;
+    let change: Value =
+        serde_json::from_str(&e.change).map_err(|_| broken("its change is not JSON".into()))?;
+    let recorded = |field: &str| change.get(field).and_then(Value::as_str).map(str::to_owned);
+    let submission = store.submission(id).await?;
+    let result = store.calibration_result(id).await?;
+    let (Some(submission), Some(result)) = (submission, result) else {
+        return Err(broken(format!("calibration {id} is no longer stored (deleted)")).into());
+    };
+    if recorded("submission_sha256") != Some(sha256(&submission.body)) {
+        return Err(broken(format!(
+            "calibration {id}'s stored submission is not the one recorded (edited)"
+        ))
+        .into());
+    }
+    if recorded("result_sha256") != Some(sha256(&result)) {
+        return Err(broken(format!(
+            "calibration {id}'s stored result is not the one recorded (edited)"
+        ))
+        .into());
+    }
+    Ok(())
+}
