@@ -87,6 +87,9 @@ async fn the_trail_records_who_did_what(#[values(Sqlite, Postgres)] engine: Engi
     for token in [&reader, &station] {
         problem(app.get("/v1/audit", token).await, StatusCode::FORBIDDEN).await;
     }
+    // A filter that names nothing finds nothing (control characters too).
+    let none = app.get_json("/v1/audit?actor=%0C%C3%85", ADMIN).await;
+    assert_eq!(none["items"], json!([]));
     // Bad parameters are named.
     for (query, param) in [
         ("limit=0", "limit"),
