@@ -16,6 +16,7 @@ pub mod field;
 pub mod fuse;
 pub mod limits;
 pub mod metrology;
+pub mod nonconformity;
 pub mod review;
 pub mod schema;
 pub mod sensor_types;

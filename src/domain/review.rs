@@ -11,6 +11,9 @@
 //!  │  │ reject             │ supersede
 //!  │  └──────▶ rejected    └─────────────▶ superseded
 //!  └── withdraw ▶ withdrawn, supersede ▶ superseded
+//!
+//! submitted, approved ──hold──▶ under_review ──approve──▶ approved
+//!                                    └── withdraw, supersede as above
 //! ```
 //!
 //! * `approve` and `reject` are a reviewer's decision on a `submitted`
@@ -26,6 +29,10 @@
 //!   correcting its own upload before anyone relied on it);
 //! * `confirm` records that the stored submission, computed again with the
 //!   current method, gave every number the same; it keeps the state;
+//! * `hold` (an admin's, for a nonconformity of a reference standard the
+//!   calibration was made with) puts it `under_review`: it still counts,
+//!   but its coefficients are not usable until a reviewer approves it again
+//!   (not the one who submitted it) or withdraws or supersedes it;
 //! * `rejected`, `withdrawn` and `superseded` are final.
 //!
 //! Which calibrations a reader uses is the [`Basis`]: every calibration not
@@ -166,6 +173,11 @@ pub enum State {
     Withdrawn,
     /// Replaced by a corrected calibration: kept, and no longer counts.
     Superseded,
+    /// Made with a reference standard later found nonconforming: it counts
+    /// as before, but its coefficients are not usable until a reviewer
+    /// approves it again or withdraws it (issue 29, reverse trace).
+    #[serde(rename = "under_review")]
+    UnderReview,
 }
 
 impl State {
@@ -177,6 +189,7 @@ impl State {
             State::Rejected => "rejected",
             State::Withdrawn => "withdrawn",
             State::Superseded => "superseded",
+            State::UnderReview => "under_review",
         }
     }
 
@@ -188,6 +201,7 @@ impl State {
             State::Rejected,
             State::Withdrawn,
             State::Superseded,
+            State::UnderReview,
         ]
         .into_iter()
         .find(|x| x.as_str() == s)
@@ -196,7 +210,10 @@ impl State {
     /// Whether a calibration in this state is used on `basis`.
     pub fn counts(self, basis: Basis) -> bool {
         match basis {
-            Basis::NotRejected => matches!(self, State::Submitted | State::Approved),
+            Basis::NotRejected => matches!(
+                self,
+                State::Submitted | State::Approved | State::UnderReview
+            ),
             Basis::ApprovedOnly => self == State::Approved,
         }
     }
@@ -217,6 +234,9 @@ pub enum Action {
     /// Its submission, computed again with the current method, gave every
     /// number the same (the state is kept).
     Confirm,
+    /// An admin places it under review: a reference standard it was made
+    /// with was found nonconforming (`POST /v1/standards/{id}/nonconformity`).
+    Hold,
 }
 
 impl Action {
@@ -228,6 +248,7 @@ impl Action {
             Action::Withdraw => "withdraw",
             Action::Supersede => "supersede",
             Action::Confirm => "confirm",
+            Action::Hold => "hold",
         }
     }
 
@@ -239,6 +260,7 @@ impl Action {
             Action::Withdraw,
             Action::Supersede,
             Action::Confirm,
+            Action::Hold,
         ]
         .into_iter()
         .find(|a| a.as_str() == s)
@@ -252,6 +274,7 @@ impl Action {
             Action::Withdraw => State::Withdrawn,
             Action::Supersede => State::Superseded,
             Action::Confirm => state,
+            Action::Hold => State::UnderReview,
         }
     }
 
@@ -267,6 +290,9 @@ impl Action {
             }
             Action::Confirm => {
                 "Confirmed: computed again from the stored submission with the current method, every number the same"
+            }
+            Action::Hold => {
+                "Placed under review: a reference standard it was made with was found nonconforming; its results are not to be used until approved again or withdrawn"
             }
         }
     }
@@ -424,17 +450,33 @@ impl Act {
         let own_correction = self.action == Action::Supersede
             && self.signer.id == submitter.token_id
             && self.at <= submitter.received_at.plus_seconds(SUPERSEDE_WINDOW_SECONDS);
-        if self.signer.role < Role::Reviewer && !own_correction {
+        let needs = if self.action == Action::Hold {
+            Role::Admin
+        } else {
+            Role::Reviewer
+        };
+        if self.signer.role < needs && !own_correction {
             return Err(Refusal::Role {
                 role: self.signer.role,
                 verb,
             });
         }
         let (allowed, from) = match self.action {
-            Action::Approve | Action::Reject => (state == State::Submitted, "submitted"),
-            Action::Withdraw | Action::Supersede | Action::Confirm => (
+            Action::Approve => (
+                matches!(state, State::Submitted | State::UnderReview),
+                "submitted or under-review",
+            ),
+            Action::Reject => (state == State::Submitted, "submitted"),
+            Action::Hold => (
                 matches!(state, State::Submitted | State::Approved),
                 "submitted or approved",
+            ),
+            Action::Withdraw | Action::Supersede | Action::Confirm => (
+                matches!(
+                    state,
+                    State::Submitted | State::Approved | State::UnderReview
+                ),
+                "submitted, approved or under-review",
             ),
         };
         if !allowed {
@@ -442,6 +484,7 @@ impl Act {
                 state,
                 target_past: match self.action {
                     Action::Confirm => "confirmed",
+                    Action::Hold => "placed under review",
                     other => other.target(state).as_str(),
                 },
                 from,
@@ -515,15 +558,25 @@ mod tests {
             State::Rejected,
             State::Withdrawn,
             State::Superseded,
+            State::UnderReview,
         ];
+        // Columns: submitted, approved, rejected, withdrawn, superseded,
+        // under review.
         let expected = [
             (
                 Action::Approve,
-                [Some(State::Approved), None, None, None, None],
+                [
+                    Some(State::Approved),
+                    None,
+                    None,
+                    None,
+                    None,
+                    Some(State::Approved),
+                ],
             ),
             (
                 Action::Reject,
-                [Some(State::Rejected), None, None, None, None],
+                [Some(State::Rejected), None, None, None, None, None],
             ),
             (
                 Action::Withdraw,
@@ -533,6 +586,7 @@ mod tests {
                     None,
                     None,
                     None,
+                    Some(State::Withdrawn),
                 ],
             ),
             (
@@ -543,12 +597,33 @@ mod tests {
                     None,
                     None,
                     None,
+                    Some(State::Superseded),
+                ],
+            ),
+            (
+                Action::Hold,
+                [
+                    Some(State::UnderReview),
+                    Some(State::UnderReview),
+                    None,
+                    None,
+                    None,
+                    None,
                 ],
             ),
         ];
+        let admin = principal("a", Role::Admin, Some("R. Eviewer"));
         for (action, targets) in expected {
+            // A hold is an admin's act; a reviewer's is refused for the role.
+            let signer = if action == Action::Hold {
+                let refused = act(action, reviewer.clone()).check(State::Submitted, &submitter, 3);
+                assert!(matches!(refused, Err(Refusal::Role { .. })), "{refused:?}");
+                admin.clone()
+            } else {
+                reviewer.clone()
+            };
             for (state, target) in states.iter().zip(targets) {
-                let out = act(action, reviewer.clone()).check(*state, &submitter, 3);
+                let out = act(action, signer.clone()).check(*state, &submitter, 3);
                 match target {
                     Some(t) => {
                         let s = out.unwrap();

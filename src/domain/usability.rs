@@ -35,6 +35,9 @@ pub enum Reason {
     /// The calibration is not approved, and only approved ones are used
     /// (`--require-approval`).
     NotApproved,
+    /// The calibration is under review: a reference standard it was made
+    /// with was found nonconforming.
+    UnderReview,
 }
 
 /// One reason, with what it means for this calibration.
@@ -85,12 +88,16 @@ impl Usability {
     }
 
     /// The same, for a calibration in `state` when `basis` decides which
-    /// are used: one that does not count on it is not usable either.
+    /// are used: one that does not count on it is not usable either, nor is
+    /// one under review.
     pub fn in_state(mut self, state: State, basis: Basis) -> Self {
-        if state.counts(basis) {
-            return self;
-        }
         let (reason, detail) = match state {
+            State::UnderReview => (
+                Reason::UnderReview,
+                "its calibration is under review: a reference standard it was made with was \
+                 found nonconforming",
+            ),
+            _ if state.counts(basis) => return self,
             State::Withdrawn => (Reason::Withdrawn, "its calibration was withdrawn"),
             State::Rejected => (Reason::Rejected, "its calibration was rejected in review"),
             State::Superseded => (

@@ -20,7 +20,7 @@ use super::rendered::{APPLICATION_JSON, ById};
 use super::sensors::{latest_id, sensor};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{CompensateRequest, Compensated};
-use crate::domain::review::Basis;
+use crate::domain::review::{Basis, State as ReviewState};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::usability::Usability;
@@ -70,7 +70,8 @@ impl Coefficients {
             performed_at: summary.performed_at,
             verdict: summary.verdict,
             due_at: summary.due_at,
-            usability: Usability::of(summary.verdict, summary.due_at, now),
+            usability: Usability::of(summary.verdict, summary.due_at, now)
+                .in_state(summary.state, basis),
             unit: summary.unit,
             model: summary.model,
             coefficients: summary.coefficients,
@@ -174,25 +175,29 @@ pub async fn coefficients(
     if state.web.basis == Basis::ApprovedOnly {
         let latest = latest_approved(&state, &sensor_id).await?;
         if usable {
-            refuse_unusable(&latest, &Usability::of(latest.verdict, latest.due_at, now))?;
+            let usability = Usability::of(latest.verdict, latest.due_at, now)
+                .in_state(latest.state, state.web.basis);
+            refuse_unusable(&latest, &usability)?;
         }
         let body = state.rendered.get_or_render(latest, now, state.web.basis)?;
         return Ok(([(header::CONTENT_TYPE, APPLICATION_JSON.clone())], body).into_response());
     }
     // Which calibration is the latest, then its rendering if kept and still
     // right; the summary itself is read only to render, or to refuse.
-    let id = latest_id(&state, &sensor_id).await?;
+    let (id, latest_state) = latest_id(&state, &sensor_id).await?;
     let kept = if usable {
         None
     } else {
-        state.rendered.get(&id, now)
+        state.rendered.get(id, latest_state, now)
     };
     let body = match kept {
         Some(body) => body,
         None => {
             let latest = sensor(&state, &sensor_id).await?.latest;
             if usable {
-                refuse_unusable(&latest, &Usability::of(latest.verdict, latest.due_at, now))?;
+                let usability = Usability::of(latest.verdict, latest.due_at, now)
+                    .in_state(latest.state, state.web.basis);
+                refuse_unusable(&latest, &usability)?;
             }
             state.rendered.get_or_render(latest, now, state.web.basis)?
         }
@@ -203,7 +208,7 @@ pub async fn coefficients(
 /// The answers of `GET /v1/sensors/{sensor_id}/coefficients`, rendered once
 /// per calibration ([`super::rendered`]).
 #[derive(Debug)]
-pub struct Rendered(ById);
+pub struct Rendered(ById<(Uuid, ReviewState)>);
 
 /// Calibrations whose coefficients are kept rendered (each a few hundred
 /// bytes).
@@ -216,10 +221,11 @@ impl Default for Rendered {
 }
 
 impl Rendered {
-    /// The kept rendering of calibration `id`, if any and still right at
-    /// `now` (its status changes 30 days before the due date and at it).
-    pub fn get(&self, id: &Uuid, now: Timestamp) -> Option<Bytes> {
-        self.0.get_at(id, now)
+    /// The kept rendering of calibration `id` in `state`, if any and still
+    /// right at `now` (its status changes 30 days before the due date and
+    /// at it; its usability with its state).
+    pub fn get(&self, id: Uuid, state: ReviewState, now: Timestamp) -> Option<Bytes> {
+        self.0.get_at(&(id, state), now)
     }
 
     /// The rendered [`Coefficients`] of `latest` at `now` on `basis` (the
@@ -231,8 +237,8 @@ impl Rendered {
         now: Timestamp,
         basis: Basis,
     ) -> Result<Bytes, Problem> {
-        let id = latest.id;
-        if let Some(body) = self.0.get_at(&id, now) {
+        let key = (latest.id, latest.state);
+        if let Some(body) = self.0.get_at(&key, now) {
             return Ok(body);
         }
         let until = Usability::valid_until(latest.due_at, now);
@@ -242,7 +248,7 @@ impl Rendered {
                 Problem::internal()
             })?,
         );
-        self.0.insert_until(id, body.clone(), until);
+        self.0.insert_until(key, body.clone(), until);
         Ok(body)
     }
 
@@ -406,19 +412,31 @@ mod tests {
         };
         assert_eq!(read("2026-05-01T00:00:00Z"), ("ok".into(), true));
         assert!(
-            r.get(&Uuid::from_u128(7), at("2026-06-01T00:00:00Z"))
-                .is_some()
+            r.get(
+                Uuid::from_u128(7),
+                ReviewState::Submitted,
+                at("2026-06-01T00:00:00Z")
+            )
+            .is_some()
         );
         assert!(
-            r.get(&Uuid::from_u128(7), at("2026-06-01T00:00:01Z"))
-                .is_none()
+            r.get(
+                Uuid::from_u128(7),
+                ReviewState::Submitted,
+                at("2026-06-01T00:00:01Z")
+            )
+            .is_none()
         );
         assert_eq!(read("2026-06-15T00:00:00Z"), ("due_soon".into(), true));
         assert_eq!(read("2026-07-02T00:00:00Z"), ("overdue".into(), false));
         // Overdue stays overdue: kept for ever.
         assert!(
-            r.get(&Uuid::from_u128(7), at("2030-01-01T00:00:00Z"))
-                .is_some()
+            r.get(
+                Uuid::from_u128(7),
+                ReviewState::Submitted,
+                at("2030-01-01T00:00:00Z")
+            )
+            .is_some()
         );
     }
 
@@ -432,6 +450,26 @@ mod tests {
         assert_eq!(r.len(), RENDERED);
         // The newest is among them.
         let newest = Uuid::from_u128(RENDERED as u128 + 9);
-        assert!(r.0.contains(&newest));
+        assert!(r.0.contains(&(newest, ReviewState::Submitted)));
+    }
+
+    /// A calibration put under review renders anew (its key is its id and
+    /// state): not usable, with the reason, while the rendering of its
+    /// earlier state is not served for it.
+    #[test]
+    fn a_held_calibration_is_rendered_unusable() {
+        let r = Rendered::default();
+        let now = Timestamp::parse("2026-05-01T00:00:00Z").unwrap();
+        let s = latest(7, 1e-3);
+        r.get_or_render(s.clone(), now, Basis::NotRejected).unwrap();
+        assert!(r.get(s.id, ReviewState::UnderReview, now).is_none());
+        let held = CalibrationSummary {
+            state: ReviewState::UnderReview,
+            ..s
+        };
+        let body = r.get_or_render(held, now, Basis::NotRejected).unwrap();
+        let v: serde_json::Value = serde_json::from_slice(&body).unwrap();
+        assert_eq!(v["usable"], false);
+        assert_eq!(v["reasons"][0]["reason"], "under_review");
     }
 }

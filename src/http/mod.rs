@@ -309,6 +309,8 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(customers::get_item, customers::put_item))
         .routes(routes!(standards::list))
         .routes(routes!(standards::get, standards::put))
+        .routes(routes!(standards::nonconformity))
+        .routes(routes!(standards::affected))
         .routes(routes!(compute::identify))
         .routes(routes!(compute::fuse))
         .routes(routes!(tokens::create, tokens::list))

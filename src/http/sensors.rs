@@ -45,8 +45,11 @@ pub(crate) async fn sensor(state: &AppState, sensor_id: &str) -> Result<SensorSu
         .ok_or_else(|| unknown_sensor(sensor_id))
 }
 
-/// The id of a sensor's latest calibration, or 404.
-pub(crate) async fn latest_id(state: &AppState, sensor_id: &str) -> Result<Uuid, Problem> {
+/// The id and state of a sensor's latest calibration, or 404.
+pub(crate) async fn latest_id(
+    state: &AppState,
+    sensor_id: &str,
+) -> Result<(Uuid, crate::domain::review::State), Problem> {
     if check_str(sensor_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
         return Err(unknown_sensor(sensor_id));
     }

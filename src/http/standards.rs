@@ -1,4 +1,5 @@
-//! Reference standards: `PUT` (admin), and reading them (issue 29).
+//! Reference standards: `PUT` (admin), reading them, and their
+//! nonconformities with the calibrations they concern (issue 29).
 
 use axum::Json;
 use axum::extract::{Path, State};
@@ -13,6 +14,8 @@ use super::problem::Problem;
 use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
+use crate::domain::nonconformity::{NonconformityBody, Traced};
+use crate::domain::review::{Act, Action};
 use crate::domain::standards::{Standard, StandardBody};
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
@@ -131,4 +134,127 @@ pub async fn get(
         .await?
         .map(Json)
         .ok_or_else(|| unknown_standard(&standard_id))
+}
+
+/// A standard's nonconformities and the calibrations each concerns.
+#[derive(Debug, Serialize, ToSchema)]
+pub struct AffectedList {
+    /// The standard.
+    standard_id: String,
+    /// Its nonconformities, oldest `found_at` first.
+    nonconformities: Vec<Traced>,
+}
+
+/// The standard `standard_id`, or 404.
+async fn known(state: &AppState, standard_id: &str) -> Result<Standard, Problem> {
+    if check_str(standard_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
+        return Err(unknown_standard(standard_id));
+    }
+    state
+        .store
+        .standard(standard_id.to_owned())
+        .await?
+        .ok_or_else(|| unknown_standard(standard_id))
+}
+
+/// `POST /v1/standards/{standard_id}/nonconformity` (admin): the standard
+/// was found nonconforming; every calibration made with it in the affected
+/// window that counts is placed under review (a `hold` signature), and its
+/// coefficients stop being usable until a reviewer approves it again or
+/// withdraws it (reverse trace, issue 29 item 3).
+#[utoipa::path(
+    post,
+    path = "/v1/standards/{standard_id}/nonconformity",
+    tag = "standards",
+    operation_id = "recordNonconformity",
+    summary = "Record that a standard was found nonconforming, and hold what it spoiled (admin).",
+    params(("standard_id" = crate::domain::schema::Identifier, Path, description = "The standard's id.")),
+    request_body(content((NonconformityBody = "application/json",
+        example = json!({"found_at": "2026-11-20T09:00:00Z",
+            "reason": "Indexing error of 9″ found at the 90° stop in the annual check."})))),
+    responses(
+        (status = 201, description = "Recorded; the calibrations of the window, each with what became of it.", body = Traced),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 404, response = super::openapi::NotFound),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn nonconformity(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(standard_id): Path<String>,
+    body: Body,
+) -> Result<(StatusCode, Json<Traced>), Problem> {
+    require(&principal, Role::Admin)?;
+    let standard = known(&state, &standard_id).await?;
+    let now = Timestamp::now();
+    let nc = body.json::<NonconformityBody>()?.check(
+        uuid::Uuid::now_v7(),
+        &standard,
+        now,
+        Actor::from(&principal),
+    )?;
+    let made = state
+        .store
+        .made_with(standard_id.clone(), nc.window_from, nc.found_at)
+        .await?;
+    let hold = Act {
+        action: Action::Hold,
+        signer: principal.clone(),
+        at: now,
+        comment: Some(format!(
+            "standard {standard_id} found nonconforming {}: {}",
+            nc.found_at, nc.reason
+        )),
+        superseded_by: None,
+    };
+    let calibrations = state.store.hold(nc.clone(), made, hold).await?;
+    let held = calibrations
+        .iter()
+        .filter(|c| c.outcome == crate::domain::nonconformity::Outcome::UnderReview)
+        .count();
+    metrics::counter!("accelcal_reviews_total", "action" => "hold").increment(held as u64);
+    tracing::warn!(
+        standard = %standard_id, nonconformity = %nc.id, held,
+        by = %principal.id, "standard found nonconforming"
+    );
+    Ok((
+        StatusCode::CREATED,
+        Json(Traced {
+            nonconformity: nc,
+            calibrations,
+        }),
+    ))
+}
+
+/// `GET /v1/standards/{standard_id}/affected`: every nonconformity of the
+/// standard, each with the calibrations of its window, their sensors, and
+/// what became of each (still under review, approved again, withdrawn,
+/// superseded, or left as it was).
+#[utoipa::path(
+    get,
+    path = "/v1/standards/{standard_id}/affected",
+    tag = "standards",
+    operation_id = "listAffected",
+    summary = "The calibrations a standard's nonconformities concern.",
+    params(("standard_id" = crate::domain::schema::Identifier, Path, description = "The standard's id.")),
+    responses(
+        (status = 200, description = "Its nonconformities, oldest first.", body = AffectedList),
+        (status = 404, response = super::openapi::NotFound),
+        super::openapi::Always,
+    )
+)]
+pub async fn affected(
+    State(state): State<AppState>,
+    principal: Principal,
+    Path(standard_id): Path<String>,
+) -> Result<Json<AffectedList>, Problem> {
+    require(&principal, Role::Reader)?;
+    known(&state, &standard_id).await?;
+    let nonconformities = state.store.nonconformities(standard_id.clone()).await?;
+    Ok(Json(AffectedList {
+        standard_id,
+        nonconformities,
+    }))
 }

@@ -265,3 +265,25 @@ async fn check_stored(store: &dyn super::Store, e: &audit::Entry) -> Result<(), 
     }
     Ok(())
 }
+
+/// `standard.nonconformity`: a standard found nonconforming, with its
+/// window and how many calibrations it holds.
+pub fn nonconformity(
+    nc: &crate::domain::nonconformity::Nonconformity,
+    calibrations: usize,
+) -> Event {
+    Event::new(
+        nc.recorded_at,
+        nc.recorded_by.clone(),
+        "standard.nonconformity",
+        format!("standards/{}", nc.standard_id),
+        object(json!({
+            "nonconformity_id": nc.id,
+            "found_at": nc.found_at.to_string(),
+            "last_known_good_at": nc.last_known_good_at.map(|t| t.to_string()),
+            "window_from": nc.window_from.to_string(),
+            "reason": nc.reason,
+            "calibrations": calibrations,
+        })),
+    )
+}

@@ -4,7 +4,8 @@
 //! Everything a running service needs comes across: every sensor type,
 //! standard, customer and item, every token (its hash; revoked ones stay revoked), every calibration with its
 //! result and submission byte for byte and its signatures (replayed in order,
-//! through the same checks), the sensors' assigned types, and the
+//! through the same checks), every nonconformity of a standard with the
+//! calibrations of its window, the sensors' assigned types, and the
 //! completed idempotency keys still within their retention (so a station's
 //! retry after the move is still answered with its calibration). Sensor
 //! summaries are rebuilt by the same inserts that built them. Web sessions
@@ -52,6 +53,9 @@ pub struct Copied {
     pub calibrations: usize,
     /// Signatures on them (approvals, rejections, withdrawals).
     pub signatures: usize,
+    /// Nonconformities of standards, with the calibrations of their
+    /// windows.
+    pub nonconformities: usize,
     /// Sensors given their assigned type.
     pub typed_sensors: usize,
     /// Completed idempotency keys.
@@ -218,6 +222,32 @@ pub async fn copy(
                 copied.calibrations += 1;
             }
             copied.signatures += copy_signatures(from, to, id).await?;
+        }
+    }
+    for standard in from.standards().await? {
+        let there = to.nonconformities(standard.standard_id.clone()).await?;
+        for t in from.nonconformities(standard.standard_id.clone()).await? {
+            let id = t.nonconformity.id;
+            let existing = there.iter().find(|x| x.nonconformity.id == id);
+            // What became of its calibrations is theirs (their signatures,
+            // copied above); the record is what it was when recorded.
+            let record = |x: &crate::domain::nonconformity::Traced| {
+                let found: Vec<_> = x
+                    .calibrations
+                    .iter()
+                    .map(|c| (c.calibration_id, c.state_found))
+                    .collect();
+                (x.nonconformity.clone(), found)
+            };
+            if let Some(x) = existing {
+                if record(x) != record(&t) {
+                    return Err(CopyError::Conflict(format!("nonconformity `{id}`")));
+                }
+                copied.already_there += 1;
+                continue;
+            }
+            to.put_nonconformity(t).await?;
+            copied.nonconformities += 1;
         }
     }
     let mut after = None;

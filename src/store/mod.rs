@@ -31,6 +31,7 @@ pub use records::*;
 
 use crate::domain::audit::{Actor, Entry};
 use crate::domain::customers::{Customer, Item};
+use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
 use crate::domain::review::{Act, Basis, Signature, State};
 use crate::domain::sensor_types::SensorType;
 use crate::domain::session::SessionRecord;
@@ -215,6 +216,31 @@ pub trait Reviews: Send + Sync + 'static {
     ) -> Result<Signed, StoreError>;
     /// A calibration's signatures, in order (none for an unknown one).
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError>;
+    /// The calibrations performed with standard `standard_id` within
+    /// `from..=to`, oldest first.
+    async fn made_with(
+        &self,
+        standard_id: String,
+        from: Timestamp,
+        to: Timestamp,
+    ) -> Result<Vec<MadeWith>, StoreError>;
+    /// Records the nonconformity `nc` and, in the same transaction, `hold`s
+    /// each of `made` (read by [`Reviews::made_with`]) that counts
+    /// (`act` signed for each: an admin's `hold`); the others are listed
+    /// and left. Answers each calibration with its state then and now.
+    async fn hold(
+        &self,
+        nc: Nonconformity,
+        made: Vec<MadeWith>,
+        act: Act,
+    ) -> Result<Vec<Affected>, StoreError>;
+    /// Stores a nonconformity as another database recorded it, with the
+    /// calibrations of its window and their states then, holding nothing
+    /// (`accelcal migrate`: the holds come across as signatures).
+    async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError>;
+    /// A standard's nonconformities, oldest `found_at` first, each with its
+    /// calibrations as they stand now.
+    async fn nonconformities(&self, standard_id: String) -> Result<Vec<Traced>, StoreError>;
 }
 
 /// Sensors: each one's summary with its latest calibration, and its type.
@@ -228,9 +254,12 @@ pub trait Sensors: Send + Sync + 'static {
         sensor_id: String,
         now: Timestamp,
     ) -> Result<Option<SensorSummary>, StoreError>;
-    /// The id of a sensor's latest calibration (the one [`Sensors::sensor`]
-    /// reports), `None` for an unknown sensor.
-    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError>;
+    /// The id and state of a sensor's latest calibration (the one
+    /// [`Sensors::sensor`] reports), `None` for an unknown sensor.
+    async fn latest_calibration_id(
+        &self,
+        sensor_id: String,
+    ) -> Result<Option<(Uuid, State)>, StoreError>;
     /// Assigns an existing type to an existing sensor; false when there is
     /// no such sensor.
     async fn assign_sensor_type(

@@ -230,7 +230,10 @@ macro_rules! state_sql {
 /// the rule for every engine's query.
 pub fn counts(basis: Basis) -> &'static str {
     match basis {
-        Basis::NotRejected => concat!(state_sql!(), " IN ('submitted', 'approved')"),
+        Basis::NotRejected => concat!(
+            state_sql!(),
+            " IN ('submitted', 'approved', 'under_review')"
+        ),
         Basis::ApprovedOnly => concat!(state_sql!(), " = 'approved'"),
     }
 }
@@ -273,6 +276,35 @@ pub fn sensor_recompute(p: &str) -> String {
 /// serves, though its calibrations stay, each with its state.
 pub fn sensor_forget(p: &str) -> String {
     format!("DELETE FROM sensors WHERE sensor_id = {p} AND calibration_count = 0")
+}
+
+/// A calibration made with a reference standard: what a nonconformity's
+/// window holds ([`crate::domain::nonconformity`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MadeWith {
+    /// The calibration.
+    pub calibration_id: Uuid,
+    /// Its sensor.
+    pub sensor_id: String,
+    /// When it was performed.
+    pub performed_at: Timestamp,
+    /// Its state when read.
+    pub state: State,
+}
+
+/// The calibrations performed with the standard `$1` within `$2..=$3`
+/// (`?1`… in SQLite), oldest first, with their states: the one query of
+/// both engines but for how each reads a result's `standards` array
+/// (`standards`: a condition on `c.result` naming the standard `$1`).
+pub fn made_with_sql(standards: &str, p: [&str; 3]) -> String {
+    format!(
+        "SELECT c.id, c.sensor_id, c.performed_at, {} AS state FROM calibrations c \
+         WHERE c.performed_at >= {} AND c.performed_at <= {} AND {standards} \
+         ORDER BY c.performed_at, c.id",
+        state_sql!(),
+        p[1],
+        p[2],
+    )
 }
 
 /// What recording a signed act came to.

@@ -24,5 +24,6 @@ mod review;
 mod round_three;
 mod standards;
 mod storage;
+mod trace;
 mod traceability;
 mod ui;

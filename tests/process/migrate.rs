@@ -172,6 +172,15 @@ async fn a_migrated_database_answers_every_get_identically() {
                 .unwrap();
             assert_eq!(r.status(), StatusCode::OK);
         }
+        // A nonconformity of the stand comes across with its record.
+        let r = c
+            .post(format!("{}/v1/standards/STAND-1/nonconformity", s.base))
+            .bearer_auth(ADMIN)
+            .json(&json!({"found_at": "2026-11-01T00:00:00Z", "reason": "Found 9″ off."}))
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), StatusCode::CREATED);
         let tokens: Value = call(
             &c,
             reqwest::Method::GET,
@@ -203,7 +212,7 @@ async fn a_migrated_database_answers_every_get_identically() {
     let copied = migrated(&from, &pg.url);
     assert_eq!(
         copied,
-        json!({"sensor_types": 1, "standards": 1, "customers": 1, "items": 1, "tokens": 3, "calibrations": 3, "signatures": 2, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
+        json!({"sensor_types": 1, "standards": 1, "customers": 1, "items": 1, "tokens": 3, "calibrations": 3, "signatures": 2, "nonconformities": 1, "typed_sensors": 2, "idempotency_keys": 1, "already_there": 0})
     );
     let again = migrate(&from, &pg.url);
     assert_eq!(again.status.code(), Some(1));
@@ -228,6 +237,7 @@ async fn a_migrated_database_answers_every_get_identically() {
         "/v1/sensor-types/NAV",
         "/v1/standards",
         "/v1/standards/STAND-1",
+        "/v1/standards/STAND-1/affected",
         "/v1/customers",
         "/v1/sensors/PAPER-2005/item",
         "/v1/tokens",
@@ -252,7 +262,7 @@ async fn a_migrated_database_answers_every_get_identically() {
             paths.push(format!("/v1/calibrations/{cid}/signatures"));
         }
     }
-    assert_eq!(paths.len(), 10 + 2 * 4 + 3 * 3);
+    assert_eq!(paths.len(), 11 + 2 * 4 + 3 * 3);
     for path in &paths {
         let (x, y) = (get(&a.base, path).await, get(&b.base, path).await);
         assert_eq!(

@@ -768,7 +768,7 @@ async fn reviews(s: &dyn Store) {
         Signed::Refused(Refusal::State {
             state: State::Approved,
             target_past: "approved",
-            from: "submitted"
+            from: "submitted or under-review"
         })
     );
     assert_eq!(

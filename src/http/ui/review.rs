@@ -33,6 +33,7 @@ pub fn state_badge(state: ReviewState) -> Markup {
     let class = match state {
         ReviewState::Approved => "pass",
         ReviewState::Rejected | ReviewState::Withdrawn | ReviewState::Superseded => "fail",
+        ReviewState::UnderReview => "conditional",
         ReviewState::Submitted => "unknown",
     };
     badge(class, state.as_str())
@@ -69,6 +70,12 @@ pub fn notice(state: ReviewState, signatures: &[Signature]) -> Option<String> {
                 || "a corrected calibration".to_owned(),
                 |id| format!("certificate No. {id}")
             ),
+            signer(last)
+        )),
+        ReviewState::UnderReview => Some(format!(
+            "UNDER REVIEW since {} ({}): {why}; its results are not to be used until a \
+             reviewer approves it again or withdraws it",
+            when(&last.signed_at.to_string()),
             signer(last)
         )),
         ReviewState::Submitted | ReviewState::Approved => None,
@@ -114,6 +121,13 @@ pub fn section(id: &str, state: ReviewState, signatures: &[Signature], viewer: &
             (Action::Withdraw, "Withdraw: take the results out of use"),
         ],
         ReviewState::Approved => &[(Action::Withdraw, "Withdraw: take the results out of use")],
+        ReviewState::UnderReview => &[
+            (
+                Action::Approve,
+                "Approve again: the results were reviewed against the nonconformity and stand",
+            ),
+            (Action::Withdraw, "Withdraw: take the results out of use"),
+        ],
         ReviewState::Rejected | ReviewState::Withdrawn | ReviewState::Superseded => &[],
     };
     html! {
@@ -244,10 +258,11 @@ pub async fn sign(
         }
         .act(signer, now)
         .map_err(Problem::from)?,
-        Action::Supersede | Action::Confirm => {
+        Action::Supersede | Action::Confirm | Action::Hold => {
             return Err(Problem::bad_request(
                 "choose approve, reject or withdraw (a calibration is superseded by \
-                 POST /v1/calibrations/{id}/supersede, reprocessed by …/reprocess)",
+                 POST /v1/calibrations/{id}/supersede, reprocessed by …/reprocess, held by a \
+                 standard's nonconformity)",
             )
             .into());
         }

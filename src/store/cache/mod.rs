@@ -144,10 +144,13 @@ impl Cache {
 
     /// The id of a cached sensor's latest calibration (no copy of the
     /// summary); `None` when it is not cached.
-    pub fn latest_calibration_id(&self, sensor_id: &str) -> Option<Uuid> {
+    pub fn latest_calibration_id(
+        &self,
+        sensor_id: &str,
+    ) -> Option<(Uuid, crate::domain::review::State)> {
         let hit = self.sensors.get(sensor_id)?;
         metrics::counter!("accelcal_sensor_cache_total", "outcome" => "hit").increment(1);
-        Some(hit.latest.id)
+        Some((hit.latest.id, hit.latest.state))
     }
 
     /// The latest calibration performed strictly before `before`, when the

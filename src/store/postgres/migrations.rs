@@ -21,6 +21,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0008_signatures.sql"),
     include_str!("migrations/0009_customers.sql"),
     include_str!("migrations/0010_audit.sql"),
+    include_str!("migrations/0011_nonconformities.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -11,9 +11,14 @@ use super::PostgresStore;
 use super::calibrations::{Row, Written, write};
 use super::errors::map;
 use super::rows;
-use crate::domain::review::{Act, Signature, Submitter};
+use crate::domain::audit::{Actor, Event};
+use crate::domain::nonconformity::{Affected, Nonconformity, Outcome, Traced};
+use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{NewCalibration, Reviews, Signed, StoreError, sensor_forget, sensor_recompute};
+use crate::store::{
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, made_with_sql, sensor_forget,
+    sensor_recompute,
+};
 
 /// The columns of [`rows::signature`].
 const SIGNATURE_COLUMNS: &str =
@@ -21,13 +26,14 @@ const SIGNATURE_COLUMNS: &str =
 
 /// Records `act` on calibration `id` within the transaction `tx` — after
 /// storing `replacement`, the calibration that supersedes it, when there is
-/// one.
+/// one; answers with the audit events the caller appends last
+/// ([`super::audit`]: after every row lock of the transaction).
 async fn sign(
     tx: &Transaction<'_>,
     id: Uuid,
     act: &Act,
     replacement: Option<&Row>,
-) -> Result<Signed, StoreError> {
+) -> Result<(Signed, Vec<Event>), StoreError> {
     let locked = tx
         .query_opt(
             "SELECT id FROM calibrations WHERE id = $1 FOR NO KEY UPDATE",
@@ -36,7 +42,7 @@ async fn sign(
         .await
         .map_err(map)?;
     if locked.is_none() {
-        return Ok(Signed::NotFound);
+        return Ok((Signed::NotFound, Vec::new()));
     }
     let row = tx
         .query_one(
@@ -74,7 +80,7 @@ async fn sign(
     let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let s = match act.check(state, &submitter, seq) {
         Ok(s) => s,
-        Err(refusal) => return Ok(Signed::Refused(refusal)),
+        Err(refusal) => return Ok((Signed::Refused(refusal), Vec::new())),
     };
     if let Some(r) = replacement {
         match write(tx, r, None).await? {
@@ -125,14 +131,138 @@ async fn sign(
     tx.execute(&sensor_forget("$1"), &[&sensor_id])
         .await
         .map_err(map)?;
-    // The audit trail last (its lock after every row lock: super::audit).
     let mut events = match replacement {
         Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
         None => Vec::new(),
     };
     events.push(crate::store::audit::signed(id, &s, state));
+    Ok((Signed::Done(s, sensor_id), events))
+}
+
+/// Inserts the record of a nonconformity.
+async fn insert_nonconformity(tx: &Transaction<'_>, nc: &Nonconformity) -> Result<(), StoreError> {
+    let by = &nc.recorded_by;
+    tx.execute(
+        "INSERT INTO nonconformities (id, standard_id, found_at, last_known_good_at, \
+         window_from, reason, recorded_at, token_id, role, holder) \
+         VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+        &[
+            &nc.id,
+            &nc.standard_id,
+            &nc.found_at.datetime(),
+            &nc.last_known_good_at.map(|t| t.datetime()),
+            &nc.window_from.datetime(),
+            &nc.reason,
+            &nc.recorded_at.datetime(),
+            &by.token_id,
+            &by.role,
+            &by.holder,
+        ],
+    )
+    .await
+    .map_err(map)?;
+    Ok(())
+}
+
+/// Inserts that `calibration` was in `nc`'s window, in state `found`.
+async fn insert_concerned(
+    tx: &Transaction<'_>,
+    nc: &Nonconformity,
+    calibration: Uuid,
+    found: State,
+) -> Result<(), StoreError> {
+    tx.execute(
+        "INSERT INTO nonconformity_calibrations (nonconformity_id, calibration_id, \
+         state_found) VALUES ($1, $2, $3)",
+        &[&nc.id, &calibration, &found.as_str()],
+    )
+    .await
+    .map_err(map)?;
+    Ok(())
+}
+
+/// The nonconformity `nc` recorded and each of `made` that counts held,
+/// within `tx`; the audit trail appended last.
+async fn hold(
+    tx: &Transaction<'_>,
+    nc: &Nonconformity,
+    made: Vec<MadeWith>,
+    act: &Act,
+) -> Result<Vec<Affected>, StoreError> {
+    insert_nonconformity(tx, nc).await?;
+    let mut events = vec![crate::store::audit::nonconformity(nc, made.len())];
+    let mut out = Vec::with_capacity(made.len());
+    for m in made {
+        let now = match sign(tx, m.calibration_id, act, None).await? {
+            (Signed::Done(s, _), signed) => {
+                events.extend(signed);
+                s.state
+            }
+            // It no longer counted, or was under review already: left.
+            _ => m.state,
+        };
+        insert_concerned(tx, nc, m.calibration_id, m.state).await?;
+        out.push(Affected {
+            calibration_id: m.calibration_id,
+            sensor_id: m.sensor_id,
+            performed_at: m.performed_at,
+            state_found: m.state,
+            state: now,
+            outcome: Outcome::of(m.state, now),
+        });
+    }
     super::audit::append(tx, events).await?;
-    Ok(Signed::Done(s, sensor_id))
+    Ok(out)
+}
+
+fn made_with(r: &tokio_postgres::Row) -> Result<MadeWith, StoreError> {
+    Ok(MadeWith {
+        calibration_id: rows::get(r, "id")?,
+        sensor_id: rows::get(r, "sensor_id")?,
+        performed_at: Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(
+            r,
+            "performed_at",
+        )?),
+        state: rows::state(r)?,
+    })
+}
+
+fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
+    let at = |column: &str| -> Result<Timestamp, StoreError> {
+        Ok(Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(
+            r, column,
+        )?))
+    };
+    Ok(Nonconformity {
+        id: rows::get(r, "id")?,
+        standard_id: rows::get(r, "standard_id")?,
+        found_at: at("found_at")?,
+        last_known_good_at: rows::get::<Option<time::OffsetDateTime>>(r, "last_known_good_at")?
+            .map(Timestamp::from_datetime),
+        window_from: at("window_from")?,
+        reason: rows::get(r, "reason")?,
+        recorded_at: at("recorded_at")?,
+        recorded_by: Actor {
+            token_id: rows::get(r, "token_id")?,
+            role: rows::get(r, "role")?,
+            holder: rows::get(r, "holder")?,
+        },
+    })
+}
+
+fn affected(r: &tokio_postgres::Row) -> Result<Affected, StoreError> {
+    let m = made_with(r)?;
+    let found: String = rows::get(r, "state_found")?;
+    let state_found = State::parse(&found)
+        .ok_or_else(|| StoreError::corrupt("column `state_found`", found.clone()))?;
+    Ok(Affected {
+        calibration_id: m.calibration_id,
+        sensor_id: m.sensor_id,
+        performed_at: m.performed_at,
+        state_found,
+        state: m.state,
+        outcome: Outcome::of(state_found, m.state),
+    })
 }
 
 impl PostgresStore {
@@ -167,8 +297,9 @@ impl PostgresStore {
         let write = async move {
             op!(this, "sign", |client| {
                 let tx = client.transaction().await.map_err(map)?;
-                let out = sign(&tx, id, &act, replacement.as_ref()).await?;
+                let (out, events) = sign(&tx, id, &act, replacement.as_ref()).await?;
                 if matches!(out, Signed::Done(..)) {
+                    super::audit::append(&tx, events).await?;
                     tx.commit().await.map_err(map)?;
                 }
                 Ok(out)
@@ -195,6 +326,100 @@ impl Reviews for PostgresStore {
     ) -> Result<Signed, StoreError> {
         let row = Row::new(replacement)?;
         self.record(id, act, Some(row)).await
+    }
+
+    async fn made_with(
+        &self,
+        standard_id: String,
+        from: Timestamp,
+        to: Timestamp,
+    ) -> Result<Vec<MadeWith>, StoreError> {
+        op!(self, "made_with", |client| {
+            let sql = made_with_sql(
+                "EXISTS (SELECT 1 FROM json_array_elements(c.result::json -> 'standards') s \
+                 WHERE s.value ->> 'standard_id' = $1)",
+                ["$1", "$2", "$3"],
+            );
+            let found = client
+                .query(&sql, &[&standard_id, &from.datetime(), &to.datetime()])
+                .await
+                .map_err(map)?;
+            found.iter().map(made_with).collect()
+        })
+    }
+
+    async fn hold(
+        &self,
+        nc: Nonconformity,
+        made: Vec<MadeWith>,
+        act: Act,
+    ) -> Result<Vec<Affected>, StoreError> {
+        let mut sensors: Vec<String> = made.iter().map(|m| m.sensor_id.clone()).collect();
+        sensors.sort();
+        sensors.dedup();
+        let this = self.clone();
+        let write = async move {
+            op!(this, "hold", |client| {
+                let tx = client.transaction().await.map_err(map)?;
+                let out = hold(&tx, &nc, made, &act).await?;
+                tx.commit().await.map_err(map)?;
+                Ok(out)
+            })
+        };
+        self.cache.changing(&sensors, write).await
+    }
+
+    async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError> {
+        op!(self, "put_nonconformity", |client| {
+            let tx = client.transaction().await.map_err(map)?;
+            insert_nonconformity(&tx, &t.nonconformity).await?;
+            for c in &t.calibrations {
+                insert_concerned(&tx, &t.nonconformity, c.calibration_id, c.state_found).await?;
+            }
+            let event = crate::store::audit::nonconformity(&t.nonconformity, t.calibrations.len());
+            super::audit::append(&tx, vec![event]).await?;
+            tx.commit().await.map_err(map)?;
+            Ok(())
+        })
+    }
+
+    async fn nonconformities(&self, standard_id: String) -> Result<Vec<Traced>, StoreError> {
+        op!(self, "nonconformities", |client| {
+            let found = client
+                .query(
+                    "SELECT id, standard_id, found_at, last_known_good_at, window_from, reason, \
+                     recorded_at, token_id, role, holder FROM nonconformities \
+                     WHERE standard_id = $1 ORDER BY found_at, id",
+                    &[&standard_id],
+                )
+                .await
+                .map_err(map)?;
+            let mut out = Vec::with_capacity(found.len());
+            for row in &found {
+                let nc = nonconformity(row)?;
+                let calibrations = client
+                    .query(
+                        concat!(
+                            "SELECT c.id, c.sensor_id, c.performed_at, n.state_found, ",
+                            crate::state_sql!(),
+                            " AS state FROM nonconformity_calibrations n \
+                             JOIN calibrations c ON c.id = n.calibration_id \
+                             WHERE n.nonconformity_id = $1 ORDER BY c.performed_at, c.id"
+                        ),
+                        &[&nc.id],
+                    )
+                    .await
+                    .map_err(map)?
+                    .iter()
+                    .map(affected)
+                    .collect::<Result<_, _>>()?;
+                out.push(Traced {
+                    nonconformity: nc,
+                    calibrations,
+                });
+            }
+            Ok(out)
+        })
     }
 
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError> {

@@ -25,6 +25,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0011_signatures.sql"),
     include_str!("migrations/0012_customers.sql"),
     include_str!("migrations/0013_audit.sql"),
+    include_str!("migrations/0014_nonconformities.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -7,10 +7,12 @@ use uuid::Uuid;
 
 use super::SqliteStore;
 use super::rows;
-use crate::domain::review::{Act, Signature, Submitter};
+use crate::domain::nonconformity::{Affected, Nonconformity, Outcome, Traced};
+use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    NewCalibration, Reviews, Signed, StoreError, Stored, sensor_forget, sensor_recompute,
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, made_with_sql, sensor_forget,
+    sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -118,6 +120,87 @@ fn insert(conn: &Connection, id: Uuid, s: &Signature) -> Result<(), StoreError> 
     Ok(())
 }
 
+/// Inserts the record of a nonconformity.
+fn insert_nonconformity(conn: &Connection, nc: &Nonconformity) -> Result<(), StoreError> {
+    let by = &nc.recorded_by;
+    rows::execute(
+        conn,
+        "INSERT INTO nonconformities (id, standard_id, found_at, last_known_good_at, \
+         window_from, reason, recorded_at, token_id, role, holder) \
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10)",
+        params![
+            nc.id.to_string(),
+            nc.standard_id,
+            nc.found_at.to_string(),
+            nc.last_known_good_at.map(|t| t.to_string()),
+            nc.window_from.to_string(),
+            nc.reason,
+            nc.recorded_at.to_string(),
+            by.token_id,
+            by.role,
+            by.holder
+        ],
+    )?;
+    Ok(())
+}
+
+/// Inserts that `calibration` was in `nc`'s window, in state `found`.
+fn insert_concerned(
+    conn: &Connection,
+    nc: &Nonconformity,
+    calibration: Uuid,
+    found: State,
+) -> Result<(), StoreError> {
+    rows::execute(
+        conn,
+        "INSERT INTO nonconformity_calibrations (nonconformity_id, calibration_id, \
+         state_found) VALUES (?1, ?2, ?3)",
+        params![nc.id.to_string(), calibration.to_string(), found.as_str()],
+    )?;
+    Ok(())
+}
+
+/// The nonconformity `nc` recorded and each of `made` that counts held,
+/// inside the writer's transaction.
+fn hold(
+    conn: &Connection,
+    nc: &Nonconformity,
+    made: Vec<MadeWith>,
+    act: &Act,
+) -> Result<Vec<Affected>, StoreError> {
+    insert_nonconformity(conn, nc)?;
+    super::audit::append(conn, crate::store::audit::nonconformity(nc, made.len()))?;
+    let mut out = Vec::with_capacity(made.len());
+    for m in made {
+        let now = match sign(conn, m.calibration_id, act, None)?.0 {
+            Signed::Done(s, _) => s.state,
+            // It no longer counted, or was under review already: left.
+            _ => m.state,
+        };
+        insert_concerned(conn, nc, m.calibration_id, m.state)?;
+        out.push(Affected {
+            calibration_id: m.calibration_id,
+            sensor_id: m.sensor_id,
+            performed_at: m.performed_at,
+            state_found: m.state,
+            state: now,
+            outcome: Outcome::of(m.state, now),
+        });
+    }
+    Ok(out)
+}
+
+fn made_with(r: &rusqlite::Row<'_>) -> Result<MadeWith, StoreError> {
+    let performed: String = r.get("performed_at").map_err(super::errors::map)?;
+    Ok(MadeWith {
+        calibration_id: rows::uuid(r, "id")?,
+        sensor_id: r.get("sensor_id").map_err(super::errors::map)?,
+        performed_at: Timestamp::parse(&performed)
+            .map_err(|e| StoreError::corrupt("column `performed_at`", e))?,
+        state: rows::state(r)?,
+    })
+}
+
 impl SqliteStore {
     /// [`Reviews::sign`], with the replacement of a supersession.
     async fn record(
@@ -175,6 +258,97 @@ impl Reviews for SqliteStore {
         self.record(id, act, Some(replacement)).await
     }
 
+    async fn made_with(
+        &self,
+        standard_id: String,
+        from: Timestamp,
+        to: Timestamp,
+    ) -> Result<Vec<MadeWith>, StoreError> {
+        self.follow_the_file()?;
+        self.run("made_with", move |conn| {
+            let sql = made_with_sql(
+                "EXISTS (SELECT 1 FROM json_each(c.result, '$.standards') s \
+                 WHERE json_extract(s.value, '$.standard_id') = ?1)",
+                ["?1", "?2", "?3"],
+            );
+            rows::all(
+                conn,
+                &sql,
+                params![standard_id, from.to_string(), to.to_string()],
+                made_with,
+            )
+        })
+        .await
+    }
+
+    async fn hold(
+        &self,
+        nc: Nonconformity,
+        made: Vec<MadeWith>,
+        act: Act,
+    ) -> Result<Vec<Affected>, StoreError> {
+        self.follow_the_file()?;
+        let mut sensors: Vec<String> = made.iter().map(|m| m.sensor_id.clone()).collect();
+        sensors.sort();
+        sensors.dedup();
+        let this = self.clone();
+        let write = async move {
+            this.write("hold", move |conn| Ok((hold(conn, &nc, made, &act)?, true)))
+                .await
+        };
+        self.cache.changing(&sensors, write).await
+    }
+
+    async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError> {
+        self.follow_the_file()?;
+        self.write("put_nonconformity", move |conn| {
+            insert_nonconformity(conn, &t.nonconformity)?;
+            for c in &t.calibrations {
+                insert_concerned(conn, &t.nonconformity, c.calibration_id, c.state_found)?;
+            }
+            let event = crate::store::audit::nonconformity(&t.nonconformity, t.calibrations.len());
+            super::audit::append(conn, event)?;
+            Ok(((), true))
+        })
+        .await
+    }
+
+    async fn nonconformities(&self, standard_id: String) -> Result<Vec<Traced>, StoreError> {
+        self.follow_the_file()?;
+        self.run("nonconformities", move |conn| {
+            let found = rows::all(
+                conn,
+                "SELECT id, standard_id, found_at, last_known_good_at, window_from, reason, \
+                 recorded_at, token_id, role, holder FROM nonconformities \
+                 WHERE standard_id = ?1 ORDER BY found_at, id",
+                [&standard_id],
+                nonconformity,
+            )?;
+            found
+                .into_iter()
+                .map(|nc| {
+                    let calibrations = rows::all(
+                        conn,
+                        concat!(
+                            "SELECT c.id, c.sensor_id, c.performed_at, n.state_found, ",
+                            crate::state_sql!(),
+                            " AS state FROM nonconformity_calibrations n \
+                             JOIN calibrations c ON c.id = n.calibration_id \
+                             WHERE n.nonconformity_id = ?1 ORDER BY c.performed_at, c.id"
+                        ),
+                        [nc.id.to_string()],
+                        affected,
+                    )?;
+                    Ok(Traced {
+                        nonconformity: nc,
+                        calibrations,
+                    })
+                })
+                .collect()
+        })
+        .await
+    }
+
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError> {
         self.run("signatures", move |conn| {
             rows::all(
@@ -189,4 +363,47 @@ impl Reviews for SqliteStore {
         })
         .await
     }
+}
+
+fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
+    use super::errors::map;
+    let at = |column: &str| -> Result<Timestamp, StoreError> {
+        let text: String = r.get(column).map_err(map)?;
+        Timestamp::parse(&text).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
+    };
+    let good: Option<String> = r.get("last_known_good_at").map_err(map)?;
+    Ok(Nonconformity {
+        id: rows::uuid(r, "id")?,
+        standard_id: r.get("standard_id").map_err(map)?,
+        found_at: at("found_at")?,
+        last_known_good_at: good
+            .map(|t| {
+                Timestamp::parse(&t)
+                    .map_err(|e| StoreError::corrupt("column `last_known_good_at`", e))
+            })
+            .transpose()?,
+        window_from: at("window_from")?,
+        reason: r.get("reason").map_err(map)?,
+        recorded_at: at("recorded_at")?,
+        recorded_by: crate::domain::audit::Actor {
+            token_id: r.get("token_id").map_err(map)?,
+            role: r.get("role").map_err(map)?,
+            holder: r.get("holder").map_err(map)?,
+        },
+    })
+}
+
+fn affected(r: &rusqlite::Row<'_>) -> Result<Affected, StoreError> {
+    let m = made_with(r)?;
+    let found: String = r.get("state_found").map_err(super::errors::map)?;
+    let state_found = State::parse(&found)
+        .ok_or_else(|| StoreError::corrupt("column `state_found`", found.clone()))?;
+    Ok(Affected {
+        calibration_id: m.calibration_id,
+        sensor_id: m.sensor_id,
+        performed_at: m.performed_at,
+        state_found,
+        state: m.state,
+        outcome: Outcome::of(state_found, m.state),
+    })
 }

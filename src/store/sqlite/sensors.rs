@@ -67,15 +67,18 @@ impl Sensors for SqliteStore {
         self.cache.sensor(&sensor_id, now, read).await
     }
 
-    async fn latest_calibration_id(&self, sensor_id: String) -> Result<Option<Uuid>, StoreError> {
+    async fn latest_calibration_id(
+        &self,
+        sensor_id: String,
+    ) -> Result<Option<(Uuid, crate::domain::review::State)>, StoreError> {
         self.follow_the_file()?;
-        if let Some(id) = self.cache.latest_calibration_id(&sensor_id) {
-            return Ok(Some(id));
+        if let Some(latest) = self.cache.latest_calibration_id(&sensor_id) {
+            return Ok(Some(latest));
         }
         Ok(self
             .sensor(sensor_id, Timestamp::now())
             .await?
-            .map(|s| s.latest.id))
+            .map(|s| (s.latest.id, s.latest.state)))
     }
 
     /// Drops the sensor's cached summary, whatever the database answered.
