@@ -85,7 +85,7 @@ fn describe() {
     );
     describe_counter!(
         "accelcal_reviews_total",
-        "Signatures recorded on calibrations: approve, reject, withdraw, supersede."
+        "Signatures recorded on calibrations: approve, reject, withdraw, supersede, confirm, hold."
     );
     describe_histogram!(
         "accelcal_storage_operation_duration_seconds",

@@ -27,7 +27,7 @@ use crate::store::{HistoryQuery, SensorQuery, SensorSummary};
 fn unknown_sensor(sensor_id: &str) -> Problem {
     Problem::not_found(format!(
         "no sensor `{}` has a calibration in use (it was never calibrated, or every \
-         calibration of it was rejected or withdrawn)",
+         calibration of it was rejected, withdrawn or superseded)",
         echo(sensor_id)
     ))
 }
