@@ -22,7 +22,9 @@
 //!    ([`decision`]), as found and stability over a sensor's history
 //!    ([`history`]), temperature sensitivity ([`temperature`]), the model's
 //!    adequacy — pure error, lack of fit, unmodelled terms ([`adequacy`]) —
-//!    and quality flags with their F tests ([`quality`], [`ftest`]).
+//!    and quality flags with their F tests ([`quality`], [`ftest`]);
+//! 6. triads — three outputs at once, `u = b + S g` — as a view over three
+//!    single-axis tumble tests sharing their positions ([`triad`]).
 //!
 //! ```
 //! use accelcal_core::{Model, Mount, Position, Run, Term, TumbleTest};
@@ -64,6 +66,7 @@ pub mod quality;
 pub mod reading;
 pub mod temperature;
 pub mod term;
+pub mod triad;
 pub mod tumble;
 pub mod uncertainty;
 
