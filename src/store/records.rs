@@ -8,6 +8,7 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::StoreError;
+use crate::domain::nonconformity::{Affected, Outcome};
 use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
@@ -290,6 +291,30 @@ pub struct MadeWith {
     pub performed_at: Timestamp,
     /// Its state when read.
     pub state: State,
+}
+
+impl MadeWith {
+    /// What a nonconformity's list says of this calibration: found in
+    /// `found`, in `now` now, and what became of it.
+    pub fn affected(self, found: State, now: State) -> Affected {
+        Affected {
+            calibration_id: self.calibration_id,
+            sensor_id: self.sensor_id,
+            performed_at: self.performed_at,
+            state_found: found,
+            state: now,
+            outcome: Outcome::of(found, now),
+        }
+    }
+
+    /// [`MadeWith::affected`] from the stored name of the state it was
+    /// found in (`state_found`), its state as read being its state now.
+    pub fn found_as(self, stored: &str) -> Result<Affected, StoreError> {
+        let found = State::parse(stored)
+            .ok_or_else(|| StoreError::corrupt("column `state_found`", stored.to_owned()))?;
+        let now = self.state;
+        Ok(self.affected(found, now))
+    }
 }
 
 /// The calibrations performed with the standard `$1` within `$2..=$3`

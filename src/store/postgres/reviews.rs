@@ -12,7 +12,7 @@ use super::calibrations::{Row, Written, write};
 use super::errors::map;
 use super::rows;
 use crate::domain::audit::{Actor, Event};
-use crate::domain::nonconformity::{Affected, Nonconformity, Outcome, Traced};
+use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
@@ -202,14 +202,8 @@ async fn hold(
             _ => m.state,
         };
         insert_concerned(tx, nc, m.calibration_id, m.state).await?;
-        out.push(Affected {
-            calibration_id: m.calibration_id,
-            sensor_id: m.sensor_id,
-            performed_at: m.performed_at,
-            state_found: m.state,
-            state: now,
-            outcome: Outcome::of(m.state, now),
-        });
+        let found = m.state;
+        out.push(m.affected(found, now));
     }
     super::audit::append(tx, events).await?;
     Ok(out)
@@ -251,18 +245,8 @@ fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
 }
 
 fn affected(r: &tokio_postgres::Row) -> Result<Affected, StoreError> {
-    let m = made_with(r)?;
     let found: String = rows::get(r, "state_found")?;
-    let state_found = State::parse(&found)
-        .ok_or_else(|| StoreError::corrupt("column `state_found`", found.clone()))?;
-    Ok(Affected {
-        calibration_id: m.calibration_id,
-        sensor_id: m.sensor_id,
-        performed_at: m.performed_at,
-        state_found,
-        state: m.state,
-        outcome: Outcome::of(state_found, m.state),
-    })
+    made_with(r)?.found_as(&found)
 }
 
 impl PostgresStore {

@@ -7,7 +7,7 @@ use uuid::Uuid;
 
 use super::SqliteStore;
 use super::rows;
-use crate::domain::nonconformity::{Affected, Nonconformity, Outcome, Traced};
+use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
@@ -178,14 +178,8 @@ fn hold(
             _ => m.state,
         };
         insert_concerned(conn, nc, m.calibration_id, m.state)?;
-        out.push(Affected {
-            calibration_id: m.calibration_id,
-            sensor_id: m.sensor_id,
-            performed_at: m.performed_at,
-            state_found: m.state,
-            state: now,
-            outcome: Outcome::of(m.state, now),
-        });
+        let found = m.state;
+        out.push(m.affected(found, now));
     }
     Ok(out)
 }
@@ -394,16 +388,6 @@ fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
 }
 
 fn affected(r: &rusqlite::Row<'_>) -> Result<Affected, StoreError> {
-    let m = made_with(r)?;
     let found: String = r.get("state_found").map_err(super::errors::map)?;
-    let state_found = State::parse(&found)
-        .ok_or_else(|| StoreError::corrupt("column `state_found`", found.clone()))?;
-    Ok(Affected {
-        calibration_id: m.calibration_id,
-        sensor_id: m.sensor_id,
-        performed_at: m.performed_at,
-        state_found,
-        state: m.state,
-        outcome: Outcome::of(state_found, m.state),
-    })
+    made_with(r)?.found_as(&found)
 }
