@@ -139,6 +139,10 @@ struct ServeArgs {
     /// The laboratory's address (one line; also the place of calibration).
     #[arg(long, env = "ACCELCAL_LAB_ADDRESS")]
     lab_address: Option<String>,
+    /// The laboratory's country, ISO 3166-1 alpha-2 (DE, FR, US): needed
+    /// for Digital Calibration Certificates.
+    #[arg(long, env = "ACCELCAL_LAB_COUNTRY")]
+    lab_country: Option<String>,
     /// The laboratory's accreditation: body and number
     /// ("DAkkS D-K-12345-01-00").
     #[arg(long, env = "ACCELCAL_LAB_ACCREDITATION")]
@@ -343,6 +347,12 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
             laboratory: Laboratory {
                 name: a.lab_name.filter(|n| !n.is_empty()),
                 address: a.lab_address.filter(|n| !n.is_empty()),
+                country: a
+                    .lab_country
+                    .filter(|c| !c.is_empty())
+                    .map(|c| Laboratory::country_from(&c))
+                    .transpose()
+                    .map_err(|e| anyhow::anyhow!("--lab-country {e}"))?,
                 accreditation: a.lab_accreditation.filter(|n| !n.is_empty()),
                 logo: a
                     .lab_logo

@@ -302,14 +302,16 @@ pub async fn submission(
     path = "/v1/calibrations/{id}/certificate",
     tag = "calibrations",
     operation_id = "getCertificate",
-    summary = "The calibration certificate: an HTML document that prints on A4.",
+    summary = "The calibration certificate: an HTML document that prints on A4, or with \
+        `Accept: application/xml` a Digital Calibration Certificate (PTB DCC 3.3.0).",
     params(super::openapi::CalibrationIdPath),
     responses(
         (status = 200, description = "The certificate: sensor, type, station and stand, times, method, \
             fused coefficients with expanded uncertainty, decision, as found, due date, the SHA-256 of \
             the stored submission, the accelcal version and its own URL.",
-            content((String = "text/html"))),
+            content((String = "text/html"), (String = "application/xml"))),
         (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::Incomplete),
         super::openapi::Always,
     )
 )]

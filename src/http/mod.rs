@@ -156,13 +156,17 @@ impl Default for Web {
 }
 
 /// The calibration laboratory, as its certificates name it
-/// (`--lab-name`, `--lab-address`, `--lab-accreditation`, `--lab-logo`).
+/// (`--lab-name`, `--lab-address`, `--lab-country`, `--lab-accreditation`,
+/// `--lab-logo`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Laboratory {
     /// Its name.
     pub name: Option<String>,
     /// Its address, which is also the place of calibration.
     pub address: Option<String>,
+    /// Its country, ISO 3166-1 alpha-2 (`DE`): the Digital Calibration
+    /// Certificate's `countryCodeISO3166_1`.
+    pub country: Option<String>,
     /// Its accreditation: body and number (`DAkkS D-K-12345-01-00`).
     pub accreditation: Option<String>,
     /// Its logo as a `data:` URI (PNG, JPEG or SVG, read at start).
@@ -173,6 +177,18 @@ pub struct Laboratory {
 pub const MAX_LOGO_BYTES: u64 = 256 * 1024;
 
 impl Laboratory {
+    /// Checks a country code: two ASCII capital letters (ISO 3166-1
+    /// alpha-2), as the Digital Calibration Certificate requires.
+    pub fn country_from(code: &str) -> Result<String, String> {
+        if code.len() == 2 && code.bytes().all(|b| b.is_ascii_uppercase()) {
+            Ok(code.to_owned())
+        } else {
+            Err(format!(
+                "`{code}`: a country is its ISO 3166-1 alpha-2 code, two capital letters (DE, FR, US)"
+            ))
+        }
+    }
+
     /// The logo at `path` as a `data:` URI, by its extension; an error
     /// names what is wrong with it.
     pub fn logo_from(path: &std::path::Path) -> Result<String, String> {

@@ -52,6 +52,10 @@ pub enum Kind {
     NotUsable,
     /// 409: the calibration's state does not allow the act.
     StateConflict,
+    /// 409: the records lack what the document asked for needs (a Digital
+    /// Calibration Certificate without the laboratory's country or the
+    /// item's customer).
+    Incomplete,
     /// 413: the body is too large.
     TooLarge,
     /// 429: too many failed authentications from the client's address.
@@ -70,7 +74,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 17] = [
+    pub const ALL: [Kind; 18] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -81,6 +85,7 @@ impl Kind {
         Kind::InFlight,
         Kind::NotUsable,
         Kind::StateConflict,
+        Kind::Incomplete,
         Kind::TooLarge,
         Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
@@ -103,6 +108,7 @@ impl Kind {
             Kind::InFlight => "in-flight",
             Kind::NotUsable => "not-usable",
             Kind::StateConflict => "state-conflict",
+            Kind::Incomplete => "incomplete-record",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
@@ -126,6 +132,7 @@ impl Kind {
             Kind::InFlight => "Request in progress",
             Kind::NotUsable => "Coefficients not usable",
             Kind::StateConflict => "Not allowed in the calibration's state",
+            Kind::Incomplete => "Records incomplete for this document",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
@@ -146,7 +153,9 @@ impl Kind {
             Kind::NotFound => StatusCode::NOT_FOUND,
             Kind::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
-            Kind::InFlight | Kind::NotUsable | Kind::StateConflict => StatusCode::CONFLICT,
+            Kind::InFlight | Kind::NotUsable | Kind::StateConflict | Kind::Incomplete => {
+                StatusCode::CONFLICT
+            }
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,

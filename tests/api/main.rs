@@ -11,6 +11,7 @@ mod client;
 mod contract;
 mod corpus;
 mod customers;
+mod dcc;
 mod endpoints;
 mod errors;
 mod hardening;

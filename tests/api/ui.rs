@@ -39,7 +39,7 @@ fn hidden(html: &str, name: &str) -> String {
 }
 
 /// Signs in with `token`; returns the session cookie's value and its header.
-async fn sign_in(app: &TestApp, token: &str) -> (String, String) {
+pub(crate) async fn sign_in(app: &TestApp, token: &str) -> (String, String) {
     let c = browser();
     let form = c.get(app.url("/ui/login")).send().await.unwrap();
     let (login, _) = set_cookie(&form, "accelcal_login").expect("a sign-in cookie");
@@ -61,7 +61,7 @@ async fn sign_in(app: &TestApp, token: &str) -> (String, String) {
     set_cookie(&res, "accelcal_session").expect("a session cookie")
 }
 
-async fn page(app: &TestApp, path: &str, session: &str) -> reqwest::Response {
+pub(crate) async fn page(app: &TestApp, path: &str, session: &str) -> reqwest::Response {
     browser()
         .get(app.url(path))
         .header("cookie", format!("accelcal_session={session}"))
@@ -371,6 +371,7 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         c.web.laboratory = accelcal::startup::Laboratory {
             name: Some("Inertial Test Lab & Co.".into()),
             address: Some("Bahnhofstrasse 1, 8001 Zürich".into()),
+            country: Some("CH".into()),
             accreditation: Some("SAS SCS 0999".into()),
             logo: Some(logo),
         };

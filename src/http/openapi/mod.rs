@@ -67,7 +67,7 @@ impl Modify for Bearer {
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
-            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Unavailable,
+            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Incomplete, Unavailable,
         ),
     ),
     modifiers(&Bearer),

@@ -55,6 +55,10 @@ problem_response!(
     StateConflict,
     "The calibration's state does not allow this (approving a withdrawn one, withdrawing twice): `detail` names the state."
 );
+problem_response!(
+    Incomplete,
+    "Either the calibration is not approved (`state-conflict`) or the records lack what a Digital Calibration Certificate needs (`incomplete-record`: the laboratory's name or country, the item's customer): `detail` names what."
+);
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
 
 /// Implements `IntoResponses` for a set of the reusable problem answers that

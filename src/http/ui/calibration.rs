@@ -583,6 +583,7 @@ pub async fn page(
         }
         p.no-print {
             a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" } " · "
+            a #dcc-link href={"/ui/calibrations/" (d.id) "/certificate.xml"} type="application/xml" { "Digital Calibration Certificate (XML)" } " · "
             a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
         }
         @if let Some(n) = &d.notes { p { "Notes: " (n) } }

@@ -339,12 +339,13 @@ fn own_url(state: &AppState, headers: &HeaderMap, id: &uuid::Uuid) -> String {
     }
 }
 
-/// The certificate of calibration `raw_id`, as a response.
-pub async fn respond(
+/// What a certificate of calibration `raw_id` shows: its result document
+/// and the [`Context`] around it (the HTML and the XML certificate alike).
+pub async fn gather(
     state: &AppState,
     headers: &HeaderMap,
     raw_id: &str,
-) -> Result<Response, Problem> {
+) -> Result<(ResultDoc, Context), Problem> {
     let id = path_id(raw_id, "calibration")?;
     let d = load(state, raw_id).await?;
     let s = state
@@ -369,6 +370,21 @@ pub async fn respond(
         issued: Timestamp::now(),
         laboratory: state.web.laboratory.clone(),
     };
+    Ok((d, ctx))
+}
+
+/// The certificate of calibration `raw_id`, as a response: the Digital
+/// Calibration Certificate when the request's `Accept` prefers XML, the
+/// printable HTML otherwise.
+pub async fn respond(
+    state: &AppState,
+    headers: &HeaderMap,
+    raw_id: &str,
+) -> Result<Response, Problem> {
+    if super::dcc::prefers_xml(headers) {
+        return super::dcc::respond(state, headers, raw_id).await;
+    }
+    let (d, ctx) = gather(state, headers, raw_id).await?;
     let mut res = render(&d, &ctx).into_string().into_response();
     let h = res.headers_mut();
     h.insert(
@@ -389,6 +405,17 @@ pub async fn ui_page(
     Path(id): Path<String>,
 ) -> Result<Response, UiError> {
     Ok(respond(&state, &headers, &id).await?)
+}
+
+/// `GET /ui/calibrations/{id}/certificate.xml`: the Digital Calibration
+/// Certificate, for the page's link (a browser cannot choose `Accept`).
+pub async fn ui_dcc(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+) -> Result<Response, UiError> {
+    Ok(super::dcc::respond(&state, &headers, &id).await?)
 }
 
 #[cfg(test)]

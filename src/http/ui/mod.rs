@@ -6,7 +6,8 @@
 //! * [`session`]: sign-in with a token, session cookies, CSRF;
 //! * [`fleet`], [`sensor`], [`calibration`]: the pages;
 //! * [`certificate`]: the printable certificate (also `GET
-//!   /v1/calibrations/{id}/certificate`);
+//!   /v1/calibrations/{id}/certificate`); [`dcc`]: the same as a Digital
+//!   Calibration Certificate (XML);
 //! * [`plot`]: the charts; [`format`]: how numbers read; [`result`]: stored
 //!   result documents read back; [`assets`]: the stylesheet.
 //!
@@ -17,6 +18,7 @@
 pub mod assets;
 pub mod calibration;
 pub mod certificate;
+pub mod dcc;
 pub mod fleet;
 pub mod format;
 pub mod plot;
@@ -54,6 +56,10 @@ pub fn router() -> Router<AppState> {
             get(calibration::submission),
         )
         .route("/calibrations/{id}/certificate", get(certificate::ui_page))
+        .route(
+            "/calibrations/{id}/certificate.xml",
+            get(certificate::ui_dcc),
+        )
         .route("/calibrations/{id}/review", post(review::sign))
         .route("/assets/{file}", get(assets::serve))
         .fallback(not_found)
