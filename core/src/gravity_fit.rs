@@ -201,9 +201,10 @@ impl LeastSquaresProblem<f64, na::Dyn, na::U9> for Problem<'_> {
     }
 }
 
-/// The closed-form start: the least-squares ellipsoid through the means.
-fn ellipsoid(means: &[Vector3<f64>]) -> Option<(Vector3<f64>, Matrix3<f64>)> {
-    // Centre and scale the outputs so that the design is well conditioned.
+/// The outputs centred on their mean and scaled into the unit ball, so that
+/// the ellipsoid's design is well conditioned whatever the outputs' unit
+/// and offset; `None` when every output is the same.
+fn normalise(means: &[Vector3<f64>]) -> Option<(Vector3<f64>, f64, Vec<Vector3<f64>>)> {
     let n = means.len() as f64;
     let centre = means.iter().sum::<Vector3<f64>>() / n;
     let scale = means
@@ -213,7 +214,16 @@ fn ellipsoid(means: &[Vector3<f64>]) -> Option<(Vector3<f64>, Matrix3<f64>)> {
     if scale.is_nan() || scale <= 0.0 {
         return None;
     }
-    let z: Vec<Vector3<f64>> = means.iter().map(|u| (u - centre) / scale).collect();
+    Some((
+        centre,
+        scale,
+        means.iter().map(|u| (u - centre) / scale).collect(),
+    ))
+}
+
+/// The closed-form start: the least-squares ellipsoid through the means.
+fn ellipsoid(means: &[Vector3<f64>]) -> Option<(Vector3<f64>, Matrix3<f64>)> {
+    let (centre, scale, z) = normalise(means)?;
     let design = DMatrix::from_fn(z.len(), 9, |i, k| {
         let [x, y, w] = [z[i][0], z[i][1], z[i][2]];
         [
@@ -259,6 +269,14 @@ pub fn spread(directions: &[[f64; 3]]) -> f64 {
     if max > 0.0 { sv.min() / max } else { 0.0 }
 }
 
+/// The spread, when it is at least [`MIN_SPREAD`].
+fn spread_enough(spread: f64) -> Result<f64, GravityFitError> {
+    if spread.is_nan() || spread < MIN_SPREAD {
+        return Err(GravityFitError::Spread { spread });
+    }
+    Ok(spread)
+}
+
 /// Finds `b` and `T` from the mean outputs of `n ≥ 9` static positions.
 pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
     if means.len() < MIN_POSITIONS {
@@ -292,15 +310,7 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
     };
     let p: Vec<f64> = solved.p.iter().copied().collect();
     let (b, mut t) = unpack(&p);
-    // A row's sign is invisible to the magnitude: make the diagonal positive
-    // (a flipped row's entries keep their standard errors).
-    for r in 0..3 {
-        if t[(r, r)] < 0.0 {
-            for c in 0..3 {
-                t[(r, c)] = -t[(r, c)];
-            }
-        }
-    }
+    positive_diagonal(&mut t);
     let s = t.try_inverse().ok_or(GravityFitError::NotAnEllipsoid)?;
     if !(b.iter().chain(t.iter()).chain(s.iter())).all(|x| x.is_finite()) {
         return Err(GravityFitError::NotConverged {
@@ -316,10 +326,7 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
             [d[0], d[1], d[2]]
         })
         .collect();
-    let spread = spread(&directions);
-    if spread.is_nan() || spread < MIN_SPREAD {
-        return Err(GravityFitError::Spread { spread });
-    }
+    let spread = spread_enough(spread(&directions))?;
     let n = means.len();
     let sum_sq: f64 = residuals_g.iter().map(|r| r * r).sum();
     let rms_g = (sum_sq / n as f64).sqrt();
@@ -337,6 +344,19 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
         stop,
         spread,
     })
+}
+
+/// A row's sign is invisible to the magnitude: makes `T`'s diagonal
+/// positive by negating each row whose diagonal is negative (a negated
+/// row's entries keep their standard errors).
+fn positive_diagonal(t: &mut Matrix3<f64>) {
+    for r in 0..3 {
+        if t[(r, r)] < 0.0 {
+            for c in 0..3 {
+                t[(r, c)] = -t[(r, c)];
+            }
+        }
+    }
 }
 
 /// Standard errors of `b` and of `T`.
@@ -417,6 +437,12 @@ mod tests {
             }
         }
         assert!(f.rms_g < 1e-10);
+        // The fitted directions are the planted ones.
+        for (d, g) in f.directions.iter().zip(directions(12, 1)) {
+            for m in 0..3 {
+                assert!((d[m] - g[m]).abs() < 1e-9);
+            }
+        }
         // S is T's inverse.
         for r in 0..3 {
             for c in 0..3 {
@@ -440,6 +466,39 @@ mod tests {
                 assert!((t0[(m, c)] - t[m][c]).abs() < 1e-9, "T{m}{c}");
             }
         }
+    }
+
+    #[test]
+    fn outputs_are_centred_and_scaled_into_the_unit_ball() {
+        let means = [
+            Vector3::new(500.0, 16000.0, -300.0),
+            Vector3::new(520.0, 15000.0, -300.0),
+            Vector3::new(480.0, 17000.0, -306.0),
+        ];
+        let (centre, scale, z) = normalise(&means).unwrap();
+        assert_eq!(centre, Vector3::new(500.0, 16000.0, -302.0));
+        // The farthest output: (−20, 1000, −4) and (20, −1000, 2) from the centre.
+        assert_eq!(scale, (20f64 * 20.0 + 1000.0 * 1000.0 + 16.0).sqrt());
+        assert_eq!(z[2], (means[2] - centre) / scale);
+        assert!(z.iter().all(|x| x.norm() <= 1.0 + 1e-15));
+        assert_eq!(normalise(&[Vector3::new(1.0, 2.0, 3.0); 9]), None);
+        assert_eq!(
+            fit(&[[1.0, 2.0, 3.0]; 9]),
+            Err(GravityFitError::NotAnEllipsoid)
+        );
+    }
+
+    #[test]
+    fn negative_rows_are_negated() {
+        let mut t = Matrix3::new(-1.0, 0.0, 0.0, 0.5, 2.0, 0.0, 0.25, -0.5, -3.0);
+        positive_diagonal(&mut t);
+        assert_eq!(
+            t,
+            Matrix3::new(1.0, 0.0, 0.0, 0.5, 2.0, 0.0, -0.25, 0.5, 3.0)
+        );
+        let mut zero = Matrix3::new(0.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        positive_diagonal(&mut zero);
+        assert_eq!(zero[(1, 0)], -1.0, "a zero diagonal is left alone");
     }
 
     #[test]
@@ -471,6 +530,70 @@ mod tests {
         }
         problem.set_params(&p);
         assert_eq!(problem.params(), p);
+    }
+
+    #[test]
+    fn the_spread_threshold_is_inclusive() {
+        assert_eq!(spread_enough(MIN_SPREAD), Ok(MIN_SPREAD));
+        assert_eq!(spread_enough(0.5), Ok(0.5));
+        let below = MIN_SPREAD * (1.0 - 1e-12);
+        assert_eq!(
+            spread_enough(below),
+            Err(GravityFitError::Spread { spread: below })
+        );
+        assert!(spread_enough(f64::NAN).is_err());
+    }
+
+    #[test]
+    fn nearly_flat_sets_fit_but_are_refused_by_their_spread() {
+        let (b, t) = truth();
+        let means: Vec<[f64; 3]> = (0..16)
+            .map(|k| {
+                let a = k as f64 * std::f64::consts::PI / 8.0;
+                let e = (3.0 * (k as f64 * 1.3).sin()).to_radians();
+                outputs(b, t, [a.cos() * e.cos(), a.sin() * e.cos(), e.sin()])
+            })
+            .collect();
+        let got = fit(&means);
+        assert!(
+            matches!(got, Err(GravityFitError::Spread { spread }) if spread < MIN_SPREAD),
+            "{got:?}"
+        );
+    }
+
+    /// The standard errors against the scatter of the estimates themselves:
+    /// 400 fits of twelve positions (three degrees of freedom), each with
+    /// fresh noise; the mean reported variance of `b_x` and of `T_yy`
+    /// matches their variance across the fits.
+    #[test]
+    fn the_standard_errors_are_the_estimates_scatter() {
+        let (b, t) = truth();
+        let noise = Normal::new(0.0, 1e-3).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(17);
+        let dirs = directions(12, 23);
+        let (mut bx, mut tyy, mut se2_b, mut se2_t) = (vec![], vec![], 0.0, 0.0);
+        for _ in 0..400 {
+            let means: Vec<[f64; 3]> = dirs
+                .iter()
+                .map(|g| {
+                    let u = outputs(b, t, *g);
+                    [0, 1, 2].map(|m| u[m] + noise.sample(&mut rng))
+                })
+                .collect();
+            let f = fit(&means).unwrap();
+            bx.push(f.bias[0]);
+            tyy.push(f.t[1][1]);
+            se2_b += f.bias_std.unwrap()[0].powi(2) / 400.0;
+            se2_t += f.t_std.unwrap()[1][1].powi(2) / 400.0;
+        }
+        let var = |v: &[f64]| {
+            let m = v.iter().sum::<f64>() / v.len() as f64;
+            v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64
+        };
+        for (reported, scatter) in [(se2_b, var(&bx)), (se2_t, var(&tyy))] {
+            let ratio = reported / scatter;
+            assert!((0.7..1.4).contains(&ratio), "{ratio}");
+        }
     }
 
     #[test]
@@ -563,6 +686,24 @@ mod tests {
         ];
         let r = 1.0 / 3f64.sqrt();
         faces.extend([[r, r, r], [-r, r, r], [r, -r, r]]);
+        // The 26 directions of a cube's faces, edges and corners: by
+        // symmetry the Gram matrix of the rows splits into the squares'
+        // block [[44/9, 17/9, 17/9], …] (eigenvalues 26/3, 3, 3), the three
+        // products (17/9 each) and the three linear terms (26/3 each), so
+        // the spread is √(17/9) / √(26/3) = √(51/234).
+        let mut cube = Vec::new();
+        for x in [-1.0, 0.0, 1.0f64] {
+            for y in [-1.0, 0.0, 1.0f64] {
+                for z in [-1.0, 0.0, 1.0f64] {
+                    let n = (x * x + y * y + z * z).sqrt();
+                    if n > 0.0 {
+                        cube.push([x / n, y / n, z / n]);
+                    }
+                }
+            }
+        }
+        assert!((spread(&cube) - (51.0f64 / 234.0).sqrt()).abs() < 1e-12);
+        assert_eq!(spread(&[[0.0; 3]; 9]), 0.0, "no direction at all");
         let six_and_three = spread(&faces);
         assert!(six_and_three > MIN_SPREAD && six_and_three <= 1.0);
         // Within 5° of one plane: refused.

@@ -150,6 +150,18 @@ impl Prefix {
     }
 }
 
+/// The least variance threshold: a noiseless recording's still variance is
+/// zero, so allow the rounding of the running sums, `10⁻¹²` of the square
+/// of the recording's range about its first sample.
+fn floor(samples: &[[f64; 3]]) -> f64 {
+    let origin = samples[0];
+    let range = samples
+        .iter()
+        .flat_map(|u| (0..3).map(move |m| (u[m] - origin[m]).abs()))
+        .fold(0.0f64, f64::max);
+    1e-12 * range * range
+}
+
 /// Finds the static intervals of a recording at `rate_hz`.
 pub fn detect(rate_hz: f64, samples: &[[f64; 3]], d: &Detector) -> Result<Detection, DetectError> {
     for (name, v) in [
@@ -179,46 +191,36 @@ pub fn detect(rate_hz: f64, samples: &[[f64; 3]], d: &Detector) -> Result<Detect
     }
     let prefix = Prefix::new(samples);
     let still_variance = prefix.variance(0, still);
-    // A noiseless recording's still variance is zero: allow the rounding of
-    // the running sums, relative to the recording's range.
-    let origin = samples[0];
-    let range = samples
-        .iter()
-        .flat_map(|u| (0..3).map(move |m| (u[m] - origin[m]).abs()))
-        .fold(0.0f64, f64::max);
-    let floor = 1e-12 * range * range;
-    let threshold_variance = (d.threshold * still_variance).max(floor);
+    let threshold_variance = (d.threshold * still_variance).max(floor(samples));
     let half = window / 2;
     let n = samples.len();
-    let quiet = |t: usize| {
-        let a = t.saturating_sub(half).min(n - window);
-        prefix.variance(a, a + window) <= threshold_variance
-    };
+    let quiet: Vec<bool> = (0..n)
+        .map(|t| {
+            let a = t.saturating_sub(half).min(n - window);
+            prefix.variance(a, a + window) <= threshold_variance
+        })
+        .collect();
     let min_len = (d.min_static_s * rate_hz).round() as usize;
     let mut intervals = Vec::new();
-    let mut t = 0;
-    while t < n {
-        if !quiet(t) {
-            t += 1;
-            continue;
-        }
-        let start = t;
-        while t < n && quiet(t) {
-            t += 1;
-        }
-        let count = (t - start) as f64;
-        let mut mean = [0.0; 3];
-        for u in &samples[start..t] {
-            for m in 0..3 {
-                mean[m] += u[m] / count;
+    let mut start = 0;
+    for run in quiet.chunk_by(|a, b| a == b) {
+        let end = start + run.len();
+        if run[0] {
+            let count = run.len() as f64;
+            let mut mean = [0.0; 3];
+            for u in &samples[start..end] {
+                for m in 0..3 {
+                    mean[m] += u[m] / count;
+                }
             }
+            intervals.push(Interval {
+                start,
+                end,
+                mean,
+                rejected: (run.len() < min_len).then_some(Rejection::TooShort),
+            });
         }
-        intervals.push(Interval {
-            start,
-            end: t,
-            mean,
-            rejected: (t - start < min_len).then_some(Rejection::TooShort),
-        });
+        start = end;
     }
     Ok(Detection {
         still_variance,
@@ -309,6 +311,9 @@ mod tests {
         let first = positions[0];
         assert!((first[2] - (0.03 + 1.01)).abs() < 1e-3, "{first:?}");
         assert!((first[0] - 0.02).abs() < 1e-3);
+        // The second, x up: b + 1.01 (1, 0, 0).
+        assert!((positions[1][0] - 1.03).abs() < 1e-3, "{:?}", positions[1]);
+        assert!((positions[1][2] - 0.03).abs() < 1e-3);
         // σ²_init is the planted noise's: 3 × (1e-3)².
         assert!((found.still_variance / 3e-6 - 1.0).abs() < 0.2);
         assert_eq!(found.threshold_variance, 6.0 * found.still_variance);
@@ -325,16 +330,68 @@ mod tests {
         assert_eq!(found.positions().len(), 6, "the 3 s hold is rejected too");
     }
 
-    #[test]
-    fn noiseless_recordings_are_static_where_still() {
+    /// Still until sample 500, a ramp on x to sample 599, still from 600.
+    fn step() -> Vec<[f64; 3]> {
         let mut samples = vec![[0.0, 0.0, 1.0]; 500];
         samples.extend((0..100).map(|i| [f64::from(i) / 100.0, 0.0, 1.0]));
         samples.extend(vec![[1.0, 0.0, 1.0]; 300]);
-        let found = detect(RATE, &samples, &Detector::default()).unwrap();
+        samples
+    }
+
+    #[test]
+    fn interval_edges_are_half_a_window_from_the_motion() {
+        // Window 100 samples: sample t's window is [t − 50, t + 50). The
+        // ramp's first change is sample 501 (sample 500 is still 0): quiet
+        // while t + 50 ≤ 501, so the first interval is [0, 452); the last
+        // windows to see sample 599 end at t = 649, so the second is
+        // [650, 900).
+        let found = detect(RATE, &step(), &Detector::default()).unwrap();
         assert_eq!(found.still_variance, 0.0);
-        assert_eq!(found.intervals.len(), 2);
-        assert_eq!(found.intervals[0].start, 0);
-        assert_eq!(found.intervals[1].end, 900);
+        let edges: Vec<(usize, usize)> = found.intervals.iter().map(|i| (i.start, i.end)).collect();
+        assert_eq!(edges, [(0, 452), (650, 900)]);
+        let mean = found.intervals[1].mean;
+        assert!((mean[0] - 1.0).abs() < 1e-12 && mean[1] == 0.0 && (mean[2] - 1.0).abs() < 1e-12);
+        // 250 samples: kept at a minimum of exactly 2.5 s, rejected above.
+        let at = |min_static_s| Detector {
+            min_static_s,
+            ..Detector::default()
+        };
+        let kept = detect(RATE, &step(), &at(2.5)).unwrap();
+        assert_eq!(kept.intervals[1].rejected, None);
+        let rejected = detect(RATE, &step(), &at(2.51)).unwrap();
+        assert_eq!(rejected.intervals[1].rejected, Some(Rejection::TooShort));
+    }
+
+    #[test]
+    fn the_still_variance_is_the_sample_variance_summed_over_the_axes() {
+        let (samples, _) = recording(&holds());
+        let found = detect(RATE, &samples, &Detector::default()).unwrap();
+        // Two-pass sample variance of the first 3 s, independently.
+        let first = &samples[..300];
+        let want: f64 = (0..3)
+            .map(|m| {
+                let mean = first.iter().map(|u| u[m]).sum::<f64>() / 300.0;
+                first.iter().map(|u| (u[m] - mean).powi(2)).sum::<f64>() / 299.0
+            })
+            .sum();
+        assert!((found.still_variance / want - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn the_floor_is_a_millionth_of_the_range_squared() {
+        assert_eq!(
+            floor(&[[1.0, 2.0, 3.0], [1.0, 4.0, 3.0], [0.0, 2.0, 3.5]]),
+            4e-12
+        );
+        assert_eq!(floor(&[[5.0, 5.0, 5.0]; 3]), 0.0);
+    }
+
+    #[test]
+    fn the_shortest_recording_is_the_still_period_and_one_window() {
+        // 300 samples of still period and a window of 100: 400 is enough.
+        let found = detect(RATE, &[[0.0, 0.0, 1.0]; 400], &Detector::default()).unwrap();
+        assert_eq!(found.intervals.len(), 1);
+        assert_eq!((found.intervals[0].start, found.intervals[0].end), (0, 400));
     }
 
     #[test]

@@ -27,5 +27,7 @@ pub mod submission;
 pub mod text;
 pub mod timestamp;
 pub mod tokens;
+pub mod triad;
+pub mod triad_export;
 pub mod typed;
 pub mod usability;

@@ -30,6 +30,7 @@ pub mod stack;
 pub mod standards;
 pub mod throttle;
 pub mod tokens;
+pub mod triad;
 pub mod ui;
 
 use std::sync::Arc;
@@ -329,6 +330,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(standards::affected))
         .routes(routes!(compute::identify))
         .routes(routes!(compute::fuse))
+        .routes(routes!(triad::identify))
         .routes(routes!(tokens::create, tokens::list))
         .routes(routes!(tokens::revoke))
         .routes(routes!(backup::backup))

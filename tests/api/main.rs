@@ -27,4 +27,5 @@ mod standards;
 mod storage;
 mod trace;
 mod traceability;
+mod triad;
 mod ui;

@@ -1,0 +1,745 @@
+//! Triad submissions (issue 30): three outputs at once, `u = b + S g`.
+//!
+//! One body, three forms, exactly one of which is given:
+//!
+//! * **known orientations** — `orientations` (gravity vectors in the body
+//!   frame, in g, or a named set: `six_faces`, `cube24`) and `runs`, each
+//!   run's samples of `(u_x, u_y, u_z)` per position: each axis is
+//!   identified and fused by the single-axis method over the shared
+//!   positions ([`accelcal_core::triad`]);
+//! * **unknown orientations** — `static_positions`, each position's samples:
+//!   `b` and `T = S⁻¹` from the gravity magnitude
+//!   ([`accelcal_core::gravity_fit`]);
+//! * **a recording** — `recording` (`rate_hz`, samples, optional `detector`
+//!   parameters): its static intervals ([`accelcal_core::static_intervals`])
+//!   become the static positions.
+//!
+//! [`TriadBody::check`] names every fault by JSON pointer; [`compute`]
+//! answers a [`TriadResult`], whose `b`, `S` and `T` also feed the exports
+//! ([`super::triad_export`]).
+
+use accelcal_core::gravity_fit::{self, GravityFit, GravityFitError, MIN_POSITIONS};
+use accelcal_core::static_intervals::{self, DetectError, Detection, Detector, Rejection};
+use accelcal_core::triad::{AXES, Triad, TriadError, TriadRun, TriadTest, six_faces};
+use serde::{Deserialize, Serialize};
+use utoipa::ToSchema;
+
+use super::field::{Errors, Invalid, Loc};
+use super::limits::{
+    MAX_BATCHES, MAX_ID_CHARS, MAX_POSITIONS, MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES,
+    MAX_UNIT_CHARS,
+};
+
+/// Largest sampling rate, Hz.
+const MAX_RATE_HZ: f64 = 1e6;
+/// Largest detector time, s.
+const MAX_DETECTOR_S: f64 = 3600.0;
+/// Largest detector threshold multiple.
+const MAX_THRESHOLD: f64 = 1e6;
+
+/// The body of `POST /v1/identify/triad`.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TriadBody {
+    /// The triad's id, echoed (at most 64 characters).
+    #[serde(default)]
+    pub sensor_id: Option<String>,
+    /// The outputs' unit (default `output`): `m/s2` or `g` for the PX4 and
+    /// ArduPilot exports.
+    #[serde(default)]
+    pub unit: Option<String>,
+    /// Known orientations: specific force in the body frame, in g, per
+    /// position (each of magnitude 1), or `six_faces` (+x, −x, +y, −y, +z,
+    /// −z up) or `cube24` (the 24 orientations of a cube: each face up,
+    /// turned four times about the vertical).
+    #[serde(default)]
+    pub orientations: Option<OrientationsBody>,
+    /// With `orientations`: each run's samples per position.
+    #[serde(default)]
+    pub runs: Option<Vec<TriadRunBody>>,
+    /// With `orientations`: batches for the fusion (default 1).
+    #[serde(default)]
+    pub batches: Option<usize>,
+    /// Unknown orientations: each static position's samples of
+    /// `(u_x, u_y, u_z)` (at least nine positions).
+    #[serde(default)]
+    pub static_positions: Option<Vec<Vec<[f64; 3]>>>,
+    /// Unknown orientations from one continuous recording.
+    #[serde(default)]
+    pub recording: Option<RecordingBody>,
+}
+
+/// Orientations: given, or a named set.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(untagged)]
+pub enum OrientationsBody {
+    /// `six_faces` or `cube24`.
+    Named(NamedSet),
+    /// Gravity vectors in the body frame, in g.
+    Vectors(Vec<[f64; 3]>),
+}
+
+/// A named set of orientations.
+#[derive(Debug, Clone, Copy, Deserialize, Serialize, ToSchema, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum NamedSet {
+    /// +x, −x, +y, −y, +z, −z up.
+    SixFaces,
+    /// Each face up, turned 0°, 90°, 180°, 270° about the vertical: the body
+    /// sees each face's gravity vector four times.
+    Cube24,
+}
+
+/// One run of a triad with known orientations.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TriadRunBody {
+    /// Per position, its samples of `(u_x, u_y, u_z)`.
+    pub samples: Vec<Vec<[f64; 3]>>,
+}
+
+/// A continuous recording.
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct RecordingBody {
+    /// Samples per second.
+    pub rate_hz: f64,
+    /// The samples of `(u_x, u_y, u_z)`, in time order.
+    pub samples: Vec<[f64; 3]>,
+    /// The detector's parameters (each defaulted).
+    #[serde(default)]
+    pub detector: Option<DetectorBody>,
+}
+
+/// The static-interval detector's parameters.
+#[derive(Debug, Clone, Copy, Default, Deserialize, Serialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct DetectorBody {
+    /// The initial still period, s (default 3).
+    #[serde(default)]
+    pub still_s: Option<f64>,
+    /// The moving-variance window, s (default 1).
+    #[serde(default)]
+    pub window_s: Option<f64>,
+    /// Static where the window's variance is at most this multiple of the
+    /// still period's (default 6).
+    #[serde(default)]
+    pub threshold: Option<f64>,
+    /// The shortest interval used, s (default 2).
+    #[serde(default)]
+    pub min_static_s: Option<f64>,
+}
+
+impl DetectorBody {
+    fn detector(self) -> Detector {
+        let d = Detector::default();
+        Detector {
+            still_s: self.still_s.unwrap_or(d.still_s),
+            window_s: self.window_s.unwrap_or(d.window_s),
+            threshold: self.threshold.unwrap_or(d.threshold),
+            min_static_s: self.min_static_s.unwrap_or(d.min_static_s),
+        }
+    }
+}
+
+/// A checked triad submission.
+#[derive(Debug, Clone)]
+pub struct TriadSubmission {
+    /// Echoed id.
+    pub sensor_id: Option<String>,
+    /// The outputs' unit.
+    pub unit: String,
+    /// What to compute.
+    pub form: Form,
+}
+
+/// The three forms.
+#[derive(Debug, Clone)]
+pub enum Form {
+    /// Known orientations.
+    Known {
+        /// Gravity vectors.
+        positions: Vec<[f64; 3]>,
+        /// Runs.
+        runs: Vec<TriadRun>,
+        /// Batches.
+        batches: usize,
+    },
+    /// The static positions' mean outputs.
+    Unknown {
+        /// Per position, the mean of its samples.
+        means: Vec<[f64; 3]>,
+    },
+    /// A recording.
+    Recording {
+        /// Samples per second.
+        rate_hz: f64,
+        /// The samples.
+        samples: Vec<[f64; 3]>,
+        /// The detector.
+        detector: Detector,
+    },
+}
+
+/// A one-line label of at most `max` characters.
+fn label(at: Loc<'_>, text: Option<String>, max: usize, errors: &mut Errors) -> Option<String> {
+    let t = text?;
+    if t.is_empty() || t.chars().count() > max || t.chars().any(char::is_control) {
+        errors.add(at, format!("must be 1 to {max} characters on one line"));
+    }
+    Some(t)
+}
+
+/// Three outputs, each finite and within ±[`MAX_READING`].
+fn reading(at: Loc<'_>, u: &[f64; 3], errors: &mut Errors) {
+    if u.iter().any(|x| !(x.is_finite() && x.abs() <= MAX_READING)) {
+        errors.add(
+            at,
+            format!("must be three finite numbers within ±{MAX_READING:e}"),
+        );
+    }
+}
+
+/// At most `max` items.
+fn at_most(at: Loc<'_>, n: usize, max: usize, what: &str, errors: &mut Errors) -> bool {
+    if n > max {
+        errors.add(at, format!("{n} {what}: at most {max}"));
+        return false;
+    }
+    true
+}
+
+impl TriadBody {
+    /// Checks the body: exactly one form, its shape, finite numbers.
+    pub fn check(self) -> Result<TriadSubmission, Invalid> {
+        let root = Loc::Root;
+        let mut errors = Errors::default();
+        let sensor_id = label(
+            root.key("sensor_id"),
+            self.sensor_id.clone(),
+            MAX_ID_CHARS,
+            &mut errors,
+        );
+        let unit = label(
+            root.key("unit"),
+            self.unit.clone(),
+            MAX_UNIT_CHARS,
+            &mut errors,
+        )
+        .unwrap_or_else(|| "output".into());
+        let given = [
+            self.orientations.is_some(),
+            self.static_positions.is_some(),
+            self.recording.is_some(),
+        ];
+        let form = match given {
+            [true, false, false] => self.known(&mut errors),
+            [false, true, false] => {
+                let positions = self.static_positions.unwrap_or_default();
+                let at = root.key("static_positions");
+                if positions.len() < MIN_POSITIONS {
+                    errors.add(
+                        at,
+                        format!(
+                            "{} positions: at least {MIN_POSITIONS} are needed to find b and T \
+                             without known orientations",
+                            positions.len()
+                        ),
+                    );
+                }
+                let total: usize = positions.iter().map(Vec::len).sum();
+                let means = if at_most(at, positions.len(), MAX_POSITIONS, "positions", &mut errors)
+                    && at_most(at, total, MAX_TOTAL_SAMPLES, "samples", &mut errors)
+                {
+                    positions
+                        .iter()
+                        .enumerate()
+                        .map(|(r, samples)| {
+                            if samples.is_empty() {
+                                errors.add(at.index(r), "must hold at least one sample");
+                            }
+                            for (k, u) in samples.iter().enumerate() {
+                                reading(at.index(r).index(k), u, &mut errors);
+                            }
+                            mean(samples)
+                        })
+                        .collect()
+                } else {
+                    Vec::new()
+                };
+                Some(Form::Unknown { means })
+            }
+            [false, false, true] => {
+                let r = self.recording.expect("given");
+                let at = root.key("recording");
+                if !(r.rate_hz.is_finite() && r.rate_hz > 0.0 && r.rate_hz <= MAX_RATE_HZ) {
+                    errors.add(
+                        at.key("rate_hz"),
+                        format!("must be a positive number of samples per second, at most {MAX_RATE_HZ:e}"),
+                    );
+                }
+                let samples_at = at.key("samples");
+                if at_most(
+                    samples_at,
+                    r.samples.len(),
+                    MAX_TOTAL_SAMPLES,
+                    "samples",
+                    &mut errors,
+                ) {
+                    for (k, u) in r.samples.iter().enumerate() {
+                        reading(samples_at.index(k), u, &mut errors);
+                    }
+                }
+                let detector = r.detector.unwrap_or_default().detector();
+                for (name, v, max) in [
+                    ("still_s", detector.still_s, MAX_DETECTOR_S),
+                    ("window_s", detector.window_s, MAX_DETECTOR_S),
+                    ("threshold", detector.threshold, MAX_THRESHOLD),
+                    ("min_static_s", detector.min_static_s, MAX_DETECTOR_S),
+                ] {
+                    if !(v.is_finite() && v > 0.0 && v <= max) {
+                        errors.add(
+                            at.key("detector").key(name),
+                            format!("must be a positive number, at most {max}"),
+                        );
+                    }
+                }
+                Some(Form::Recording {
+                    rate_hz: r.rate_hz,
+                    samples: r.samples,
+                    detector,
+                })
+            }
+            _ => {
+                errors.add(
+                    root,
+                    "give exactly one of `orientations` (with `runs`), `static_positions` or \
+                     `recording`",
+                );
+                None
+            }
+        };
+        errors.finish(|| TriadSubmission {
+            sensor_id,
+            unit,
+            form: form.expect("a form when nothing is wrong"),
+        })
+    }
+
+    fn known(self, errors: &mut Errors) -> Option<Form> {
+        let root = Loc::Root;
+        let positions = match self.orientations.expect("given") {
+            OrientationsBody::Named(NamedSet::SixFaces) => six_faces(),
+            OrientationsBody::Named(NamedSet::Cube24) => six_faces()
+                .into_iter()
+                .flat_map(|g| std::iter::repeat_n(g, 4))
+                .collect(),
+            OrientationsBody::Vectors(v) => {
+                let all = root.key("orientations");
+                for (r, g) in v.iter().enumerate() {
+                    let at = all.index(r);
+                    let norm = g.iter().map(|x| x * x).sum::<f64>().sqrt();
+                    if !norm.is_finite() || (norm - 1.0).abs() > 0.01 {
+                        errors.add(
+                            at,
+                            format!(
+                                "a position's specific force is 1 g: this one's magnitude is {norm}"
+                            ),
+                        );
+                    }
+                }
+                v
+            }
+        };
+        let Some(runs) = self.runs else {
+            errors.add(root.key("runs"), "is required with `orientations`");
+            return None;
+        };
+        if runs.is_empty() {
+            errors.add(root.key("runs"), "must hold at least one run");
+        }
+        let total: usize = runs
+            .iter()
+            .flat_map(|r| r.samples.iter().map(Vec::len))
+            .sum();
+        if !(at_most(
+            root.key("orientations"),
+            positions.len(),
+            MAX_POSITIONS,
+            "orientations",
+            errors,
+        ) && at_most(root.key("runs"), runs.len(), MAX_RUNS, "runs", errors)
+            && at_most(
+                root.key("runs"),
+                total,
+                MAX_TOTAL_SAMPLES,
+                "samples",
+                errors,
+            ))
+        {
+            return None;
+        }
+        let all = root.key("runs");
+        for (j, run) in runs.iter().enumerate() {
+            let run_at = all.index(j);
+            let at = run_at.key("samples");
+            if run.samples.len() != positions.len() {
+                errors.add(
+                    at,
+                    format!(
+                        "has {} positions; the orientations are {}",
+                        run.samples.len(),
+                        positions.len()
+                    ),
+                );
+            }
+            for (r, samples) in run.samples.iter().enumerate() {
+                if samples.is_empty() {
+                    errors.add(at.index(r), "must hold at least one sample");
+                }
+                for (k, u) in samples.iter().enumerate() {
+                    reading(at.index(r).index(k), u, errors);
+                }
+            }
+        }
+        let batches = self.batches.unwrap_or(1);
+        if batches == 0 || batches > runs.len().max(1) || batches as u64 > MAX_BATCHES {
+            errors.add(
+                root.key("batches"),
+                "must be between 1 and the number of runs",
+            );
+        }
+        Some(Form::Known {
+            positions,
+            runs: runs
+                .into_iter()
+                .map(|r| TriadRun { samples: r.samples })
+                .collect(),
+            batches,
+        })
+    }
+}
+
+fn mean(samples: &[[f64; 3]]) -> [f64; 3] {
+    let n = samples.len().max(1) as f64;
+    let mut m = [0.0; 3];
+    for u in samples {
+        for k in 0..3 {
+            m[k] += u[k] / n;
+        }
+    }
+    m
+}
+
+/// One axis's single-axis identification within a triad.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct AxisResult {
+    /// `x`, `y` or `z`.
+    pub axis: &'static str,
+    /// The arithmetic mean across runs with eq. 8 dispersion.
+    #[schema(value_type = Object)]
+    pub mean: serde_json::Value,
+    /// The batch-estimation fusion with eq. 8 dispersion.
+    #[schema(value_type = Object)]
+    pub fused: serde_json::Value,
+}
+
+/// Levenberg–Marquardt's report.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct FitReport {
+    /// Residual evaluations made.
+    pub evaluations: usize,
+    /// Why it stopped: `converged`, `orthogonal` or `residuals_zero`.
+    pub stop: &'static str,
+    /// The directions' spread (reciprocal condition of the normalised
+    /// Jacobian).
+    pub spread: f64,
+    /// The least spread accepted.
+    pub min_spread: f64,
+    /// Root mean square of the residuals, g.
+    pub rms_g: f64,
+}
+
+/// One static interval of a recording.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct IntervalReport {
+    /// Its start, s from the recording's start.
+    pub start_s: f64,
+    /// Its end, s.
+    pub end_s: f64,
+    /// Whether it is one of the positions.
+    pub used: bool,
+    /// Why not: `too_short`.
+    pub rejected: Option<&'static str>,
+    /// Its mean outputs.
+    pub mean: [f64; 3],
+}
+
+/// What the detector did with a recording.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct DetectionReport {
+    /// The parameters used.
+    pub still_s: f64,
+    /// The window, s.
+    pub window_s: f64,
+    /// The threshold multiple.
+    pub threshold: f64,
+    /// The shortest interval used, s.
+    pub min_static_s: f64,
+    /// The initial still period's variance (sum over the axes).
+    pub still_variance: f64,
+    /// The variance threshold.
+    pub threshold_variance: f64,
+    /// Every static interval found.
+    pub intervals: Vec<IntervalReport>,
+}
+
+/// A triad's result (`POST /v1/identify/triad`).
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct TriadResult {
+    /// `triad`.
+    pub kind: &'static str,
+    /// `known_orientations` or `gravity_magnitude`.
+    pub method: &'static str,
+    /// The echoed id.
+    pub sensor_id: Option<String>,
+    /// The outputs' unit.
+    pub unit: String,
+    /// `u = b + S g`.
+    pub model: &'static str,
+    /// How to compensate.
+    pub compensation: &'static str,
+    /// `b`, in the outputs' unit.
+    pub b: [f64; 3],
+    /// Its standard errors (null with exactly nine static positions).
+    pub b_std_errors: Option<[f64; 3]>,
+    /// `S`, rows by axis, in the outputs' unit per g.
+    #[serde(rename = "S")]
+    pub s: [[f64; 3]; 3],
+    /// Its standard errors (known orientations).
+    #[serde(rename = "S_std_errors", skip_serializing_if = "Option::is_none")]
+    pub s_std_errors: Option<[[f64; 3]; 3]>,
+    /// `T = S⁻¹`, g per output unit.
+    #[serde(rename = "T")]
+    pub t: [[f64; 3]; 3],
+    /// Its standard errors (unknown orientations; null with exactly nine).
+    #[serde(rename = "T_std_errors", skip_serializing_if = "Option::is_none")]
+    pub t_std_errors: Option<[[f64; 3]; 3]>,
+    /// Each axis's scale factor: the norm of its row of `S`.
+    pub scale_factors: [f64; 3],
+    /// How far each pair of sensitive axes is from perpendicular, degrees
+    /// (`xy`, `yz`, `zx`: 90° minus the angle between their rows of `S`).
+    pub non_orthogonality_deg: [f64; 3],
+    /// Per position, the residual: known orientations, `ū − (b + S g)` per
+    /// axis in the outputs' unit; unknown, `‖T (ū − b)‖ − 1` in g.
+    pub residuals: Vec<Vec<f64>>,
+    /// Known orientations: each axis's single-axis identification.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub axes: Option<Vec<AxisResult>>,
+    /// Unknown orientations: the fit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit: Option<FitReport>,
+    /// Unknown orientations: each position's fitted gravity direction.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub directions: Option<Vec<[f64; 3]>>,
+    /// A recording: the static intervals.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub detection: Option<DetectionReport>,
+}
+
+/// The model equation.
+pub const MODEL: &str = "u = b + S g";
+/// The compensation.
+pub const COMPENSATION: &str = "g = T (u - b), T = S^-1";
+
+/// 90° minus the angle between rows `m` and `n` of `s`, degrees.
+fn skew(s: &[[f64; 3]; 3], m: usize, n: usize) -> f64 {
+    let dot: f64 = (0..3).map(|k| s[m][k] * s[n][k]).sum();
+    let norm = |r: &[f64; 3]| r.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let cos = (dot / (norm(&s[m]) * norm(&s[n]))).clamp(-1.0, 1.0);
+    90.0 - cos.acos().to_degrees()
+}
+
+/// `T = S⁻¹`, column `k` being the compensation of `b + e_k` (refused when
+/// `S` is singular to working precision, as compensation is).
+fn invert(triad: &Triad) -> Option<[[f64; 3]; 3]> {
+    let mut t = [[0.0; 3]; 3];
+    for k in 0..3 {
+        let mut u = triad.bias;
+        u[k] += 1.0;
+        let column = triad.compensate(u).ok()?;
+        for r in 0..3 {
+            t[r][k] = column[r];
+        }
+    }
+    Some(t)
+}
+
+fn problem(at: Loc<'_>, detail: impl Into<String>) -> Invalid {
+    Invalid::one(at, detail)
+}
+
+/// Computes a checked submission.
+pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
+    let base = |method, b, s: [[f64; 3]; 3], t| TriadResult {
+        kind: "triad",
+        method,
+        sensor_id: sub.sensor_id.clone(),
+        unit: sub.unit.clone(),
+        model: MODEL,
+        compensation: COMPENSATION,
+        b,
+        b_std_errors: None,
+        s,
+        s_std_errors: None,
+        t,
+        t_std_errors: None,
+        scale_factors: s.map(|row| row.iter().map(|x| x * x).sum::<f64>().sqrt()),
+        non_orthogonality_deg: [skew(&s, 0, 1), skew(&s, 1, 2), skew(&s, 2, 0)],
+        residuals: Vec::new(),
+        axes: None,
+        fit: None,
+        directions: None,
+        detection: None,
+    };
+    match &sub.form {
+        Form::Known {
+            positions,
+            runs,
+            batches,
+        } => {
+            let test = TriadTest::new(positions, runs).map_err(|e| axis_problem(&e))?;
+            let cal = test.calibrate(*batches).map_err(|e| axis_problem(&e))?;
+            let Triad { bias, matrix } = cal.fused;
+            let t = invert(&cal.fused).ok_or_else(|| {
+                problem(
+                    Loc::Root.key("runs"),
+                    "S is singular: the outputs do not determine the specific force",
+                )
+            })?;
+            let mut r = base("known_orientations", bias, matrix, t);
+            r.b_std_errors = Some(cal.std_errors.bias);
+            r.s_std_errors = Some(cal.std_errors.matrix);
+            r.residuals = positions
+                .iter()
+                .enumerate()
+                .map(|(p, g)| {
+                    let model = cal.fused.outputs(*g);
+                    let all: Vec<[f64; 3]> = runs
+                        .iter()
+                        .flat_map(|run| run.samples[p].iter().copied())
+                        .collect();
+                    let m = mean(&all);
+                    (0..3).map(|k| m[k] - model[k]).collect()
+                })
+                .collect();
+            r.axes = Some(
+                cal.axes
+                    .iter()
+                    .enumerate()
+                    .map(|(m, c)| AxisResult {
+                        axis: AXES[m],
+                        mean: serde_json::to_value(&c.mean).unwrap_or_default(),
+                        fused: serde_json::to_value(&c.fused).unwrap_or_default(),
+                    })
+                    .collect(),
+            );
+            Ok(r)
+        }
+        Form::Unknown { means } => {
+            let f = gravity_fit::fit(means)
+                .map_err(|e| fit_problem(Loc::Root.key("static_positions"), &e))?;
+            Ok(unknown(base, f, None))
+        }
+        Form::Recording {
+            rate_hz,
+            samples,
+            detector,
+        } => {
+            let at = Loc::Root.key("recording");
+            let found = static_intervals::detect(*rate_hz, samples, detector)
+                .map_err(|e| detect_problem(&at, &e))?;
+            let report = detection_report(&found, *rate_hz, detector);
+            let positions = found.positions();
+            if positions.len() < MIN_POSITIONS {
+                return Err(problem(
+                    at,
+                    format!(
+                        "only {} static intervals found ({} rejected as shorter than {} s); {MIN_POSITIONS} \
+                         needed: hold each of at least {MIN_POSITIONS} orientations still for at least {} s",
+                        positions.len(),
+                        found.intervals.len() - positions.len(),
+                        detector.min_static_s,
+                        detector.min_static_s + detector.window_s,
+                    ),
+                ));
+            }
+            let f = gravity_fit::fit(&positions).map_err(|e| fit_problem(at, &e))?;
+            Ok(unknown(base, f, Some(report)))
+        }
+    }
+}
+
+fn unknown(
+    base: impl Fn(&'static str, [f64; 3], [[f64; 3]; 3], [[f64; 3]; 3]) -> TriadResult,
+    f: GravityFit,
+    detection: Option<DetectionReport>,
+) -> TriadResult {
+    let mut r = base("gravity_magnitude", f.bias, f.s, f.t);
+    r.b_std_errors = f.bias_std;
+    r.t_std_errors = f.t_std;
+    r.residuals = f.residuals_g.iter().map(|x| vec![*x]).collect();
+    r.fit = Some(FitReport {
+        evaluations: f.evaluations,
+        stop: f.stop.as_str(),
+        spread: f.spread,
+        min_spread: gravity_fit::MIN_SPREAD,
+        rms_g: f.rms_g,
+    });
+    r.directions = Some(f.directions);
+    r.detection = detection;
+    r
+}
+
+fn detection_report(found: &Detection, rate_hz: f64, d: &Detector) -> DetectionReport {
+    DetectionReport {
+        still_s: d.still_s,
+        window_s: d.window_s,
+        threshold: d.threshold,
+        min_static_s: d.min_static_s,
+        still_variance: found.still_variance,
+        threshold_variance: found.threshold_variance,
+        intervals: found
+            .intervals
+            .iter()
+            .map(|i| IntervalReport {
+                start_s: i.start as f64 / rate_hz,
+                end_s: i.end as f64 / rate_hz,
+                used: i.rejected.is_none(),
+                rejected: i.rejected.map(|r| match r {
+                    Rejection::TooShort => "too_short",
+                }),
+                mean: i.mean,
+            })
+            .collect(),
+    }
+}
+
+fn axis_problem(e: &TriadError) -> Invalid {
+    problem(Loc::Root.key("runs"), e.to_string())
+}
+
+fn fit_problem(at: Loc<'_>, e: &GravityFitError) -> Invalid {
+    problem(at, e.to_string())
+}
+
+fn detect_problem(at: &Loc<'_>, e: &DetectError) -> Invalid {
+    match e {
+        DetectError::Parameter { name } if *name == "rate_hz" => {
+            problem(at.key("rate_hz"), e.to_string())
+        }
+        DetectError::Parameter { name } => problem(at.key("detector").key(name), e.to_string()),
+        DetectError::NotFinite { index } => problem(at.key("samples").index(*index), e.to_string()),
+        DetectError::TooShort { .. } => problem(at.key("samples"), e.to_string()),
+    }
+}

@@ -1,0 +1,112 @@
+//! `POST /v1/identify/triad`: a triad calibrated and answered, not stored
+//! (issue 30) — from known orientations, from static positions of unknown
+//! orientation, or from one continuous recording — and, with `?export=`,
+//! the result in the form firmware loads.
+
+use axum::extract::State;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use serde::Deserialize;
+use utoipa::IntoParams;
+
+use super::AppState;
+use super::auth::require;
+use super::body::Body;
+use super::problem::Problem;
+use super::query::Params;
+use crate::domain::auth::{Principal, Role};
+use crate::domain::field::Invalid;
+use crate::domain::triad::{TriadBody, TriadResult, compute};
+use crate::domain::triad_export::{Exported, Format, export};
+
+/// The query of `POST /v1/identify/triad`.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct TriadQuery {
+    /// Answer the calibration as `json` (b, S, T and the convention), `c`
+    /// (a header), `px4` or `ardupilot` (parameter files) instead of the
+    /// full result.
+    #[param(pattern = "^(json|c|px4|ardupilot)$")]
+    pub export: Option<String>,
+}
+
+/// `POST /v1/identify/triad`.
+#[utoipa::path(
+    post,
+    path = "/v1/identify/triad",
+    tag = "compute",
+    operation_id = "identifyTriad",
+    summary = "Calibrate a triad (u = b + S g) without storing it.",
+    description = "Exactly one of: `orientations` (gravity vectors in g, `six_faces` or `cube24`) with \
+        `runs` — each axis identified and fused by the single-axis method; `static_positions` (at least \
+        nine) — b and T = S⁻¹ from the gravity magnitude by Levenberg–Marquardt; `recording` — its \
+        static intervals as the positions. With `export`, the calibration as a file.",
+    params(TriadQuery),
+    request_body(content((TriadBody = "application/json",
+        example = json!({"unit": "m/s2", "orientations": "six_faces", "runs": [{"samples": [
+            [[9.91, 0.02, -0.05]], [[-9.71, 0.01, -0.06]], [[0.12, 9.79, -0.04]],
+            [[0.09, -9.83, -0.07]], [[0.11, 0.03, 9.75]], [[0.10, 0.00, -9.87]]]}]})))),
+    responses(
+        (status = 200, description = "The triad's b, S, T with standard errors, scale factors, \
+            non-orthogonality, residuals, and the fit or the single-axis results; with `export`, the file.",
+            content((TriadResult = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn identify(
+    State(state): State<AppState>,
+    principal: Principal,
+    Params(q): Params<TriadQuery>,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Reader)?;
+    let format = match q.export.as_deref() {
+        None => None,
+        Some(f) => Some(Format::parse(f).ok_or_else(|| {
+            Problem::bad_parameter("export", "must be json, c, px4 or ardupilot")
+        })?),
+    };
+    // Parsed and computed on the compute pool: a recording may be megabytes.
+    let result: TriadResult = state
+        .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
+            let submission = body.json::<TriadBody>()?.check()?;
+            Ok(compute(submission)?)
+        })
+        .await??;
+    let Some(format) = format else {
+        return Ok(axum::Json(result).into_response());
+    };
+    let source = match &result.sensor_id {
+        Some(s) => format!(
+            "triad {s}, computed by accelcal {}",
+            env!("CARGO_PKG_VERSION")
+        ),
+        None => format!("a triad computed by accelcal {}", env!("CARGO_PKG_VERSION")),
+    };
+    let file = export(
+        &Exported {
+            unit: &result.unit,
+            b: result.b,
+            s: result.s,
+            t: result.t,
+            source,
+        },
+        format,
+    )
+    .map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
+    let mut res = file.into_response();
+    let h = res.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static(format.media_type()),
+    );
+    if let Ok(v) =
+        HeaderValue::from_str(&format!("attachment; filename=\"{}\"", format.file_name()))
+    {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(res)
+}
