@@ -28,6 +28,7 @@ pub mod text;
 pub mod timestamp;
 pub mod tokens;
 pub mod triad;
+pub mod triad_csv;
 pub mod triad_export;
 pub mod typed;
 pub mod usability;

@@ -16,7 +16,9 @@ use super::problem::Problem;
 use super::query::Params;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::Invalid;
+use crate::domain::submission::Media;
 use crate::domain::triad::{TriadBody, TriadResult, compute};
+use crate::domain::triad_csv;
 use crate::domain::triad_export::{Exported, Format, export};
 
 /// The query of `POST /v1/identify/triad`.
@@ -41,9 +43,11 @@ pub struct TriadQuery {
     description = "Exactly one of: `orientations` (gravity vectors in g, `six_faces` or `cube24`) with \
         `runs` — each axis identified and fused by the single-axis method; `static_positions` (at least \
         nine) — b and T = S⁻¹ from the gravity magnitude by Levenberg–Marquardt; `recording` — its \
-        static intervals as the positions. With `export`, the calibration as a file.",
+        static intervals as the positions. As CSV: the header `u_x,u_y,u_z` (a recording, `# rate_hz:` \
+        before it), `position,u_x,u_y,u_z` or `run,g_x,g_y,g_z,u_x,u_y,u_z`. With `export`, the \
+        calibration as a file.",
     params(TriadQuery),
-    request_body(content((TriadBody = "application/json",
+    request_body(content((String = "text/csv"), (TriadBody = "application/json",
         example = json!({"unit": "m/s2", "orientations": "six_faces", "runs": [{"samples": [
             [[9.91, 0.02, -0.05]], [[-9.71, 0.01, -0.06]], [[0.12, 9.79, -0.04]],
             [[0.09, -9.83, -0.07]], [[0.11, 0.03, 9.75]], [[0.10, 0.00, -9.87]]]}]})))),
@@ -72,7 +76,15 @@ pub async fn identify(
     // Parsed and computed on the compute pool: a recording may be megabytes.
     let result: TriadResult = state
         .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
-            let submission = body.json::<TriadBody>()?.check()?;
+            let parsed = match body.media {
+                Media::Csv => {
+                    let text = std::str::from_utf8(&body.bytes)
+                        .map_err(|_| Problem::bad_request("the CSV body is not UTF-8"))?;
+                    triad_csv::read(text)?
+                }
+                _ => body.json::<TriadBody>()?,
+            };
+            let submission = parsed.check()?;
             Ok(compute(submission)?)
         })
         .await??;

@@ -479,3 +479,63 @@ async fn each_refusal_names_its_field() {
     assert_eq!(pointers(&p), ["/static_positions"]);
     assert!(p.to_string().contains("do not span the sphere"), "{p}");
 }
+
+#[tokio::test]
+async fn csv_carries_each_form_to_the_same_answer() {
+    let app = TestApp::spawn(Sqlite).await;
+    let example: Value =
+        serde_json::from_str(include_str!("../../examples/triad-recording.json")).unwrap();
+    let csv_post = |body: String| {
+        app.client
+            .post(app.url("/v1/identify/triad"))
+            .bearer_auth(ADMIN)
+            .header(CONTENT_TYPE, "text/csv")
+            .body(body)
+            .send()
+    };
+    let json_answer: Value = triad(&app, &example).await.json().await.unwrap();
+    // The recording, its samples written with Rust's shortest round-trip text.
+    let mut csv =
+        String::from("# sensor_id: IMU-DEMO-1\n# unit: m/s2\n# rate_hz: 50\nu_x,u_y,u_z\n");
+    for u in example["recording"]["samples"].as_array().unwrap() {
+        csv.push_str(&format!("{},{},{}\n", f(&u[0]), f(&u[1]), f(&u[2])));
+    }
+    let res = csv_post(csv).await.unwrap();
+    assert_eq!(res.status(), StatusCode::OK);
+    let csv_answer: Value = res.json().await.unwrap();
+    assert_eq!(csv_answer["b"], json_answer["b"]);
+    assert_eq!(csv_answer["T"], json_answer["T"]);
+    assert_eq!(csv_answer["detection"], json_answer["detection"]);
+    // Known orientations, one sample a row.
+    let body = known_body();
+    let mut csv = String::from("# unit: m/s2\n# batches: 2\nrun,g_x,g_y,g_z,u_x,u_y,u_z\n");
+    for (j, run) in body["runs"].as_array().unwrap().iter().enumerate() {
+        for (g, samples) in faces().iter().zip(run["samples"].as_array().unwrap()) {
+            for u in samples.as_array().unwrap() {
+                csv.push_str(&format!(
+                    "{},{},{},{},{},{},{}\n",
+                    j + 1,
+                    g[0],
+                    g[1],
+                    g[2],
+                    f(&u[0]),
+                    f(&u[1]),
+                    f(&u[2])
+                ));
+            }
+        }
+    }
+    let from_csv: Value = csv_post(csv).await.unwrap().json().await.unwrap();
+    let from_json: Value = triad(&app, &body).await.json().await.unwrap();
+    assert_eq!(from_csv["S"], from_json["S"]);
+    assert_eq!(from_csv["b_std_errors"], from_json["b_std_errors"]);
+    // A bad line is named.
+    let res = csv_post("position,u_x,u_y,u_z\nA,1,0,zero\n".into())
+        .await
+        .unwrap();
+    let p = problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert!(
+        p.to_string().contains("CSV line 2: `zero` is not a number"),
+        "{p}"
+    );
+}
