@@ -264,6 +264,10 @@ pub fn spread(directions: &[[f64; 3]]) -> f64 {
         let [x, y, z] = directions[i];
         [x * x, y * y, z * z, x * y, x * z, y * z, x, y, z][k]
     });
+    // nalgebra's SVD does not return on a NaN: nothing non-finite reaches it.
+    if design.iter().any(|x| !x.is_finite()) {
+        return 0.0;
+    }
     let sv = design.singular_values();
     let max = sv.max();
     if max > 0.0 { sv.min() / max } else { 0.0 }
@@ -496,7 +500,7 @@ mod tests {
             t,
             Matrix3::new(1.0, 0.0, 0.0, 0.5, 2.0, 0.0, -0.25, 0.5, 3.0)
         );
-        let mut zero = Matrix3::new(0.0, 0.0, 0.0, -1.0, 1.0, 0.0, 0.0, 0.0, 1.0);
+        let mut zero = Matrix3::new(1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0);
         positive_diagonal(&mut zero);
         assert_eq!(zero[(1, 0)], -1.0, "a zero diagonal is left alone");
     }
@@ -625,6 +629,12 @@ mod tests {
                 assert!((f.t[m][c] - t[m][c]).abs() < 4.0 * ts[m][c], "T{m}{c}");
             }
         }
+        // The directions are unit vectors, though the outputs' magnitudes
+        // are not quite 1 g.
+        for d in &f.directions {
+            assert!((d.iter().map(|x| x * x).sum::<f64>() - 1.0).abs() < 1e-12);
+        }
+        assert!(f.residuals_g.iter().any(|r| r.abs() > 1e-5));
         // The residuals' scatter is the noise's, in g.
         assert!(f.rms_g > 5e-5 && f.rms_g < 5e-4, "{}", f.rms_g);
         assert!(matches!(f.stop, Stop::Converged | Stop::Orthogonal));
@@ -704,6 +714,7 @@ mod tests {
         }
         assert!((spread(&cube) - (51.0f64 / 234.0).sqrt()).abs() < 1e-12);
         assert_eq!(spread(&[[0.0; 3]; 9]), 0.0, "no direction at all");
+        assert_eq!(spread(&[[f64::NAN, 0.0, 1.0]; 9]), 0.0, "not a direction");
         let six_and_three = spread(&faces);
         assert!(six_and_three > MIN_SPREAD && six_and_three <= 1.0);
         // Within 5° of one plane: refused.
