@@ -62,11 +62,21 @@ pub fn from_json<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, BodyError> {
         }
         Err(e) => {
             let inner = e.inner();
-            if !inner.is_data() {
+            // serde_json reports an array longer than a fixed-size one
+            // (three outputs) as "trailing characters", a syntax error; in
+            // a body that is valid JSON it is the content's fault.
+            let too_long = !inner.is_data()
+                && inner.to_string().starts_with("trailing characters")
+                && serde_json::from_slice::<serde::de::IgnoredAny>(bytes).is_ok();
+            if !inner.is_data() && !too_long {
                 // Where the syntax breaks is worth saying.
                 return Err(BodyError::Syntax(inner.to_string()));
             }
-            let msg = message(inner);
+            let msg = if too_long {
+                "has more elements than allowed".to_owned()
+            } else {
+                message(inner)
+            };
             let segments: Vec<String> = e
                 .path()
                 .iter()
@@ -130,6 +140,27 @@ mod tests {
             Err(BodyError::Invalid(i)) => (i.errors[0].pointer.clone(), i.errors[0].detail.clone()),
             other => panic!("{other:?}"),
         }
+    }
+
+    #[test]
+    fn a_fixed_size_array_too_long_is_the_contents_fault() {
+        #[derive(Debug, serde::Deserialize)]
+        #[allow(dead_code)]
+        struct Triples {
+            t: Vec<[f64; 3]>,
+        }
+        match from_json::<Triples>(br#"{"t": [[1, 2, 3], [1, 2, 3, 4]]}"#) {
+            Err(BodyError::Invalid(i)) => {
+                assert_eq!(i.errors[0].pointer, "/t/1");
+                assert_eq!(i.errors[0].detail, "has more elements than allowed");
+            }
+            other => panic!("{other:?}"),
+        }
+        // Trailing characters after the document are still a syntax error.
+        assert!(matches!(
+            from_json::<Triples>(br#"{"t": []} x"#),
+            Err(BodyError::Syntax(_))
+        ));
     }
 
     #[test]

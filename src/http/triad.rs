@@ -33,6 +33,54 @@ pub struct TriadQuery {
     pub export: Option<String>,
 }
 
+/// The `json` export's document (schema only: `triad_export` writes it).
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct TriadExport {
+    /// What it describes.
+    pub source: String,
+    /// `u = b + S g`.
+    model: String,
+    /// `g = T (u - b), T = S^-1`.
+    compensation: String,
+    /// The convention in words.
+    convention: String,
+    /// The outputs' unit.
+    unit: String,
+    /// The units of `b`, `S` and `T`.
+    units: TriadExportUnits,
+    /// `b`.
+    b: [f64; 3],
+    /// `S`, by rows.
+    #[serde(rename = "S")]
+    s: [[f64; 3]; 3],
+    /// `T = S⁻¹`, by rows.
+    #[serde(rename = "T")]
+    t: [[f64; 3]; 3],
+}
+
+/// The units of the `json` export's `b`, `S` and `T`.
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct TriadExportUnits {
+    /// `b`'s.
+    b: String,
+    /// `S`'s.
+    #[serde(rename = "S")]
+    s: String,
+    /// `T`'s.
+    #[serde(rename = "T")]
+    t: String,
+}
+
+/// A JSON answer: the result, or with `export=json` the export.
+#[derive(serde::Serialize, utoipa::ToSchema)]
+#[serde(untagged)]
+pub enum TriadJson {
+    /// Without `export`.
+    Result(Box<TriadResult>),
+    /// With `export=json`.
+    Export(Box<TriadExport>),
+}
+
 /// `POST /v1/identify/triad`.
 #[utoipa::path(
     post,
@@ -54,7 +102,7 @@ pub struct TriadQuery {
     responses(
         (status = 200, description = "The triad's b, S, T with standard errors, scale factors, \
             non-orthogonality, residuals, and the fit or the single-axis results; with `export`, the file.",
-            content((TriadResult = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
+            content((TriadJson = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
         (status = 413, response = super::openapi::TooLarge),
         super::openapi::Always,
         super::openapi::BodyProblems,
