@@ -218,6 +218,7 @@ pub async fn assess(
                 verdict: metrology.decision.as_ref().map(|d| d.verdict),
                 due_at: metrology.due_at,
                 expanded: Some(metrology.uncertainty.expanded()),
+                triad: None,
             });
             Ok(Assessed {
                 sensor_id: e.submission.sensor_id.clone(),

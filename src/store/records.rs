@@ -3,7 +3,7 @@
 use accelcal_core::decision::Verdict;
 use accelcal_core::{Model, TermMap};
 use bytes::Bytes;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 use uuid::Uuid;
 
@@ -55,6 +55,8 @@ pub struct NewCalibration {
     /// The expanded uncertainty of every fused coefficient (none only for
     /// calibrations stored before uncertainty budgets, when copied).
     pub expanded: Option<TermMap<f64>>,
+    /// A triad's elements (none for a single-axis calibration).
+    pub triad: Option<TriadElements>,
 }
 
 impl NewCalibration {
@@ -76,6 +78,14 @@ impl NewCalibration {
                     "the fused {what} of `{term}` is {v}"
                 )));
             }
+        }
+        if let Some((name, v)) = self
+            .triad
+            .iter()
+            .flat_map(TriadElements::numbers)
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(StoreError::Refused(format!("the triad's `{name}` is {v}")));
         }
         Ok(())
     }
@@ -99,8 +109,75 @@ impl From<&NewCalibration> for CalibrationSummary {
             verdict: n.verdict,
             due_at: n.due_at,
             expanded: n.expanded.clone(),
+            triad: n.triad.clone(),
             state: State::Submitted,
         }
+    }
+}
+
+/// A triad calibration's elements (issue 30): `u = b + S g` with bias `b`
+/// (the outputs' unit) and scale-and-misalignment `S` (the outputs' unit
+/// per g, rows by axis), and `T = S⁻¹`, with the standard errors its
+/// method gives. Row `m` of `S` is axis `m`'s `(ki, kp, ko)` and `b_m` its
+/// `k0` in the single-axis model, which is why a triad's stored `model` is
+/// `k0, ki, kp, ko`; its single-axis `coefficients` stay empty.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct TriadElements {
+    /// `known_orientations` or `gravity_magnitude`.
+    pub method: String,
+    /// `b`.
+    pub b: [f64; 3],
+    /// Its standard errors (none with exactly nine static positions).
+    pub b_std_errors: Option<[f64; 3]>,
+    /// `S`, rows by axis.
+    #[serde(rename = "S")]
+    pub s: [[f64; 3]; 3],
+    /// Its standard errors (known orientations).
+    #[serde(rename = "S_std_errors")]
+    pub s_std_errors: Option<[[f64; 3]; 3]>,
+    /// `T = S⁻¹`.
+    #[serde(rename = "T")]
+    pub t: [[f64; 3]; 3],
+    /// Its standard errors (unknown orientations, more than nine positions).
+    #[serde(rename = "T_std_errors")]
+    pub t_std_errors: Option<[[f64; 3]; 3]>,
+}
+
+/// The axes' names, in the order of `b`'s elements and `S`'s rows.
+pub const AXES: [&str; 3] = ["x", "y", "z"];
+
+impl TriadElements {
+    /// Every stored number with its name (`b_x`, `S_xy`, `T_zz`,
+    /// `b_x_std_error`, …): what must be finite, and what stability is
+    /// judged on element by element.
+    pub fn numbers(&self) -> Vec<(String, f64)> {
+        let mut out = Vec::with_capacity(54);
+        let vector = |out: &mut Vec<(String, f64)>, name: &str, suffix: &str, v: &[f64; 3]| {
+            for (axis, x) in AXES.iter().zip(v) {
+                out.push((format!("{name}_{axis}{suffix}"), *x));
+            }
+        };
+        let matrix = |out: &mut Vec<(String, f64)>, name: &str, suffix: &str, m: &[[f64; 3]; 3]| {
+            for (row, r) in AXES.iter().zip(m) {
+                for (column, x) in AXES.iter().zip(r) {
+                    out.push((format!("{name}_{row}{column}{suffix}"), *x));
+                }
+            }
+        };
+        vector(&mut out, "b", "", &self.b);
+        matrix(&mut out, "S", "", &self.s);
+        matrix(&mut out, "T", "", &self.t);
+        const E: &str = "_std_error";
+        if let Some(e) = &self.b_std_errors {
+            vector(&mut out, "b", E, e);
+        }
+        if let Some(e) = &self.s_std_errors {
+            matrix(&mut out, "S", E, e);
+        }
+        if let Some(e) = &self.t_std_errors {
+            matrix(&mut out, "T", E, e);
+        }
+        out
     }
 }
 
@@ -151,6 +228,10 @@ pub struct CalibrationSummary {
     /// calibrations stored before uncertainty budgets).
     #[schema(value_type = Option<crate::domain::schema::CoefficientMap>)]
     pub expanded: Option<TermMap<f64>>,
+    /// A triad's elements (absent for a single-axis calibration, whose
+    /// `coefficients` are its result; a triad's `coefficients` are empty).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub triad: Option<TriadElements>,
     /// Where it stands: `submitted`, `approved`, `rejected` or `withdrawn`
     /// (only the first two count).
     pub state: State,
@@ -178,6 +259,7 @@ impl CalibrationSummary {
             verdict: None,
             due_at: None,
             expanded: None,
+            triad: None,
             state: State::Submitted,
         }
     }
@@ -594,6 +676,7 @@ mod tests {
             due_at: Some(ts("2027-01-01T00:00:00Z")),
             expanded: Some(TermMap(vec![])),
             received_at: ts("2026-01-02T00:00:00Z"),
+            triad: Some(elements()),
             ..cal(9, "2026-01-01T00:00:00Z")
         };
         let n = NewCalibration {
@@ -616,7 +699,74 @@ mod tests {
             verdict: c.verdict,
             due_at: c.due_at,
             expanded: c.expanded.clone(),
+            triad: c.triad.clone(),
         };
         assert_eq!(CalibrationSummary::from(&n), c);
+        n.check().unwrap();
+    }
+
+    /// A triad with distinct numbers everywhere: `S = 2 I + small`,
+    /// `T` its stand-in, standard errors for `b` and `S`.
+    fn elements() -> TriadElements {
+        TriadElements {
+            method: "known_orientations".into(),
+            b: [0.1, 0.2, 0.3],
+            b_std_errors: Some([1e-3, 2e-3, 3e-3]),
+            s: [[2.0, 0.01, 0.02], [0.03, 2.1, 0.04], [0.05, 0.06, 2.2]],
+            s_std_errors: Some([[1e-4; 3]; 3]),
+            t: [[0.5, 0.0, 0.0], [0.0, 0.47, 0.0], [0.0, 0.0, 0.45]],
+            t_std_errors: None,
+        }
+    }
+
+    /// Every stored number is named by axis, row then column, and the
+    /// standard errors present; any of them non-finite refuses the record.
+    #[test]
+    fn a_triads_numbers_are_named_and_must_be_finite() {
+        let e = elements();
+        let numbers = e.numbers();
+        assert_eq!(numbers.len(), 3 + 9 + 9 + 3 + 9);
+        let get = |name: &str| numbers.iter().find(|(n, _)| n == name).map(|(_, v)| *v);
+        assert_eq!(get("b_y"), Some(0.2));
+        assert_eq!(get("S_xy"), Some(0.01));
+        assert_eq!(get("S_yx"), Some(0.03));
+        assert_eq!(get("S_zy"), Some(0.06));
+        assert_eq!(get("T_yy"), Some(0.47));
+        assert_eq!(get("b_z_std_error"), Some(3e-3));
+        assert_eq!(get("T_xx_std_error"), None);
+        let record = |triad: TriadElements| NewCalibration {
+            triad: Some(triad),
+            ..NewCalibration {
+                id: Uuid::from_u128(1),
+                sensor_id: "S".into(),
+                station_id: None,
+                performed_at: ts("2026-01-01T00:00:00Z"),
+                received_at: ts("2026-01-01T00:00:00Z"),
+                unit: "g".into(),
+                model: Model::new(vec![accelcal_core::Term::K0]).unwrap(),
+                runs: 1,
+                coefficients: TermMap(vec![]),
+                std_errors: TermMap(vec![]),
+                result: Bytes::new(),
+                submission: Bytes::new(),
+                content_type: "application/json".into(),
+                submitted_by: "x".into(),
+                sensor_type: None,
+                assigns_type: false,
+                verdict: None,
+                due_at: None,
+                expanded: None,
+                triad: None,
+            }
+        };
+        record(e.clone()).check().unwrap();
+        let mut bad = e.clone();
+        bad.s[2][1] = f64::NAN;
+        let err = record(bad).check().unwrap_err().to_string();
+        assert!(err.contains("`S_zy` is NaN"), "{err}");
+        let mut bad = e;
+        bad.b_std_errors = Some([0.0, f64::INFINITY, 0.0]);
+        let err = record(bad).check().unwrap_err().to_string();
+        assert!(err.contains("`b_y_std_error` is inf"), "{err}");
     }
 }

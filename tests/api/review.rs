@@ -758,6 +758,7 @@ async fn reprocessing_confirms_or_supersedes(#[values(Sqlite, Postgres)] engine:
                         .map(|t| (*t, f(&truth["uncertainty"]["terms"][t.name()]["expanded"])))
                         .collect(),
                 )),
+                triad: None,
             },
             None,
         )

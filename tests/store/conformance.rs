@@ -286,6 +286,70 @@ async fn non_finite_values_are_refused(s: &dyn Store) {
     assert!(s.sensor("S-NAN".into(), now()).await.unwrap().is_none());
 }
 
+/// A triad's elements are stored and read back whole, by every read of a
+/// calibration (summary, history, previous, the export's records); a
+/// non-finite element is refused before anything is written.
+async fn triads_round_trip(s: &dyn Store) {
+    let elements = accelcal::store::TriadElements {
+        method: "gravity_magnitude".into(),
+        b: [0.183, -0.127, 0.342],
+        b_std_errors: Some([1e-3, 2e-3, 3e-3]),
+        s: [[1.01, 0.0, 0.0], [0.002, 0.99, 0.0], [-0.003, 0.004, 1.02]],
+        s_std_errors: None,
+        t: [
+            [0.990_099, 0.0, 0.0],
+            [-0.002, 1.010_101, 0.0],
+            [0.003, -0.004, 0.980_392],
+        ],
+        t_std_errors: Some([[1e-4, 0.0, 0.0], [2e-4, 1e-4, 0.0], [3e-4, 2e-4, 1e-4]]),
+    };
+    let mut c = calibration("TRIAD-1", "2026-02-01T00:00:00Z");
+    c.coefficients = TermMap(vec![]);
+    c.std_errors = TermMap(vec![]);
+    c.expanded = None;
+    c.triad = Some(elements.clone());
+    assert_eq!(
+        s.insert_calibration(c.clone(), None).await.unwrap(),
+        Stored::New
+    );
+    let summary = s.calibration_summary(c.id).await.unwrap().unwrap();
+    assert_eq!(summary.triad.as_ref(), Some(&elements));
+    assert!(summary.coefficients.is_empty());
+    let latest = s.sensor("TRIAD-1".into(), now()).await.unwrap().unwrap();
+    assert_eq!(latest.latest.triad, Some(elements.clone()));
+    let history = s
+        .history(
+            "TRIAD-1".into(),
+            HistoryQuery {
+                limit: 10,
+                ..Default::default()
+            },
+        )
+        .await
+        .unwrap();
+    assert_eq!(history.len(), 1);
+    assert_eq!(history[0].triad, Some(elements.clone()));
+    let mut exported = Vec::new();
+    let mut after = None;
+    loop {
+        let page = s.export_calibrations(after, 50).await.unwrap();
+        let Some(last) = page.last() else { break };
+        after = Some(last.id);
+        exported.extend(page);
+    }
+    let copied = exported.iter().find(|n| n.id == c.id).unwrap();
+    assert_eq!(copied.triad, Some(elements.clone()));
+    let mut bad = calibration("TRIAD-1", "2026-03-01T00:00:00Z");
+    bad.coefficients = TermMap(vec![]);
+    bad.std_errors = TermMap(vec![]);
+    let mut e = elements;
+    e.t[1][0] = f64::NAN;
+    bad.triad = Some(e);
+    let err = s.insert_calibration(bad.clone(), None).await.unwrap_err();
+    assert!(matches!(err, StoreError::Refused(_)), "{err:?}");
+    assert!(s.calibration_summary(bad.id).await.unwrap().is_none());
+}
+
 /// Every stored number comes back bit for bit: what a control system loads
 /// is exactly what the calibration computed (found by the soak: serde_json
 /// without `float_roundtrip` can parse a shortest representation 1 ulp off).
@@ -980,6 +1044,7 @@ async fn conformance(s: Arc<dyn Store>) {
     idempotency(s.as_ref()).await;
     non_finite_values_are_refused(s.as_ref()).await;
     numbers_round_trip_exactly(s.as_ref()).await;
+    triads_round_trip(s.as_ref()).await;
     types_and_statuses(s.as_ref()).await;
     series_and_previous(s.as_ref()).await;
     reviews(s.as_ref()).await;

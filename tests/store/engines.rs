@@ -107,6 +107,19 @@ async fn postgres_tls_follows_the_url() {
     );
 }
 
+/// A triad's elements as stored, and three forms each schema refuses: a
+/// `null` (a NaN as serde_json writes it) inside `S`, text inside `b`, and
+/// no `T`.
+const TRIAD: &str = r#"{"method":"known_orientations","b":[0.1,0.2,0.3],"b_std_errors":null,
+    "S":[[1,0,0],[0,1,0],[0,0,1]],"S_std_errors":[[1e-4,0,0],[0,1e-4,0],[0,0,1e-4]],
+    "T":[[1,0,0],[0,1,0],[0,0,1]],"T_std_errors":null}"#;
+const TRIAD_NULL_IN_S: &str = r#"{"method":"known_orientations","b":[0.1,0.2,0.3],
+    "S":[[1,0,0],[0,null,0],[0,0,1]],"T":[[1,0,0],[0,1,0],[0,0,1]]}"#;
+const TRIAD_TEXT_IN_B: &str = r#"{"method":"known_orientations","b":[0.1,"0.2",0.3],
+    "S":[[1,0,0],[0,1,0],[0,0,1]],"T":[[1,0,0],[0,1,0],[0,0,1]]}"#;
+const TRIAD_WITHOUT_T: &str = r#"{"method":"known_orientations","b":[0.1,0.2,0.3],
+    "S":[[1,0,0],[0,1,0],[0,0,1]]}"#;
+
 /// A self-signed CA certificate that signed nothing the test server holds.
 const OTHER_CA: &str = include_str!("other-ca.pem");
 
@@ -145,6 +158,27 @@ async fn postgres_schema_refuses_non_finite_numbers_and_changes() {
         "{refused:?}"
     );
     copy(r#"{"k0":0.5,"ki":-1.2}"#, good).await.unwrap();
+    let triad = |elements: &'static str| {
+        let client = &client;
+        let id = c.id;
+        async move {
+            client
+                .execute(
+                    "INSERT INTO calibrations (id, sensor_id, performed_at, received_at, unit, \
+                     model, runs, coefficients, std_errors, result, submission, content_type, \
+                     submitted_by, triad) SELECT $1, sensor_id, performed_at, received_at, unit, \
+                     model, runs, '{}', '{}', result, submission, content_type, submitted_by, \
+                     $2::text::json FROM calibrations WHERE id = $3",
+                    &[&Uuid::now_v7(), &elements, &id],
+                )
+                .await
+        }
+    };
+    for refused in [TRIAD_NULL_IN_S, TRIAD_TEXT_IN_B, TRIAD_WITHOUT_T] {
+        let e = triad(refused).await.unwrap_err();
+        assert!(format!("{e:?}").contains("triad"), "{refused}: {e:?}");
+    }
+    triad(TRIAD).await.unwrap();
     let changed = client
         .execute("UPDATE calibrations SET unit = 'x' WHERE id = $1", &[&c.id])
         .await
@@ -219,6 +253,24 @@ async fn sqlite_schema_refuses_non_finite_numbers_and_changes() {
         "{refused}"
     );
     copy(r#"{"k0":0.5,"ki":-1.2}"#).unwrap();
+    let triad = |elements: &str| {
+        db.execute(
+            "INSERT INTO calibrations (id, sensor_id, performed_at, received_at, unit, model, \
+             runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
+             triad) SELECT ?1, sensor_id, performed_at, received_at, unit, model, runs, '{}', \
+             '{}', result, submission, content_type, submitted_by, ?2 FROM calibrations \
+             WHERE id = ?3",
+            rusqlite::params![Uuid::now_v7().to_string(), elements, c.id.to_string()],
+        )
+    };
+    for refused in [TRIAD_NULL_IN_S, TRIAD_TEXT_IN_B, TRIAD_WITHOUT_T] {
+        let e = triad(refused).unwrap_err().to_string();
+        assert!(
+            e.contains("triad's elements must be finite"),
+            "{refused}: {e}"
+        );
+    }
+    triad(TRIAD).unwrap();
     let changed = db
         .execute(
             "UPDATE calibrations SET coefficients = '{}' WHERE id = ?1",

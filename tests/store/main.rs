@@ -65,6 +65,7 @@ fn calibration(sensor: &str, performed_at: &str) -> NewCalibration {
         verdict: None,
         due_at: None,
         expanded: Some(TermMap(vec![(Term::K0, 2e-6), (Term::Ki, 4e-6)])),
+        triad: None,
     }
 }
 

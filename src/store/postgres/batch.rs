@@ -181,18 +181,18 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
         .prepare_cached(
             "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
              model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
-             sensor_type, verdict, due_at, expanded) \
+             sensor_type, verdict, due_at, expanded, triad) \
              SELECT u.id, u.sensor_id, u.station_id, u.performed_at, u.received_at, u.unit, \
              u.model::json, u.runs, u.coefficients::json, u.std_errors::json, u.result, \
              u.submission, u.content_type, u.submitted_by, u.sensor_type, u.verdict, u.due_at, \
-             u.expanded::json \
+             u.expanded::json, u.triad::json \
              FROM unnest($1::uuid[], $2::text[], $3::text[], $4::timestamptz[], \
                $5::timestamptz[], $6::text[], $7::text[], $8::int4[], $9::text[], $10::text[], \
                $11::text[], $12::bytea[], $13::text[], $14::text[], $15::text[], $16::text[], \
-               $17::timestamptz[], $18::text[]) \
+               $17::timestamptz[], $18::text[], $19::text[]) \
              AS u(id, sensor_id, station_id, performed_at, received_at, unit, model, runs, \
                coefficients, std_errors, result, submission, content_type, submitted_by, \
-               sensor_type, verdict, due_at, expanded)",
+               sensor_type, verdict, due_at, expanded, triad)",
         )
         .await
         .map_err(map)?;
@@ -222,6 +222,7 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
         .map(|r| n(r).due_at.map(|t| t.datetime()))
         .collect();
     let expanded: Vec<Option<&str>> = rows.iter().map(|r| r.expanded()).collect();
+    let triads: Vec<Option<&str>> = rows.iter().map(|r| r.triad()).collect();
     tx.execute(
         &insert,
         &[
@@ -243,6 +244,7 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
             &verdicts,
             &due,
             &expanded,
+            &triads,
         ],
     )
     .await

@@ -52,6 +52,7 @@ pub struct Row {
     coefficients: String,
     std_errors: String,
     expanded: Option<String>,
+    triad: Option<String>,
     runs: i32,
 }
 
@@ -65,6 +66,7 @@ impl Row {
             coefficients: json(&n.coefficients)?,
             std_errors: json(&n.std_errors)?,
             expanded: n.expanded.as_ref().map(json).transpose()?,
+            triad: n.triad.as_ref().map(json).transpose()?,
             runs: i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?,
             n,
         })
@@ -98,6 +100,11 @@ impl Row {
     /// Their expanded uncertainties, as JSON, if computed.
     pub fn expanded(&self) -> Option<&str> {
         self.expanded.as_deref()
+    }
+
+    /// A triad's elements, as JSON.
+    pub fn triad(&self) -> Option<&str> {
+        self.triad.as_deref()
     }
 
     /// The number of runs.
@@ -162,9 +169,9 @@ pub async fn write(
         .prepare_cached(
             "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
              model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
-             sensor_type, verdict, due_at, expanded) \
+             sensor_type, verdict, due_at, expanded, triad) \
              VALUES ($1, $2, $3, $4, $5, $6, $7::text::json, $8, $9::text::json, $10::text::json, \
-             $11, $12, $13, $14, $15, $16, $17, $18::text::json)",
+             $11, $12, $13, $14, $15, $16, $17, $18::text::json, $19::text::json)",
         )
         .await
         .map_err(map)?;
@@ -189,6 +196,7 @@ pub async fn write(
             &verdict,
             &due_at,
             &row.expanded,
+            &row.triad,
         ],
     )
     .await

@@ -22,6 +22,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0009_customers.sql"),
     include_str!("migrations/0010_audit.sql"),
     include_str!("migrations/0011_nonconformities.sql"),
+    include_str!("migrations/0012_triads.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

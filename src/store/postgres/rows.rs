@@ -62,7 +62,7 @@ pub const SUMMARY_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded, ",
+     c.expanded::text AS expanded, c.triad::text AS triad, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -84,6 +84,7 @@ pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
         verdict: verdict(row, "verdict")?,
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+        triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
         state: state(row)?,
     })
 }
@@ -93,7 +94,7 @@ pub const RECORD_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded, c.result, c.submission, c.content_type, c.submitted_by, ",
+     c.expanded::text AS expanded, c.triad::text AS triad, c.result, c.submission, c.content_type, c.submitted_by, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -121,6 +122,7 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
         verdict: s.verdict,
         due_at: s.due_at,
         expanded: s.expanded,
+        triad: s.triad,
     })
 }
 

@@ -26,6 +26,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0012_customers.sql"),
     include_str!("migrations/0013_audit.sql"),
     include_str!("migrations/0014_nonconformities.sql"),
+    include_str!("migrations/0015_triads.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -75,7 +75,7 @@ fn count(row: &Row<'_>, column: &str) -> Result<u64, StoreError> {
 pub const SUMMARY_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded, ",
+     c.expanded, c.triad, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -110,6 +110,7 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
         verdict: verdict(row, "verdict")?,
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
+        triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
         state: state(row)?,
     })
 }
@@ -118,7 +119,7 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
 pub const RECORD_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded, c.result, c.submission, c.content_type, c.submitted_by, ",
+     c.expanded, c.triad, c.result, c.submission, c.content_type, c.submitted_by, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -148,6 +149,7 @@ pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError>
         verdict: s.verdict,
         due_at: s.due_at,
         expanded: s.expanded,
+        triad: s.triad,
     })
 }
 
