@@ -138,8 +138,8 @@ mod tests {
             .unwrap()
             .collect::<Result<_, _>>()
             .unwrap();
-        assert_eq!(columns.len(), 18);
-        assert_eq!(columns[16..], ["result", "submission"]);
+        assert_eq!(columns.len(), 19, "{columns:?}");
+        assert_eq!(columns[16..], ["triad", "result", "submission"]);
         let row: (String, String, String, String, Vec<u8>, Option<String>, String) = c
             .query_row(
                 "SELECT sensor_id, coefficients, verdict, result, submission, sensor_type, expanded \
