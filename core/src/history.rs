@@ -160,6 +160,7 @@ pub fn stability(points: &[Point], k: f64) -> TermMap<TermStability> {
         .filter(|t| points.iter().all(|p| p.values.get(*t).is_some()))
         .collect();
     let t: Vec<f64> = points.iter().map(|p| p.t_years).collect();
+    let ids: Vec<&str> = points.iter().map(|p| p.id.as_str()).collect();
     TermMap(
         terms
             .into_iter()
@@ -169,20 +170,22 @@ pub fn stability(points: &[Point], k: f64) -> TermMap<TermStability> {
                     .iter()
                     .filter_map(|p| p.values.get(term).copied())
                     .collect();
-                let se = |p: &Point| p.std_errors.get(term).copied().unwrap_or(0.0);
-                (term, series(&t, &x, points, k, se))
+                let se: Vec<Option<f64>> = points
+                    .iter()
+                    .map(|p| Some(p.std_errors.get(term).copied().unwrap_or(0.0)))
+                    .collect();
+                (term, quantity(&ids, &t, &x, &se, k))
             })
             .collect(),
     )
 }
 
-fn series(
-    t: &[f64],
-    x: &[f64],
-    points: &[Point],
-    k: f64,
-    se: impl Fn(&Point) -> f64,
-) -> TermStability {
+/// The stability of one quantity over time — the definitions above for a
+/// series that is not a single-axis term (a triad's element): values `x`
+/// at `t` (years, ordered), identified by `ids`, with standard errors `se`.
+/// The latest change is judged only when both its points have a standard
+/// error. The slices have one element per point.
+pub fn quantity(ids: &[&str], t: &[f64], x: &[f64], se: &[Option<f64>], k: f64) -> TermStability {
     let n = x.len();
     let m = mean(x);
     let (drift_per_year, drift_std_error, drift_t) = drift(t, x);
@@ -191,19 +194,19 @@ fn series(
     let lower = moving_range_mean.map(|mr| m - CONTROL_FACTOR * mr);
     let upper = moving_range_mean.map(|mr| m + CONTROL_FACTOR * mr);
     let out_of_control = match (lower, upper) {
-        (Some(lo), Some(hi)) => points
+        (Some(lo), Some(hi)) => ids
             .iter()
             .zip(x)
             .filter(|(_, v)| **v < lo || **v > hi)
-            .map(|(p, _)| p.id.clone())
+            .map(|(id, _)| (*id).to_owned())
             .collect(),
         _ => Vec::new(),
     };
-    let latest = (n >= 2).then(|| {
-        let change = x[n - 1] - x[n - 2];
-        let expanded = k * (se(&points[n - 1]).powi(2) + se(&points[n - 2]).powi(2)).sqrt();
-        (change, expanded, change.abs() > expanded)
-    });
+    let change = (n >= 2).then(|| x[n - 1] - x[n - 2]);
+    let expanded = match (n >= 2).then(|| (se[n - 1], se[n - 2])) {
+        Some((Some(a), Some(b))) => Some(k * (a.powi(2) + b.powi(2)).sqrt()),
+        _ => None,
+    };
     TermStability {
         mean: m,
         std: sample_std(x),
@@ -219,9 +222,9 @@ fn series(
             upper,
             out_of_control,
         },
-        latest_change: latest.map(|l| l.0),
-        latest_change_expanded: latest.map(|l| l.1),
-        latest_change_significant: latest.map(|l| l.2),
+        latest_change: change,
+        latest_change_expanded: expanded,
+        latest_change_significant: change.zip(expanded).map(|(c, e)| c.abs() > e),
     }
 }
 

@@ -1,8 +1,13 @@
 //! `POST /v1/sensors/{sensor_id}/compensate`: input accelerations from raw
-//! outputs, inverting a stored calibration's model.
+//! outputs, inverting a stored calibration's model — a single-axis model
+//! output by output, or a triad's `g = S⁻¹ (u − b)` triple by triple.
+
+use std::fmt;
 
 use accelcal_core::decision::Verdict;
+use accelcal_core::triad::Triad;
 use accelcal_core::{Compensator, Gravity, Model, TermMap};
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
 
@@ -17,9 +22,10 @@ use super::usability::Usability;
 #[serde(deny_unknown_fields)]
 pub struct CompensateRequest {
     /// Raw outputs, in the calibration's unit (1 to 10 000, each of
-    /// magnitude at most 1e9).
+    /// magnitude at most 1e9): numbers for a single-axis sensor, triples
+    /// `[u_x, u_y, u_z]` for a triad.
     #[schema(schema_with = crate::domain::schema::outputs)]
-    pub outputs: Vec<f64>,
+    pub outputs: Outputs,
     /// Known `a_p` (g), one per output; default 0.
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::cross_axis)]
@@ -57,8 +63,13 @@ pub struct Compensated {
     pub assumed_zero: Vec<CrossAxis>,
     /// The outputs' unit.
     pub unit: String,
-    /// One input acceleration (g) per output.
-    pub a_i: Vec<f64>,
+    /// A single-axis sensor's: one input acceleration (g) per output.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub a_i: Option<Vec<f64>>,
+    /// A triad's: the specific force `[g_x, g_y, g_z]` (g) per triple of
+    /// outputs, `g = S⁻¹ (u − b)`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub g: Option<Vec<[f64; 3]>>,
     /// The calibration's state (one that does not count on `basis` is not
     /// usable).
     pub state: State,
@@ -77,6 +88,103 @@ pub enum CrossAxis {
     AO,
 }
 
+/// Raw outputs: numbers (a single-axis sensor) or triples (a triad).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Outputs {
+    /// One output each.
+    Axis(Vec<f64>),
+    /// `[u_x, u_y, u_z]` each.
+    Triad(Vec<[f64; 3]>),
+}
+
+impl Outputs {
+    /// How many outputs (or triples).
+    pub fn len(&self) -> usize {
+        match self {
+            Outputs::Axis(v) => v.len(),
+            Outputs::Triad(v) => v.len(),
+        }
+    }
+
+    /// Whether there are none.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+}
+
+/// One element of `outputs`: a number or a triple.
+enum Element {
+    Number(f64),
+    Triple([f64; 3]),
+}
+
+impl<'de> Deserialize<'de> for Element {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Element;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("a number, or a triple of numbers [u_x, u_y, u_z]")
+            }
+            fn visit_f64<E: de::Error>(self, x: f64) -> Result<Element, E> {
+                Ok(Element::Number(x))
+            }
+            fn visit_i64<E: de::Error>(self, x: i64) -> Result<Element, E> {
+                Ok(Element::Number(x as f64))
+            }
+            fn visit_u64<E: de::Error>(self, x: u64) -> Result<Element, E> {
+                Ok(Element::Number(x as f64))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Element, A::Error> {
+                let mut t = [0.0; 3];
+                for (k, x) in t.iter_mut().enumerate() {
+                    *x = seq
+                        .next_element()?
+                        .ok_or_else(|| de::Error::invalid_length(k, &self))?;
+                }
+                if seq.next_element::<de::IgnoredAny>()?.is_some() {
+                    return Err(de::Error::invalid_length(4, &self));
+                }
+                Ok(Element::Triple(t))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+impl<'de> Deserialize<'de> for Outputs {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = Outputs;
+            fn expecting(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+                f.write_str("an array of numbers, or of triples [u_x, u_y, u_z]")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Outputs, A::Error> {
+                let (mut axis, mut triad) = (Vec::new(), Vec::new());
+                while let Some(e) = seq.next_element::<Element>()? {
+                    match e {
+                        Element::Number(x) => axis.push(x),
+                        Element::Triple(t) => triad.push(t),
+                    }
+                    if !axis.is_empty() && !triad.is_empty() {
+                        return Err(de::Error::custom(
+                            "mixes numbers and triples: numbers for a single-axis sensor, \
+                             triples [u_x, u_y, u_z] for a triad",
+                        ));
+                    }
+                }
+                Ok(if triad.is_empty() {
+                    Outputs::Axis(axis)
+                } else {
+                    Outputs::Triad(triad)
+                })
+            }
+        }
+        d.deserialize_seq(V)
+    }
+}
+
 impl CompensateRequest {
     /// The cross-axis inputs this request leaves out although `model` has
     /// terms in them: compensation takes them as 0.
@@ -91,6 +199,9 @@ impl CompensateRequest {
                 .any(|t| t.gradient(&generic)[axis] != 0.0)
         };
         let mut out = Vec::new();
+        if matches!(self.outputs, Outputs::Triad(_)) {
+            return out;
+        }
         if self.a_p.is_none() && uses(1) {
             out.push(CrossAxis::AP);
         }
@@ -130,7 +241,33 @@ impl CompensateRequest {
                 }
             }
         };
-        numbers("outputs", &self.outputs, MAX_READING, None);
+        match &self.outputs {
+            Outputs::Axis(v) => numbers("outputs", v, MAX_READING, None),
+            Outputs::Triad(v) => {
+                let at = root.key("outputs");
+                if !(1..=MAX_OUTPUTS).contains(&n) {
+                    errors.add(at, format!("must hold 1 to {MAX_OUTPUTS} triples, not {n}"));
+                }
+                for (k, t) in v.iter().enumerate().take(MAX_OUTPUTS) {
+                    if t.iter().any(|x| x.abs() > MAX_READING) {
+                        errors.add(
+                            at.index(k),
+                            format!("each output must be of magnitude at most {MAX_READING:e}"),
+                        );
+                    }
+                }
+                for key in ["a_p", "a_o"] {
+                    let given = if key == "a_p" { &self.a_p } else { &self.a_o };
+                    if given.is_some() {
+                        errors.add(
+                            root.key(key),
+                            "is for single-axis outputs: a triad's triples give every axis",
+                        );
+                    }
+                }
+                return errors.finish(|| self);
+            }
+        }
         if let Some(v) = &self.a_p {
             numbers("a_p", v, MAX_CROSS_G, Some(n));
         }
@@ -144,6 +281,15 @@ impl CompensateRequest {
     /// stored calibration's fused values, `id` naming it in messages).
     pub fn compensate(&self, coefficients: &TermMap<f64>, id: Uuid) -> Result<Vec<f64>, Invalid> {
         let root = Loc::Root;
+        let Outputs::Axis(outputs) = &self.outputs else {
+            return Err(Invalid::one(
+                root.key("outputs"),
+                format!(
+                    "calibration {id} is of a single-axis sensor: give one number per output, \
+                     not triples"
+                ),
+            ));
+        };
         let comp = Compensator::new(coefficients).map_err(|e| {
             Invalid::one(
                 root.key("calibration_id"),
@@ -152,8 +298,7 @@ impl CompensateRequest {
         })?;
         let mut errors = Errors::default();
         let outputs_at = root.key("outputs");
-        let a_i = self
-            .outputs
+        let a_i = outputs
             .iter()
             .enumerate()
             .map(|(k, u)| {
@@ -167,6 +312,37 @@ impl CompensateRequest {
             .collect();
         errors.finish(|| a_i)
     }
+
+    /// The specific force for every triple of outputs with a triad's bias
+    /// `b` and matrix `S`: `g = S⁻¹ (u − b)` ([`Triad::compensate`], which
+    /// refuses an `S` singular to working precision).
+    pub fn compensate_triad(
+        &self,
+        b: [f64; 3],
+        s: [[f64; 3]; 3],
+        id: Uuid,
+    ) -> Result<Vec<[f64; 3]>, Invalid> {
+        let root = Loc::Root;
+        let Outputs::Triad(outputs) = &self.outputs else {
+            return Err(Invalid::one(
+                root.key("outputs"),
+                format!(
+                    "calibration {id} is a triad's: give each output as a triple [u_x, u_y, u_z]"
+                ),
+            ));
+        };
+        let triad = Triad { bias: b, matrix: s };
+        outputs
+            .iter()
+            .map(|u| triad.compensate(*u))
+            .collect::<Result<_, _>>()
+            .map_err(|e| {
+                Invalid::one(
+                    root.key("calibration_id"),
+                    format!("calibration {id} cannot be used: {e}"),
+                )
+            })
+    }
 }
 
 #[cfg(test)]
@@ -175,7 +351,7 @@ mod tests {
 
     fn request(outputs: Vec<f64>, a_p: Option<Vec<f64>>) -> CompensateRequest {
         CompensateRequest {
-            outputs,
+            outputs: Outputs::Axis(outputs),
             a_p,
             a_o: None,
             calibration_id: None,
@@ -220,7 +396,7 @@ mod assumed {
     #[test]
     fn the_answer_names_the_cross_axis_inputs_taken_as_zero() {
         let none = CompensateRequest {
-            outputs: vec![1.0],
+            outputs: Outputs::Axis(vec![1.0]),
             a_p: None,
             a_o: None,
             calibration_id: None,

@@ -79,8 +79,21 @@ fn numbers(bound: f64, (min, max): (usize, usize), nullable: bool) -> ArrayBuild
 }
 
 /// `outputs` of a compensation.
-pub fn outputs() -> ArrayBuilder {
-    numbers(MAX_READING, (1, MAX_OUTPUTS), false)
+pub fn outputs() -> utoipa::openapi::schema::Schema {
+    utoipa::openapi::schema::OneOfBuilder::new()
+        .item(
+            numbers(MAX_READING, (1, MAX_OUTPUTS), false)
+                .description(Some("A single-axis sensor's: one output each.")),
+        )
+        .item(
+            ArrayBuilder::new()
+                .items(numbers(MAX_READING, (3, 3), false))
+                .min_items(Some(1))
+                .max_items(Some(MAX_OUTPUTS))
+                .description(Some("A triad's: one triple [u_x, u_y, u_z] each.")),
+        )
+        .build()
+        .into()
 }
 
 /// `a_p`, `a_o` of a compensation.

@@ -29,6 +29,8 @@ use super::limits::{
     MAX_BATCHES, MAX_ID_CHARS, MAX_POSITIONS, MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES,
     MAX_UNIT_CHARS,
 };
+use super::text::{Chars, check_str};
+use super::timestamp::Timestamp;
 
 /// Largest sampling rate, Hz.
 const MAX_RATE_HZ: f64 = 1e6;
@@ -41,9 +43,18 @@ const MAX_THRESHOLD: f64 = 1e6;
 #[derive(Debug, Clone, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TriadBody {
-    /// The triad's id, echoed (at most 64 characters).
+    /// The triad's id: echoed by `POST /v1/identify/triad`, required to
+    /// store it (`POST /v1/calibrations/triad`); letters, digits and
+    /// `. _ : -`, at most 64 characters.
     #[serde(default)]
     pub sensor_id: Option<String>,
+    /// The submitting station (stored; a station-bound token's own).
+    #[serde(default)]
+    pub station_id: Option<String>,
+    /// When the test was performed, RFC 3339 (stored; default: when
+    /// received).
+    #[serde(default)]
+    pub performed_at: Option<String>,
     /// The outputs' unit (default `output`): `m/s2` or `g` for the PX4 and
     /// ArduPilot exports.
     #[serde(default)]
@@ -145,8 +156,12 @@ impl DetectorBody {
 /// A checked triad submission.
 #[derive(Debug, Clone)]
 pub struct TriadSubmission {
-    /// Echoed id.
+    /// The triad's id.
     pub sensor_id: Option<String>,
+    /// The submitting station.
+    pub station_id: Option<String>,
+    /// When the test was performed, as stated.
+    pub performed_at: Option<Timestamp>,
     /// The outputs' unit.
     pub unit: String,
     /// What to compute.
@@ -214,12 +229,28 @@ impl TriadBody {
     pub fn check(self) -> Result<TriadSubmission, Invalid> {
         let root = Loc::Root;
         let mut errors = Errors::default();
-        let sensor_id = label(
-            root.key("sensor_id"),
-            self.sensor_id.clone(),
-            MAX_ID_CHARS,
-            &mut errors,
-        );
+        let mut identifier = |name: &str, value: &Option<String>| {
+            let v = value.as_ref()?;
+            match check_str(v, MAX_ID_CHARS, Chars::Identifier) {
+                Ok(()) => Some(v.clone()),
+                Err(why) => {
+                    errors.add(root.key(name), why);
+                    None
+                }
+            }
+        };
+        let sensor_id = identifier("sensor_id", &self.sensor_id);
+        let station_id = identifier("station_id", &self.station_id);
+        let performed_at = self
+            .performed_at
+            .as_deref()
+            .and_then(|t| match Timestamp::parse(t) {
+                Ok(t) => Some(t),
+                Err(e) => {
+                    errors.add(root.key("performed_at"), e.to_string());
+                    None
+                }
+            });
         let unit = label(
             root.key("unit"),
             self.unit.clone(),
@@ -321,6 +352,8 @@ impl TriadBody {
         };
         errors.finish(|| TriadSubmission {
             sensor_id,
+            station_id,
+            performed_at,
             unit,
             form: form.expect("a form when nothing is wrong"),
         })

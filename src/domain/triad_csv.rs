@@ -1,6 +1,6 @@
 //! Triad submissions as CSV (RFC 4180, the `csv` crate), read into the
 //! same [`TriadBody`] as JSON. `# key: value` lines before the header carry
-//! `sensor_id`, `unit`, `batches` and, for a recording, `rate_hz` and the
+//! `sensor_id`, `station_id`, `performed_at`, `unit`, `batches` and, for a recording, `rate_hz` and the
 //! detector's `still_s`, `window_s`, `threshold`, `min_static_s`; the header
 //! chooses the form:
 //!
@@ -132,6 +132,8 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
     }
     let mut body = TriadBody {
         sensor_id: meta.get("sensor_id").map(|(_, v)| v.clone()),
+        station_id: meta.get("station_id").map(|(_, v)| v.clone()),
+        performed_at: meta.get("performed_at").map(|(_, v)| v.clone()),
         unit: meta.get("unit").map(|(_, v)| v.clone()),
         orientations: None,
         runs: None,
@@ -166,6 +168,8 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         }
         &[
             "sensor_id",
+            "station_id",
+            "performed_at",
             "unit",
             "rate_hz",
             "still_s",
@@ -185,11 +189,11 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             positions[p].push(triple(*line, &f[1..], &mut errors));
         }
         body.static_positions = Some(positions);
-        &["sensor_id", "unit"]
+        &["sensor_id", "station_id", "performed_at", "unit"]
     } else if columns == KNOWN {
         known(&rows, &mut body, &mut errors);
         body.batches = number("batches", &mut errors).map(|b| b as usize);
-        &["sensor_id", "unit", "batches"]
+        &["sensor_id", "station_id", "performed_at", "unit", "batches"]
     } else {
         at_line(
             &mut errors,

@@ -24,7 +24,7 @@ pub static IDEMPOTENCY_KEY: HeaderName = HeaderName::from_static("idempotency-ke
 
 /// The idempotency key of a request, if it sent one: 1–255 visible ASCII
 /// characters, scoped to the principal, fingerprinted with the body.
-fn idempotency_key(
+pub(super) fn idempotency_key(
     headers: &HeaderMap,
     principal: &Principal,
     body: &Body,
@@ -65,13 +65,13 @@ fn idempotency_key(
 
 /// Holds a claimed idempotency key; releases it if the request ends (error,
 /// or the client went away) without storing a calibration.
-struct KeyGuard {
+pub(super) struct KeyGuard {
     store: Arc<dyn Store>,
     key: Option<IdempotencyKey>,
 }
 
 impl KeyGuard {
-    fn done(mut self) {
+    pub(super) fn done(mut self) {
         self.key = None;
     }
 }
@@ -98,7 +98,7 @@ impl Drop for KeyGuard {
 const LEASE_MARGIN_SECONDS: i64 = 5;
 
 /// Claims the request's key; answers a retry or a conflict at once.
-async fn claim(
+pub(super) async fn claim(
     state: &AppState,
     key: &IdempotencyKey,
 ) -> Result<Result<KeyGuard, Response>, Problem> {
@@ -131,7 +131,7 @@ async fn claim(
 }
 
 /// Answers a retry with the calibration its key already stored.
-async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
+pub(super) async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
     let result = state.store.calibration_result(id).await?.ok_or_else(|| {
         StoreError::corrupt("idempotency key", format!("names missing calibration {id}"))
     })?;
@@ -245,7 +245,8 @@ fn unknown(id: Uuid) -> Problem {
     operation_id = "getCalibration",
     params(super::openapi::CalibrationIdPath),
     responses(
-        (status = 200, description = "The result, as answered when it was submitted.", body = super::openapi::StoredCalibrationSchema),
+        (status = 200, description = "The result, as answered when it was submitted: a single-axis \
+            calibration's, or a triad's (`kind: triad`).", body = super::openapi::StoredResultSchema),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )

@@ -55,6 +55,10 @@ pub struct Coefficients {
     /// Their standard errors.
     #[schema(value_type = crate::domain::schema::CoefficientMap)]
     std_errors: accelcal_core::TermMap<f64>,
+    /// A triad's b, S and T with their standard errors (absent for a
+    /// single-axis sensor; a triad's `coefficients` are empty).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    triad: Option<crate::store::TriadElements>,
     /// Which calibrations are served: `not_rejected` (every calibration not
     /// rejected or withdrawn) or `approved_only` (`--require-approval`).
     basis: Basis,
@@ -75,6 +79,7 @@ impl Coefficients {
             unit: summary.unit,
             model: summary.model,
             coefficients: summary.coefficients,
+            triad: summary.triad,
             std_errors: summary.std_errors,
             basis,
         }
@@ -320,7 +325,13 @@ pub async fn compensate(
     if usable {
         refuse_unusable(&summary, &usability)?;
     }
-    let a_i = request.compensate(&summary.coefficients, summary.id)?;
+    let (a_i, g) = match &summary.triad {
+        None => (
+            Some(request.compensate(&summary.coefficients, summary.id)?),
+            None,
+        ),
+        Some(t) => (None, Some(request.compensate_triad(t.b, t.s, summary.id)?)),
+    };
     Ok(Json(Compensated {
         assumed_zero: request.assumed_zero(&summary.model),
         usability,
@@ -331,6 +342,7 @@ pub async fn compensate(
         due_at: summary.due_at,
         unit: summary.unit,
         a_i,
+        g,
         state: summary.state,
         basis,
     }))

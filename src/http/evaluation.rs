@@ -32,7 +32,8 @@ pub struct Assessed {
 }
 
 /// The sensor type in force: the one the submission names (which must
-/// exist), else the sensor's. Only an admin may re-type a sensor through a
+/// exist), else the sensor's — for a sensor that is not a triad
+/// ([`super::triads::wrong_kind`]). Only an admin may re-type a sensor through a
 /// submission: a station may name the sensor's current type, or any type
 /// while the sensor has none (403 otherwise), since its type decides how its
 /// calibrations are judged.
@@ -43,11 +44,11 @@ async fn sensor_type(
     now: Timestamp,
 ) -> Result<Option<SensorType>, Problem> {
     let s = &e.submission;
-    let current = state
-        .store
-        .sensor(s.sensor_id.clone(), now)
-        .await?
-        .and_then(|sensor| sensor.sensor_type);
+    let sensor = state.store.sensor(s.sensor_id.clone(), now).await?;
+    if let Some(sensor) = &sensor {
+        super::triads::wrong_kind(&s.sensor_id, sensor.latest.triad.is_some(), false)?;
+    }
+    let current = sensor.and_then(|sensor| sensor.sensor_type);
     let Some(named) = &s.sensor_type else {
         return match current {
             Some(t) => Ok(state.store.sensor_type(t).await?),

@@ -31,6 +31,7 @@ pub mod standards;
 pub mod throttle;
 pub mod tokens;
 pub mod triad;
+pub mod triads;
 pub mod ui;
 
 use std::sync::Arc;
@@ -331,6 +332,8 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(compute::identify))
         .routes(routes!(compute::fuse))
         .routes(routes!(triad::identify))
+        .routes(routes!(triads::submit))
+        .routes(routes!(triads::export))
         .routes(routes!(tokens::create, tokens::list))
         .routes(routes!(tokens::revoke))
         .routes(routes!(backup::backup))

@@ -56,6 +56,10 @@ pub enum Kind {
     /// Calibration Certificate without the laboratory's country or the
     /// item's customer).
     Incomplete,
+    /// 409: the request is for a single-axis calibration and this is a
+    /// triad's (or the other way round): a sensor's calibrations are all of
+    /// one kind.
+    WrongKind,
     /// 413: the body is too large.
     TooLarge,
     /// 429: too many failed authentications from the client's address.
@@ -74,7 +78,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 18] = [
+    pub const ALL: [Kind; 19] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -86,6 +90,7 @@ impl Kind {
         Kind::NotUsable,
         Kind::StateConflict,
         Kind::Incomplete,
+        Kind::WrongKind,
         Kind::TooLarge,
         Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
@@ -109,6 +114,7 @@ impl Kind {
             Kind::NotUsable => "not-usable",
             Kind::StateConflict => "state-conflict",
             Kind::Incomplete => "incomplete-record",
+            Kind::WrongKind => "wrong-kind",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
@@ -133,6 +139,7 @@ impl Kind {
             Kind::NotUsable => "Coefficients not usable",
             Kind::StateConflict => "Not allowed in the calibration's state",
             Kind::Incomplete => "Records incomplete for this document",
+            Kind::WrongKind => "Single-axis and triad calibrations do not mix",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
@@ -153,9 +160,11 @@ impl Kind {
             Kind::NotFound => StatusCode::NOT_FOUND,
             Kind::MethodNotAllowed => StatusCode::METHOD_NOT_ALLOWED,
             Kind::Timeout => StatusCode::REQUEST_TIMEOUT,
-            Kind::InFlight | Kind::NotUsable | Kind::StateConflict | Kind::Incomplete => {
-                StatusCode::CONFLICT
-            }
+            Kind::InFlight
+            | Kind::NotUsable
+            | Kind::StateConflict
+            | Kind::Incomplete
+            | Kind::WrongKind => StatusCode::CONFLICT,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,

@@ -223,9 +223,13 @@ pub async fn supersede(
         check_reason(Some(&query.reason)).map_err(|why| Problem::bad_parameter("reason", why))?;
     // Known before anything is computed; its state is checked where the
     // act is recorded.
-    if state.store.calibration_summary(old).await?.is_none() {
+    let Some(summary) = state.store.calibration_summary(old).await? else {
         return Err(unknown(old));
-    }
+    };
+    super::triads::single_axis(
+        &summary,
+        "superseding (withdraw it and submit the corrected triad)",
+    )?;
     let received_at = Timestamp::now();
     let new = Uuid::now_v7();
     let supersedes = Supersedes {
@@ -352,6 +356,7 @@ pub async fn reprocess(
         .calibration_summary(id)
         .await?
         .ok_or_else(|| unknown(id))?;
+    super::triads::single_axis(&old, "reprocessing")?;
     let stored = state
         .store
         .submission(id)

@@ -3,7 +3,9 @@
 //! in `accelcal_core::history`).
 
 use accelcal_core::TermMap;
-use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, stability};
+use std::collections::BTreeMap;
+
+use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, quantity, stability};
 use axum::Json;
 use axum::extract::{Path, State};
 use serde::{Deserialize, Serialize};
@@ -17,7 +19,7 @@ use super::sensors::sensor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use crate::domain::timestamp::Timestamp;
-use crate::store::{CalibrationSummary, SensorSummary};
+use crate::store::{CalibrationSummary, SensorSummary, TriadElements};
 
 /// The query of the stability report.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -58,9 +60,44 @@ pub struct Stability {
     pub last_performed_at: Option<Timestamp>,
     /// The coverage factor of `latest_change_expanded` (the sensor type's, else 2).
     pub coverage_factor: f64,
-    /// Per term present in every calibration of the window.
+    /// Per term present in every calibration of the window (empty for a
+    /// triad).
     #[schema(value_type = std::collections::BTreeMap<String, super::openapi::TermStabilitySchema>)]
     pub terms: TermMap<TermStability>,
+    /// A triad's: per element of `b`, `S` and `T` (`b_x`, `S_xy`, `T_zz`),
+    /// the same figures; a latest change is judged only where both
+    /// calibrations give the element a standard error (`S` from known
+    /// orientations, `T` from unknown ones).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<std::collections::BTreeMap<String, super::openapi::TermStabilitySchema>>)]
+    pub elements: Option<BTreeMap<String, TermStability>>,
+}
+
+/// A triad's stability element by element over `series` (oldest first;
+/// none unless every calibration is a triad's).
+fn elements(series: &[CalibrationSummary], k: f64) -> Option<BTreeMap<String, TermStability>> {
+    let triads: Vec<&TriadElements> = series
+        .iter()
+        .map(|c| c.triad.as_ref())
+        .collect::<Option<_>>()?;
+    if triads.is_empty() {
+        return None;
+    }
+    let ids: Vec<String> = series.iter().map(|c| c.id.to_string()).collect();
+    let ids: Vec<&str> = ids.iter().map(String::as_str).collect();
+    let t: Vec<f64> = series.iter().map(|c| years(c.performed_at)).collect();
+    let per: Vec<Vec<(String, f64, Option<f64>)>> = triads.iter().map(|e| e.elements()).collect();
+    Some(
+        per[0]
+            .iter()
+            .enumerate()
+            .map(|(i, (name, _, _))| {
+                let x: Vec<f64> = per.iter().map(|p| p[i].1).collect();
+                let se: Vec<Option<f64>> = per.iter().map(|p| p[i].2).collect();
+                (name.clone(), quantity(&ids, &t, &x, &se, k))
+            })
+            .collect(),
+    )
 }
 
 /// A sensor, its calibrations in a window (oldest first) and their stability.
@@ -123,6 +160,7 @@ pub async fn report_of(
         last_performed_at: series.last().map(|c| c.performed_at),
         coverage_factor,
         terms: stability(&points, coverage_factor),
+        elements: elements(&series, coverage_factor),
     };
     Ok(Report {
         sensor: summary,

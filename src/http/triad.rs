@@ -17,7 +17,7 @@ use super::query::Params;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::Invalid;
 use crate::domain::submission::Media;
-use crate::domain::triad::{TriadBody, TriadResult, compute};
+use crate::domain::triad::{TriadBody, TriadResult, TriadSubmission, compute};
 use crate::domain::triad_csv;
 use crate::domain::triad_export::{Exported, Format, export};
 
@@ -115,25 +115,11 @@ pub async fn identify(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    let format = match q.export.as_deref() {
-        None => None,
-        Some(f) => Some(Format::parse(f).ok_or_else(|| {
-            Problem::bad_parameter("export", "must be json, c, px4 or ardupilot")
-        })?),
-    };
+    let format = export_format(q.export.as_deref())?;
     // Parsed and computed on the compute pool: a recording may be megabytes.
     let result: TriadResult = state
         .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
-            let parsed = match body.media {
-                Media::Csv => {
-                    let text = std::str::from_utf8(&body.bytes)
-                        .map_err(|_| Problem::bad_request("the CSV body is not UTF-8"))?;
-                    triad_csv::read(text)?
-                }
-                _ => body.json::<TriadBody>()?,
-            };
-            let submission = parsed.check()?;
-            Ok(compute(submission)?)
+            Ok(compute(read(&body)?)?)
         })
         .await??;
     let Some(format) = format else {
@@ -146,7 +132,7 @@ pub async fn identify(
         ),
         None => format!("a triad computed by accelcal {}", env!("CARGO_PKG_VERSION")),
     };
-    let file = export(
+    file(
         &Exported {
             unit: &result.unit,
             b: result.b,
@@ -156,7 +142,37 @@ pub async fn identify(
         },
         format,
     )
-    .map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
+}
+
+/// The `export` parameter read: `None` when absent.
+pub(super) fn export_format(export: Option<&str>) -> Result<Option<Format>, Problem> {
+    export
+        .map(|f| {
+            Format::parse(f).ok_or_else(|| {
+                Problem::bad_parameter("export", "must be json, c, px4 or ardupilot")
+            })
+        })
+        .transpose()
+}
+
+/// A triad body read (JSON or CSV) and checked.
+pub(super) fn read(body: &Body) -> Result<TriadSubmission, Problem> {
+    let parsed = match body.media {
+        Media::Csv => {
+            let text = std::str::from_utf8(&body.bytes)
+                .map_err(|_| Problem::bad_request("the CSV body is not UTF-8"))?;
+            triad_csv::read(text)?
+        }
+        _ => body.json::<TriadBody>()?,
+    };
+    Ok(parsed.check()?)
+}
+
+/// `e` as a file in `format`, named for download; a format that cannot
+/// carry it is a 422 saying what it would drop.
+pub(super) fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {
+    let file =
+        export(e, format).map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
     let mut res = file.into_response();
     let h = res.headers_mut();
     h.insert(

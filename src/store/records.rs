@@ -147,6 +147,35 @@ pub struct TriadElements {
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
 impl TriadElements {
+    /// The elements of `b`, `S` and `T` by name (`b_x`, `S_xy`, `T_zz`), each
+    /// with its standard error when the method gives one: what stability
+    /// is judged on, element by element.
+    pub fn elements(&self) -> Vec<(String, f64, Option<f64>)> {
+        let mut out = Vec::with_capacity(21);
+        for (m, axis) in AXES.iter().enumerate() {
+            out.push((
+                format!("b_{axis}"),
+                self.b[m],
+                self.b_std_errors.map(|e| e[m]),
+            ));
+        }
+        for (name, matrix, errors) in [
+            ("S", &self.s, &self.s_std_errors),
+            ("T", &self.t, &self.t_std_errors),
+        ] {
+            for (m, row) in AXES.iter().enumerate() {
+                for (k, column) in AXES.iter().enumerate() {
+                    out.push((
+                        format!("{name}_{row}{column}"),
+                        matrix[m][k],
+                        errors.map(|e| e[m][k]),
+                    ));
+                }
+            }
+        }
+        out
+    }
+
     /// Every stored number with its name (`b_x`, `S_xy`, `T_zz`,
     /// `b_x_std_error`, …): what must be finite, and what stability is
     /// judged on element by element.
@@ -734,6 +763,11 @@ mod tests {
         assert_eq!(get("T_yy"), Some(0.47));
         assert_eq!(get("b_z_std_error"), Some(3e-3));
         assert_eq!(get("T_xx_std_error"), None);
+        let elements = e.elements();
+        assert_eq!(elements.len(), 21);
+        assert_eq!(elements[1], ("b_y".into(), 0.2, Some(2e-3)));
+        assert_eq!(elements[3 + 7], ("S_zy".into(), 0.06, Some(1e-4)));
+        assert_eq!(elements[12 + 4], ("T_yy".into(), 0.47, None));
         let record = |triad: TriadElements| NewCalibration {
             triad: Some(triad),
             ..NewCalibration {

@@ -72,10 +72,12 @@ fn the_contract_carries_the_limits() {
         "null"
     );
     assert_eq!(schemas["FuseRequest"]["additionalProperties"], false);
-    assert_eq!(
-        schemas["CompensateRequest"]["properties"]["outputs"]["maxItems"],
-        10000
-    );
+    // Outputs: numbers for a single-axis sensor, triples for a triad.
+    let outputs = &schemas["CompensateRequest"]["properties"]["outputs"]["oneOf"];
+    assert_eq!(outputs[0]["maxItems"], 10000);
+    assert_eq!(outputs[1]["maxItems"], 10000);
+    assert_eq!(outputs[1]["items"]["minItems"], 3);
+    assert_eq!(outputs[1]["items"]["maxItems"], 3);
     assert!(schemas["Submission"]["examples"].is_array());
     let submit = &doc["paths"]["/v1/calibrations"]["post"];
     assert_eq!(submit["operationId"], "submitCalibration");

@@ -28,4 +28,5 @@ mod storage;
 mod trace;
 mod traceability;
 mod triad;
+mod triads;
 mod ui;

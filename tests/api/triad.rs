@@ -12,7 +12,7 @@ use accelcal_testkit::Engine::Sqlite;
 use accelcal_testkit::*;
 
 /// `b` and `S` with every element distinct, in m/s² and m/s² per g.
-fn truth() -> ([f64; 3], [[f64; 3]; 3]) {
+pub(crate) fn truth() -> ([f64; 3], [[f64; 3]; 3]) {
     (
         [0.12, -0.21, 0.053],
         [
@@ -62,7 +62,7 @@ fn faces() -> Vec<[f64; 3]> {
 }
 
 /// Six runs on the six faces, two samples a position, scattered by 2e-3.
-fn known_body() -> Value {
+pub(crate) fn known_body() -> Value {
     let runs: Vec<Value> = (0..6)
         .map(|j| {
             let samples: Vec<Value> = faces()
@@ -86,7 +86,7 @@ async fn triad(app: &TestApp, body: &Value) -> reqwest::Response {
     app.post("/v1/identify/triad", ADMIN, body).await
 }
 
-fn f(v: &Value) -> f64 {
+pub(crate) fn f(v: &Value) -> f64 {
     v.as_f64().unwrap()
 }
 

@@ -143,11 +143,12 @@ try {
   for (let i = 0; i < 12; i += 1) {
     await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(synthetic(i)) }), `synthetic ${i}`);
   }
+  const triad = await must(201, api('POST', '/v1/calibrations/triad', { body: fs.readFileSync('examples/triad-recording.json') }), 'triad');
   const history = (await must(200, api('GET', '/v1/sensors/SYN-001/calibrations?limit=500'), 'history')).items;
   const stability = await must(200, api('GET', '/v1/sensors/SYN-001/stability'), 'stability');
   const sensors = (await must(200, api('GET', '/v1/sensors'), 'sensors')).items;
   assert.equal(history.length, 12);
-  ok('seeded: the paper, its recalibration and twelve synthetic calibrations');
+  ok('seeded: the paper, its recalibration, twelve synthetic calibrations and a triad');
 
   // ------------------------------------------------------------ sign in
   const context = await newContext({ viewport: { width: 1280, height: 900 } });
@@ -295,12 +296,27 @@ try {
   assert.equal(record.signatures[0].holder, 'Rita Reviewer');
   ok('review: a reviewer signs on the page with the token typed again; the page and the API show the approval');
 
+  // -------------------------------------------------------------- triad
+  await page.goto(`/ui/calibrations/${triad.id}`);
+  assert.match(await page.textContent('h1'), /Triad calibration of IMU-DEMO-1/);
+  const shownB = await page.$$eval('#triad-b tbody td', (tds) => tds.map((td) => Number(td.textContent)));
+  for (let m = 0; m < 3; m += 1) close(shownB[2 * m], triad.b[m], 1e-8, `b[${m}] on the page`);
+  const shownT = await page.$$eval('#triad-T tbody tr', (trs) => trs.map((tr) => Number(tr.querySelectorAll('td')[0].textContent)));
+  for (let m = 0; m < 3; m += 1) close(shownT[m], triad.T[m][0], 1e-8, `T[${m}][0] on the page`);
+  const download = await page.request.get(`/ui/calibrations/${triad.id}/export/px4`);
+  assert.equal(download.status(), 200);
+  assert.match(await download.text(), /CAL_ACC0_XOFF/);
+  await page.goto('/ui/sensors/IMU-DEMO-1');
+  assert.ok(await page.$('#stability tr[data-term="b_x"]'), 'the triad sensor shows stability element by element');
+  ok('triad: the page shows b and T as stored, offers the firmware files, and the sensor page lists its elements');
+
   // ---------------------------------- accessibility and screenshots
   const pages = {
     fleet: '/ui/sensors',
     sensor: '/ui/sensors/SYN-001',
     calibration: `/ui/calibrations/${recal.id}`,
     certificate: `/ui/calibrations/${recal.id}/certificate`,
+    triad: `/ui/calibrations/${triad.id}`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

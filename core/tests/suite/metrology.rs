@@ -403,6 +403,43 @@ fn stability_by_hand() {
     assert_eq!(k.latest_change_significant, Some(true));
 }
 
+/// One quantity (a triad's element) by the same hand computation: every
+/// figure as `stability_by_hand`; the latest change is judged only with
+/// both its points' standard errors.
+#[test]
+fn one_quantity_by_hand_and_a_change_without_standard_errors_is_not_judged() {
+    use accelcal_core::history::quantity;
+    let (ids, t, x) = (
+        ["a", "b", "c", "d"],
+        [0.0, 1.0, 2.0, 3.0],
+        [1.0, 3.0, 2.0, 5.0],
+    );
+    let q = quantity(&ids, &t, &x, &[Some(0.1); 4], 2.0);
+    near(q.mean, 2.75, 1e-15);
+    near(q.drift_per_year.unwrap(), 1.1, 1e-14);
+    near(q.drift_std_error.unwrap(), (1.35f64 / 5.0).sqrt(), 1e-14);
+    near(q.control.lower.unwrap(), 2.75 - 5.32, 1e-15);
+    near(q.latest_change.unwrap(), 3.0, 1e-15);
+    near(
+        q.latest_change_expanded.unwrap(),
+        2.0 * 0.02f64.sqrt(),
+        1e-15,
+    );
+    assert_eq!(q.latest_change_significant, Some(true));
+    let unjudged = quantity(&ids, &t, &x, &[Some(0.1), Some(0.1), None, Some(0.1)], 2.0);
+    near(unjudged.latest_change.unwrap(), 3.0, 1e-15);
+    assert_eq!(unjudged.latest_change_expanded, None);
+    assert_eq!(unjudged.latest_change_significant, None);
+    let far = quantity(&ids, &t, &[1.0, 1.0, 1.0, 9.0], &[None; 4], 2.0);
+    assert_eq!(
+        far.control.out_of_control,
+        Vec::<String>::new(),
+        "limits 3 ± 2.66·8/3 hold 9"
+    );
+    let flat = quantity(&ids, &t, &[1.0, 1.1, 0.9, 1.0], &[Some(1.0); 4], 2.0);
+    assert_eq!(flat.latest_change_significant, Some(false));
+}
+
 #[test]
 fn a_perfectly_linear_history_drifts_by_its_slope_with_no_residual() {
     let pts: Vec<Point> = (0..6)

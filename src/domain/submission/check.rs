@@ -23,6 +23,25 @@ fn ahead(t: Timestamp, now: Timestamp) -> String {
     }
 }
 
+/// When a test was performed, as stated at `t` and received at `now`:
+/// refused more than [`MAX_FUTURE_SECONDS`] ahead of the server's clock or
+/// before 1970; within the forgiven skew, recorded as `now`. The one rule
+/// for single-axis and triad submissions.
+pub fn performed_when(t: Timestamp, now: Timestamp) -> Result<Timestamp, String> {
+    if t > now.plus_seconds(MAX_FUTURE_SECONDS) {
+        return Err(format!(
+            "lies {} ahead of the server's clock ({now}); at most {} minutes of \
+             clock skew are forgiven: check the station's clock",
+            ahead(t, now),
+            MAX_FUTURE_SECONDS / 60
+        ));
+    }
+    if t.year() < 1970 {
+        return Err("lies before 1970; check the station's clock".into());
+    }
+    Ok(t.min(now))
+}
+
 /// Which optional fields a submission gave: where a core refusal points.
 #[derive(Debug, Clone, Copy)]
 pub struct Hints {
@@ -249,27 +268,13 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         }
     }
     let performed_at = match performed_at {
-        Slot::Value(t) if t > now.plus_seconds(MAX_FUTURE_SECONDS) => {
-            errors.add(
-                root.key("performed_at"),
-                format!(
-                    "lies {} ahead of the server's clock ({now}); at most {} minutes of \
-                     clock skew are forgiven: check the station's clock",
-                    ahead(t, now),
-                    MAX_FUTURE_SECONDS / 60
-                ),
-            );
-            None
-        }
-        Slot::Value(t) if t.year() < 1970 => {
-            errors.add(
-                root.key("performed_at"),
-                "lies before 1970; check the station's clock",
-            );
-            None
-        }
-        // Within the forgiven skew: recorded as the time received.
-        Slot::Value(t) => Some(t.min(now)),
+        Slot::Value(t) => match performed_when(t, now) {
+            Ok(t) => Some(t),
+            Err(why) => {
+                errors.add(root.key("performed_at"), why);
+                None
+            }
+        },
         _ => None,
     };
     // The item is received before it is calibrated, and not in the future.

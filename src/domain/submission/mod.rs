@@ -14,7 +14,7 @@ pub mod json;
 mod node;
 mod result;
 
-pub use check::check;
+pub use check::{check, performed_when};
 pub use draft::{Draft, PositionDraft, RunDraft, Slot, StandDraft};
 pub use result::{Method, PositionOut, ResultView};
 

@@ -59,6 +59,10 @@ problem_response!(
     Incomplete,
     "Either the calibration is not approved (`state-conflict`) or the records lack what a Digital Calibration Certificate needs (`incomplete-record`: the laboratory's name or country, the item's customer): `detail` names what."
 );
+problem_response!(
+    WrongKind,
+    "Single-axis and triad calibrations do not mix (`wrong-kind`): a triad for a sensor id holding single-axis calibrations or the other way round, or a single-axis document asked of a triad; `detail` says what to use instead."
+);
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
 
 /// Implements `IntoResponses` for a set of the reusable problem answers that

@@ -522,6 +522,15 @@ marker_schema!(
         .build()))
 );
 
+marker_schema!(
+    /// A stored calibration's result document: single-axis, or a triad's
+    /// (`kind: triad`).
+    StoredResultSchema => RefOr::T(Schema::OneOf(utoipa::openapi::schema::OneOfBuilder::new()
+        .item(reference("StoredCalibration"))
+        .item(reference("StoredTriad"))
+        .build()))
+);
+
 fn page(item: &str) -> RefOr<Schema> {
     ObjectBuilder::new()
         .property("items", array(reference(item)))

@@ -26,18 +26,64 @@ use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
 
-/// Reads a stored result document (404 for an unknown id).
-pub async fn load(state: &AppState, raw_id: &str) -> Result<ResultDoc, Problem> {
+/// A stored result document of either kind.
+pub enum StoredDoc {
+    /// A single-axis calibration's.
+    Axis(Box<ResultDoc>),
+    /// A triad's.
+    Triad(Box<super::triad::TriadDoc>),
+}
+
+/// Reads a stored result document of either kind (404 for an unknown id).
+pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Problem> {
     let id = path_id(raw_id, "calibration")?;
     let bytes = state
         .store
         .calibration_result(id)
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
-    serde_json::from_slice(&bytes).map_err(|e| {
+    let read = if is_triad(&bytes) {
+        serde_json::from_slice(&bytes).map(|d| StoredDoc::Triad(Box::new(d)))
+    } else {
+        serde_json::from_slice(&bytes).map(|d| StoredDoc::Axis(Box::new(d)))
+    };
+    read.map_err(|e| {
         tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
         Problem::internal()
     })
+}
+
+/// Reads a stored single-axis result document (404 for an unknown id; 409
+/// `wrong-kind` for a triad's, which has no single-axis tables or
+/// certificate).
+pub async fn load(state: &AppState, raw_id: &str) -> Result<ResultDoc, Problem> {
+    match load_stored(state, raw_id).await? {
+        StoredDoc::Axis(d) => Ok(*d),
+        StoredDoc::Triad(d) => Err(triad_refusal(d.id)),
+    }
+}
+
+/// Whether a stored result is a triad's (`"kind": "triad"`): those are
+/// not single-axis result documents.
+pub fn is_triad(result: &[u8]) -> bool {
+    #[derive(serde::Deserialize)]
+    struct Kind {
+        kind: Option<String>,
+    }
+    serde_json::from_slice::<Kind>(result).is_ok_and(|k| k.kind.as_deref() == Some("triad"))
+}
+
+/// The refusal of a single-axis document (the calibration page's tables,
+/// the certificate) for triad `id`.
+fn triad_refusal(id: uuid::Uuid) -> Problem {
+    Problem::new(
+        crate::http::problem::Kind::WrongKind,
+        format!(
+            "calibration {id} is a triad's: certificates are issued for single-axis calibrations \
+             only (not yet for triads); its result is at GET /v1/calibrations/{id}, its firmware \
+             files at GET /v1/calibrations/{id}/export"
+        ),
+    )
 }
 
 /// A calibration's state and signatures.
@@ -521,7 +567,10 @@ pub async fn page(
     viewer: Viewer,
     Path(id): Path<String>,
 ) -> Result<Html, UiError> {
-    let d = load(&state, &id).await?;
+    let d = match load_stored(&state, &id).await? {
+        StoredDoc::Axis(d) => *d,
+        StoredDoc::Triad(d) => return super::triad::page(&state, &viewer, *d).await,
+    };
     let (review_state, signatures) = record(&state, &id).await?;
     let trail = if viewer.principal.role >= crate::domain::auth::Role::Reviewer {
         let q = crate::store::AuditQuery {

@@ -26,6 +26,7 @@ pub mod result;
 pub mod review;
 pub mod sensor;
 pub mod session;
+pub mod triad;
 
 use axum::Router;
 use axum::http::{HeaderName, HeaderValue, StatusCode, header};
@@ -61,6 +62,7 @@ pub fn router() -> Router<AppState> {
             get(certificate::ui_dcc),
         )
         .route("/calibrations/{id}/review", post(review::sign))
+        .route("/calibrations/{id}/export/{format}", get(triad::export))
         .route("/assets/{file}", get(assets::serve))
         .fallback(not_found)
 }

@@ -239,7 +239,17 @@ fn chart_table(r: &Report, term: Term) -> Markup {
 }
 
 fn stability_table(r: &Report) -> Markup {
-    let rows: Vec<(Term, &TermStability)> = r.stability.terms.iter().collect();
+    // A triad's: element by element (`b_x`, `S_xy`, `T_zz`).
+    let triad = r.stability.elements.is_some();
+    let rows: Vec<(String, &TermStability)> = match &r.stability.elements {
+        Some(e) => e.iter().map(|(n, s)| (n.clone(), s)).collect(),
+        None => r
+            .stability
+            .terms
+            .iter()
+            .map(|(t, s)| (t.name().to_owned(), s))
+            .collect(),
+    };
     html! {
         @if rows.is_empty() {
             p.muted { "No coefficient is present in every calibration of the window." }
@@ -251,7 +261,7 @@ fn stability_table(r: &Report) -> Markup {
                         "latest change judged with k = " (r.stability.coverage_factor)
                     }
                     thead { tr {
-                        th scope="col" { "Term" }
+                        th scope="col" { @if triad { "Element" } @else { "Term" } }
                         th scope="col" .num { "Mean" }
                         th scope="col" .num { "Std" }
                         th scope="col" .num { "Min" }
@@ -266,8 +276,8 @@ fn stability_table(r: &Report) -> Markup {
                     } }
                     tbody {
                         @for (t, s) in &rows {
-                            tr data-term=(t.name()) {
-                                th scope="row" { (t.name()) }
+                            tr data-term=(t) {
+                                th scope="row" { (t) }
                                 td.num data-label="Mean" { (num(s.mean)) }
                                 td.num data-label="Std" { (opt(s.std, unc)) }
                                 td.num data-label="Min" { (num(s.min)) }
@@ -416,7 +426,10 @@ pub async fn page(
                             td data-label="Type" { (c.sensor_type.as_deref().unwrap_or("—")) }
                             td data-label="Verdict" { @match c.verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } }
                             td data-label="Due" { @match &c.due_at { Some(d) => (date(d)), None => "—" } }
-                            td data-label="Certificate" { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
+                            td data-label="Certificate" {
+                                @if c.triad.is_some() { span.muted { "— (triad)" } }
+                                @else { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
+                            }
                         }
                     }
                 }

@@ -1,0 +1,479 @@
+//! Stored triads (issue 30): `POST /v1/calibrations/triad` stores what
+//! `POST /v1/identify/triad` computes, bit for bit; the calibration reads
+//! back through every read (result, sensor, history, coefficients);
+//! compensation with triples inverts the stored `b` and `S`; the exports
+//! carry the stored elements; stability is judged element by element; and
+//! single-axis and triad calibrations never mix on one sensor.
+
+use reqwest::StatusCode;
+use reqwest::header::{CONTENT_TYPE, LOCATION};
+use rstest::rstest;
+use serde_json::{Value, json};
+
+use super::triad::{f, known_body};
+use accelcal_testkit::Engine::{Postgres, Sqlite};
+use accelcal_testkit::*;
+
+/// Stores `body` as a triad; the answer, expecting 201.
+async fn store(app: &TestApp, token: &str, body: &Value) -> Value {
+    let res = app.post("/v1/calibrations/triad", token, body).await;
+    let status = res.status();
+    let location = res.headers().get(LOCATION).cloned();
+    let text = res.text().await.unwrap();
+    assert_eq!(status, StatusCode::CREATED, "{text}");
+    let v: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(
+        location.unwrap().to_str().unwrap(),
+        format!("/v1/calibrations/{}", v["id"].as_str().unwrap())
+    );
+    v
+}
+
+fn vector(v: &Value) -> [f64; 3] {
+    [0, 1, 2].map(|m| f(&v[m]))
+}
+
+fn matrix(v: &Value) -> [[f64; 3]; 3] {
+    [0, 1, 2].map(|m| vector(&v[m]))
+}
+
+#[rstest]
+#[tokio::test]
+async fn a_stored_triad_reads_back_compensates_and_exports(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let station = app.token("station", Some("LAB-3")).await;
+    let mut body = known_body();
+    body["performed_at"] = json!("2026-10-01T08:00:00Z");
+    let computed: Value = app
+        .post("/v1/identify/triad", ADMIN, &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let stored = store(&app, &station, &body).await;
+    let id = stored["id"].as_str().unwrap().to_owned();
+    // What is stored is what is computed, bit for bit, with the record's
+    // own fields: the station comes from the bound token.
+    for key in [
+        "b",
+        "S",
+        "T",
+        "b_std_errors",
+        "S_std_errors",
+        "scale_factors",
+        "residuals",
+    ] {
+        assert_eq!(stored[key], computed[key], "{key}");
+    }
+    assert_eq!(stored["station_id"], "LAB-3");
+    assert_eq!(stored["performed_at"], "2026-10-01T08:00:00.000000Z");
+    assert_eq!(stored["sensor_id"], "IMU-7");
+    assert_eq!(
+        app.get_json(&format!("/v1/calibrations/{id}"), ADMIN).await,
+        stored
+    );
+
+    // The sensor, its history and its coefficients carry the elements.
+    let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
+    let latest = &sensor["latest"];
+    assert_eq!(latest["id"], id.as_str());
+    assert_eq!(latest["model"], json!(["k0", "ki", "kp", "ko"]));
+    assert_eq!(latest["coefficients"], json!({}));
+    assert_eq!(latest["runs"], 6);
+    for key in ["b", "S", "T", "b_std_errors", "S_std_errors"] {
+        assert_eq!(latest["triad"][key], stored[key], "{key}");
+    }
+    assert_eq!(latest["triad"]["method"], "known_orientations");
+    assert_eq!(latest["triad"]["T_std_errors"], Value::Null);
+    let history = app.get_json("/v1/sensors/IMU-7/calibrations", ADMIN).await;
+    assert_eq!(history["items"][0]["triad"], latest["triad"]);
+    let coefficients = app.get_json("/v1/sensors/IMU-7/coefficients", ADMIN).await;
+    assert_eq!(coefficients["triad"], latest["triad"]);
+
+    // Compensation inverts u = b + S g: outputs made in the test from the
+    // stored b and S give their g back.
+    let (b, s) = (vector(&stored["b"]), matrix(&stored["S"]));
+    let gs = [
+        [1.0, 0.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.6, 0.0, 0.8],
+        [0.3, -0.4, 0.2],
+    ];
+    let outputs: Vec<[f64; 3]> = gs
+        .iter()
+        .map(|g| [0, 1, 2].map(|m| b[m] + (0..3).map(|k| s[m][k] * g[k]).sum::<f64>()))
+        .collect();
+    let res = app
+        .post(
+            "/v1/sensors/IMU-7/compensate",
+            ADMIN,
+            &json!({ "outputs": outputs }),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let c: Value = res.json().await.unwrap();
+    assert_eq!(c["calibration_id"], id.as_str());
+    assert_eq!(c["usable"], true);
+    assert_eq!(c["unit"], "m/s2");
+    assert!(c.get("a_i").is_none(), "{c}");
+    for (k, g) in gs.iter().enumerate() {
+        for m in 0..3 {
+            assert!((f(&c["g"][k][m]) - g[m]).abs() < 1e-12, "g{k}{m}: {c}");
+        }
+    }
+
+    // The exports carry the stored elements.
+    let export = |format: &str| {
+        let app = &app;
+        let url = format!("/v1/calibrations/{id}/export?format={format}");
+        async move { app.get(&url, ADMIN).await }
+    };
+    let json_file: Value = export("json").await.json().await.unwrap();
+    for key in ["b", "S", "T"] {
+        assert_eq!(json_file[key], stored[key], "{key}");
+    }
+    assert!(json_file["source"].as_str().unwrap().contains(&id));
+    let res = export("px4").await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert!(
+        res.headers()["content-disposition"]
+            .to_str()
+            .unwrap()
+            .contains("accelcal-px4.params")
+    );
+    let px4 = res.text().await.unwrap();
+    let t = matrix(&stored["T"]);
+    let param = |name: &str| -> f64 {
+        let line = px4.lines().find(|l| l.contains(name)).unwrap();
+        line.split('\t').nth(3).unwrap().parse().unwrap()
+    };
+    // PX4: a = (u − offset) ⊙ scale in m/s², offsets b, scales g₀·T_mm.
+    for (m, axis) in ["X", "Y", "Z"].iter().enumerate() {
+        let off = param(&format!("CAL_ACC0_{axis}OFF"));
+        assert!((off - b[m]).abs() < 1e-8 * b[m].abs().max(1.0), "{axis}OFF");
+        let scale = param(&format!("CAL_ACC0_{axis}SCALE"));
+        assert!((scale - 9.80665 * t[m][m]).abs() < 1e-8, "{axis}SCALE");
+    }
+    let header = export("c").await.text().await.unwrap();
+    assert!(header.contains("ACCELCAL_T[3][3]"), "{header}");
+}
+
+#[tokio::test]
+async fn stability_is_judged_element_by_element() {
+    let app = TestApp::spawn(Sqlite).await;
+    let mut first = known_body();
+    first["performed_at"] = json!("2025-10-01T00:00:00Z");
+    let mut second = known_body();
+    second["performed_at"] = json!("2026-10-01T00:00:00Z");
+    // The second year's bias moved by 0.05 m/s² on every axis.
+    for run in second["runs"].as_array_mut().unwrap() {
+        for position in run["samples"].as_array_mut().unwrap() {
+            for sample in position.as_array_mut().unwrap() {
+                for u in sample.as_array_mut().unwrap() {
+                    *u = json!(f(u) + 0.05);
+                }
+            }
+        }
+    }
+    let a = store(&app, ADMIN, &first).await;
+    let b = store(&app, ADMIN, &second).await;
+    let report = app.get_json("/v1/sensors/IMU-7/stability", ADMIN).await;
+    assert_eq!(report["calibrations"], 2);
+    assert_eq!(report["terms"], json!({}));
+    let elements = report["elements"].as_object().unwrap();
+    assert_eq!(elements.len(), 21, "b, S and T");
+    for (m, axis) in ["x", "y", "z"].iter().enumerate() {
+        let e = &elements[&format!("b_{axis}")];
+        let (x0, x1) = (f(&a["b"][m]), f(&b["b"][m]));
+        assert!((f(&e["mean"]) - (x0 + x1) / 2.0).abs() < 1e-12);
+        assert!((f(&e["latest_change"]) - (x1 - x0)).abs() < 1e-12);
+        let (s0, s1) = (f(&a["b_std_errors"][m]), f(&b["b_std_errors"][m]));
+        let expanded = 2.0 * (s0 * s0 + s1 * s1).sqrt();
+        assert!((f(&e["latest_change_expanded"]) - expanded).abs() < 1e-15);
+        assert_eq!(
+            e["latest_change_significant"],
+            json!((x1 - x0).abs() > expanded)
+        );
+        assert!((x1 - x0 - 0.05).abs() < 1e-9, "the planted change");
+    }
+    // T has no standard errors from known orientations: its change is not judged.
+    assert_eq!(elements["T_xx"]["latest_change_expanded"], Value::Null);
+    assert!(elements["S_yz"]["latest_change_expanded"].is_number());
+}
+
+#[rstest]
+#[tokio::test]
+async fn single_axis_and_triad_calibrations_do_not_mix(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let triad = store(&app, ADMIN, &known_body()).await;
+    let id = triad["id"].as_str().unwrap().to_owned();
+    let single = app
+        .submit(ADMIN, &submission("AXIS-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let single_id = single["id"].as_str().unwrap().to_owned();
+
+    // A single-axis submission for the triad, and a triad for the single axis.
+    let p = problem(
+        app.post(
+            "/v1/calibrations",
+            ADMIN,
+            &submission("IMU-7", "2026-01-01T00:00:00Z", 4),
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(p["type"].as_str().unwrap().ends_with("wrong-kind"), "{p}");
+    assert_eq!(pointers(&p), ["/sensor_id"]);
+    let mut body = known_body();
+    body["sensor_id"] = json!("AXIS-1");
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &body).await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(p["detail"].as_str().unwrap().contains("single-axis"), "{p}");
+    // Single-axis documents and acts are refused for a triad.
+    for accept in ["text/html", "application/xml"] {
+        let res = app
+            .client
+            .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
+            .bearer_auth(ADMIN)
+            .header("accept", accept)
+            .send()
+            .await
+            .unwrap();
+        let p = problem(res, StatusCode::CONFLICT).await;
+        assert!(
+            p["type"].as_str().unwrap().ends_with("wrong-kind"),
+            "{accept}: {p}"
+        );
+    }
+    let p = problem(
+        app.post(
+            &format!("/v1/calibrations/{id}/reprocess"),
+            ADMIN,
+            &json!({}),
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(
+        p["detail"].as_str().unwrap().contains("reprocessing"),
+        "{p}"
+    );
+    // Exports are for triads.
+    let p = problem(
+        app.get(
+            &format!("/v1/calibrations/{single_id}/export?format=json"),
+            ADMIN,
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(p["type"].as_str().unwrap().ends_with("wrong-kind"), "{p}");
+    // Outputs of the wrong shape for the sensor.
+    let p = problem(
+        app.post(
+            "/v1/sensors/IMU-7/compensate",
+            ADMIN,
+            &json!({"outputs": [1.0, 2.0]}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/outputs"]);
+    let p = problem(
+        app.post(
+            "/v1/sensors/AXIS-1/compensate",
+            ADMIN,
+            &json!({"outputs": [[1.0, 2.0, 3.0]]}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/outputs"]);
+    for (outputs, pointer) in [
+        (json!([1.0, [1.0, 2.0, 3.0]]), "/outputs"),
+        (json!([[1.0, 2.0]]), "/outputs/0"),
+        (json!([[1.0, 2.0, 3.0, 4.0]]), "/outputs/0"),
+        (json!([[1.0, "2", 3.0]]), "/outputs/0/1"),
+    ] {
+        let p = problem(
+            app.post(
+                "/v1/sensors/IMU-7/compensate",
+                ADMIN,
+                &json!({ "outputs": outputs }),
+            )
+            .await,
+            StatusCode::UNPROCESSABLE_ENTITY,
+        )
+        .await;
+        assert_eq!(pointers(&p), [pointer], "{outputs}: {p}");
+    }
+    let p = problem(
+        app.post(
+            "/v1/sensors/IMU-7/compensate",
+            ADMIN,
+            &json!({"outputs": [[1.0, 2.0, 3.0]], "a_p": [0.1]}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/a_p"]);
+}
+
+#[tokio::test]
+async fn each_refusal_of_a_stored_triad_names_its_field() {
+    let app = TestApp::spawn(Sqlite).await;
+    let reader = app.token("reader", None).await;
+    let station = app.token("station", Some("LAB-3")).await;
+    let res = app
+        .post("/v1/calibrations/triad", &reader, &known_body())
+        .await;
+    assert_eq!(res.status(), StatusCode::FORBIDDEN);
+    for (change, pointer) in [
+        (json!({"sensor_id": null}), "/sensor_id"),
+        (json!({"sensor_id": "IMU 7"}), "/sensor_id"),
+        (
+            json!({"performed_at": "2999-01-01T00:00:00Z"}),
+            "/performed_at",
+        ),
+        (json!({"performed_at": "yesterday"}), "/performed_at"),
+        (json!({"station_id": "../x"}), "/station_id"),
+    ] {
+        let mut body = known_body();
+        for (k, v) in change.as_object().unwrap() {
+            body[k] = v.clone();
+        }
+        let p = problem(
+            app.post("/v1/calibrations/triad", ADMIN, &body).await,
+            StatusCode::UNPROCESSABLE_ENTITY,
+        )
+        .await;
+        assert_eq!(pointers(&p), [pointer], "{change}: {p}");
+    }
+    // A station-bound token cannot act as another station.
+    let mut body = known_body();
+    body["station_id"] = json!("LAB-9");
+    let res = app.post("/v1/calibrations/triad", &station, &body).await;
+    assert_eq!(res.status(), StatusCode::FORBIDDEN);
+    assert!(
+        app.get("/v1/sensors/IMU-7", ADMIN).await.status() == StatusCode::NOT_FOUND,
+        "nothing stored"
+    );
+    // Export: an unknown format, an unknown calibration, one that no longer counts.
+    let stored = store(&app, ADMIN, &known_body()).await;
+    let id = stored["id"].as_str().unwrap();
+    let p = problem(
+        app.get(&format!("/v1/calibrations/{id}/export?format=xls"), ADMIN)
+            .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "format", "{p}");
+    let unknown = "01900000-0000-7000-8000-000000000000";
+    let res = app
+        .get(
+            &format!("/v1/calibrations/{unknown}/export?format=c"),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::NOT_FOUND);
+    let reviewer = app.held_token("reviewer", "Rita", None).await;
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{id}/withdraw"),
+            &reviewer,
+            &json!({"reason": "the fixture slipped"}),
+        )
+        .await;
+    assert_eq!(
+        res.status(),
+        StatusCode::OK,
+        "{}",
+        res.text().await.unwrap()
+    );
+    let p = problem(
+        app.get(&format!("/v1/calibrations/{id}/export?format=c"), ADMIN)
+            .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(p["detail"].as_str().unwrap().contains("withdrawn"), "{p}");
+}
+
+#[tokio::test]
+async fn a_triad_is_stored_once_per_idempotency_key_and_from_csv() {
+    let app = TestApp::spawn(Sqlite).await;
+    let send = || {
+        app.client
+            .post(app.url("/v1/calibrations/triad"))
+            .bearer_auth(ADMIN)
+            .header("Idempotency-Key", "triad-1")
+            .json(&known_body())
+            .send()
+    };
+    let first = send().await.unwrap();
+    assert_eq!(first.status(), StatusCode::CREATED);
+    let first: Value = first.json().await.unwrap();
+    let again = send().await.unwrap();
+    assert_eq!(again.status(), StatusCode::CREATED);
+    assert_eq!(again.headers()["idempotent-replayed"], "true");
+    let again: Value = again.json().await.unwrap();
+    assert_eq!(again["id"], first["id"]);
+    let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
+    assert_eq!(sensor["calibration_count"], 1);
+
+    // CSV: static positions of unknown orientation, the record's fields as
+    // `# key: value` lines.
+    let mut csv = String::from(
+        "# sensor_id: IMU-CSV\n# station_id: LAB-5\n# performed_at: 2026-09-01T00:00:00Z\n\
+         # unit: g\nposition,u_x,u_y,u_z\n",
+    );
+    let dirs = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+        [0.6, 0.8, 0.0],
+        [0.0, 0.6, 0.8],
+        [0.8, 0.0, 0.6],
+        [-0.48, 0.6, 0.64],
+    ];
+    for (p, d) in dirs.iter().enumerate() {
+        let u = [0.01 + 1.02 * d[0], -0.02 + 0.99 * d[1], 0.03 + 1.01 * d[2]];
+        csv.push_str(&format!("{p},{},{},{}\n", u[0], u[1], u[2]));
+    }
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations/triad"))
+        .bearer_auth(ADMIN)
+        .header(CONTENT_TYPE, "text/csv")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    let status = res.status();
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(status, StatusCode::CREATED, "{r}");
+    assert_eq!(r["method"], "gravity_magnitude");
+    assert_eq!(r["station_id"], "LAB-5");
+    let stored = app.get_json("/v1/sensors/IMU-CSV", ADMIN).await;
+    assert_eq!(stored["latest"]["triad"]["method"], "gravity_magnitude");
+    for (m, want) in [0.01, -0.02, 0.03].iter().enumerate() {
+        assert!((f(&r["b"][m]) - want).abs() < 1e-9, "{r}");
+    }
+    for (m, want) in [1.02, 0.99, 1.01].iter().enumerate() {
+        assert!((f(&r["S"][m][m]) - want).abs() < 1e-9, "{r}");
+    }
+}
