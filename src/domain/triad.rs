@@ -21,14 +21,22 @@
 use accelcal_core::gravity_fit::{self, GravityFit, GravityFitError, MIN_POSITIONS};
 use accelcal_core::static_intervals::{self, DetectError, Detection, Detector, Rejection};
 use accelcal_core::triad::{AXES, Triad, TriadError, TriadRun, TriadTest, six_faces};
+use std::collections::BTreeMap;
+
+use accelcal_core::adequacy::model_uncertainty;
+use accelcal_core::decision::{Limit, Rule, TermDecision, Verdict, decide};
+use accelcal_core::quality;
+use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
+use accelcal_core::{Term, TermMap};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::field::{Errors, Invalid, Loc};
 use super::limits::{
-    MAX_BATCHES, MAX_ID_CHARS, MAX_POSITIONS, MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES,
-    MAX_UNIT_CHARS,
+    MAX_ANGLE_STD_ARCSEC, MAX_BATCHES, MAX_GRAVITY_REL_STD, MAX_ID_CHARS, MAX_POSITIONS,
+    MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES, MAX_UNIT_CHARS,
 };
+use super::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
@@ -78,6 +86,25 @@ pub struct TriadBody {
     /// Unknown orientations from one continuous recording.
     #[serde(default)]
     pub recording: Option<RecordingBody>,
+    /// With `orientations`: the dividing head's indexing error and the
+    /// local gravity's relative uncertainty, for each axis's uncertainty
+    /// budget (default 0 and 0).
+    #[serde(default)]
+    pub stand: Option<TriadStandBody>,
+    /// Stored triads: the sensor type whose limits judge the elements (the
+    /// sensor's own by default; as for a single-axis submission).
+    #[serde(default)]
+    pub sensor_type: Option<String>,
+}
+
+/// A triad's stand (`stand`).
+#[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TriadStandBody {
+    /// Indexing error of the dividing head, arcseconds (1σ, 0 to 3600).
+    pub angle_std_arcsec: f64,
+    /// Relative uncertainty of the local gravity magnitude (0 to 0.1).
+    pub gravity_rel_std: f64,
 }
 
 /// Orientations: given, or a named set.
@@ -166,6 +193,13 @@ pub struct TriadSubmission {
     pub unit: String,
     /// What to compute.
     pub form: Form,
+    /// The stand (known orientations).
+    pub stand: Stand,
+    /// The sensor type named, if any.
+    pub sensor_type: Option<String>,
+    /// The coverage factor of the expanded uncertainties: the sensor
+    /// type's when one judges the triad (set by the caller), else 2.
+    pub coverage_factor: f64,
 }
 
 /// The three forms.
@@ -241,6 +275,7 @@ impl TriadBody {
         };
         let sensor_id = identifier("sensor_id", &self.sensor_id);
         let station_id = identifier("station_id", &self.station_id);
+        let sensor_type = identifier("sensor_type", &self.sensor_type);
         let performed_at = self
             .performed_at
             .as_deref()
@@ -263,6 +298,34 @@ impl TriadBody {
             self.static_positions.is_some(),
             self.recording.is_some(),
         ];
+        let stand = match self.stand {
+            None => Stand::default(),
+            Some(st) => {
+                let at = root.key("stand");
+                if self.orientations.is_none() {
+                    errors.add(
+                        at,
+                        "is for known orientations: a fit from the gravity magnitude has no stand",
+                    );
+                }
+                for (name, v, max) in [
+                    (
+                        "angle_std_arcsec",
+                        st.angle_std_arcsec,
+                        MAX_ANGLE_STD_ARCSEC,
+                    ),
+                    ("gravity_rel_std", st.gravity_rel_std, MAX_GRAVITY_REL_STD),
+                ] {
+                    if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                        errors.add(at.key(name), format!("must be a number from 0 to {max}"));
+                    }
+                }
+                Stand {
+                    angle_std_rad: st.angle_std_arcsec * ARCSEC,
+                    gravity_rel_std: st.gravity_rel_std,
+                }
+            }
+        };
         let form = match given {
             [true, false, false] => self.known(&mut errors),
             [false, true, false] => {
@@ -354,6 +417,9 @@ impl TriadBody {
             sensor_id,
             station_id,
             performed_at,
+            stand,
+            sensor_type,
+            coverage_factor: DEFAULT_COVERAGE_FACTOR,
             unit,
             form: form.expect("a form when nothing is wrong"),
         })
@@ -475,6 +541,14 @@ pub struct AxisResult {
     /// The batch-estimation fusion with eq. 8 dispersion.
     #[schema(value_type = Object)]
     pub fused: serde_json::Value,
+    /// The axis's uncertainty budget, as a single-axis calibration's
+    /// (standard error, stand indexing, gravity, model; expanded with
+    /// `coverage_factor`).
+    #[schema(value_type = Object)]
+    pub uncertainty: serde_json::Value,
+    /// The single-axis method's quality warnings for the axis.
+    #[schema(value_type = Object)]
+    pub quality: serde_json::Value,
 }
 
 /// Levenberg–Marquardt's report.
@@ -558,6 +632,38 @@ pub struct TriadResult {
     /// Its standard errors (unknown orientations; null with exactly nine).
     #[serde(rename = "T_std_errors", skip_serializing_if = "Option::is_none")]
     pub t_std_errors: Option<[[f64; 3]; 3]>,
+    /// Known orientations: the coverage factor of the expanded
+    /// uncertainties.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub coverage_factor: Option<f64>,
+    /// Known orientations: `b`'s expanded uncertainties (each axis's `k0`
+    /// budget).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub b_expanded: Option<[f64; 3]>,
+    /// Known orientations: `S`'s expanded uncertainties (each axis's `ki`,
+    /// `kp`, `ko` budgets).
+    #[serde(rename = "S_expanded", skip_serializing_if = "Option::is_none")]
+    pub s_expanded: Option<[[f64; 3]; 3]>,
+    /// Stored triads of a typed sensor: the decision against its limits,
+    /// element by element.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decision: Option<TriadDecision>,
+    /// Why a typed sensor's triad was not judged.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub decision_note: Option<String>,
+    /// Stored triads: as found with the sensor's previous triad
+    /// ([`as_found`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub as_found: Option<TriadAsFound>,
+    /// Why there is no `as_found` although there is a previous calibration.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub as_found_note: Option<String>,
+    /// Each position's mean outputs (what as found compensates).
+    #[serde(skip)]
+    pub means: Vec<[f64; 3]>,
+    /// Known orientations: each position's gravity vector.
+    #[serde(skip)]
+    pub gravity: Option<Vec<[f64; 3]>>,
     /// Each axis's scale factor: the norm of its row of `S`.
     pub scale_factors: [f64; 3],
     /// How far each pair of sensitive axes is from perpendicular, degrees
@@ -578,6 +684,146 @@ pub struct TriadResult {
     /// A recording: the static intervals.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub detection: Option<DetectionReport>,
+}
+
+/// Axis `m`'s terms and where each sits in the triad: `k0` in `b_m`
+/// (`None`), `ki`, `kp`, `ko` in row `m` of `S` at columns `m`, `m + 1`,
+/// `m + 2` (cyclically) — the single-axis model with
+/// `(a_i, a_p, a_o) = (g_m, g_{m+1}, g_{m+2})`.
+pub fn row_terms(m: usize) -> [(Term, Option<usize>); 4] {
+    [
+        (Term::K0, None),
+        (Term::Ki, Some(m)),
+        (Term::Kp, Some((m + 1) % 3)),
+        (Term::Ko, Some((m + 2) % 3)),
+    ]
+}
+
+/// A stored triad's decision against its sensor type's limits: each
+/// axis's terms judged as a single-axis calibration's (its fused value and
+/// expanded uncertainty), named by the element they are (`b_x` for the x
+/// axis's `k0`, `S_xy` for its `kp`, …).
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct TriadDecision {
+    /// The rule applied.
+    #[schema(value_type = crate::domain::schema::RuleSchema)]
+    pub rule: Rule,
+    /// The worst verdict of the elements.
+    #[schema(value_type = crate::domain::schema::VerdictSchema)]
+    pub verdict: Verdict,
+    /// Per limited element.
+    #[schema(value_type = std::collections::BTreeMap<String, Object>)]
+    pub elements: BTreeMap<String, TermDecision>,
+}
+
+/// The element name of axis `m`'s term in column `column` ([`row_terms`]).
+fn element(m: usize, column: Option<usize>) -> String {
+    match column {
+        None => format!("b_{}", AXES[m]),
+        Some(k) => format!("S_{}{}", AXES[m], AXES[k]),
+    }
+}
+
+/// Judges a known-orientation triad against `limits` (a sensor type's, per
+/// single-axis term) with `rule`: each axis's `k0, ki, kp, ko` are its
+/// elements ([`row_terms`]), each judged with its value and expanded
+/// uncertainty. `Err` names a limited term a triad does not identify.
+pub fn decide_triad(
+    r: &TriadResult,
+    rule: Rule,
+    limits: &TermMap<Limit>,
+) -> Result<Option<TriadDecision>, Term> {
+    let (Some(b_u), Some(s_u)) = (r.b_expanded, r.s_expanded) else {
+        return Ok(None);
+    };
+    let mut elements = BTreeMap::new();
+    let mut verdict = Verdict::Pass;
+    for m in 0..3 {
+        let at = |column: Option<usize>, b: &[f64; 3], s: &[[f64; 3]; 3]| match column {
+            None => b[m],
+            Some(k) => s[m][k],
+        };
+        let terms = row_terms(m);
+        let values = TermMap(
+            terms
+                .iter()
+                .map(|(t, c)| (*t, at(*c, &r.b, &r.s)))
+                .collect(),
+        );
+        let expanded = TermMap(
+            terms
+                .iter()
+                .map(|(t, c)| (*t, at(*c, &b_u, &s_u)))
+                .collect(),
+        );
+        let d = decide(rule, limits, &values, &expanded)?;
+        verdict = verdict.max(d.verdict);
+        for (term, td) in d.terms.iter() {
+            let column = terms.iter().find(|(t, _)| *t == term).and_then(|(_, c)| *c);
+            elements.insert(element(m, column), *td);
+        }
+    }
+    Ok(Some(TriadDecision {
+        rule,
+        verdict,
+        elements,
+    }))
+}
+
+/// As found: how far from the truth the previous calibration's `b` and
+/// `S` put this test's positions.
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct TriadAsFound {
+    /// The previous calibration.
+    pub previous_calibration_id: uuid::Uuid,
+    /// Per position, the error in g: with known orientations
+    /// `S_prev⁻¹ (ū − b_prev) − g` per axis; with unknown ones
+    /// `‖S_prev⁻¹ (ū − b_prev)‖ − 1`.
+    pub positions: Vec<Vec<f64>>,
+    /// The largest of them in magnitude, g.
+    pub max_abs_error_g: f64,
+}
+
+/// As found of `r` with the previous triad `(b, S)` (calibration
+/// `previous`): each position's mean outputs compensated with the previous
+/// `b` and `S`, against the known gravity vector, or against a magnitude
+/// of 1 g when the orientations were not known:
+///
+/// ```text
+/// e_p = S_prev⁻¹ (ū_p − b_prev) − g_p            known orientations (3 components)
+/// e_p = ‖S_prev⁻¹ (ū_p − b_prev)‖ − 1            unknown orientations
+/// max_abs_error_g = max over p and components of |e_p|
+/// ```
+///
+/// `None` when the previous `S` is singular.
+pub fn as_found(
+    r: &TriadResult,
+    previous: uuid::Uuid,
+    b: [f64; 3],
+    s: [[f64; 3]; 3],
+) -> Option<TriadAsFound> {
+    let prev = Triad { bias: b, matrix: s };
+    let positions: Vec<Vec<f64>> = r
+        .means
+        .iter()
+        .enumerate()
+        .map(|(p, u)| {
+            let g = prev.compensate(*u).ok()?;
+            Some(match &r.gravity {
+                Some(known) => (0..3).map(|k| g[k] - known[p][k]).collect(),
+                None => vec![g.iter().map(|x| x * x).sum::<f64>().sqrt() - 1.0],
+            })
+        })
+        .collect::<Option<_>>()?;
+    let max_abs_error_g = positions
+        .iter()
+        .flatten()
+        .fold(0.0_f64, |m, e| m.max(e.abs()));
+    Some(TriadAsFound {
+        previous_calibration_id: previous,
+        positions,
+        max_abs_error_g,
+    })
 }
 
 /// The model equation.
@@ -627,6 +873,15 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         s_std_errors: None,
         t,
         t_std_errors: None,
+        coverage_factor: None,
+        b_expanded: None,
+        s_expanded: None,
+        decision: None,
+        decision_note: None,
+        as_found: None,
+        as_found_note: None,
+        means: Vec::new(),
+        gravity: None,
         scale_factors: s.map(|row| row.iter().map(|x| x * x).sum::<f64>().sqrt()),
         non_orthogonality_deg: [skew(&s, 0, 1), skew(&s, 1, 2), skew(&s, 2, 0)],
         residuals: Vec::new(),
@@ -653,36 +908,65 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             let mut r = base("known_orientations", bias, matrix, t);
             r.b_std_errors = Some(cal.std_errors.bias);
             r.s_std_errors = Some(cal.std_errors.matrix);
-            r.residuals = positions
-                .iter()
-                .enumerate()
-                .map(|(p, g)| {
-                    let model = cal.fused.outputs(*g);
+            r.means = (0..positions.len())
+                .map(|p| {
                     let all: Vec<[f64; 3]> = runs
                         .iter()
                         .flat_map(|run| run.samples[p].iter().copied())
                         .collect();
-                    let m = mean(&all);
+                    mean(&all)
+                })
+                .collect();
+            r.residuals = positions
+                .iter()
+                .zip(&r.means)
+                .map(|(g, m)| {
+                    let model = cal.fused.outputs(*g);
                     (0..3).map(|k| m[k] - model[k]).collect()
                 })
                 .collect();
-            r.axes = Some(
-                cal.axes
-                    .iter()
-                    .enumerate()
-                    .map(|(m, c)| AxisResult {
-                        axis: AXES[m],
-                        mean: serde_json::to_value(&c.mean).unwrap_or_default(),
-                        fused: serde_json::to_value(&c.fused).unwrap_or_default(),
-                    })
-                    .collect(),
-            );
+            r.gravity = Some(positions.clone());
+            let mut axes = Vec::with_capacity(3);
+            let (mut b_expanded, mut s_expanded) = ([0.0; 3], [[0.0; 3]; 3]);
+            for (m, (axis_test, c)) in test.axes().iter().zip(&cal.axes).enumerate() {
+                let quality = quality::assess(axis_test, c);
+                let u = budget(
+                    axis_test,
+                    &c.fused.coefficients,
+                    &c.fused.std_errors,
+                    sub.stand,
+                    sub.coverage_factor,
+                    &model_uncertainty(axis_test, &quality.lack_of_fit),
+                )
+                .map_err(|e| problem(Loc::Root.key("stand"), e.to_string()))?;
+                let expanded = u.expanded();
+                for (term, column) in row_terms(m) {
+                    let x = expanded.get(term).copied().unwrap_or(0.0);
+                    match column {
+                        None => b_expanded[m] = x,
+                        Some(k) => s_expanded[m][k] = x,
+                    }
+                }
+                axes.push(AxisResult {
+                    axis: AXES[m],
+                    mean: serde_json::to_value(&c.mean).unwrap_or_default(),
+                    fused: serde_json::to_value(&c.fused).unwrap_or_default(),
+                    uncertainty: serde_json::to_value(&u).unwrap_or_default(),
+                    quality: serde_json::to_value(&quality).unwrap_or_default(),
+                });
+            }
+            r.coverage_factor = Some(sub.coverage_factor);
+            r.b_expanded = Some(b_expanded);
+            r.s_expanded = Some(s_expanded);
+            r.axes = Some(axes);
             Ok(r)
         }
         Form::Unknown { means } => {
             let f = gravity_fit::fit(means)
                 .map_err(|e| fit_problem(Loc::Root.key("static_positions"), &e))?;
-            Ok(unknown(base, f, None))
+            let mut r = unknown(base, f, None);
+            r.means = means.clone();
+            Ok(r)
         }
         Form::Recording {
             rate_hz,
@@ -708,7 +992,9 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                 ));
             }
             let f = gravity_fit::fit(&positions).map_err(|e| fit_problem(at, &e))?;
-            Ok(unknown(base, f, Some(report)))
+            let mut r = unknown(base, f, Some(report));
+            r.means = positions;
+            Ok(r)
         }
     }
 }

@@ -1,6 +1,7 @@
 //! Triad submissions as CSV (RFC 4180, the `csv` crate), read into the
 //! same [`TriadBody`] as JSON. `# key: value` lines before the header carry
-//! `sensor_id`, `station_id`, `performed_at`, `unit`, `batches` and, for a recording, `rate_hz` and the
+//! `sensor_id`, `station_id`, `performed_at`, `sensor_type`, `unit`, `batches` and the
+//! stand's `angle_std_arcsec` and `gravity_rel_std` (known orientations) and, for a recording, `rate_hz` and the
 //! detector's `still_s`, `window_s`, `threshold`, `min_static_s`; the header
 //! chooses the form:
 //!
@@ -20,7 +21,9 @@ use std::collections::HashMap;
 
 use super::field::{Errors, Invalid, Loc};
 use super::limits::MAX_TOTAL_SAMPLES;
-use super::triad::{DetectorBody, OrientationsBody, RecordingBody, TriadBody, TriadRunBody};
+use super::triad::{
+    DetectorBody, OrientationsBody, RecordingBody, TriadBody, TriadRunBody, TriadStandBody,
+};
 
 /// The three headers.
 const RECORDING: [&str; 3] = ["u_x", "u_y", "u_z"];
@@ -134,6 +137,8 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         sensor_id: meta.get("sensor_id").map(|(_, v)| v.clone()),
         station_id: meta.get("station_id").map(|(_, v)| v.clone()),
         performed_at: meta.get("performed_at").map(|(_, v)| v.clone()),
+        sensor_type: meta.get("sensor_type").map(|(_, v)| v.clone()),
+        stand: None,
         unit: meta.get("unit").map(|(_, v)| v.clone()),
         orientations: None,
         runs: None,
@@ -170,6 +175,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             "sensor_id",
             "station_id",
             "performed_at",
+            "sensor_type",
             "unit",
             "rate_hz",
             "still_s",
@@ -189,11 +195,34 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             positions[p].push(triple(*line, &f[1..], &mut errors));
         }
         body.static_positions = Some(positions);
-        &["sensor_id", "station_id", "performed_at", "unit"]
+        &[
+            "sensor_id",
+            "station_id",
+            "performed_at",
+            "sensor_type",
+            "unit",
+        ]
     } else if columns == KNOWN {
         known(&rows, &mut body, &mut errors);
         body.batches = number("batches", &mut errors).map(|b| b as usize);
-        &["sensor_id", "station_id", "performed_at", "unit", "batches"]
+        let angle = number("angle_std_arcsec", &mut errors);
+        let gravity = number("gravity_rel_std", &mut errors);
+        if angle.is_some() || gravity.is_some() {
+            body.stand = Some(TriadStandBody {
+                angle_std_arcsec: angle.unwrap_or(0.0),
+                gravity_rel_std: gravity.unwrap_or(0.0),
+            });
+        }
+        &[
+            "sensor_id",
+            "station_id",
+            "performed_at",
+            "sensor_type",
+            "unit",
+            "batches",
+            "angle_std_arcsec",
+            "gravity_rel_std",
+        ]
     } else {
         at_line(
             &mut errors,

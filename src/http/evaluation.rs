@@ -32,24 +32,25 @@ pub struct Assessed {
 }
 
 /// The sensor type in force: the one the submission names (which must
-/// exist), else the sensor's — for a sensor that is not a triad
-/// ([`super::triads::wrong_kind`]). Only an admin may re-type a sensor through a
+/// exist), else the sensor's — for a sensor whose calibrations are of the
+/// submission's kind (`triad`, [`super::triads::wrong_kind`]). Only an admin may re-type a sensor through a
 /// submission: a station may name the sensor's current type, or any type
 /// while the sensor has none (403 otherwise), since its type decides how its
 /// calibrations are judged.
-async fn sensor_type(
+pub async fn sensor_type(
     state: &AppState,
     principal: &Principal,
-    e: &Evaluated,
+    sensor_id: &str,
+    named: Option<&String>,
+    triad: bool,
     now: Timestamp,
 ) -> Result<Option<SensorType>, Problem> {
-    let s = &e.submission;
-    let sensor = state.store.sensor(s.sensor_id.clone(), now).await?;
+    let sensor = state.store.sensor(sensor_id.to_owned(), now).await?;
     if let Some(sensor) = &sensor {
-        super::triads::wrong_kind(&s.sensor_id, sensor.latest.triad.is_some(), false)?;
+        super::triads::wrong_kind(sensor_id, sensor.latest.triad.is_some(), triad)?;
     }
     let current = sensor.and_then(|sensor| sensor.sensor_type);
-    let Some(named) = &s.sensor_type else {
+    let Some(named) = named else {
         return match current {
             Some(t) => Ok(state.store.sensor_type(t).await?),
             None => Ok(None),
@@ -62,11 +63,11 @@ async fn sensor_type(
         let why = format!(
             "sensor `{}` is of type `{}`; a {} token may name that type or none, not `{}` \
              (an admin changes a sensor's type with PUT /v1/sensors/{})",
-            echo(&s.sensor_id),
+            echo(sensor_id),
             echo(current),
             principal.role,
             echo(named),
-            echo(&s.sensor_id),
+            echo(sensor_id),
         );
         return Err(Problem::forbidden(why.clone())
             .with_errors(Invalid::one(Loc::Root.key("sensor_type"), why)));
@@ -162,7 +163,15 @@ pub async fn assess(
             },
         )
         .await??;
-    let sensor_type = sensor_type(state, principal, &evaluated, received_at).await?;
+    let sensor_type = sensor_type(
+        state,
+        principal,
+        &evaluated.submission.sensor_id,
+        evaluated.submission.sensor_type.as_ref(),
+        false,
+        received_at,
+    )
+    .await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
     resolve_standards(state, &mut evaluated, performed_at).await?;
     let previous = state

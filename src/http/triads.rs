@@ -17,6 +17,7 @@ use uuid::Uuid;
 use super::auth::{require, station};
 use super::body::Body;
 use super::calibrations::{claim, created, idempotency_key, replay};
+use super::evaluation::sensor_type;
 use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::triad::{file, read};
@@ -24,10 +25,11 @@ use super::{AppState, path_id};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::{Invalid, Loc};
 use crate::domain::review::Basis;
+use crate::domain::sensor_types::SensorType;
 use crate::domain::submission::performed_when;
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
-use crate::domain::triad::{Form, TriadResult, compute};
+use crate::domain::triad::{Form, TriadResult, as_found, compute, decide_triad};
 use crate::domain::triad_export::{Exported, Format};
 use crate::store::{CalibrationSummary, NewCalibration, Stored, TriadElements};
 
@@ -49,6 +51,60 @@ pub struct StoredTriad {
     pub result: TriadResult,
 }
 
+/// Judges `r` against sensor type `t`'s limits ([`decide_triad`]): a
+/// known-orientation triad element by element; one from the gravity
+/// magnitude, whose `S` has no uncertainty budget yet, is not judged and
+/// says so.
+fn judge(r: &mut TriadResult, t: &SensorType) -> Result<(), Problem> {
+    if t.limits.is_empty() {
+        return Ok(());
+    }
+    match decide_triad(r, t.decision_rule, &t.limits) {
+        Ok(Some(d)) => r.decision = Some(d),
+        Ok(None) => {
+            r.decision_note = Some(format!(
+                "not judged against sensor type `{}`: a triad found from the gravity magnitude \
+                 has no uncertainty budget for S yet (known orientations have one)",
+                t.type_id
+            ))
+        }
+        Err(term) => {
+            return Err(Problem::validation(Invalid::one(
+                Loc::Root.key("sensor_type"),
+                format!(
+                    "sensor type `{}` sets limits on `{term}`, which a triad does not identify \
+                     (each axis's k0, ki, kp, ko: b and S)",
+                    t.type_id
+                ),
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// As found of `r` against the sensor's previous calibration `p` (a
+/// triad's, in the same unit), or why not.
+fn found(r: &mut TriadResult, p: &CalibrationSummary) {
+    let Some(t) = p.triad.as_ref() else {
+        return; // a sensor's calibrations are of one kind: not reached
+    };
+    if p.unit != r.unit {
+        r.as_found_note = Some(format!(
+            "the previous calibration {} is in `{}`, this one in `{}`: as found compares \
+             outputs in one unit",
+            p.id, p.unit, r.unit
+        ));
+        return;
+    }
+    r.as_found = as_found(r, p.id, t.b, t.s);
+    if r.as_found.is_none() {
+        r.as_found_note = Some(format!(
+            "the previous calibration {}'s S is singular: it cannot compensate",
+            p.id
+        ));
+    }
+}
+
 /// What a triad's result stores of itself.
 fn elements(r: &TriadResult) -> TriadElements {
     TriadElements {
@@ -59,23 +115,9 @@ fn elements(r: &TriadResult) -> TriadElements {
         s_std_errors: r.s_std_errors,
         t: r.t,
         t_std_errors: r.t_std_errors,
+        b_expanded: r.b_expanded,
+        s_expanded: r.s_expanded,
     }
-}
-
-/// Refuses a calibration of the other kind for `sensor_id`: a sensor's
-/// calibrations are all single-axis or all a triad's (`triad`), so that
-/// its history, stability and compensation read one kind. The sensor is
-/// judged by its latest calibration that counts.
-pub async fn same_kind(
-    state: &AppState,
-    sensor_id: &str,
-    triad: bool,
-    now: Timestamp,
-) -> Result<(), Problem> {
-    let Some(sensor) = state.store.sensor(sensor_id.to_owned(), now).await? else {
-        return Ok(());
-    };
-    wrong_kind(sensor_id, sensor.latest.triad.is_some(), triad)
 }
 
 /// The refusal of a `triad` (or single-axis) submission for a sensor whose
@@ -172,63 +214,104 @@ pub async fn submit(
     let received_at = Timestamp::now();
     let id = Uuid::now_v7();
     let (submission, content_type) = (body.bytes.clone(), body.content_type.clone());
-    let who = principal.clone();
-    let (record, view) = state
-        .compute_for(body.bytes.len(), move || -> Result<_, Problem> {
-            let sub = read(&body)?;
-            let root = Loc::Root;
-            let sensor_id = sub.sensor_id.clone().ok_or_else(|| {
-                Problem::validation(Invalid::one(
-                    root.key("sensor_id"),
-                    "is required to store a triad (POST /v1/identify/triad computes one without)",
-                ))
-            })?;
-            let station_id = station(&who, sub.station_id.as_deref())?;
-            let performed_at = match sub.performed_at {
-                None => received_at,
-                Some(t) => performed_when(t, received_at).map_err(|why| {
-                    Problem::validation(Invalid::one(root.key("performed_at"), why))
-                })?,
-            };
-            let runs = match &sub.form {
-                Form::Known { runs, .. } => runs.len(),
-                _ => 1,
-            };
-            let result = compute(sub)?;
-            let record = NewCalibration {
-                id,
-                sensor_id,
-                station_id: station_id.clone(),
-                performed_at,
-                received_at,
-                unit: result.unit.clone(),
-                model: Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Ko])
-                    .map_err(|_| Problem::internal())?,
-                runs,
-                coefficients: TermMap(Vec::new()),
-                std_errors: TermMap(Vec::new()),
-                result: Bytes::new(),
-                submission,
-                content_type,
-                submitted_by: who.id.clone(),
-                sensor_type: None,
-                assigns_type: false,
-                verdict: None,
-                due_at: None,
-                expanded: None,
-                triad: Some(elements(&result)),
-            };
-            let view = StoredTriad {
-                id,
-                station_id,
-                performed_at,
-                received_at,
-                result,
-            };
-            Ok((record, view))
+    let size = body.bytes.len();
+    let sub = state.compute_for(size, move || read(&body)).await??;
+    let root = Loc::Root;
+    let sensor_id = sub.sensor_id.clone().ok_or_else(|| {
+        Problem::validation(Invalid::one(
+            root.key("sensor_id"),
+            "is required to store a triad (POST /v1/identify/triad computes one without)",
+        ))
+    })?;
+    let station_id = station(&principal, sub.station_id.as_deref())?;
+    let performed_at = match sub.performed_at {
+        None => received_at,
+        Some(t) => performed_when(t, received_at)
+            .map_err(|why| Problem::validation(Invalid::one(root.key("performed_at"), why)))?,
+    };
+    let sensor_type = sensor_type(
+        &state,
+        &principal,
+        &sensor_id,
+        sub.sensor_type.as_ref(),
+        true,
+        received_at,
+    )
+    .await?;
+    if let Some(t) = &sensor_type
+        && let Some(unit) = t.unit.as_ref().filter(|u| **u != sub.unit)
+    {
+        return Err(Problem::validation(Invalid::one(
+            root.key("unit"),
+            format!(
+                "is `{}`, but sensor type `{}` sets its limits in `{unit}`: send the outputs in \
+                 `{unit}`, or give the sensor a type in `{}`",
+                echo(&sub.unit),
+                t.type_id,
+                echo(&sub.unit)
+            ),
+        )));
+    }
+    let assigns_type = sub.sensor_type.is_some();
+    let runs = match &sub.form {
+        Form::Known { runs, .. } => runs.len(),
+        _ => 1,
+    };
+    let judged_by = sensor_type.clone();
+    let previous = state
+        .store
+        .previous_calibration(sensor_id.clone(), performed_at, state.web.basis)
+        .await?;
+    let result = state
+        .compute_for(size, move || -> Result<TriadResult, Problem> {
+            let mut sub = sub;
+            if let Some(t) = &judged_by {
+                sub.coverage_factor = t.coverage_factor;
+            }
+            let mut result = compute(sub)?;
+            if let Some(t) = &judged_by {
+                judge(&mut result, t)?;
+            }
+            if let Some(p) = &previous {
+                found(&mut result, p);
+            }
+            Ok(result)
         })
         .await??;
-    same_kind(&state, &record.sensor_id, true, received_at).await?;
+    let due_at = sensor_type
+        .as_ref()
+        .filter(|_| result.decision.is_some())
+        .map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
+    let record = NewCalibration {
+        id,
+        sensor_id,
+        station_id: station_id.clone(),
+        performed_at,
+        received_at,
+        unit: result.unit.clone(),
+        model: Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Ko])
+            .map_err(|_| Problem::internal())?,
+        runs,
+        coefficients: TermMap(Vec::new()),
+        std_errors: TermMap(Vec::new()),
+        result: Bytes::new(),
+        submission,
+        content_type,
+        submitted_by: principal.id.clone(),
+        sensor_type: sensor_type.map(|t| t.type_id),
+        assigns_type,
+        verdict: result.decision.as_ref().map(|d| d.verdict),
+        due_at,
+        expanded: None,
+        triad: Some(elements(&result)),
+    };
+    let view = StoredTriad {
+        id,
+        station_id,
+        performed_at,
+        received_at,
+        result,
+    };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
         tracing::error!(error = %err, "a triad's result did not serialise");
         Problem::internal()

@@ -141,6 +141,13 @@ pub struct TriadElements {
     /// Its standard errors (unknown orientations, more than nine positions).
     #[serde(rename = "T_std_errors")]
     pub t_std_errors: Option<[[f64; 3]; 3]>,
+    /// `b`'s expanded uncertainties (known orientations: each axis's `k0`
+    /// budget).
+    #[serde(default)]
+    pub b_expanded: Option<[f64; 3]>,
+    /// `S`'s expanded uncertainties (known orientations).
+    #[serde(rename = "S_expanded", default)]
+    pub s_expanded: Option<[[f64; 3]; 3]>,
 }
 
 /// The axes' names, in the order of `b`'s elements and `S`'s rows.
@@ -205,6 +212,13 @@ impl TriadElements {
         }
         if let Some(e) = &self.t_std_errors {
             matrix(&mut out, "T", E, e);
+        }
+        const U: &str = "_expanded";
+        if let Some(e) = &self.b_expanded {
+            vector(&mut out, "b", U, e);
+        }
+        if let Some(e) = &self.s_expanded {
+            matrix(&mut out, "S", U, e);
         }
         out
     }
@@ -745,6 +759,8 @@ mod tests {
             s_std_errors: Some([[1e-4; 3]; 3]),
             t: [[0.5, 0.0, 0.0], [0.0, 0.47, 0.0], [0.0, 0.0, 0.45]],
             t_std_errors: None,
+            b_expanded: None,
+            s_expanded: None,
         }
     }
 

@@ -50,7 +50,7 @@ impl Gauss {
     }
 }
 
-fn faces() -> Vec<[f64; 3]> {
+pub(crate) fn faces() -> Vec<[f64; 3]> {
     vec![
         [1.0, 0.0, 0.0],
         [-1.0, 0.0, 0.0],
@@ -93,7 +93,9 @@ pub(crate) fn f(v: &Value) -> f64 {
 #[tokio::test]
 async fn known_orientations_give_b_and_s_and_each_row_is_a_single_axis_identification() {
     let app = TestApp::spawn(Sqlite).await;
-    let body = known_body();
+    let mut body = known_body();
+    let stand = json!({"angle_std_arcsec": 30.0, "gravity_rel_std": 2e-5});
+    body["stand"] = stand.clone();
     let res = triad(&app, &body).await;
     assert_eq!(res.status(), StatusCode::OK);
     let r: Value = res.json().await.unwrap();
@@ -158,7 +160,8 @@ async fn known_orientations_give_b_and_s_and_each_row_is_a_single_axis_identific
             .collect();
         let single = json!({
             "sensor_id": format!("IMU-7-{m}"), "performed_at": "2026-06-01T00:00:00Z", "unit": "m/s2",
-            "model": ["k0", "ki", "kp", "ko"], "positions": positions, "runs": runs, "batches": 2
+            "model": ["k0", "ki", "kp", "ko"], "positions": positions, "runs": runs, "batches": 2,
+            "stand": stand
         });
         let one = app.post("/v1/identify", ADMIN, &single).await;
         assert_eq!(one.status(), StatusCode::OK);
@@ -170,7 +173,22 @@ async fn known_orientations_give_b_and_s_and_each_row_is_a_single_axis_identific
         assert_eq!(r["S"][m][(m + 2) % 3], c["ko"]);
         assert_eq!(r["axes"][m]["fused"]["coefficients"], *c);
         assert_eq!(r["S_std_errors"][m][m], one["fused"]["std_errors"]["ki"]);
+        // …and so are its uncertainty budget (with the same stand) and its
+        // quality warnings; b's and S's expanded uncertainties are the
+        // budget's, element by element.
+        assert_eq!(r["axes"][m]["uncertainty"], one["uncertainty"], "axis {m}");
+        assert_eq!(r["axes"][m]["quality"], one["quality"], "axis {m}");
+        let u = |t: &str| one["uncertainty"]["terms"][t]["expanded"].clone();
+        assert_eq!(r["b_expanded"][m], u("k0"));
+        assert_eq!(r["S_expanded"][m][m], u("ki"));
+        assert_eq!(r["S_expanded"][m][(m + 1) % 3], u("kp"));
+        assert_eq!(r["S_expanded"][m][(m + 2) % 3], u("ko"));
+        assert!(
+            f(&u("ki")) > 2.0 * f(&one["fused"]["std_errors"]["ki"]),
+            "the stand counts"
+        );
     }
+    assert_eq!(r["coverage_factor"], 2.0);
 
     // Exports: PX4 carries b and T's diagonal; json and c carry T whole.
     let res = app

@@ -10,7 +10,7 @@ use reqwest::header::{CONTENT_TYPE, LOCATION};
 use rstest::rstest;
 use serde_json::{Value, json};
 
-use super::triad::{f, known_body};
+use super::triad::{f, faces, known_body};
 use accelcal_testkit::Engine::{Postgres, Sqlite};
 use accelcal_testkit::*;
 
@@ -35,6 +35,17 @@ fn vector(v: &Value) -> [f64; 3] {
 
 fn matrix(v: &Value) -> [[f64; 3]; 3] {
     [0, 1, 2].map(|m| vector(&v[m]))
+}
+
+/// A 3×3 inverse by cofactors (independent of the service's).
+fn inverse(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let c = |i: usize, j: usize| {
+        let (r0, r1) = ((i + 1) % 3, (i + 2) % 3);
+        let (c0, c1) = ((j + 1) % 3, (j + 2) % 3);
+        m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0]
+    };
+    let det: f64 = (0..3).map(|j| m[0][j] * c(0, j)).sum();
+    [0, 1, 2].map(|i| [0, 1, 2].map(|j| c(j, i) / det))
 }
 
 #[rstest]
@@ -198,6 +209,35 @@ async fn stability_is_judged_element_by_element() {
         );
         assert!((x1 - x0 - 0.05).abs() < 1e-9, "the planted change");
     }
+    // As found: the second test's position means (its model plus its
+    // residuals) compensated with the first's b and S, against the faces.
+    let (b1, s1) = (vector(&a["b"]), matrix(&a["S"]));
+    let inv = inverse(s1);
+    let (b2, s2) = (vector(&b["b"]), matrix(&b["S"]));
+    let found = &b["as_found"];
+    assert_eq!(found["previous_calibration_id"], a["id"]);
+    let mut largest = 0.0_f64;
+    for (p, g) in faces().iter().enumerate() {
+        let u: Vec<f64> = (0..3)
+            .map(|m| {
+                b2[m] + (0..3).map(|k| s2[m][k] * g[k]).sum::<f64>() + f(&b["residuals"][p][m])
+            })
+            .collect();
+        for m in 0..3 {
+            let e = (0..3).map(|k| inv[m][k] * (u[k] - b1[k])).sum::<f64>() - g[m];
+            assert!(
+                (f(&found["positions"][p][m]) - e).abs() < 1e-12,
+                "position {p} axis {m}"
+            );
+            largest = largest.max(e.abs());
+        }
+    }
+    assert!((f(&found["max_abs_error_g"]) - largest).abs() < 1e-12);
+    assert!(
+        (largest - 0.05 / 9.79).abs() < 1e-3,
+        "the planted bias, in g: {largest}"
+    );
+    assert!(a.get("as_found").is_none(), "the first has none");
     // T has no standard errors from known orientations: its change is not judged.
     assert_eq!(elements["T_xx"]["latest_change_expanded"], Value::Null);
     assert!(elements["S_yz"]["latest_change_expanded"].is_number());
@@ -476,4 +516,153 @@ async fn a_triad_is_stored_once_per_idempotency_key_and_from_csv() {
     for (m, want) in [1.02, 0.99, 1.01].iter().enumerate() {
         assert!((f(&r["S"][m][m]) - want).abs() < 1e-9, "{r}");
     }
+}
+
+/// The guarded rule by hand: pass inside the limits by `u`, fail outside
+/// them by `u`, conditional between.
+fn guarded(v: f64, u: f64, lo: f64, hi: f64) -> &'static str {
+    if lo + u <= v && v <= hi - u {
+        "pass"
+    } else if v < lo - u || v > hi + u {
+        "fail"
+    } else {
+        "conditional"
+    }
+}
+
+#[rstest]
+#[tokio::test]
+async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let limits = json!({
+        "k0": {"min": -0.15, "max": 0.15},
+        "ki": {"min": 9.7, "max": 9.9},
+        "kp": {"min": -0.0305, "max": 0.0305},
+    });
+    let res = app
+        .put(
+            "/v1/sensor-types/IMU-NAV",
+            ADMIN,
+            &json!({"label": "Navigation IMU", "unit": "m/s2", "limits": limits,
+                "decision_rule": "guarded", "interval_days": 365, "coverage_factor": 2.0}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let mut body = known_body();
+    body["sensor_type"] = json!("IMU-NAV");
+    body["performed_at"] = json!("2026-10-01T00:00:00Z");
+    body["stand"] = json!({"angle_std_arcsec": 20.0, "gravity_rel_std": 1e-5});
+    let r = store(&app, ADMIN, &body).await;
+    let d = &r["decision"];
+    assert_eq!(d["rule"], "guarded");
+    // Every limited term of every axis, named by its element, judged by hand
+    // with the stored value and expanded uncertainty.
+    let axes = ["x", "y", "z"];
+    let mut worst = "pass";
+    for m in 0..3 {
+        for (term, column) in [("k0", None), ("ki", Some(m)), ("kp", Some((m + 1) % 3))] {
+            let (name, v, u) = match column {
+                None => (
+                    format!("b_{}", axes[m]),
+                    f(&r["b"][m]),
+                    f(&r["b_expanded"][m]),
+                ),
+                Some(k) => (
+                    format!("S_{}{}", axes[m], axes[k]),
+                    f(&r["S"][m][k]),
+                    f(&r["S_expanded"][m][k]),
+                ),
+            };
+            let want = guarded(v, u, f(&limits[term]["min"]), f(&limits[term]["max"]));
+            let e = &d["elements"][&name];
+            assert_eq!(e["verdict"], want, "{name}: {e}");
+            assert_eq!(f(&e["value"]), v);
+            assert_eq!(f(&e["expanded"]), u);
+            if want == "fail" || (want == "conditional" && worst == "pass") {
+                worst = want;
+            }
+        }
+    }
+    assert_eq!(d["elements"].as_object().unwrap().len(), 9);
+    assert!(d["elements"].get("S_xz").is_none(), "ko is not limited");
+    assert_eq!(d["verdict"], worst);
+    assert_eq!(worst, "fail", "b_y = −0.21 lies outside ±0.15");
+    // The verdict and due date are the sensor's, as for a single axis.
+    let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
+    assert_eq!(sensor["sensor_type"], "IMU-NAV");
+    assert_eq!(sensor["latest_verdict"], "fail");
+    assert_eq!(sensor["due_at"], "2027-10-01T00:00:00.000000Z");
+    assert_eq!(sensor["status"], "failed");
+    let res = app
+        .post(
+            "/v1/sensors/IMU-7/compensate?require=usable",
+            ADMIN,
+            &json!({"outputs": [[0.1, 0.2, 9.8]]}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CONFLICT);
+
+    // From the gravity magnitude S has no budget yet: not judged, and said.
+    let mut csv = String::from("# sensor_id: IMU-7\n# unit: m/s2\nposition,u_x,u_y,u_z\n");
+    for (p, d) in [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+        [0.6, 0.8, 0.0],
+        [0.0, 0.6, 0.8],
+        [0.8, 0.0, 0.6],
+        [-0.48, 0.6, 0.64],
+    ]
+    .iter()
+    .enumerate()
+    {
+        csv.push_str(&format!(
+            "{p},{},{},{}\n",
+            0.1 + 9.8 * d[0],
+            -0.1 + 9.8 * d[1],
+            0.05 + 9.8 * d[2]
+        ));
+    }
+    let res = app
+        .client
+        .post(app.url("/v1/calibrations/triad"))
+        .bearer_auth(ADMIN)
+        .header(CONTENT_TYPE, "text/csv")
+        .body(csv)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let g: Value = res.json().await.unwrap();
+    assert!(g.get("decision").is_none(), "{g}");
+    assert!(
+        g["decision_note"].as_str().unwrap().contains("IMU-NAV"),
+        "{g}"
+    );
+    let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
+    assert_eq!(sensor["latest_verdict"], Value::Null);
+
+    // A type limiting a term a triad does not identify is refused.
+    let res = app
+        .put(
+            "/v1/sensor-types/SECOND-ORDER",
+            ADMIN,
+            &json!({"unit": "m/s2", "limits": {"kii": {"max": 0.01}}, "decision_rule": "simple"}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let mut body = known_body();
+    body["sensor_id"] = json!("IMU-8");
+    body["sensor_type"] = json!("SECOND-ORDER");
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/sensor_type"], "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("kii"), "{p}");
+    assert!(app.get("/v1/sensors/IMU-8", ADMIN).await.status() == StatusCode::NOT_FOUND);
 }

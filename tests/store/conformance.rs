@@ -302,6 +302,8 @@ async fn triads_round_trip(s: &dyn Store) {
             [0.003, -0.004, 0.980_392],
         ],
         t_std_errors: Some([[1e-4, 0.0, 0.0], [2e-4, 1e-4, 0.0], [3e-4, 2e-4, 1e-4]]),
+        b_expanded: Some([2e-3, 4e-3, 6e-3]),
+        s_expanded: None,
     };
     let mut c = calibration("TRIAD-1", "2026-02-01T00:00:00Z");
     c.coefficients = TermMap(vec![]);

@@ -13,7 +13,7 @@ use serde::Deserialize;
 use super::calibration::{record, when};
 use super::format::{num, opt, unc};
 use super::session::Viewer;
-use super::{Html, UiError, layout, review};
+use super::{Html, UiError, badge, layout, review};
 use crate::http::{AppState, path_id};
 use crate::store::AXES;
 
@@ -59,6 +59,59 @@ pub struct TriadDoc {
     /// The fit (unknown orientations).
     #[serde(default)]
     pub fit: Option<FitDoc>,
+    /// The coverage factor of the expanded uncertainties.
+    #[serde(default)]
+    pub coverage_factor: Option<f64>,
+    /// `b`'s expanded uncertainties.
+    #[serde(default)]
+    pub b_expanded: Option<[f64; 3]>,
+    /// `S`'s expanded uncertainties.
+    #[serde(rename = "S_expanded", default)]
+    pub s_expanded: Option<[[f64; 3]; 3]>,
+    /// The decision against the sensor type's limits.
+    #[serde(default)]
+    pub decision: Option<DecisionDoc>,
+    /// Why it was not judged.
+    #[serde(default)]
+    pub decision_note: Option<String>,
+    /// As found against the previous triad.
+    #[serde(default)]
+    pub as_found: Option<AsFoundDoc>,
+}
+
+/// A triad's decision.
+#[derive(Debug, Clone, Deserialize)]
+pub struct DecisionDoc {
+    /// `simple` or `guarded`.
+    pub rule: String,
+    /// The worst verdict.
+    pub verdict: String,
+    /// Per limited element.
+    pub elements: std::collections::BTreeMap<String, ElementDecisionDoc>,
+}
+
+/// One element's decision.
+#[derive(Debug, Clone, Deserialize)]
+pub struct ElementDecisionDoc {
+    /// The value.
+    pub value: f64,
+    /// Lower limit.
+    pub min: Option<f64>,
+    /// Upper limit.
+    pub max: Option<f64>,
+    /// Its expanded uncertainty.
+    pub expanded: f64,
+    /// Its verdict.
+    pub verdict: String,
+}
+
+/// As found, as the page reads it.
+#[derive(Debug, Clone, Deserialize)]
+pub struct AsFoundDoc {
+    /// The previous triad.
+    pub previous_calibration_id: uuid::Uuid,
+    /// The largest error, g.
+    pub max_abs_error_g: f64,
 }
 
 /// The Levenberg–Marquardt fit's report.
@@ -146,6 +199,35 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             }
             " · " a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
         }
+        @if let Some(dec) = &d.decision {
+            h2 { "Decision " (badge(&dec.verdict, &dec.verdict)) }
+            div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #triad-decision .numbers {
+                caption { (dec.rule) " rule; each element judged with its expanded uncertainty U (k = "
+                    (d.coverage_factor.map_or("2".into(), |k| k.to_string())) ")" }
+                thead { tr {
+                    th scope="col" { "element" } th scope="col" { "value" } th scope="col" { "U" }
+                    th scope="col" { "min" } th scope="col" { "max" } th scope="col" { "verdict" }
+                } }
+                tbody {
+                    @for (name, e) in &dec.elements {
+                        tr data-element=(name) {
+                            th scope="row" { (name) }
+                            td.num { (num(e.value)) } td.num { (unc(e.expanded)) }
+                            td.num { (opt(e.min, num)) } td.num { (opt(e.max, num)) }
+                            td { (badge(&e.verdict, &e.verdict)) }
+                        }
+                    }
+                }
+            } }
+        }
+        @if let Some(n) = &d.decision_note { p.notice role="note" { (n) } }
+        @if let Some(a) = &d.as_found {
+            p #as-found {
+                "As found with the previous calibration "
+                a href={"/ui/calibrations/" (a.previous_calibration_id)} { code { (a.previous_calibration_id) } }
+                ": largest error " (num(a.max_abs_error_g)) " g"
+            }
+        }
         h2 { "Bias and matrices" }
         div.table-wrap tabindex="0" role="region" aria-label="b" { table #triad-b .numbers {
             caption { "Bias b, " (d.unit) ", with standard errors u" }
@@ -153,6 +235,10 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             tbody { (vector("b", &d.b, d.b_std_errors.as_ref())) }
         } }
         (matrix("Scale and misalignment S (rows by axis), with standard errors u", "S", &d.s, d.s_std_errors.as_ref()))
+        @if let (Some(bu), Some(su)) = (&d.b_expanded, &d.s_expanded) {
+            (matrix(&format!("Expanded uncertainties U of S (k = {}); of b: {}, {}, {}",
+                d.coverage_factor.unwrap_or(2.0), unc(bu[0]), unc(bu[1]), unc(bu[2])), "U", su, None))
+        }
         (matrix("T = S⁻¹, with standard errors u", "T", &d.t, d.t_std_errors.as_ref()))
         dl.facts {
             div { dt { "Scale factors (row norms of S)" } dd {
