@@ -275,22 +275,24 @@ async fn single_axis_and_triad_calibrations_do_not_mix(#[values(Sqlite, Postgres
     )
     .await;
     assert!(p["detail"].as_str().unwrap().contains("single-axis"), "{p}");
-    // Single-axis documents and acts are refused for a triad.
-    for accept in ["text/html", "application/xml"] {
-        let res = app
-            .client
-            .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
-            .bearer_auth(ADMIN)
-            .header("accept", accept)
-            .send()
-            .await
-            .unwrap();
-        let p = problem(res, StatusCode::CONFLICT).await;
-        assert!(
-            p["type"].as_str().unwrap().ends_with("wrong-kind"),
-            "{accept}: {p}"
-        );
-    }
+    // The single-axis documents and acts not yet made for triads are refused.
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
+        .bearer_auth(ADMIN)
+        .header("accept", "application/xml")
+        .send()
+        .await
+        .unwrap();
+    let p = problem(res, StatusCode::CONFLICT).await;
+    assert!(p["type"].as_str().unwrap().ends_with("wrong-kind"), "{p}");
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("Digital Calibration Certificate"),
+        "{p}"
+    );
     let p = problem(
         app.post(
             &format!("/v1/calibrations/{id}/reprocess"),
@@ -665,4 +667,62 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
     assert_eq!(pointers(&p), ["/sensor_type"], "{p}");
     assert!(p["detail"].as_str().unwrap().contains("kii"), "{p}");
     assert!(app.get("/v1/sensors/IMU-8", ADMIN).await.status() == StatusCode::NOT_FOUND);
+}
+
+/// The numbers of a certificate's results row for `element`.
+fn certificate_row(html: &str, element: &str) -> Vec<String> {
+    let start = html
+        .find(&format!("data-element=\"{element}\""))
+        .unwrap_or_else(|| panic!("no row {element}"));
+    let row = &html[start..start + html[start..].find("</tr>").unwrap()];
+    row.split("<td class=\"num\">")
+        .skip(1)
+        .map(|cell| cell[..cell.find("</td>").unwrap()].to_owned())
+        .collect()
+}
+
+#[tokio::test]
+async fn a_triads_certificate_states_every_element_rounded_to_its_uncertainty() {
+    use sha2::{Digest, Sha256};
+    let app = TestApp::spawn(Sqlite).await;
+    let mut body = known_body();
+    body["stand"] = json!({"angle_std_arcsec": 20.0, "gravity_rel_std": 1e-5});
+    let stored = store(&app, ADMIN, &body).await;
+    let id = stored["id"].as_str().unwrap();
+    let res = app
+        .get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert_eq!(res.headers()[CONTENT_TYPE], "text/html; charset=utf-8");
+    let html = res.text().await.unwrap();
+    assert!(html.contains("(accelerometer triad)"));
+    // The stored submission's digest: the bytes sent.
+    let sent = serde_json::to_vec(&body).unwrap();
+    assert!(html.contains(&hex::encode(Sha256::digest(&sent))));
+    // Every element of b and S: value and U to U's second significant
+    // digit (computed here), and the standard error.
+    let axes = ["x", "y", "z"];
+    for m in 0..3 {
+        let mut elements = vec![(
+            format!("b_{}", axes[m]),
+            stored["b"][m].clone(),
+            stored["b_expanded"][m].clone(),
+        )];
+        for k in 0..3 {
+            elements.push((
+                format!("S_{}{}", axes[m], axes[k]),
+                stored["S"][m][k].clone(),
+                stored["S_expanded"][m][k].clone(),
+            ));
+        }
+        for (name, v, u) in elements {
+            let (v, u) = (f(&v), f(&u));
+            let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
+            let cells = certificate_row(&html, &name);
+            assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
+            assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+        }
+    }
+    assert!(html.contains("k = 2"), "the coverage factor");
+    assert!(html.contains(&format!("End of certificate No. {id}")));
 }

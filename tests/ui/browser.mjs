@@ -317,6 +317,7 @@ try {
     calibration: `/ui/calibrations/${recal.id}`,
     certificate: `/ui/calibrations/${recal.id}/certificate`,
     triad: `/ui/calibrations/${triad.id}`,
+    triadCertificate: `/ui/calibrations/${triad.id}/certificate`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

@@ -73,15 +73,16 @@ pub fn is_triad(result: &[u8]) -> bool {
     serde_json::from_slice::<Kind>(result).is_ok_and(|k| k.kind.as_deref() == Some("triad"))
 }
 
-/// The refusal of a single-axis document (the calibration page's tables,
-/// the certificate) for triad `id`.
+/// The refusal of a single-axis document (the Digital Calibration
+/// Certificate) for triad `id`.
 fn triad_refusal(id: uuid::Uuid) -> Problem {
     Problem::new(
         crate::http::problem::Kind::WrongKind,
         format!(
-            "calibration {id} is a triad's: certificates are issued for single-axis calibrations \
-             only (not yet for triads); its result is at GET /v1/calibrations/{id}, its firmware \
-             files at GET /v1/calibrations/{id}/export"
+            "calibration {id} is a triad's: the Digital Calibration Certificate is issued for \
+             single-axis calibrations only (not yet for triads); its printable certificate is \
+             GET /v1/calibrations/{id}/certificate (text/html), its firmware files \
+             GET /v1/calibrations/{id}/export"
         ),
     )
 }

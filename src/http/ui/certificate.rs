@@ -28,7 +28,7 @@ use maud::{DOCTYPE, Markup, PreEscaped, html};
 use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
-use super::calibration::{as_found, budget, decision, load, when};
+use super::calibration::{StoredDoc, as_found, budget, decision, load, when};
 use super::format::{num, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
@@ -261,14 +261,14 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
 /// The coverage probability of a coverage factor `k` for a normal
 /// distribution ([`accelcal_core::uncertainty::coverage_probability`]), as a
 /// certificate states it ("coverage probability ≈ 95.4 %").
-fn probability(k: f64) -> String {
+pub fn probability(k: f64) -> String {
     let p = accelcal_core::uncertainty::coverage_probability(k) * 100.0;
     format!("coverage probability ≈ {p:.1} % (normal distribution)")
 }
 
 /// Who issues the certificate: the laboratory's name, address and
 /// accreditation as configured, or that none is.
-fn laboratory(lab: &crate::http::Laboratory) -> Markup {
+pub fn laboratory(lab: &crate::http::Laboratory) -> Markup {
     html! {
         div.cert-lab {
             @match &lab.name {
@@ -346,20 +346,32 @@ pub async fn gather(
     headers: &HeaderMap,
     raw_id: &str,
 ) -> Result<(ResultDoc, Context), Problem> {
-    let id = path_id(raw_id, "calibration")?;
     let d = load(state, raw_id).await?;
+    let ctx = context(state, headers, raw_id, &d.sensor_id).await?;
+    Ok((d, ctx))
+}
+
+/// The [`Context`] of calibration `raw_id` of sensor `sensor_id`: the
+/// stored submission's digest, the review, the item and its customer.
+pub async fn context(
+    state: &AppState,
+    headers: &HeaderMap,
+    raw_id: &str,
+    sensor_id: &str,
+) -> Result<Context, Problem> {
+    let id = path_id(raw_id, "calibration")?;
     let s = state
         .store
         .submission(id)
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
     let (state_now, signatures) = super::calibration::record(state, raw_id).await?;
-    let item = state.store.item(d.sensor_id.clone()).await?;
+    let item = state.store.item(sensor_id.to_owned()).await?;
     let customer = match item.as_ref().and_then(|i| i.customer.clone()) {
         Some(id) => state.store.customer(id).await?,
         None => None,
     };
-    let ctx = Context {
+    Ok(Context {
         item,
         customer,
         state: state_now,
@@ -369,8 +381,7 @@ pub async fn gather(
         url: own_url(state, headers, &id),
         issued: Timestamp::now(),
         laboratory: state.web.laboratory.clone(),
-    };
-    Ok((d, ctx))
+    })
 }
 
 /// The certificate of calibration `raw_id`, as a response: the Digital
@@ -384,8 +395,14 @@ pub async fn respond(
     if super::dcc::prefers_xml(headers) {
         return super::dcc::respond(state, headers, raw_id).await;
     }
-    let (d, ctx) = gather(state, headers, raw_id).await?;
-    let mut res = render(&d, &ctx).into_string().into_response();
+    let page = match super::calibration::load_stored(state, raw_id).await? {
+        StoredDoc::Axis(d) => render(&d, &context(state, headers, raw_id, &d.sensor_id).await?),
+        StoredDoc::Triad(d) => {
+            let ctx = context(state, headers, raw_id, &d.sensor_id).await?;
+            super::triad_certificate::render(&d, &ctx)
+        }
+    };
+    let mut res = page.into_string().into_response();
     let h = res.headers_mut();
     h.insert(
         header::CONTENT_TYPE,

@@ -27,6 +27,7 @@ pub mod review;
 pub mod sensor;
 pub mod session;
 pub mod triad;
+pub mod triad_certificate;
 
 use axum::Router;
 use axum::http::{HeaderName, HeaderValue, StatusCode, header};

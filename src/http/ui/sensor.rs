@@ -426,10 +426,7 @@ pub async fn page(
                             td data-label="Type" { (c.sensor_type.as_deref().unwrap_or("—")) }
                             td data-label="Verdict" { @match c.verdict { Some(v) => (badge(v.as_str(), v.as_str())), None => "—" } }
                             td data-label="Due" { @match &c.due_at { Some(d) => (date(d)), None => "—" } }
-                            td data-label="Certificate" {
-                                @if c.triad.is_some() { span.muted { "— (triad)" } }
-                                @else { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
-                            }
+                            td data-label="Certificate" { a href={"/ui/calibrations/" (c.id) "/certificate"} { "certificate" } }
                         }
                     }
                 }

@@ -197,6 +197,7 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                 @if k > 0 { " · " }
                 a href={"/ui/calibrations/" (d.id) "/export/" (format)} { (label) }
             }
+            " · " a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" }
             " · " a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
         }
         @if let Some(dec) = &d.decision {

@@ -1,0 +1,191 @@
+//! The printable certificate of a triad's calibration (issue 30): the same
+//! document as a single axis's ([`super::certificate`]: laboratory, item and
+//! customer, review and signatures, the submission's SHA-256, the version
+//! and the certificate's own URL, the A4 print layout), with the triad's
+//! results: `b` and `S` element by element, each rounded to its expanded
+//! uncertainty (GUM 7.2.6) where the method gives one (known orientations:
+//! each axis's single-axis budget), else with its standard error; `T` for
+//! compensation; the decision element by element and as found.
+
+use maud::{DOCTYPE, Markup, PreEscaped, html};
+
+use super::assets::STYLESHEET;
+use super::calibration::when;
+use super::certificate::{Context, PAPER, laboratory, probability};
+use super::format::{num, unc, value_and_uncertainty};
+use super::triad::TriadDoc;
+use super::{badge, review};
+use crate::store::AXES;
+
+/// One row of the results: element, value, standard error, U, unit.
+fn row(name: &str, v: f64, se: Option<f64>, u: Option<f64>, unit: &str) -> Markup {
+    let (value, expanded) = match u {
+        Some(u) => {
+            let (v, u) = value_and_uncertainty(v, u);
+            (v, u)
+        }
+        None => (num(v), "—".into()),
+    };
+    html! {
+        tr data-element=(name) {
+            th scope="row" { (name) }
+            td.num { (value) }
+            td.num { (se.map_or("—".into(), unc)) }
+            td.num { (expanded) }
+            td { (unit) }
+        }
+    }
+}
+
+/// The certificate of triad `d`.
+pub fn render(d: &TriadDoc, c: &Context) -> Markup {
+    let notice = review::notice(c.state, &c.signatures);
+    let known = d.method == "known_orientations";
+    let per_g = format!("{} per g", d.unit);
+    html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                meta name="viewport" content="width=device-width, initial-scale=1";
+                title { "Calibration certificate " (d.id) }
+                style { (PreEscaped(STYLESHEET)) }
+            }
+            body.certificate {
+                main {
+                    table.cert-pages role="presentation" {
+                    thead { tr { td {
+                        div.cert-running { "Calibration certificate No. " (d.id) " · " (d.sensor_id) " (triad)" }
+                        @if let Some(n) = &notice { div.cert-withdrawn role="status" { (n) } }
+                    } } }
+                    tbody { tr { td {
+                    div.cert-head {
+                        div {
+                            @if let Some(logo) = &c.laboratory.logo {
+                                img.cert-logo src=(logo) alt="Laboratory logo";
+                            }
+                            h1 { "Calibration certificate" }
+                            p.muted { "No. " code { (d.id) } }
+                            (laboratory(&c.laboratory))
+                        }
+                        div {
+                            @if let Some(dec) = &d.decision {
+                                p { "Verdict " (badge(&dec.verdict, &dec.verdict)) }
+                            }
+                            p { "State " (review::state_badge(c.state)) }
+                        }
+                    }
+                    h2 { "Item and calibration" }
+                    dl.facts {
+                        div { dt { "Customer" } dd { @match &c.customer {
+                            Some(cu) => { (cu.name) @if let Some(a) = &cu.address { ", " (a) } },
+                            None => "not recorded",
+                        } } }
+                        div { dt { "Item" } dd { (c.item.as_ref().map_or("not described".into(), |i| i.describe())) } }
+                        div { dt { "Sensor" } dd { strong { (d.sensor_id) } " (accelerometer triad)" } }
+                        div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
+                        div { dt { "Place of calibration" } dd { (c.laboratory.address.as_deref().unwrap_or("the laboratory's (no address configured)")) } }
+                        div { dt { "Performed" } dd { (when(&d.performed_at)) } }
+                        div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
+                        div { dt { "Output unit" } dd { (d.unit) } }
+                    }
+                    h2 { "Method" }
+                    p {
+                        "The triad's static model " code { "u = b + S g" } " (bias b, scale-and-misalignment S, "
+                        "specific force g in g in the sensor's body frame; compensation " code { "g = T (u − b)" }
+                        ", T = S⁻¹). "
+                        @if known {
+                            "The orientations were known (" (d.residuals.len()) " positions): each axis's row of S and "
+                            "its element of b are that axis's single-axis calibration over the shared positions, "
+                            "identified per run by least squares and fused by batch estimation after " (PAPER)
+                            ". Uncertainty after the GUM per axis: the fused standard error, the stand's indexing "
+                            "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short, "
+                            "the model's own standard error, combined in quadrature and expanded"
+                            @if let Some(k) = d.coverage_factor { " with coverage factor k = " (k) ", " (probability(k)) } "."
+                        } @else {
+                            "The orientations were not known (" (d.residuals.len()) " static positions): b and a "
+                            "lower-triangular T were found from the gravity magnitude by Levenberg–Marquardt "
+                            "(the sensor's x axis defines the frame's x axis, its xy-plane the frame's xy-plane). "
+                            "Standard errors come from the fit's Jacobian; no expanded uncertainty is stated for "
+                            "this method."
+                        }
+                    }
+                    h2 { "Results" }
+                    div.table-wrap tabindex="0" role="region" aria-label="Triad results" {
+                        table #certificate-results {
+                            caption {
+                                "b and S by element, each rounded to its expanded uncertainty's second significant digit where one is stated"
+                                @if let Some(k) = d.coverage_factor { " (k = " (k) ", " (probability(k)) ")" }
+                            }
+                            thead { tr {
+                                th scope="col" { "Element" }
+                                th scope="col" .num { "Value" }
+                                th scope="col" .num { "Standard error" }
+                                th scope="col" .num { "Expanded U" }
+                                th scope="col" { "Unit" }
+                            } }
+                            tbody {
+                                @for (m, axis) in AXES.iter().enumerate() {
+                                    (row(&format!("b_{axis}"), d.b[m], d.b_std_errors.map(|e| e[m]), d.b_expanded.map(|e| e[m]), &d.unit))
+                                }
+                                @for (m, r) in AXES.iter().enumerate() {
+                                    @for (k, col) in AXES.iter().enumerate() {
+                                        (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), &per_g))
+                                    }
+                                }
+                            }
+                        }
+                    }
+                    p { "For compensation, T = S⁻¹ (g per " (d.unit) ", rows by axis):" }
+                    div.table-wrap tabindex="0" role="region" aria-label="T" {
+                        table #certificate-t {
+                            thead { tr { th scope="col" { "row" } @for a in AXES { th scope="col" .num { "T·" (a) } } } }
+                            tbody {
+                                @for (m, r) in AXES.iter().enumerate() {
+                                    tr { th scope="row" { "T_" (r) } @for k in 0..3 { td.num { (num(d.t[m][k])) } } }
+                                }
+                            }
+                        }
+                    }
+                    @if let Some(dec) = &d.decision {
+                        h2 { "Conformity" }
+                        p { "Decision rule: " (dec.rule) "; each element judged with its expanded uncertainty. Verdict " (badge(&dec.verdict, &dec.verdict)) }
+                        table #certificate-decision {
+                            thead { tr { th { "Element" } th.num { "Value" } th.num { "U" } th.num { "Min" } th.num { "Max" } th { "Verdict" } } }
+                            tbody {
+                                @for (name, e) in &dec.elements {
+                                    tr { th scope="row" { (name) } td.num { (num(e.value)) } td.num { (unc(e.expanded)) }
+                                        td.num { (e.min.map_or("—".into(), num)) } td.num { (e.max.map_or("—".into(), num)) }
+                                        td { (badge(&e.verdict, &e.verdict)) } }
+                                }
+                            }
+                        }
+                    }
+                    @if let Some(a) = &d.as_found {
+                        h2 { "As found" }
+                        p { "With the previous calibration " code { (a.previous_calibration_id) } ", this test's positions come out with a largest error of " (num(a.max_abs_error_g)) " g." }
+                    }
+                    h2 { "Metrological traceability" }
+                    p { "No reference standard is recorded with a triad's calibration yet: this certificate does not establish the metrological traceability of its results." }
+                    h2 { "Verification of this document" }
+                    dl.facts {
+                        div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
+                        div { dt { "Submission format" } dd { (c.content_type) } }
+                        div { dt { "Rendered by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
+                        div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
+                        div { dt { "This certificate" } dd.sha { (c.url) } }
+                    }
+                    h2 { "Review and signatures" }
+                    @if c.signatures.is_empty() {
+                        p { "Not reviewed: this certificate carries no approval. A reviewer approves it in accelcal, and a copy issued afterwards shows the signature here." }
+                    } @else {
+                        (review::signatures_table(&c.signatures))
+                    }
+                    p.cert-end { "End of certificate No. " (d.id) }
+                    } } }
+                    }
+                }
+            }
+        }
+    }
+}
