@@ -22,6 +22,15 @@
 //! fused across runs and judged exactly as a single axis is; the triad is a
 //! view over the three. The derived scale factor of axis `m` is the norm of
 //! row `m` (its sensitivity along its own sensitive direction).
+//!
+//! Optionally each axis has a second-order term, its `kii` (`K2`):
+//!
+//! ```text
+//! u_m = b_m + Σ_k S[m][k] g_k + S2_m g_m²
+//! ```
+//!
+//! and compensation then solves the model for `g` by Newton's iteration
+//! from `g₀ = S⁻¹ (u − b)` ([`Triad::compensate`]).
 
 use nalgebra::{Matrix3, Vector3};
 
@@ -45,7 +54,17 @@ pub enum TriadError {
     /// `S` has no inverse: outputs cannot be turned into specific force.
     #[error("the scale-and-misalignment matrix S is singular: outputs cannot be compensated")]
     Singular,
+    /// With second-order terms, Newton's iteration did not converge: no
+    /// specific force near `S⁻¹ (u − b)` gives these outputs.
+    #[error(
+        "the second-order model has no solution near S^-1 (u - b) for these outputs: \
+         Newton's iteration did not converge in {MAX_NEWTON} steps"
+    )]
+    NoSolution,
 }
+
+/// The most Newton steps of a second-order compensation.
+pub const MAX_NEWTON: usize = 50;
 
 /// The ratio of `S`'s smallest to largest singular value at or below which
 /// [`Triad::compensate`] refuses: a real triad's are all near its scale
@@ -56,9 +75,14 @@ pub const MIN_RECIPROCAL_CONDITION: f64 = 1e-12;
 /// The axes' names.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
-/// Each axis's model: bias and its three sensitivities.
-fn model() -> Model {
-    Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Ko]).expect("four distinct terms")
+/// Each axis's model: bias and its three sensitivities, and with
+/// `second_order` its `kii`.
+fn model(second_order: bool) -> Model {
+    let mut terms = vec![Term::K0, Term::Ki, Term::Kp, Term::Ko];
+    if second_order {
+        terms.push(Term::Kii);
+    }
+    Model::new(terms).expect("distinct terms")
 }
 
 /// The six faces of a cube: `±x`, `±y`, `±z` up (specific force +1 g along
@@ -94,6 +118,16 @@ impl TriadTest {
     /// position `g` as `(g_m, g_{m+1}, g_{m+2})`; refuses what
     /// [`TumbleTest::new`] refuses, naming the axis.
     pub fn new(positions: &[[f64; 3]], runs: &[TriadRun]) -> Result<Self, TriadError> {
+        Self::with_order(positions, runs, false)
+    }
+
+    /// As [`TriadTest::new`], each axis's model with its second-order term
+    /// `kii` when `second_order`.
+    pub fn with_order(
+        positions: &[[f64; 3]],
+        runs: &[TriadRun],
+        second_order: bool,
+    ) -> Result<Self, TriadError> {
         let axis = |m: usize| {
             let seen = positions
                 .iter()
@@ -110,7 +144,7 @@ impl TriadTest {
                     )
                 })
                 .collect();
-            TumbleTest::new(model(), seen, outputs)
+            TumbleTest::new(model(second_order), seen, outputs)
                 .map_err(|error| TriadError::Axis { axis: m, error })
         };
         Ok(TriadTest {
@@ -151,6 +185,9 @@ pub struct Triad {
     pub bias: [f64; 3],
     /// `S`, row `m` axis `m`'s, in the outputs' unit per g.
     pub matrix: [[f64; 3]; 3],
+    /// `S2`, each axis's second-order coefficient (its `kii`), in the
+    /// outputs' unit per g²; zero in a first-order model.
+    pub square: [f64; 3],
 }
 
 impl Triad {
@@ -160,6 +197,7 @@ impl Triad {
         let mut t = Triad {
             bias: [0.0; 3],
             matrix: [[0.0; 3]; 3],
+            square: [0.0; 3],
         };
         for (m, c) in axes.iter().enumerate() {
             let value = |term| get(c, term).expect("every axis's model has k0, ki, kp, ko");
@@ -167,19 +205,34 @@ impl Triad {
             t.matrix[m][m] = value(Term::Ki);
             t.matrix[m][(m + 1) % 3] = value(Term::Kp);
             t.matrix[m][(m + 2) % 3] = value(Term::Ko);
+            t.square[m] = get(c, Term::Kii).unwrap_or(0.0);
         }
         t
     }
 
-    /// The outputs `b + S g` for specific force `g`.
-    pub fn outputs(&self, g: [f64; 3]) -> [f64; 3] {
-        let u = self.s() * Vector3::from(g) + Vector3::from(self.bias);
-        [u[0], u[1], u[2]]
+    /// A first-order triad: bias `b` and matrix `S`.
+    pub fn linear(bias: [f64; 3], matrix: [[f64; 3]; 3]) -> Triad {
+        Triad {
+            bias,
+            matrix,
+            square: [0.0; 3],
+        }
     }
 
-    /// The specific force `g = S⁻¹ (u − b)` that gave outputs `u`;
-    /// refused when `S` is singular to working precision: its smallest
-    /// singular value below [`MIN_RECIPROCAL_CONDITION`] times its largest.
+    /// The outputs `b + S g + S2 ⊙ g²` for specific force `g`.
+    pub fn outputs(&self, g: [f64; 3]) -> [f64; 3] {
+        let u = self.s() * Vector3::from(g) + Vector3::from(self.bias);
+        [0, 1, 2].map(|m| u[m] + self.square[m] * g[m] * g[m])
+    }
+
+    /// The specific force `g` that gave outputs `u`: `S⁻¹ (u − b)` in a
+    /// first-order model; with second-order terms, Newton's iteration on
+    /// `F(g) = b + S g + S2 ⊙ g² − u` with Jacobian `J = S + diag(2 S2 ⊙ g)`,
+    /// from `g₀ = S⁻¹ (u − b)`, until a step is at most `1e-15 (1 + ‖g‖)`
+    /// ([`TriadError::NoSolution`] after [`MAX_NEWTON`] steps, or when a
+    /// Jacobian is singular). Refused when `S` is singular to working
+    /// precision: its smallest singular value below
+    /// [`MIN_RECIPROCAL_CONDITION`] times its largest.
     pub fn compensate(&self, u: [f64; 3]) -> Result<[f64; 3], TriadError> {
         let s = self.s();
         let sv = s.singular_values();
@@ -189,8 +242,22 @@ impl Triad {
             return Err(TriadError::Singular);
         }
         let inverse = s.try_inverse().ok_or(TriadError::Singular)?;
-        let g = inverse * (Vector3::from(u) - Vector3::from(self.bias));
-        Ok([g[0], g[1], g[2]])
+        let mut g = inverse * (Vector3::from(u) - Vector3::from(self.bias));
+        if self.square == [0.0; 3] {
+            return Ok([g[0], g[1], g[2]]);
+        }
+        let square = Vector3::from(self.square);
+        for _ in 0..MAX_NEWTON {
+            let f = s * g + Vector3::from(self.bias) + square.component_mul(&g.component_mul(&g))
+                - Vector3::from(u);
+            let j = s + Matrix3::from_diagonal(&(2.0 * square.component_mul(&g)));
+            let step = j.try_inverse().ok_or(TriadError::NoSolution)? * f;
+            g -= step;
+            if step.norm() <= 1e-15 * (1.0 + g.norm()) {
+                return Ok([g[0], g[1], g[2]]);
+            }
+        }
+        Err(TriadError::NoSolution)
     }
 
     /// Each axis's scale factor: the norm of its row of `S`.
@@ -224,14 +291,14 @@ mod tests {
     /// A triad with every element of `S` different, so that a misplaced
     /// element shows.
     fn truth() -> Triad {
-        Triad {
-            bias: [0.012, -0.021, 0.0053],
-            matrix: [
+        Triad::linear(
+            [0.012, -0.021, 0.0053],
+            [
                 [1.021, 0.0031, -0.0022],
                 [0.0014, 0.983, 0.0043],
                 [-0.0035, 0.0027, 1.0105],
             ],
-        }
+        )
     }
 
     /// The six faces and two tilted positions (spare positions give each
@@ -429,5 +496,107 @@ mod tests {
             error: Error::NoRuns,
         };
         assert_eq!(axis_z.to_string(), "axis z: the test has no runs");
+    }
+
+    /// `truth` with a second-order term on every axis.
+    fn curved() -> Triad {
+        Triad {
+            square: [2.0e-3, -1.5e-3, 1.0e-3],
+            ..truth()
+        }
+    }
+
+    /// Each axis's `kii` is its `S2`: recovered from outputs built by
+    /// `u_m = b_m + (S g)_m + S2_m g_m²` by hand, with `b` and `S`; a
+    /// first-order test of the same data has no `S2`.
+    #[test]
+    fn second_order_terms_are_recovered_axis_by_axis() {
+        let t = curved();
+        let runs: Vec<TriadRun> = (0..4)
+            .map(|j| TriadRun {
+                samples: positions()
+                    .iter()
+                    .enumerate()
+                    .map(|(r, g)| {
+                        let e = |m: usize| 1e-7 * (((j * 7 + r * 3 + m * 5) % 11) as f64 - 5.0);
+                        let u = [0, 1, 2].map(|m| {
+                            t.bias[m]
+                                + (0..3).map(|k| t.matrix[m][k] * g[k]).sum::<f64>()
+                                + t.square[m] * g[m] * g[m]
+                                + e(m)
+                        });
+                        vec![u]
+                    })
+                    .collect(),
+            })
+            .collect();
+        let cal = TriadTest::with_order(&positions(), &runs, true)
+            .unwrap()
+            .calibrate(2)
+            .unwrap();
+        for m in 0..3 {
+            assert!((cal.fused.square[m] - t.square[m]).abs() < 1e-6, "S2[{m}]");
+            assert!((cal.fused.bias[m] - t.bias[m]).abs() < 1e-6, "b[{m}]");
+            assert!(cal.std_errors.square[m] > 0.0, "se S2[{m}]");
+            assert_eq!(
+                cal.axes[m].fused.coefficients.get(Term::Kii),
+                Some(&cal.fused.square[m])
+            );
+        }
+        let linear = TriadTest::new(&positions(), &runs)
+            .unwrap()
+            .calibrate(2)
+            .unwrap();
+        assert_eq!(linear.fused.square, [0.0; 3]);
+        assert_eq!(linear.axes[0].fused.coefficients.get(Term::Kii), None);
+    }
+
+    /// Newton's iteration inverts the second-order model to working
+    /// precision, off the unit sphere too; outputs are checked by hand.
+    #[test]
+    fn second_order_compensation_inverts_the_model() {
+        let t = curved();
+        for g in [
+            [0.3, -0.5, 0.812_403_840_463_596],
+            [0.0, 0.0, 1.0],
+            [-1.0, 0.0, 0.0],
+            [2.0, -1.5, 0.25],
+        ] {
+            let u = t.outputs(g);
+            for m in 0..3 {
+                let by_hand = t.bias[m]
+                    + (0..3).map(|k| t.matrix[m][k] * g[k]).sum::<f64>()
+                    + t.square[m] * g[m] * g[m];
+                assert_eq!(u[m], by_hand);
+            }
+            let back = t.compensate(u).unwrap();
+            for m in 0..3 {
+                assert!((back[m] - g[m]).abs() < 1e-13, "{g:?}: {back:?}");
+            }
+            // The first-order inverse is off by about S2 g² / S.
+            let linear = Triad::linear(t.bias, t.matrix).compensate(u).unwrap();
+            assert!((0..3).any(|m| (linear[m] - g[m]).abs() > 1e-4), "{g:?}");
+        }
+    }
+
+    /// Outputs no specific force near `S⁻¹ (u − b)` gives: `u_x = g_x − g_x²`
+    /// never exceeds 1/4, so `u_x = 1` has no solution.
+    #[test]
+    fn second_order_compensation_refuses_outputs_without_a_solution() {
+        let t = Triad {
+            bias: [0.0; 3],
+            matrix: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+            square: [-1.0, 0.0, 0.0],
+        };
+        assert_eq!(t.compensate([1.0, 0.0, 0.0]), Err(TriadError::NoSolution));
+        assert!(
+            TriadError::NoSolution
+                .to_string()
+                .contains(&format!("in {MAX_NEWTON} steps"))
+        );
+        // Within reach, the root nearer g₀ = u: u_x = 0.21 at g_x = 0.3.
+        let g = t.compensate([0.21, 0.5, -0.5]).unwrap();
+        assert!((g[0] - 0.3).abs() < 1e-14, "{g:?}");
+        assert_eq!((g[1], g[2]), (0.5, -0.5));
     }
 }

@@ -5,7 +5,7 @@
 use std::fmt;
 
 use accelcal_core::decision::Verdict;
-use accelcal_core::triad::Triad;
+use accelcal_core::triad::{Triad, TriadError};
 use accelcal_core::{Compensator, Gravity, Model, TermMap};
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
@@ -313,15 +313,11 @@ impl CompensateRequest {
         errors.finish(|| a_i)
     }
 
-    /// The specific force for every triple of outputs with a triad's bias
-    /// `b` and matrix `S`: `g = S⁻¹ (u − b)` ([`Triad::compensate`], which
-    /// refuses an `S` singular to working precision).
-    pub fn compensate_triad(
-        &self,
-        b: [f64; 3],
-        s: [[f64; 3]; 3],
-        id: Uuid,
-    ) -> Result<Vec<[f64; 3]>, Invalid> {
+    /// The specific force for every triple of outputs with a triad's model
+    /// `triad`: `g = S⁻¹ (u − b)`, or with second-order terms Newton's
+    /// solution ([`Triad::compensate`], which refuses an `S` singular to
+    /// working precision, and outputs the second-order model cannot give).
+    pub fn compensate_triad(&self, triad: &Triad, id: Uuid) -> Result<Vec<[f64; 3]>, Invalid> {
         let root = Loc::Root;
         let Outputs::Triad(outputs) = &self.outputs else {
             return Err(Invalid::one(
@@ -331,17 +327,26 @@ impl CompensateRequest {
                 ),
             ));
         };
-        let triad = Triad { bias: b, matrix: s };
-        outputs
+        let mut errors = Errors::default();
+        let outputs_at = root.key("outputs");
+        let mut unusable = false;
+        let g = outputs
             .iter()
-            .map(|u| triad.compensate(*u))
-            .collect::<Result<_, _>>()
-            .map_err(|e| {
-                Invalid::one(
-                    root.key("calibration_id"),
-                    format!("calibration {id} cannot be used: {e}"),
-                )
+            .enumerate()
+            .map(|(k, u)| {
+                triad.compensate(*u).unwrap_or_else(|e| {
+                    let why = format!("calibration {id} cannot compensate these: {e}");
+                    match e {
+                        TriadError::NoSolution => errors.add(outputs_at.index(k), why),
+                        // The calibration's own fault: said once.
+                        _ if std::mem::replace(&mut unusable, true) => {}
+                        _ => errors.add(root.key("calibration_id"), why),
+                    }
+                    [0.0; 3]
+                })
             })
+            .collect();
+        errors.finish(|| g)
     }
 }
 

@@ -95,6 +95,11 @@ pub struct TriadBody {
     /// sensor's own by default; as for a single-axis submission).
     #[serde(default)]
     pub sensor_type: Option<String>,
+    /// With `orientations`: give each axis its second-order term `kii`
+    /// (`S2_m g_m²`); compensation then solves the model by Newton's
+    /// iteration.
+    #[serde(default)]
+    pub second_order: Option<bool>,
 }
 
 /// A triad's stand (`stand`).
@@ -213,6 +218,8 @@ pub enum Form {
         runs: Vec<TriadRun>,
         /// Batches.
         batches: usize,
+        /// Each axis with its `kii`.
+        second_order: bool,
     },
     /// The static positions' mean outputs.
     Unknown {
@@ -298,6 +305,12 @@ impl TriadBody {
             self.static_positions.is_some(),
             self.recording.is_some(),
         ];
+        if self.second_order == Some(true) && self.orientations.is_none() {
+            errors.add(
+                root.key("second_order"),
+                "is for known orientations: the gravity magnitude fits b and T only",
+            );
+        }
         let stand = match self.stand {
             None => Stand::default(),
             Some(st) => {
@@ -515,6 +528,7 @@ impl TriadBody {
                 .map(|r| TriadRun { samples: r.samples })
                 .collect(),
             batches,
+            second_order: self.second_order.unwrap_or(false),
         })
     }
 }
@@ -632,6 +646,16 @@ pub struct TriadResult {
     /// Its standard errors (unknown orientations; null with exactly nine).
     #[serde(rename = "T_std_errors", skip_serializing_if = "Option::is_none")]
     pub t_std_errors: Option<[[f64; 3]; 3]>,
+    /// With `second_order`: each axis's second-order coefficient `S2_m`
+    /// (its `kii`), outputs' unit per g².
+    #[serde(rename = "S2", skip_serializing_if = "Option::is_none")]
+    pub s2: Option<[f64; 3]>,
+    /// Their standard errors.
+    #[serde(rename = "S2_std_errors", skip_serializing_if = "Option::is_none")]
+    pub s2_std_errors: Option<[f64; 3]>,
+    /// Their expanded uncertainties.
+    #[serde(rename = "S2_expanded", skip_serializing_if = "Option::is_none")]
+    pub s2_expanded: Option<[f64; 3]>,
     /// Known orientations: the coverage factor of the expanded
     /// uncertainties.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -686,16 +710,28 @@ pub struct TriadResult {
     pub detection: Option<DetectionReport>,
 }
 
-/// Axis `m`'s terms and where each sits in the triad: `k0` in `b_m`
-/// (`None`), `ki`, `kp`, `ko` in row `m` of `S` at columns `m`, `m + 1`,
-/// `m + 2` (cyclically) — the single-axis model with
-/// `(a_i, a_p, a_o) = (g_m, g_{m+1}, g_{m+2})`.
-pub fn row_terms(m: usize) -> [(Term, Option<usize>); 4] {
+/// Where an axis's term sits in the triad.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Slot {
+    /// `b_m`.
+    B,
+    /// Row `m` of `S`, this column.
+    S(usize),
+    /// `S2_m`.
+    S2,
+}
+
+/// Axis `m`'s terms and where each sits in the triad: `k0` in `b_m`,
+/// `ki`, `kp`, `ko` in row `m` of `S` at columns `m`, `m + 1`, `m + 2`
+/// (cyclically) — the single-axis model with
+/// `(a_i, a_p, a_o) = (g_m, g_{m+1}, g_{m+2})` — and `kii` in `S2_m`.
+pub fn row_terms(m: usize) -> [(Term, Slot); 5] {
     [
-        (Term::K0, None),
-        (Term::Ki, Some(m)),
-        (Term::Kp, Some((m + 1) % 3)),
-        (Term::Ko, Some((m + 2) % 3)),
+        (Term::K0, Slot::B),
+        (Term::Ki, Slot::S(m)),
+        (Term::Kp, Slot::S((m + 1) % 3)),
+        (Term::Ko, Slot::S((m + 2) % 3)),
+        (Term::Kii, Slot::S2),
     ]
 }
 
@@ -716,11 +752,12 @@ pub struct TriadDecision {
     pub elements: BTreeMap<String, TermDecision>,
 }
 
-/// The element name of axis `m`'s term in column `column` ([`row_terms`]).
-fn element(m: usize, column: Option<usize>) -> String {
-    match column {
-        None => format!("b_{}", AXES[m]),
-        Some(k) => format!("S_{}{}", AXES[m], AXES[k]),
+/// The element name of axis `m`'s term in `slot` ([`row_terms`]).
+fn element(m: usize, slot: Slot) -> String {
+    match slot {
+        Slot::B => format!("b_{}", AXES[m]),
+        Slot::S(k) => format!("S_{}{}", AXES[m], AXES[k]),
+        Slot::S2 => format!("S2_{}", AXES[m]),
     }
 }
 
@@ -739,28 +776,30 @@ pub fn decide_triad(
     let mut elements = BTreeMap::new();
     let mut verdict = Verdict::Pass;
     for m in 0..3 {
-        let at = |column: Option<usize>, b: &[f64; 3], s: &[[f64; 3]; 3]| match column {
-            None => b[m],
-            Some(k) => s[m][k],
+        let at = |slot: Slot, b: &[f64; 3], s: &[[f64; 3]; 3], s2: Option<&[f64; 3]>| match slot {
+            Slot::B => Some(b[m]),
+            Slot::S(k) => Some(s[m][k]),
+            Slot::S2 => s2.map(|s2| s2[m]),
         };
         let terms = row_terms(m);
-        let values = TermMap(
-            terms
-                .iter()
-                .map(|(t, c)| (*t, at(*c, &r.b, &r.s)))
-                .collect(),
-        );
-        let expanded = TermMap(
-            terms
-                .iter()
-                .map(|(t, c)| (*t, at(*c, &b_u, &s_u)))
-                .collect(),
-        );
+        let map = |b: &[f64; 3], s: &[[f64; 3]; 3], s2: Option<&[f64; 3]>| {
+            TermMap(
+                terms
+                    .iter()
+                    .filter_map(|(t, slot)| at(*slot, b, s, s2).map(|x| (*t, x)))
+                    .collect(),
+            )
+        };
+        let values = map(&r.b, &r.s, r.s2.as_ref());
+        let expanded = map(&b_u, &s_u, r.s2_expanded.as_ref());
         let d = decide(rule, limits, &values, &expanded)?;
         verdict = verdict.max(d.verdict);
         for (term, td) in d.terms.iter() {
-            let column = terms.iter().find(|(t, _)| *t == term).and_then(|(_, c)| *c);
-            elements.insert(element(m, column), *td);
+            let slot = terms
+                .iter()
+                .find(|(t, _)| *t == term)
+                .map_or(Slot::B, |(_, c)| *c);
+            elements.insert(element(m, slot), *td);
         }
     }
     Ok(Some(TriadDecision {
@@ -786,7 +825,7 @@ pub struct TriadAsFound {
 
 /// As found of `r` with the previous triad `(b, S)` (calibration
 /// `previous`): each position's mean outputs compensated with the previous
-/// `b` and `S`, against the known gravity vector, or against a magnitude
+/// `b`, `S` (and `S2`), against the known gravity vector, or against a magnitude
 /// of 1 g when the orientations were not known:
 ///
 /// ```text
@@ -796,13 +835,7 @@ pub struct TriadAsFound {
 /// ```
 ///
 /// `None` when the previous `S` is singular.
-pub fn as_found(
-    r: &TriadResult,
-    previous: uuid::Uuid,
-    b: [f64; 3],
-    s: [[f64; 3]; 3],
-) -> Option<TriadAsFound> {
-    let prev = Triad { bias: b, matrix: s };
+pub fn as_found(r: &TriadResult, previous: uuid::Uuid, prev: &Triad) -> Option<TriadAsFound> {
     let positions: Vec<Vec<f64>> = r
         .means
         .iter()
@@ -830,6 +863,11 @@ pub fn as_found(
 pub const MODEL: &str = "u = b + S g";
 /// The compensation.
 pub const COMPENSATION: &str = "g = T (u - b), T = S^-1";
+/// The model with second-order terms.
+pub const MODEL_SECOND_ORDER: &str = "u = b + S g + S2 * g^2 (S2_m g_m^2 on axis m)";
+/// Its compensation.
+pub const COMPENSATION_SECOND_ORDER: &str =
+    "solve u = b + S g + S2 * g^2 for g by Newton's iteration from g = T (u - b), T = S^-1";
 
 /// 90° minus the angle between rows `m` and `n` of `s`, degrees.
 fn skew(s: &[[f64; 3]; 3], m: usize, n: usize) -> f64 {
@@ -842,6 +880,7 @@ fn skew(s: &[[f64; 3]; 3], m: usize, n: usize) -> f64 {
 /// `T = S⁻¹`, column `k` being the compensation of `b + e_k` (refused when
 /// `S` is singular to working precision, as compensation is).
 fn invert(triad: &Triad) -> Option<[[f64; 3]; 3]> {
+    let triad = &Triad::linear(triad.bias, triad.matrix);
     let mut t = [[0.0; 3]; 3];
     for k in 0..3 {
         let mut u = triad.bias;
@@ -873,6 +912,9 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         s_std_errors: None,
         t,
         t_std_errors: None,
+        s2: None,
+        s2_std_errors: None,
+        s2_expanded: None,
         coverage_factor: None,
         b_expanded: None,
         s_expanded: None,
@@ -895,10 +937,12 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             positions,
             runs,
             batches,
+            second_order,
         } => {
-            let test = TriadTest::new(positions, runs).map_err(|e| axis_problem(&e))?;
+            let test = TriadTest::with_order(positions, runs, *second_order)
+                .map_err(|e| axis_problem(&e))?;
             let cal = test.calibrate(*batches).map_err(|e| axis_problem(&e))?;
-            let Triad { bias, matrix } = cal.fused;
+            let Triad { bias, matrix, .. } = cal.fused;
             let t = invert(&cal.fused).ok_or_else(|| {
                 problem(
                     Loc::Root.key("runs"),
@@ -908,6 +952,12 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             let mut r = base("known_orientations", bias, matrix, t);
             r.b_std_errors = Some(cal.std_errors.bias);
             r.s_std_errors = Some(cal.std_errors.matrix);
+            if *second_order {
+                r.model = MODEL_SECOND_ORDER;
+                r.compensation = COMPENSATION_SECOND_ORDER;
+                r.s2 = Some(cal.fused.square);
+                r.s2_std_errors = Some(cal.std_errors.square);
+            }
             r.means = (0..positions.len())
                 .map(|p| {
                     let all: Vec<[f64; 3]> = runs
@@ -928,6 +978,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             r.gravity = Some(positions.clone());
             let mut axes = Vec::with_capacity(3);
             let (mut b_expanded, mut s_expanded) = ([0.0; 3], [[0.0; 3]; 3]);
+            let mut s2_expanded = [0.0; 3];
             for (m, (axis_test, c)) in test.axes().iter().zip(&cal.axes).enumerate() {
                 let quality = quality::assess(axis_test, c);
                 let u = budget(
@@ -940,11 +991,14 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                 )
                 .map_err(|e| problem(Loc::Root.key("stand"), e.to_string()))?;
                 let expanded = u.expanded();
-                for (term, column) in row_terms(m) {
-                    let x = expanded.get(term).copied().unwrap_or(0.0);
-                    match column {
-                        None => b_expanded[m] = x,
-                        Some(k) => s_expanded[m][k] = x,
+                for (term, slot) in row_terms(m) {
+                    let Some(x) = expanded.get(term).copied() else {
+                        continue;
+                    };
+                    match slot {
+                        Slot::B => b_expanded[m] = x,
+                        Slot::S(k) => s_expanded[m][k] = x,
+                        Slot::S2 => s2_expanded[m] = x,
                     }
                 }
                 axes.push(AxisResult {
@@ -958,6 +1012,9 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             r.coverage_factor = Some(sub.coverage_factor);
             r.b_expanded = Some(b_expanded);
             r.s_expanded = Some(s_expanded);
+            if *second_order {
+                r.s2_expanded = Some(s2_expanded);
+            }
             r.axes = Some(axes);
             Ok(r)
         }

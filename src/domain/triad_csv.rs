@@ -139,6 +139,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         performed_at: meta.get("performed_at").map(|(_, v)| v.clone()),
         sensor_type: meta.get("sensor_type").map(|(_, v)| v.clone()),
         stand: None,
+        second_order: None,
         unit: meta.get("unit").map(|(_, v)| v.clone()),
         orientations: None,
         runs: None,
@@ -205,6 +206,15 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
     } else if columns == KNOWN {
         known(&rows, &mut body, &mut errors);
         body.batches = number("batches", &mut errors).map(|b| b as usize);
+        body.second_order = match meta.get("second_order") {
+            None => None,
+            Some((_, v)) if v == "true" => Some(true),
+            Some((_, v)) if v == "false" => Some(false),
+            Some((line, _)) => {
+                at_line(&mut errors, *line, "`second_order` must be true or false");
+                None
+            }
+        };
         let angle = number("angle_std_arcsec", &mut errors);
         let gravity = number("gravity_rel_std", &mut errors);
         if angle.is_some() || gravity.is_some() {
@@ -222,6 +232,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             "batches",
             "angle_std_arcsec",
             "gravity_rel_std",
+            "second_order",
         ]
     } else {
         at_line(

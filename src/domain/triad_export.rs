@@ -19,6 +19,8 @@
 
 use std::fmt::Write as _;
 
+use super::triad::{COMPENSATION, COMPENSATION_SECOND_ORDER, MODEL, MODEL_SECOND_ORDER};
+
 /// The largest off-diagonal term of `T` (relative to its diagonal) a
 /// diagonal-only format may drop.
 pub const MAX_DROPPED: f64 = 0.01;
@@ -82,6 +84,8 @@ pub struct Exported<'a> {
     pub s: [[f64; 3]; 3],
     /// `T = S⁻¹`.
     pub t: [[f64; 3]; 3],
+    /// Each axis's second-order coefficient, when the model has them.
+    pub s2: Option<[f64; 3]>,
     /// What the export describes (a calibration id, a sensor).
     pub source: String,
 }
@@ -98,6 +102,17 @@ pub enum ExportError {
         format: &'static str,
         /// The unit.
         unit: String,
+    },
+    /// Second-order terms, which the diagonal formats cannot carry.
+    #[error(
+        "{format} carries offsets and a diagonal scale only: this triad's model has second-order \
+         terms (S2 = {s2:?}), which it would drop; export `json` or `c`, which carry them"
+    )]
+    SecondOrder {
+        /// The format.
+        format: &'static str,
+        /// The terms.
+        s2: [f64; 3],
     },
     /// An off-diagonal term too large to drop.
     #[error(
@@ -157,10 +172,14 @@ pub fn export(e: &Exported<'_>, format: Format) -> Result<String, ExportError> {
 }
 
 fn json(e: &Exported<'_>) -> String {
-    let v = serde_json::json!({
+    let (model, compensation) = match e.s2 {
+        None => (MODEL, COMPENSATION),
+        Some(_) => (MODEL_SECOND_ORDER, COMPENSATION_SECOND_ORDER),
+    };
+    let mut v = serde_json::json!({
         "source": e.source,
-        "model": "u = b + S g",
-        "compensation": "g = T (u - b), T = S^-1",
+        "model": model,
+        "compensation": compensation,
         "convention": "u: outputs in `unit`; g: specific force in g in the sensor's body frame; \
                        matrices by rows, row m = axis m (x, y, z)",
         "unit": e.unit,
@@ -173,6 +192,10 @@ fn json(e: &Exported<'_>) -> String {
         "S": e.s,
         "T": e.t,
     });
+    if let Some(s2) = e.s2 {
+        v["S2"] = serde_json::json!(s2);
+        v["units"]["S2"] = serde_json::json!(format!("{}/g^2", e.unit));
+    }
     let mut text = serde_json::to_string_pretty(&v).unwrap_or_default();
     text.push('\n');
     text
@@ -195,6 +218,16 @@ fn c_header(e: &Exported<'_>) -> String {
         " * i.e. g[m] = sum over k of ACCELCAL_T[m][k] * (u[k] - ACCELCAL_B[k])."
     );
     let _ = writeln!(out, " * Matrices by rows: row m is axis m.");
+    if e.s2.is_some() {
+        let _ = writeln!(
+            out,
+            " * Second order: u[m] = b[m] + (S g)[m] + ACCELCAL_S2[m] * g[m]^2; compensate by"
+        );
+        let _ = writeln!(
+            out,
+            " * Newton's iteration on g from g = T (u - b), Jacobian S + diag(2 * ACCELCAL_S2 * g)."
+        );
+    }
     let _ = writeln!(out, " */");
     let _ = writeln!(out, "#ifndef ACCELCAL_TRIAD_H");
     let _ = writeln!(out, "#define ACCELCAL_TRIAD_H");
@@ -210,6 +243,13 @@ fn c_header(e: &Exported<'_>) -> String {
         }
         let _ = writeln!(out, "}};");
     }
+    if let Some(s2) = e.s2 {
+        let _ = writeln!(
+            out,
+            "static const double ACCELCAL_S2[3] = {{ {:.12e}, {:.12e}, {:.12e} }};",
+            s2[0], s2[1], s2[2]
+        );
+    }
     let _ = writeln!(out, "#endif /* ACCELCAL_TRIAD_H */");
     out
 }
@@ -224,6 +264,9 @@ fn diagonal(
         format,
         unit: e.unit.to_owned(),
     })?;
+    if let Some(s2) = e.s2 {
+        return Err(ExportError::SecondOrder { format, s2 });
+    }
     let (term, value) = largest_off_diagonal(&e.t);
     if value.is_nan() || value > MAX_DROPPED {
         return Err(ExportError::OffDiagonal {
@@ -293,8 +336,41 @@ mod tests {
             b: [0.1, -0.2, 0.3],
             s,
             t,
+            s2: None,
             source: "calibration X".into(),
         }
+    }
+
+    /// Second-order terms: json and c carry them and say how to compensate;
+    /// the diagonal formats refuse rather than drop them.
+    #[test]
+    fn second_order_terms_go_to_json_and_c_only() {
+        let e = Exported {
+            s2: Some([1.5e-3, -2.5e-3, 0.0]),
+            ..triad("m/s2", 0.0)
+        };
+        let v: serde_json::Value =
+            serde_json::from_str(&export(&e, Format::Json).unwrap()).unwrap();
+        assert_eq!(v["S2"], serde_json::json!([1.5e-3, -2.5e-3, 0.0]));
+        assert_eq!(v["units"]["S2"], "m/s2/g^2");
+        assert_eq!(v["model"], MODEL_SECOND_ORDER);
+        let c = export(&e, Format::C).unwrap();
+        assert!(
+            c.contains(
+                "ACCELCAL_S2[3] = { 1.500000000000e-3, -2.500000000000e-3, 0.000000000000e0 }"
+            ),
+            "{c}"
+        );
+        assert!(c.contains("Newton"));
+        for f in [Format::Px4, Format::ArduPilot] {
+            let err = export(&e, f).unwrap_err();
+            assert!(matches!(err, ExportError::SecondOrder { .. }), "{err}");
+            assert!(err.to_string().contains("json"));
+        }
+        let first: serde_json::Value =
+            serde_json::from_str(&export(&triad("m/s2", 0.0), Format::Json).unwrap()).unwrap();
+        assert!(first.get("S2").is_none());
+        assert_eq!(first["model"], MODEL);
     }
 
     #[test]

@@ -330,7 +330,10 @@ pub async fn compensate(
             Some(request.compensate(&summary.coefficients, summary.id)?),
             None,
         ),
-        Some(t) => (None, Some(request.compensate_triad(t.b, t.s, summary.id)?)),
+        Some(t) => (
+            None,
+            Some(request.compensate_triad(&t.model(), summary.id)?),
+        ),
     };
     Ok(Json(Compensated {
         assumed_zero: request.assumed_zero(&summary.model),

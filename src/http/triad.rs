@@ -138,6 +138,7 @@ pub async fn identify(
             b: result.b,
             s: result.s,
             t: result.t,
+            s2: result.s2,
             source,
         },
         format,

@@ -96,7 +96,7 @@ fn found(r: &mut TriadResult, p: &CalibrationSummary) {
         ));
         return;
     }
-    r.as_found = as_found(r, p.id, t.b, t.s);
+    r.as_found = as_found(r, p.id, &t.model());
     if r.as_found.is_none() {
         r.as_found_note = Some(format!(
             "the previous calibration {}'s S is singular: it cannot compensate",
@@ -117,6 +117,9 @@ fn elements(r: &TriadResult) -> TriadElements {
         t_std_errors: r.t_std_errors,
         b_expanded: r.b_expanded,
         s_expanded: r.s_expanded,
+        s2: r.s2,
+        s2_std_errors: r.s2_std_errors,
+        s2_expanded: r.s2_expanded,
     }
 }
 
@@ -289,8 +292,13 @@ pub async fn submit(
         performed_at,
         received_at,
         unit: result.unit.clone(),
-        model: Model::new(vec![Term::K0, Term::Ki, Term::Kp, Term::Ko])
-            .map_err(|_| Problem::internal())?,
+        model: Model::new(
+            [Term::K0, Term::Ki, Term::Kp, Term::Ko]
+                .into_iter()
+                .chain(result.s2.map(|_| Term::Kii))
+                .collect(),
+        )
+        .map_err(|_| Problem::internal())?,
         runs,
         coefficients: TermMap(Vec::new()),
         std_errors: TermMap(Vec::new()),
@@ -428,6 +436,7 @@ pub async fn exported(state: &AppState, id: Uuid, format: &str) -> Result<Respon
             b: t.b,
             s: t.s,
             t: t.t,
+            s2: t.s2,
             source,
         },
         format,

@@ -148,6 +148,35 @@ pub struct TriadElements {
     /// `S`'s expanded uncertainties (known orientations).
     #[serde(rename = "S_expanded", default)]
     pub s_expanded: Option<[[f64; 3]; 3]>,
+    /// Each axis's second-order coefficient `S2_m` (its `kii`), when the
+    /// model has them.
+    #[serde(rename = "S2", default, skip_serializing_if = "Option::is_none")]
+    pub s2: Option<[f64; 3]>,
+    /// Their standard errors.
+    #[serde(
+        rename = "S2_std_errors",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub s2_std_errors: Option<[f64; 3]>,
+    /// Their expanded uncertainties.
+    #[serde(
+        rename = "S2_expanded",
+        default,
+        skip_serializing_if = "Option::is_none"
+    )]
+    pub s2_expanded: Option<[f64; 3]>,
+}
+
+impl TriadElements {
+    /// The model `b`, `S` and `S2` describe (compensation inverts it).
+    pub fn model(&self) -> accelcal_core::triad::Triad {
+        accelcal_core::triad::Triad {
+            bias: self.b,
+            matrix: self.s,
+            square: self.s2.unwrap_or([0.0; 3]),
+        }
+    }
 }
 
 /// The axes' names, in the order of `b`'s elements and `S`'s rows.
@@ -165,6 +194,15 @@ impl TriadElements {
                 self.b[m],
                 self.b_std_errors.map(|e| e[m]),
             ));
+        }
+        if let Some(s2) = self.s2 {
+            for (m, axis) in AXES.iter().enumerate() {
+                out.push((
+                    format!("S2_{axis}"),
+                    s2[m],
+                    self.s2_std_errors.map(|e| e[m]),
+                ));
+            }
         }
         for (name, matrix, errors) in [
             ("S", &self.s, &self.s_std_errors),
@@ -203,6 +241,17 @@ impl TriadElements {
         vector(&mut out, "b", "", &self.b);
         matrix(&mut out, "S", "", &self.s);
         matrix(&mut out, "T", "", &self.t);
+        for (suffix, v) in [
+            ("", &self.s2),
+            ("_std_error", &self.s2_std_errors),
+            ("_expanded", &self.s2_expanded),
+        ] {
+            if let Some(v) = v {
+                for (axis, x) in AXES.iter().zip(v) {
+                    out.push((format!("S2_{axis}{suffix}"), *x));
+                }
+            }
+        }
         const E: &str = "_std_error";
         if let Some(e) = &self.b_std_errors {
             vector(&mut out, "b", E, e);
@@ -761,6 +810,9 @@ mod tests {
             t_std_errors: None,
             b_expanded: None,
             s_expanded: None,
+            s2: None,
+            s2_std_errors: None,
+            s2_expanded: None,
         }
     }
 

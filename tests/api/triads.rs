@@ -726,3 +726,161 @@ async fn a_triads_certificate_states_every_element_rounded_to_its_uncertainty() 
     assert!(html.contains("k = 2"), "the coverage factor");
     assert!(html.contains(&format!("End of certificate No. {id}")));
 }
+
+/// Known orientations with each axis's second-order term: the faces and
+/// four tilts, six runs scattered by 1e-4 m/s².
+fn curved_body() -> (Value, [f64; 3]) {
+    let (b, s) = super::triad::truth();
+    let s2 = [0.012, -0.009, 0.015];
+    let h = std::f64::consts::FRAC_1_SQRT_2;
+    let mut positions = faces();
+    positions.extend([[h, h, 0.0], [0.0, h, -h], [-h, 0.0, h], [0.6, 0.0, 0.8]]);
+    let runs: Vec<Value> = (0..6)
+        .map(|j| {
+            let samples: Vec<Value> = positions
+                .iter()
+                .enumerate()
+                .map(|(p, g)| {
+                    let u = [0, 1, 2].map(|m| {
+                        b[m] + (0..3).map(|k| s[m][k] * g[k]).sum::<f64>()
+                            + s2[m] * g[m] * g[m]
+                            + 1e-4 * (((j * 7 + p * 3 + m * 5) % 11) as f64 - 5.0) / 5.0
+                    });
+                    json!([u])
+                })
+                .collect();
+            json!({ "samples": samples })
+        })
+        .collect();
+    (
+        json!({"sensor_id": "IMU-9", "unit": "m/s2", "orientations": positions, "runs": runs,
+            "batches": 2, "second_order": true}),
+        s2,
+    )
+}
+
+#[tokio::test]
+async fn second_order_terms_are_identified_per_axis_and_compensated_by_newton() {
+    let app = TestApp::spawn(Sqlite).await;
+    let (body, s2) = curved_body();
+    let r = store(&app, ADMIN, &body).await;
+    assert_eq!(r["model"], "u = b + S g + S2 * g^2 (S2_m g_m^2 on axis m)");
+    let id = r["id"].as_str().unwrap().to_owned();
+    // Each axis is the single-axis method with `kii`, bit for bit.
+    let positions = body["orientations"].as_array().unwrap();
+    for m in 0..3 {
+        let single = json!({
+            "sensor_id": format!("IMU-9-{m}"), "unit": "m/s2",
+            "model": ["k0", "ki", "kp", "ko", "kii"],
+            "positions": positions.iter().map(|g| json!({"a": [g[m].clone(), g[(m + 1) % 3].clone(), g[(m + 2) % 3].clone()]})).collect::<Vec<_>>(),
+            "runs": body["runs"].as_array().unwrap().iter().map(|run| json!({"readings":
+                run["samples"].as_array().unwrap().iter().map(|at| json!([at[0][m].clone()])).collect::<Vec<_>>()})).collect::<Vec<_>>(),
+            "batches": 2,
+        });
+        let one: Value = app
+            .post("/v1/identify", ADMIN, &single)
+            .await
+            .json()
+            .await
+            .unwrap();
+        let c = &one["fused"]["coefficients"];
+        assert_eq!(r["S2"][m], c["kii"], "axis {m}: {one}");
+        assert_eq!(r["b"][m], c["k0"]);
+        assert_eq!(r["S"][m][m], c["ki"]);
+        assert_eq!(r["S2_std_errors"][m], one["fused"]["std_errors"]["kii"]);
+        assert_eq!(
+            r["S2_expanded"][m],
+            one["uncertainty"]["terms"]["kii"]["expanded"]
+        );
+        assert!(
+            (f(&r["S2"][m]) - s2[m]).abs() < 1e-3,
+            "S2[{m}] = {}",
+            r["S2"][m]
+        );
+    }
+    let stored = app.get_json("/v1/sensors/IMU-9", ADMIN).await;
+    assert_eq!(
+        stored["latest"]["model"],
+        json!(["k0", "ki", "kp", "ko", "kii"])
+    );
+    assert_eq!(stored["latest"]["triad"]["S2"], r["S2"]);
+
+    // Compensation solves u = b + S g + S2 ⊙ g² (built here from the
+    // stored elements) for g; the linear inverse would be off by ~S2/S.
+    let (b, s, q) = (vector(&r["b"]), matrix(&r["S"]), vector(&r["S2"]));
+    let gs = [[0.0, 0.0, 1.0], [0.6, -0.8, 0.0], [0.3, 0.4, -0.2]];
+    let outputs: Vec<[f64; 3]> = gs
+        .iter()
+        .map(|g| {
+            [0, 1, 2]
+                .map(|m| b[m] + (0..3).map(|k| s[m][k] * g[k]).sum::<f64>() + q[m] * g[m] * g[m])
+        })
+        .collect();
+    let c: Value = app
+        .post(
+            "/v1/sensors/IMU-9/compensate",
+            ADMIN,
+            &json!({ "outputs": outputs }),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    for (k, g) in gs.iter().enumerate() {
+        for m in 0..3 {
+            assert!((f(&c["g"][k][m]) - g[m]).abs() < 1e-12, "g{k}{m}: {c}");
+        }
+    }
+    // Below what the curved x axis can output (its minimum is about
+    // b − S_xx²/(4 S2_x) ≈ −2005 m/s²): refused at the triple.
+    let p = problem(
+        app.post(
+            "/v1/sensors/IMU-9/compensate",
+            ADMIN,
+            &json!({"outputs": [[0.1, 0.1, 0.1], [-1.0e4, 0.0, 0.0]]}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/outputs/1"], "{p}");
+
+    // The diagonal formats cannot carry S2; json and c do.
+    let p = problem(
+        app.get(&format!("/v1/calibrations/{id}/export?format=px4"), ADMIN)
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(
+        p["detail"].as_str().unwrap().contains("second-order"),
+        "{p}"
+    );
+    let j: Value = app
+        .get(&format!("/v1/calibrations/{id}/export?format=json"), ADMIN)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(j["S2"], r["S2"]);
+    let html = app
+        .get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+        .await
+        .text()
+        .await
+        .unwrap();
+    let cells = certificate_row(&html, "S2_y");
+    let (v, u) = (f(&r["S2"][1]), f(&r["S2_expanded"][1]));
+    let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
+    assert_eq!(cells[0], format!("{v:.decimals$}"));
+
+    // Without known orientations there is no second-order fit.
+    let unknown = json!({"sensor_id": "IMU-10", "second_order": true,
+        "static_positions": vec![vec![[1.0, 0.0, 0.0]]; 9]});
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &unknown).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(pointers(&p).contains(&"/second_order".to_owned()), "{p}");
+}

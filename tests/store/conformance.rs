@@ -304,6 +304,9 @@ async fn triads_round_trip(s: &dyn Store) {
         t_std_errors: Some([[1e-4, 0.0, 0.0], [2e-4, 1e-4, 0.0], [3e-4, 2e-4, 1e-4]]),
         b_expanded: Some([2e-3, 4e-3, 6e-3]),
         s_expanded: None,
+        s2: Some([1e-3, -2e-3, 3e-4]),
+        s2_std_errors: Some([1e-5, 2e-5, 3e-5]),
+        s2_expanded: None,
     };
     let mut c = calibration("TRIAD-1", "2026-02-01T00:00:00Z");
     c.coefficients = TermMap(vec![]);

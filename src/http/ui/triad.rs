@@ -59,6 +59,17 @@ pub struct TriadDoc {
     /// The fit (unknown orientations).
     #[serde(default)]
     pub fit: Option<FitDoc>,
+    /// Each axis's second-order coefficient.
+    #[serde(rename = "S2", default)]
+    pub s2: Option<[f64; 3]>,
+    /// Their standard errors.
+    #[serde(rename = "S2_std_errors", default)]
+    pub s2_std_errors: Option<[f64; 3]>,
+    /// Their expanded uncertainties.
+    #[serde(rename = "S2_expanded", default)]
+    pub s2_expanded: Option<[f64; 3]>,
+    /// The model equation.
+    pub model: String,
     /// The coverage factor of the expanded uncertainties.
     #[serde(default)]
     pub coverage_factor: Option<f64>,
@@ -184,7 +195,7 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             div { dt { "Calibration id" } dd { code { (d.id) } } }
             div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
             div { dt { "Received" } dd { (when(&d.received_at)) } }
-            div { dt { "Model" } dd { "u = b + S g; compensation g = T (u − b), T = S⁻¹" } }
+            div { dt { "Model" } dd { (d.model) @if d.s2.is_none() { "; compensation g = T (u − b), T = S⁻¹" } @else { "; compensation by Newton's iteration from T (u − b)" } } }
             div { dt { "Method" } dd {
                 @if known { "known orientations: each axis identified and fused by the single-axis method" }
                 @else { "unknown orientations: b and T from the gravity magnitude (Levenberg–Marquardt)" }
@@ -236,6 +247,13 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             tbody { (vector("b", &d.b, d.b_std_errors.as_ref())) }
         } }
         (matrix("Scale and misalignment S (rows by axis), with standard errors u", "S", &d.s, d.s_std_errors.as_ref()))
+        @if let Some(s2) = &d.s2 {
+            div.table-wrap tabindex="0" role="region" aria-label="S2" { table #triad-S2 .numbers {
+                caption { "Second-order terms S2 (" (d.unit) " per g², u_m += S2_m g_m²), with standard errors u" }
+                thead { tr { th scope="col" { "vector" } @for axis in AXES { th scope="col" { "S2·" (axis) } th scope="col" { "u" } } } }
+                tbody { (vector("S2", s2, d.s2_std_errors.as_ref())) }
+            } }
+        }
         @if let (Some(bu), Some(su)) = (&d.b_expanded, &d.s_expanded) {
             (matrix(&format!("Expanded uncertainties U of S (k = {}); of b: {}, {}, {}",
                 d.coverage_factor.unwrap_or(2.0), unc(bu[0]), unc(bu[1]), unc(bu[2])), "U", su, None))

@@ -91,7 +91,7 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                     }
                     h2 { "Method" }
                     p {
-                        "The triad's static model " code { "u = b + S g" } " (bias b, scale-and-misalignment S, "
+                        "The triad's static model " code { (d.model) } " (bias b, scale-and-misalignment S, "
                         "specific force g in g in the sensor's body frame; compensation " code { "g = T (u − b)" }
                         ", T = S⁻¹). "
                         @if known {
@@ -131,6 +131,11 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                                 @for (m, r) in AXES.iter().enumerate() {
                                     @for (k, col) in AXES.iter().enumerate() {
                                         (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), &per_g))
+                                    }
+                                }
+                                @if let Some(s2) = d.s2 {
+                                    @for (m, axis) in AXES.iter().enumerate() {
+                                        (row(&format!("S2_{axis}"), s2[m], d.s2_std_errors.map(|e| e[m]), d.s2_expanded.map(|e| e[m]), &format!("{} per g²", d.unit)))
                                     }
                                 }
                             }
