@@ -579,6 +579,37 @@ mod tests {
         }
     }
 
+    /// Newton's stopping rule scales with `g`: a step within 1e-15 of
+    /// `1 + ‖g‖` ends it, so it ends both far out (where rounding leaves
+    /// steps of an ulp of hundreds of g) and near zero (where an absolute
+    /// floor of 1e-15 is all rounding in the outputs allows).
+    #[test]
+    fn second_order_compensation_ends_far_out_and_near_zero() {
+        let t = curved();
+        for g in [
+            [300.0, -200.0, 150.0],
+            [-150.0, 250.0, -300.0],
+            [1e-3, -2e-3, 5e-4],
+            [3e-7, 1e-9, -4e-8],
+            // Found by search: here rounding leaves steps of ~1e-19, which
+            // a floor relative to ‖g‖ alone never admits.
+            [
+                -5.670103092783504e-5,
+                4.831460674157304e-4,
+                -6.385542168674699e-4,
+            ],
+        ] {
+            let u = t.outputs(g);
+            let back = t.compensate(u).unwrap();
+            for m in 0..3 {
+                assert!(
+                    (back[m] - g[m]).abs() <= 1e-12 * (1.0 + g[m].abs()),
+                    "{g:?}: {back:?}"
+                );
+            }
+        }
+    }
+
     /// Outputs no specific force near `S⁻¹ (u − b)` gives: `u_x = g_x − g_x²`
     /// never exceeds 1/4, so `u_x = 1` has no solution.
     #[test]
