@@ -37,6 +37,7 @@ use super::limits::{
     MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES, MAX_UNIT_CHARS,
 };
 use super::sensor_types::DEFAULT_COVERAGE_FACTOR;
+use super::standards::UsedStandard;
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
@@ -95,11 +96,29 @@ pub struct TriadBody {
     /// sensor's own by default; as for a single-axis submission).
     #[serde(default)]
     pub sensor_type: Option<String>,
+    /// Reference standards from the registry, by id: the `stand` (its
+    /// indexing error enters the budget instead of `stand`'s) and the local
+    /// `gravity` value; each must be in calibration when the test was
+    /// performed. Stored triads only.
+    #[serde(default)]
+    pub standards: Option<TriadStandardsBody>,
     /// With `orientations`: give each axis its second-order term `kii`
     /// (`S2_m g_m²`); compensation then solves the model by Newton's
     /// iteration.
     #[serde(default)]
     pub second_order: Option<bool>,
+}
+
+/// The reference standards a triad names (`standards`).
+#[derive(Debug, Clone, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct TriadStandardsBody {
+    /// The tumble stand or dividing head.
+    #[serde(default)]
+    pub stand: Option<String>,
+    /// The local gravity value.
+    #[serde(default)]
+    pub gravity: Option<String>,
 }
 
 /// A triad's stand (`stand`).
@@ -205,6 +224,8 @@ pub struct TriadSubmission {
     /// The coverage factor of the expanded uncertainties: the sensor
     /// type's when one judges the triad (set by the caller), else 2.
     pub coverage_factor: f64,
+    /// The reference standards named, by role (`stand`, `gravity`).
+    pub standards: Vec<(&'static str, String)>,
 }
 
 /// The three forms.
@@ -283,6 +304,30 @@ impl TriadBody {
         let sensor_id = identifier("sensor_id", &self.sensor_id);
         let station_id = identifier("station_id", &self.station_id);
         let sensor_type = identifier("sensor_type", &self.sensor_type);
+        let mut standards = Vec::new();
+        if let Some(named) = &self.standards {
+            let standards_at = root.key("standards");
+            for (role, id) in [("stand", &named.stand), ("gravity", &named.gravity)] {
+                if let Some(id) = id {
+                    match check_str(id, MAX_ID_CHARS, Chars::Identifier) {
+                        Ok(()) => standards.push((role, id.clone())),
+                        Err(why) => errors.add(standards_at.key(role), why),
+                    }
+                }
+            }
+            if named.stand.is_none() && named.gravity.is_none() {
+                errors.add(
+                    root.key("standards"),
+                    "must name a `stand`, a `gravity` or both",
+                );
+            }
+            if self.stand.is_some() {
+                errors.add(
+                    root.key("stand"),
+                    "is given with `standards`: the registered stand's indexing error is the one used",
+                );
+            }
+        }
         let performed_at = self
             .performed_at
             .as_deref()
@@ -433,6 +478,7 @@ impl TriadBody {
             stand,
             sensor_type,
             coverage_factor: DEFAULT_COVERAGE_FACTOR,
+            standards,
             unit,
             form: form.expect("a form when nothing is wrong"),
         })
@@ -679,6 +725,11 @@ pub struct TriadResult {
     /// ([`as_found`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub as_found: Option<TriadAsFound>,
+    /// Stored triads: the reference standards named, as the registry
+    /// describes them (what traceability and the reverse trace read).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[schema(value_type = Vec<Object>)]
+    pub standards: Vec<UsedStandard>,
     /// Why there is no `as_found` although there is a previous calibration.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub as_found_note: Option<String>,
@@ -922,6 +973,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         decision_note: None,
         as_found: None,
         as_found_note: None,
+        standards: Vec::new(),
         means: Vec::new(),
         gravity: None,
         scale_factors: s.map(|row| row.iter().map(|x| x * x).sum::<f64>().sqrt()),

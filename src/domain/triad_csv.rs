@@ -139,6 +139,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         performed_at: meta.get("performed_at").map(|(_, v)| v.clone()),
         sensor_type: meta.get("sensor_type").map(|(_, v)| v.clone()),
         stand: None,
+        standards: None,
         second_order: None,
         unit: meta.get("unit").map(|(_, v)| v.clone()),
         orientations: None,

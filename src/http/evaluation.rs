@@ -16,6 +16,7 @@ use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::metrology::{Previous, assess_calibration};
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
+use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Evaluated, ResultView, StandIn, evaluate};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
@@ -86,10 +87,9 @@ pub async fn sensor_type(
 }
 
 /// Resolves the standards `e` names against the registry, for a test
-/// performed at `performed_at`: each must exist, be of its role's kind and
-/// be in calibration then (by its certificate or an earlier one). The
-/// stand's indexing error and the gravity value's relative uncertainty
-/// become the submission's stand; every problem is a 422 naming the role.
+/// performed at `performed_at` ([`resolve`]); the stand's indexing error
+/// and the gravity value's relative uncertainty become the submission's
+/// stand.
 async fn resolve_standards(
     state: &AppState,
     e: &mut Evaluated,
@@ -98,25 +98,45 @@ async fn resolve_standards(
     let Some(named) = e.submission.standards.clone() else {
         return Ok(());
     };
+    let roles = [
+        ("stand", Some(named.stand.clone())),
+        ("thermometer", named.thermometer.clone()),
+        ("gravity", named.gravity.clone()),
+    ];
+    let (stand, used) = resolve(state, &roles, performed_at).await?;
+    e.submission.stand = Some(stand);
+    e.submission.standards_used = used;
+    Ok(())
+}
+
+/// Resolves the standards named by role against the registry, for a test performed
+/// at `performed_at`: each must exist, be of its role's kind and be in
+/// calibration then (by its certificate or an earlier one); every problem
+/// is a 422 naming the role (`/standards/stand`, …). Answers the stand
+/// they make (the stand's indexing error, the gravity value's relative
+/// uncertainty) and the standards as used. Single-axis and triad
+/// submissions alike.
+pub async fn resolve(
+    state: &AppState,
+    roles: &[(&str, Option<String>)],
+    performed_at: Timestamp,
+) -> Result<(StandIn, Vec<UsedStandard>), Problem> {
     let mut errors = Errors::default();
     let mut used = Vec::new();
-    let roles = [
-        ("stand", Some(named.stand)),
-        ("thermometer", named.thermometer),
-        ("gravity", named.gravity),
-    ];
     let root = Loc::Root;
     let standards_at = root.key("standards");
     for (role, id) in roles {
-        let Some(id) = id else { continue };
+        let (role, Some(id)) = (*role, id) else {
+            continue;
+        };
         let at = standards_at.key(role);
         match state.store.standard(id.clone()).await? {
             None => errors.add(
                 at,
                 format!(
                     "no standard `{}`; an admin records it first (PUT /v1/standards/{})",
-                    echo(&id),
-                    echo(&id)
+                    echo(id),
+                    echo(id)
                 ),
             ),
             Some(s) => match s.used_as(role, performed_at) {
@@ -130,13 +150,12 @@ async fn resolve_standards(
     }
     let angle = used.iter().find_map(|u| u.angle_std_arcsec);
     let gravity = used.iter().find_map(|u| u.gravity_rel_std);
-    e.submission.stand = Some(StandIn {
+    let stand = StandIn {
         id: used.first().map(|u| u.standard_id.clone()),
         angle_std_arcsec: angle.unwrap_or(0.0),
         gravity_rel_std: gravity.unwrap_or(0.0),
-    });
-    e.submission.standards_used = used;
-    Ok(())
+    };
+    Ok((stand, used))
 }
 
 /// Evaluates a body for `principal`; with `id`, also builds the record to

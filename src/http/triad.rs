@@ -119,7 +119,21 @@ pub async fn identify(
     // Parsed and computed on the compute pool: a recording may be megabytes.
     let result: TriadResult = state
         .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
-            Ok(compute(read(&body)?)?)
+            let sub = read(&body)?;
+            // What only a stored triad has: refused rather than ignored.
+            let stored_only = |key: &str, what: &str| {
+                Problem::validation(Invalid::one(
+                    crate::domain::field::Loc::Root.key(key),
+                    format!("{what} only when the triad is stored: POST /v1/calibrations/triad"),
+                ))
+            };
+            if !sub.standards.is_empty() {
+                return Err(stored_only("standards", "reference standards are resolved"));
+            }
+            if sub.sensor_type.is_some() {
+                return Err(stored_only("sensor_type", "a sensor type judges a triad"));
+            }
+            Ok(compute(sub)?)
         })
         .await??;
     let Some(format) = format else {

@@ -17,7 +17,7 @@ use uuid::Uuid;
 use super::auth::{require, station};
 use super::body::Body;
 use super::calibrations::{claim, created, idempotency_key, replay};
-use super::evaluation::sensor_type;
+use super::evaluation::{resolve, sensor_type};
 use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::triad::{file, read};
@@ -32,6 +32,7 @@ use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::{Form, TriadResult, as_found, compute, decide_triad};
 use crate::domain::triad_export::{Exported, Format};
 use crate::store::{CalibrationSummary, NewCalibration, Stored, TriadElements};
+use accelcal_core::uncertainty::{ARCSEC, Stand};
 
 /// A stored triad's result document (`POST /v1/calibrations/triad`, and
 /// `GET /v1/calibrations/{id}` for a triad): the triad's result with what
@@ -256,6 +257,22 @@ pub async fn submit(
         )));
     }
     let assigns_type = sub.sensor_type.is_some();
+    let mut sub = sub;
+    let used = if sub.standards.is_empty() {
+        Vec::new()
+    } else {
+        let roles: Vec<(&str, Option<String>)> = sub
+            .standards
+            .iter()
+            .map(|(role, id)| (*role, Some(id.clone())))
+            .collect();
+        let (stand, used) = resolve(&state, &roles, performed_at).await?;
+        sub.stand = Stand {
+            angle_std_rad: stand.angle_std_arcsec * ARCSEC,
+            gravity_rel_std: stand.gravity_rel_std,
+        };
+        used
+    };
     let runs = match &sub.form {
         Form::Known { runs, .. } => runs.len(),
         _ => 1,
@@ -278,6 +295,7 @@ pub async fn submit(
             if let Some(p) = &previous {
                 found(&mut result, p);
             }
+            result.standards = used;
             Ok(result)
         })
         .await??;

@@ -884,3 +884,82 @@ async fn second_order_terms_are_identified_per_axis_and_compensated_by_newton() 
     .await;
     assert!(pointers(&p).contains(&"/second_order".to_owned()), "{p}");
 }
+
+#[rstest]
+#[tokio::test]
+async fn a_triads_standards_enter_its_budget_its_certificate_and_the_reverse_trace(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let stand: Value =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    let res = app.put("/v1/standards/STAND-1", ADMIN, &stand).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let mut body = known_body();
+    body["performed_at"] = json!("2026-03-01T00:00:00Z");
+    body["standards"] = json!({"stand": "STAND-1"});
+    let r = store(&app, ADMIN, &body).await;
+    assert_eq!(r["standards"][0]["standard_id"], "STAND-1");
+    assert_eq!(r["standards"][0]["role"], "stand");
+    // The registered stand's indexing error is the budget's: the same as
+    // naming it by value.
+    let mut by_value = known_body();
+    by_value["stand"] =
+        json!({"angle_std_arcsec": stand["angle_std_arcsec"], "gravity_rel_std": 0.0});
+    let v: Value = app
+        .post("/v1/identify/triad", ADMIN, &by_value)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(r["S_expanded"], v["S_expanded"]);
+    assert_eq!(r["axes"][1]["uncertainty"], v["axes"][1]["uncertainty"]);
+    // The certificate states the standard and its traceability.
+    let id = r["id"].as_str().unwrap().to_owned();
+    let html = app
+        .get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(html.contains("CAL-2026-0117"));
+    assert!(html.contains("traceable to the SI through the reference standards"));
+
+    // Refusals: an unknown standard, `stand` beside `standards`, and the
+    // computation that stores nothing.
+    let mut unknown = known_body();
+    unknown["standards"] = json!({"stand": "NOPE"});
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &unknown).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/standards/stand"]);
+    let mut both = body.clone();
+    both["stand"] = json!({"angle_std_arcsec": 1.0, "gravity_rel_std": 0.0});
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &both).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/stand"]);
+    let p = problem(
+        app.post("/v1/identify/triad", ADMIN, &body).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/standards"]);
+
+    // The stand found nonconforming: the triad made with it is held.
+    let nc = json!({"found_at": "2026-04-15T00:00:00Z",
+        "last_known_good_at": "2026-02-15T00:00:00Z", "reason": "Indexing error at the 90° stop."});
+    let res = app
+        .post("/v1/standards/STAND-1/nonconformity", ADMIN, &nc)
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let traced: Value = res.json().await.unwrap();
+    assert_eq!(traced["calibrations"][0]["calibration_id"], id.as_str());
+    assert_eq!(traced["calibrations"][0]["state"], "under_review");
+    let c = app.get_json("/v1/sensors/IMU-7/coefficients", ADMIN).await;
+    assert_eq!(c["usable"], false, "{c}");
+}

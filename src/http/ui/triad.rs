@@ -88,6 +88,9 @@ pub struct TriadDoc {
     /// As found against the previous triad.
     #[serde(default)]
     pub as_found: Option<AsFoundDoc>,
+    /// The reference standards named, as used.
+    #[serde(default)]
+    pub standards: Vec<crate::domain::standards::UsedStandard>,
 }
 
 /// A triad's decision.
@@ -201,6 +204,12 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                 @else { "unknown orientations: b and T from the gravity magnitude (Levenberg–Marquardt)" }
             } }
             div { dt { "Unit" } dd { (d.unit) " (b); " (d.unit) " per g (S)" } }
+            @for u in &d.standards {
+                div { dt { "Standard (" (u.role) ")" } dd {
+                    (u.standard_id) ", " (u.description) ": certificate " (u.certificate.number)
+                    " of " (u.certificate.issued_by) ", due " (when(&u.due_at.to_string()))
+                } }
+            }
         }
         p.no-print {
             "Download: "

@@ -170,8 +170,34 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                         h2 { "As found" }
                         p { "With the previous calibration " code { (a.previous_calibration_id) } ", this test's positions come out with a largest error of " (num(a.max_abs_error_g)) " g." }
                     }
+                    @if !d.standards.is_empty() {
+                        h2 { "Reference standards" }
+                        table {
+                            thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } } }
+                            tbody {
+                                @for u in &d.standards {
+                                    tr {
+                                        td { (u.role) }
+                                        td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
+                                        td { (u.certificate.number) ", " (u.certificate.issued_by) }
+                                        td { (when(&u.certificate.calibrated_at.to_string())) }
+                                        td { (when(&u.due_at.to_string())) }
+                                    }
+                                }
+                            }
+                        }
+                    }
                     h2 { "Metrological traceability" }
-                    p { "No reference standard is recorded with a triad's calibration yet: this certificate does not establish the metrological traceability of its results." }
+                    @if d.standards.is_empty() {
+                        p { "No reference standard was named with this calibration: this certificate does not establish the metrological traceability of its results." }
+                    } @else {
+                        p { "The results are traceable to the SI through the reference standards listed above, each in calibration when the test was performed:" }
+                        ul {
+                            @for u in &d.standards {
+                                li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.traceability) }
+                            }
+                        }
+                    }
                     h2 { "Verification of this document" }
                     dl.facts {
                         div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
