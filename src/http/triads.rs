@@ -1,9 +1,11 @@
 //! Stored triad calibrations (issue 30): `POST /v1/calibrations/triad`
-//! computes a triad as `POST /v1/identify/triad` does and stores it as one
-//! calibration of its sensor (its elements beside the single-axis columns,
+//! computes a triad as `POST /v1/identify/triad` does — with the sensor
+//! type's coverage factor and decision, the registered standards and as
+//! found against the previous triad — and stores it as one calibration of
+//! its sensor (its elements beside the single-axis columns,
 //! [`TriadElements`]); `GET /v1/calibrations/{id}/export` answers a stored
 //! triad in the form firmware loads. A sensor's calibrations are all of one
-//! kind ([`same_kind`]).
+//! kind ([`wrong_kind`]).
 
 use accelcal_core::{Model, Term, TermMap};
 use axum::extract::{Path, State};
