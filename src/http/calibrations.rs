@@ -17,14 +17,14 @@ use super::{AppState, path_id};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::submission::Media;
 use crate::domain::timestamp::Timestamp;
-use crate::store::{Claim, IdempotencyKey, Store, StoreError, Stored};
+use crate::store::{Claim, IdempotencyKey, NewCalibration, Store, StoreError, Stored};
 
 /// The `Idempotency-Key` request header.
 pub static IDEMPOTENCY_KEY: HeaderName = HeaderName::from_static("idempotency-key");
 
 /// The idempotency key of a request, if it sent one: 1–255 visible ASCII
 /// characters, scoped to the principal, fingerprinted with the body.
-pub(super) fn idempotency_key(
+fn idempotency_key(
     headers: &HeaderMap,
     principal: &Principal,
     body: &Body,
@@ -98,7 +98,7 @@ impl Drop for KeyGuard {
 const LEASE_MARGIN_SECONDS: i64 = 5;
 
 /// Claims the request's key; answers a retry or a conflict at once.
-pub(super) async fn claim(
+async fn claim(
     state: &AppState,
     key: &IdempotencyKey,
 ) -> Result<Result<KeyGuard, Response>, Problem> {
@@ -131,7 +131,7 @@ pub(super) async fn claim(
 }
 
 /// Answers a retry with the calibration its key already stored.
-pub(super) async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
+async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
     let result = state.store.calibration_result(id).await?.ok_or_else(|| {
         StoreError::corrupt("idempotency key", format!("names missing calibration {id}"))
     })?;
@@ -141,6 +141,62 @@ pub(super) async fn replay(state: &AppState, id: Uuid) -> Result<Response, Probl
         HeaderValue::from_static("true"),
     );
     Ok(res)
+}
+
+/// A storing request's `Idempotency-Key`, claimed: go on with the key and
+/// its guard (none without a key), or the answer already due (a retry of a
+/// stored request, or a conflict). Single-axis and triad submissions alike.
+pub(super) async fn claimed(
+    state: &AppState,
+    headers: &HeaderMap,
+    principal: &Principal,
+    body: &Body,
+) -> Result<Result<(Option<IdempotencyKey>, Option<KeyGuard>), Response>, Problem> {
+    let key = idempotency_key(headers, principal, body)?;
+    let guard = match &key {
+        None => None,
+        Some(k) => match claim(state, k).await? {
+            Ok(guard) => Some(guard),
+            Err(answered) => return Ok(Err(answered)),
+        },
+    };
+    Ok(Ok((key, guard)))
+}
+
+/// Stores `rec` (its result document `result`) under `key`, releases the
+/// key's guard once stored, and answers 201 — or, when a concurrent request
+/// with the same key stored first, replays that one.
+pub(super) async fn store(
+    state: &AppState,
+    rec: NewCalibration,
+    key: Option<IdempotencyKey>,
+    guard: Option<KeyGuard>,
+) -> Result<Response, Problem> {
+    let (id, sensor_id, verdict, result) = (
+        rec.id,
+        rec.sensor_id.clone(),
+        rec.verdict,
+        rec.result.clone(),
+    );
+    let kind = if rec.triad.is_some() {
+        "triad"
+    } else {
+        "single-axis"
+    };
+    let stored = state.store.insert_calibration(rec, key).await?;
+    if let Some(g) = guard {
+        g.done();
+    }
+    match stored {
+        Stored::New => {
+            tracing::info!(calibration_id = %id, sensor_id = %sensor_id, kind, "calibration stored");
+            if let Some(v) = verdict {
+                metrics::counter!("accelcal_verdicts_total", "verdict" => v.as_str()).increment(1);
+            }
+            Ok(created(id, result))
+        }
+        Stored::Existing(first) => replay(state, first).await,
+    }
 }
 
 /// `POST /v1/calibrations`: check, identify, fuse, store durably, answer 201;
@@ -183,36 +239,17 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
-    let key = idempotency_key(&headers, &principal, &body)?;
-    let guard = match &key {
-        None => None,
-        Some(k) => match claim(&state, k).await? {
-            Ok(guard) => Some(guard),
-            Err(answered) => return Ok(answered),
-        },
+    let (key, guard) = match claimed(&state, &headers, &principal, &body).await? {
+        Ok(claimed) => claimed,
+        Err(answered) => return Ok(answered),
     };
     let received_at = Timestamp::now();
     let id = Uuid::now_v7();
     let assessed = assess(&state, &principal, body, received_at, Some(id), None).await?;
-    let (sensor_id, result) = (assessed.sensor_id, assessed.result);
     let Some(rec) = assessed.record else {
         return Err(Problem::internal());
     };
-    let verdict = rec.verdict;
-    let stored = state.store.insert_calibration(rec, key).await?;
-    if let Some(g) = guard {
-        g.done();
-    }
-    match stored {
-        Stored::New => {
-            tracing::info!(calibration_id = %id, sensor_id = %sensor_id, "calibration stored");
-            if let Some(v) = verdict {
-                metrics::counter!("accelcal_verdicts_total", "verdict" => v.as_str()).increment(1);
-            }
-            Ok(created(id, result))
-        }
-        Stored::Existing(first) => replay(&state, first).await,
-    }
+    store(&state, rec, key, guard).await
 }
 
 /// A 201 answer for a stored calibration.

@@ -18,7 +18,7 @@ use uuid::Uuid;
 
 use super::auth::{require, station};
 use super::body::Body;
-use super::calibrations::{claim, created, idempotency_key, replay};
+use super::calibrations::{claimed, store};
 use super::evaluation::{resolve, sensor_type};
 use super::problem::{Kind, Problem};
 use super::query::Params;
@@ -33,7 +33,7 @@ use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::{Form, TriadResult, as_found, compute, decide_triad};
 use crate::domain::triad_export::{Exported, Format};
-use crate::store::{CalibrationSummary, NewCalibration, Stored, TriadElements};
+use crate::store::{CalibrationSummary, NewCalibration, TriadElements};
 use accelcal_core::uncertainty::{ARCSEC, Stand};
 
 /// A stored triad's result document (`POST /v1/calibrations/triad`, and
@@ -209,13 +209,9 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
-    let key = idempotency_key(&headers, &principal, &body)?;
-    let guard = match &key {
-        None => None,
-        Some(k) => match claim(&state, k).await? {
-            Ok(guard) => Some(guard),
-            Err(answered) => return Ok(answered),
-        },
+    let (key, guard) = match claimed(&state, &headers, &principal, &body).await? {
+        Ok(claimed) => claimed,
+        Err(answered) => return Ok(answered),
     };
     let received_at = Timestamp::now();
     let id = Uuid::now_v7();
@@ -344,27 +340,7 @@ pub async fn submit(
         tracing::error!(error = %err, "a triad's result did not serialise");
         Problem::internal()
     })?);
-    let sensor_id = record.sensor_id.clone();
-    let stored = state
-        .store
-        .insert_calibration(
-            NewCalibration {
-                result: result.clone(),
-                ..record
-            },
-            key,
-        )
-        .await?;
-    if let Some(g) = guard {
-        g.done();
-    }
-    match stored {
-        Stored::New => {
-            tracing::info!(calibration_id = %id, sensor_id = %sensor_id, "triad calibration stored");
-            Ok(created(id, result))
-        }
-        Stored::Existing(first) => replay(&state, first).await,
-    }
+    store(&state, NewCalibration { result, ..record }, key, guard).await
 }
 
 /// The query of `GET /v1/calibrations/{id}/export`.

@@ -37,6 +37,37 @@ fn matrix(v: &Value) -> [[f64; 3]; 3] {
     [0, 1, 2].map(|m| vector(&v[m]))
 }
 
+/// Stores, as CSV static positions under the `meta` lines, a diagonal
+/// triad's outputs `b_m + scale_m · d_m` at ten directions spanning the
+/// sphere (the six faces and four oblique ones).
+async fn post_static_csv(
+    app: &TestApp,
+    meta: &str,
+    b: [f64; 3],
+    scale: [f64; 3],
+) -> reqwest::Response {
+    let mut csv = format!("{meta}position,u_x,u_y,u_z\n");
+    let mut dirs = faces();
+    dirs.extend([
+        [0.6, 0.8, 0.0],
+        [0.0, 0.6, 0.8],
+        [0.8, 0.0, 0.6],
+        [-0.48, 0.6, 0.64],
+    ]);
+    for (p, d) in dirs.iter().enumerate() {
+        let u = [0, 1, 2].map(|m| b[m] + scale[m] * d[m]);
+        csv.push_str(&format!("{p},{},{},{}\n", u[0], u[1], u[2]));
+    }
+    app.client
+        .post(app.url("/v1/calibrations/triad"))
+        .bearer_auth(ADMIN)
+        .header(CONTENT_TYPE, "text/csv")
+        .body(csv)
+        .send()
+        .await
+        .unwrap()
+}
+
 /// A 3×3 inverse by cofactors (independent of the service's).
 fn inverse(m: [[f64; 3]; 3]) -> [[f64; 3]; 3] {
     let c = |i: usize, j: usize| {
@@ -476,35 +507,14 @@ async fn a_triad_is_stored_once_per_idempotency_key_and_from_csv() {
 
     // CSV: static positions of unknown orientation, the record's fields as
     // `# key: value` lines.
-    let mut csv = String::from(
+    let res = post_static_csv(
+        &app,
         "# sensor_id: IMU-CSV\n# station_id: LAB-5\n# performed_at: 2026-09-01T00:00:00Z\n\
-         # unit: g\nposition,u_x,u_y,u_z\n",
-    );
-    let dirs = [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-        [0.6, 0.8, 0.0],
-        [0.0, 0.6, 0.8],
-        [0.8, 0.0, 0.6],
-        [-0.48, 0.6, 0.64],
-    ];
-    for (p, d) in dirs.iter().enumerate() {
-        let u = [0.01 + 1.02 * d[0], -0.02 + 0.99 * d[1], 0.03 + 1.01 * d[2]];
-        csv.push_str(&format!("{p},{},{},{}\n", u[0], u[1], u[2]));
-    }
-    let res = app
-        .client
-        .post(app.url("/v1/calibrations/triad"))
-        .bearer_auth(ADMIN)
-        .header(CONTENT_TYPE, "text/csv")
-        .body(csv)
-        .send()
-        .await
-        .unwrap();
+         # unit: g\n",
+        [0.01, -0.02, 0.03],
+        [1.02, 0.99, 1.01],
+    )
+    .await;
     let status = res.status();
     let r: Value = res.json().await.unwrap();
     assert_eq!(status, StatusCode::CREATED, "{r}");
@@ -605,38 +615,13 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
     assert_eq!(res.status(), StatusCode::CONFLICT);
 
     // From the gravity magnitude S has no budget yet: not judged, and said.
-    let mut csv = String::from("# sensor_id: IMU-7\n# unit: m/s2\nposition,u_x,u_y,u_z\n");
-    for (p, d) in [
-        [1.0, 0.0, 0.0],
-        [-1.0, 0.0, 0.0],
-        [0.0, 1.0, 0.0],
-        [0.0, -1.0, 0.0],
-        [0.0, 0.0, 1.0],
-        [0.0, 0.0, -1.0],
-        [0.6, 0.8, 0.0],
-        [0.0, 0.6, 0.8],
-        [0.8, 0.0, 0.6],
-        [-0.48, 0.6, 0.64],
-    ]
-    .iter()
-    .enumerate()
-    {
-        csv.push_str(&format!(
-            "{p},{},{},{}\n",
-            0.1 + 9.8 * d[0],
-            -0.1 + 9.8 * d[1],
-            0.05 + 9.8 * d[2]
-        ));
-    }
-    let res = app
-        .client
-        .post(app.url("/v1/calibrations/triad"))
-        .bearer_auth(ADMIN)
-        .header(CONTENT_TYPE, "text/csv")
-        .body(csv)
-        .send()
-        .await
-        .unwrap();
+    let res = post_static_csv(
+        &app,
+        "# sensor_id: IMU-7\n# unit: m/s2\n",
+        [0.1, -0.1, 0.05],
+        [9.8, 9.8, 9.8],
+    )
+    .await;
     assert_eq!(res.status(), StatusCode::CREATED);
     let g: Value = res.json().await.unwrap();
     assert!(g.get("decision").is_none(), "{g}");

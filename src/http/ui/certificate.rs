@@ -121,11 +121,7 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     }
                     h2 { "Item and calibration" }
                     dl.facts {
-                        div { dt { "Customer" } dd { @match &c.customer {
-                            Some(cu) => { (cu.name) @if let Some(a) = &cu.address { ", " (a) } },
-                            None => "not recorded",
-                        } } }
-                        div { dt { "Item" } dd { (c.item.as_ref().map_or("not described".into(), |i| i.describe())) } }
+                        (customer_and_item(c))
                         div { dt { "Sensor" } dd { strong { (d.sensor_id) } } }
                         div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
                         div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
@@ -223,22 +219,56 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         h2 { "As found" }
                         (as_found(d))
                     }
+                    (traceability(&d.standards))
+                    (verification(c, Some(MethodDoc::describe(d.method.as_ref()))))
+                    p.cert-end { "End of certificate No. " (d.id) }
+                    } } }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The customer and the item, as the certificate's facts list them.
+pub fn customer_and_item(c: &Context) -> Markup {
+    html! {
+                        div { dt { "Customer" } dd { @match &c.customer {
+                            Some(cu) => { (cu.name) @if let Some(a) = &cu.address { ", " (a) } },
+                            None => "not recorded",
+                        } } }
+                        div { dt { "Item" } dd { (c.item.as_ref().map_or("not described".into(), |i| i.describe())) } }
+    }
+}
+
+/// The traceability statement: through the standards used, or that none
+/// establishes it.
+pub fn traceability(standards: &[crate::domain::standards::UsedStandard]) -> Markup {
+    html! {
                     h2 { "Metrological traceability" }
-                    @if d.standards.is_empty() {
+                    @if standards.is_empty() {
                         p { "No reference standard was named with this calibration: this certificate does not establish the metrological traceability of its results." }
                     } @else {
                         p { "The results are traceable to the SI through the reference standards listed above, each in calibration when the test was performed:" }
                         ul {
-                            @for u in &d.standards {
+                            @for u in standards {
                                 li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.traceability) }
                             }
                         }
                     }
+    }
+}
+
+/// What makes the document verifiable (the submission's digest, what
+/// computed and rendered it, when, its own URL), then the review and its
+/// signatures.
+pub fn verification(c: &Context, computed_by: Option<String>) -> Markup {
+    html! {
                     h2 { "Verification of this document" }
                     dl.facts {
                         div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
                         div { dt { "Submission format" } dd { (c.content_type) } }
-                        div { dt { "Computed by" } dd { (MethodDoc::describe(d.method.as_ref())) } }
+                        @if let Some(by) = computed_by { div { dt { "Computed by" } dd { (by) } } }
                         div { dt { "Rendered by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
                         div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
                         div { dt { "This certificate" } dd.sha { (c.url) } }
@@ -249,12 +279,6 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     } @else {
                         (review::signatures_table(&c.signatures))
                     }
-                    p.cert-end { "End of certificate No. " (d.id) }
-                    } } }
-                    }
-                }
-            }
-        }
     }
 }
 

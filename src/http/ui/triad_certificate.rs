@@ -11,7 +11,9 @@ use maud::{DOCTYPE, Markup, PreEscaped, html};
 
 use super::assets::STYLESHEET;
 use super::calibration::when;
-use super::certificate::{Context, PAPER, laboratory, probability};
+use super::certificate::{
+    Context, PAPER, customer_and_item, laboratory, probability, traceability, verification,
+};
 use super::format::{num, unc, value_and_uncertainty};
 use super::triad::TriadDoc;
 use super::{badge, review};
@@ -77,11 +79,7 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                     }
                     h2 { "Item and calibration" }
                     dl.facts {
-                        div { dt { "Customer" } dd { @match &c.customer {
-                            Some(cu) => { (cu.name) @if let Some(a) = &cu.address { ", " (a) } },
-                            None => "not recorded",
-                        } } }
-                        div { dt { "Item" } dd { (c.item.as_ref().map_or("not described".into(), |i| i.describe())) } }
+                        (customer_and_item(c))
                         div { dt { "Sensor" } dd { strong { (d.sensor_id) } " (accelerometer triad)" } }
                         div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
                         div { dt { "Place of calibration" } dd { (c.laboratory.address.as_deref().unwrap_or("the laboratory's (no address configured)")) } }
@@ -187,31 +185,8 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                             }
                         }
                     }
-                    h2 { "Metrological traceability" }
-                    @if d.standards.is_empty() {
-                        p { "No reference standard was named with this calibration: this certificate does not establish the metrological traceability of its results." }
-                    } @else {
-                        p { "The results are traceable to the SI through the reference standards listed above, each in calibration when the test was performed:" }
-                        ul {
-                            @for u in &d.standards {
-                                li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.traceability) }
-                            }
-                        }
-                    }
-                    h2 { "Verification of this document" }
-                    dl.facts {
-                        div { dt { "Submission SHA-256" } dd.sha { (c.submission_sha256) } }
-                        div { dt { "Submission format" } dd { (c.content_type) } }
-                        div { dt { "Rendered by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
-                        div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
-                        div { dt { "This certificate" } dd.sha { (c.url) } }
-                    }
-                    h2 { "Review and signatures" }
-                    @if c.signatures.is_empty() {
-                        p { "Not reviewed: this certificate carries no approval. A reviewer approves it in accelcal, and a copy issued afterwards shows the signature here." }
-                    } @else {
-                        (review::signatures_table(&c.signatures))
-                    }
+                    (traceability(&d.standards))
+                    (verification(c, None))
                     p.cert-end { "End of certificate No. " (d.id) }
                     } } }
                     }
