@@ -22,7 +22,18 @@
 //!
 //! **Standard errors** come from the Jacobian `J` at the solution:
 //! `cov = σ̂² (JᵀJ)⁻¹` with `σ̂² = Σ r_i² / (n − 9)`; with exactly nine
-//! positions there is no degree of freedom left and none are given.
+//! positions there is no degree of freedom left and none are given. `σ̂`
+//! is the residuals' own scatter, so any misfit of the model is in it.
+//! `S = T⁻¹` carries `T`'s full covariance to first order: from
+//! `S T = I`, `dS = −S dT S`, so
+//!
+//! ```text
+//! ∂S_ij/∂T_rc = −S_ir S_cj,    var(S_ij) = Σ_{q,q'} g_q g_q' cov(T_q, T_q')
+//! ```
+//!
+//! over `T`'s six free elements `q = (r, c)`, `g_q = ∂S_ij/∂T_q` (`b` does
+//! not enter `S`). `S` is lower-triangular like `T`: its upper elements are
+//! zero by the frame convention, with a zero standard error.
 //!
 //! **What determines the model.** Nine parameters need at least nine
 //! positions ([`MIN_POSITIONS`]), and directions spread over the sphere: a
@@ -126,6 +137,11 @@ pub struct GravityFit {
     /// Standard errors of `T` (zero above the diagonal; none with exactly
     /// nine positions).
     pub t_std: Option<[[f64; 3]; 3]>,
+    /// Standard errors of `S`, propagated from `T`'s full covariance (zero
+    /// above the diagonal; none with exactly nine positions).
+    pub s_std: Option<[[f64; 3]; 3]>,
+    /// Residual degrees of freedom, `n − 9`.
+    pub degrees_of_freedom: usize,
     /// Per position, `‖T (ū_i − b)‖ − 1`, in g.
     pub residuals_g: Vec<f64>,
     /// Root mean square of the residuals, in g.
@@ -315,6 +331,17 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
     let p: Vec<f64> = solved.p.iter().copied().collect();
     let (b, mut t) = unpack(&p);
     positive_diagonal(&mut t);
+    let mut at_solution = start;
+    for c in 0..3 {
+        at_solution[c] = b[c];
+    }
+    for (k, (r, c)) in LOWER.iter().enumerate() {
+        at_solution[3 + k] = t[(*r, *c)];
+    }
+    let solved = Problem {
+        means: &means,
+        p: at_solution,
+    };
     let s = t.try_inverse().ok_or(GravityFitError::NotAnEllipsoid)?;
     if !(b.iter().chain(t.iter()).chain(s.iter())).all(|x| x.is_finite()) {
         return Err(GravityFitError::NotConverged {
@@ -334,13 +361,27 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
     let n = means.len();
     let sum_sq: f64 = residuals_g.iter().map(|r| r * r).sum();
     let rms_g = (sum_sq / n as f64).sqrt();
-    let (bias_std, t_std) = standard_errors(&solved, n, sum_sq);
+    let cov = covariance(&solved, n, sum_sq);
+    let sd = |k: usize| cov.as_ref().map(|c| c[(k, k)].max(0.0).sqrt());
+    let bias_std = cov
+        .as_ref()
+        .map(|_| [0, 1, 2].map(|k| sd(k).unwrap_or(0.0)));
+    let t_std = cov.as_ref().map(|_| {
+        let mut t_std = [[0.0; 3]; 3];
+        for (k, (r, c)) in LOWER.iter().enumerate() {
+            t_std[*r][*c] = sd(3 + k).unwrap_or(0.0);
+        }
+        t_std
+    });
+    let s_std = cov.as_ref().map(|c| s_standard_errors(&s, c));
     Ok(GravityFit {
         bias: [b[0], b[1], b[2]],
         t: rows(&t),
         s: rows(&s),
         bias_std,
         t_std,
+        s_std,
+        degrees_of_freedom: n - MIN_POSITIONS,
         residuals_g,
         rms_g,
         directions,
@@ -363,27 +404,40 @@ fn positive_diagonal(t: &mut Matrix3<f64>) {
     }
 }
 
-/// Standard errors of `b` and of `T`.
-type StdErrors = (Option<[f64; 3]>, Option<[[f64; 3]; 3]>);
-
-/// `σ̂² (JᵀJ)⁻¹`'s diagonal, square-rooted, as `b`'s and `T`'s standard
-/// errors; none without a degree of freedom.
-fn standard_errors(solved: &Problem<'_>, n: usize, sum_sq: f64) -> StdErrors {
-    if n <= 9 {
-        return (None, None);
+/// `σ̂² (JᵀJ)⁻¹`, the covariance of the nine parameters (`b`, then `T`'s
+/// lower triangle by rows), with `J` at the solution; none without a
+/// degree of freedom or when `JᵀJ` is singular.
+fn covariance(solved: &Problem<'_>, n: usize, sum_sq: f64) -> Option<DMatrix<f64>> {
+    if n <= MIN_POSITIONS {
+        return None;
     }
     let j = solved.jacobian().expect("the Jacobian is always computed");
     let jtj = j.transpose() * &j;
-    let Some(inv) = jtj.try_inverse() else {
-        return (None, None);
-    };
-    let sigma2 = sum_sq / (n - 9) as f64;
-    let sd = |k: usize| (sigma2 * inv[(k, k)]).max(0.0).sqrt();
-    let mut t_std = [[0.0; 3]; 3];
-    for (k, (r, c)) in LOWER.iter().enumerate() {
-        t_std[*r][*c] = sd(3 + k);
+    let inv = jtj.try_inverse()?;
+    let sigma2 = sum_sq / (n - MIN_POSITIONS) as f64;
+    Some(DMatrix::from_fn(9, 9, |r, c| sigma2 * inv[(r, c)]))
+}
+
+/// `S`'s standard errors from the parameters' covariance `cov`:
+/// `∂S_ij/∂T_rc = −S_ir S_cj` over `T`'s free elements (module doc).
+fn s_standard_errors(s: &Matrix3<f64>, cov: &DMatrix<f64>) -> [[f64; 3]; 3] {
+    let mut out = [[0.0; 3]; 3];
+    for (i, row) in out.iter_mut().enumerate() {
+        for (j, x) in row.iter_mut().enumerate() {
+            let g: Vec<f64> = LOWER
+                .iter()
+                .map(|(r, c)| -s[(i, *r)] * s[(*c, j)])
+                .collect();
+            let mut var = 0.0;
+            for (q, gq) in g.iter().enumerate() {
+                for (q2, gq2) in g.iter().enumerate() {
+                    var += gq * gq2 * cov[(3 + q, 3 + q2)];
+                }
+            }
+            *x = var.max(0.0).sqrt();
+        }
     }
-    (Some([sd(0), sd(1), sd(2)]), Some(t_std))
+    out
 }
 
 fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
@@ -576,6 +630,9 @@ mod tests {
         let mut rng = rand::rngs::StdRng::seed_from_u64(17);
         let dirs = directions(12, 23);
         let (mut bx, mut tyy, mut se2_b, mut se2_t) = (vec![], vec![], 0.0, 0.0);
+        // S's diagonal and below, propagated from T's covariance.
+        let below = [(0, 0), (1, 0), (1, 1), (2, 0), (2, 1), (2, 2)];
+        let (mut s_values, mut se2_s) = (vec![vec![]; 6], [0.0; 6]);
         for _ in 0..400 {
             let means: Vec<[f64; 3]> = dirs
                 .iter()
@@ -589,6 +646,10 @@ mod tests {
             tyy.push(f.t[1][1]);
             se2_b += f.bias_std.unwrap()[0].powi(2) / 400.0;
             se2_t += f.t_std.unwrap()[1][1].powi(2) / 400.0;
+            for (k, (r, c)) in below.iter().enumerate() {
+                s_values[k].push(f.s[*r][*c]);
+                se2_s[k] += f.s_std.unwrap()[*r][*c].powi(2) / 400.0;
+            }
         }
         let var = |v: &[f64]| {
             let m = v.iter().sum::<f64>() / v.len() as f64;
@@ -597,6 +658,71 @@ mod tests {
         for (reported, scatter) in [(se2_b, var(&bx)), (se2_t, var(&tyy))] {
             let ratio = reported / scatter;
             assert!((0.7..1.4).contains(&ratio), "{ratio}");
+        }
+        for (k, at) in below.iter().enumerate() {
+            let ratio = se2_s[k] / var(&s_values[k]);
+            assert!((0.7..1.4).contains(&ratio), "S{at:?}: {ratio}");
+        }
+    }
+
+    /// `S`'s standard errors against an independent propagation: the
+    /// Jacobian of `S = T⁻¹` in the nine parameters by central differences
+    /// of nalgebra's inverse, `var(S_ij) = gᵀ C g` with the fit's own
+    /// covariance `C`.
+    #[test]
+    fn the_standard_errors_of_s_are_t_s_covariance_propagated() {
+        let (b, t) = truth();
+        let noise = Normal::new(0.0, 5e-4).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(29);
+        let means: Vec<[f64; 3]> = directions(20, 31)
+            .into_iter()
+            .map(|g| {
+                let u = outputs(b, t, g);
+                [0, 1, 2].map(|m| u[m] + noise.sample(&mut rng))
+            })
+            .collect();
+        let f = fit(&means).unwrap();
+        assert_eq!(f.degrees_of_freedom, 11);
+        let mut p = na::SVector::<f64, 9>::zeros();
+        for c in 0..3 {
+            p[c] = f.bias[c];
+        }
+        for (k, (r, c)) in LOWER.iter().enumerate() {
+            p[3 + k] = f.t[*r][*c];
+        }
+        let vectors: Vec<Vector3<f64>> = means.iter().map(|u| Vector3::from(*u)).collect();
+        let sum_sq: f64 = f.residuals_g.iter().map(|r| r * r).sum();
+        let cov = covariance(&Problem { means: &vectors, p }, means.len(), sum_sq).unwrap();
+        // T's own standard errors are the covariance's diagonal.
+        assert!((f.t_std.unwrap()[2][1] - cov[(7, 7)].sqrt()).abs() < 1e-15);
+        let inverse = |q: &na::SVector<f64, 9>| {
+            let (_, t) = unpack(q.as_slice());
+            t.try_inverse().unwrap()
+        };
+        let h = 1e-6;
+        let s_std = f.s_std.unwrap();
+        for (i, row) in s_std.iter().enumerate() {
+            for (j, got) in row.iter().enumerate() {
+                let g: Vec<f64> = (0..9)
+                    .map(|k| {
+                        let (mut up, mut down) = (p, p);
+                        up[k] += h;
+                        down[k] -= h;
+                        (inverse(&up)[(i, j)] - inverse(&down)[(i, j)]) / (2.0 * h)
+                    })
+                    .collect();
+                let var: f64 = (0..9)
+                    .flat_map(|a| (0..9).map(move |c| (a, c)))
+                    .map(|(a, c)| g[a] * g[c] * cov[(a, c)])
+                    .sum();
+                let want = var.max(0.0).sqrt();
+                if j > i {
+                    assert_eq!(*got, 0.0, "S{i}{j} is zero by the convention");
+                } else {
+                    assert!(want > 0.0);
+                    assert!((got - want).abs() < 1e-6 * want, "S{i}{j}: {got} vs {want}");
+                }
+            }
         }
     }
 
@@ -661,7 +787,8 @@ mod tests {
         .collect();
         let f = fit(&means).unwrap();
         assert!(f.t[0][0] > 0.0 && f.t[1][1] > 0.0 && f.t[2][2] > 0.0);
-        assert_eq!((f.bias_std, f.t_std), (None, None));
+        assert_eq!((f.bias_std, f.t_std, f.s_std), (None, None, None));
+        assert_eq!(f.degrees_of_freedom, 0);
     }
 
     #[test]

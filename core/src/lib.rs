@@ -24,7 +24,9 @@
 //!    adequacy — pure error, lack of fit, unmodelled terms ([`adequacy`]) —
 //!    and quality flags with their F tests ([`quality`], [`ftest`]);
 //! 6. triads — three outputs at once, `u = b + S g` — as a view over three
-//!    single-axis tumble tests sharing their positions ([`triad`]).
+//!    single-axis tumble tests sharing their positions ([`triad`]), or from
+//!    the gravity magnitude alone ([`gravity_fit`], its budget
+//!    [`gravity_budget`]).
 //!
 //! ```
 //! use accelcal_core::{Model, Mount, Position, Run, Term, TumbleTest};
@@ -59,6 +61,7 @@ pub mod derived;
 pub mod estimate;
 pub mod ftest;
 pub mod fusion;
+pub mod gravity_budget;
 pub mod gravity_fit;
 pub mod history;
 pub mod identify;

@@ -69,6 +69,29 @@ pub struct TermBudget {
     pub expanded: f64,
 }
 
+impl TermBudget {
+    /// The four components combined in quadrature and expanded by
+    /// `coverage_factor`.
+    pub fn new(
+        statistical: f64,
+        indexing: f64,
+        gravity: f64,
+        model: f64,
+        coverage_factor: f64,
+    ) -> Self {
+        let combined =
+            (statistical.powi(2) + indexing.powi(2) + gravity.powi(2) + model.powi(2)).sqrt();
+        TermBudget {
+            statistical,
+            indexing,
+            gravity,
+            model,
+            combined,
+            expanded: coverage_factor * combined,
+        }
+    }
+}
+
 /// The budget of every fused coefficient.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Uncertainty {
@@ -203,18 +226,9 @@ pub fn budget(
                 .abs();
         let statistical = std_errors.get(*t).copied().unwrap_or(0.0);
         let model = model.get(*t).copied().unwrap_or(0.0);
-        let combined =
-            (statistical.powi(2) + indexing.powi(2) + gravity.powi(2) + model.powi(2)).sqrt();
         out.push((
             *t,
-            TermBudget {
-                statistical,
-                indexing,
-                gravity,
-                model,
-                combined,
-                expanded: coverage_factor * combined,
-            },
+            TermBudget::new(statistical, indexing, gravity, model, coverage_factor),
         ));
     }
     let expanded = TermMap(out.iter().map(|(t, b)| (*t, b.expanded)).collect());

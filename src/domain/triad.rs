@@ -18,6 +18,7 @@
 //! answers a [`TriadResult`], whose `b`, `S` and `T` also feed the exports
 //! ([`super::triad_export`]).
 
+use accelcal_core::gravity_budget::{self, GravityBudget};
 use accelcal_core::gravity_fit::{self, GravityFit, GravityFitError, MIN_POSITIONS};
 use accelcal_core::static_intervals::{self, DetectError, Detection, Detector, Rejection};
 use accelcal_core::triad::{AXES, Triad, TriadError, TriadRun, TriadTest, six_faces};
@@ -26,7 +27,7 @@ use std::collections::BTreeMap;
 use accelcal_core::adequacy::model_uncertainty;
 use accelcal_core::decision::{Limit, Rule, TermDecision, Verdict, decide};
 use accelcal_core::quality;
-use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
+use accelcal_core::uncertainty::{ARCSEC, Stand, TermBudget, budget};
 use accelcal_core::{Term, TermMap};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -87,9 +88,10 @@ pub struct TriadBody {
     /// Unknown orientations from one continuous recording.
     #[serde(default)]
     pub recording: Option<RecordingBody>,
-    /// With `orientations`: the dividing head's indexing error and the
-    /// local gravity's relative uncertainty, for each axis's uncertainty
-    /// budget (default 0 and 0).
+    /// The uncertainty budget's stand: with `orientations`, the dividing
+    /// head's indexing error and the local gravity's relative uncertainty
+    /// (each default 0); without, only `gravity_rel_std` (the fit uses no
+    /// orientation, so no indexing error enters it).
     #[serde(default)]
     pub stand: Option<TriadStandBody>,
     /// Stored triads: the sensor type whose limits judge the elements (the
@@ -121,14 +123,18 @@ pub struct TriadStandardsBody {
     pub gravity: Option<String>,
 }
 
-/// A triad's stand (`stand`).
+/// A triad's stand (`stand`): at least one of the two.
 #[derive(Debug, Clone, Copy, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct TriadStandBody {
-    /// Indexing error of the dividing head, arcseconds (1σ, 0 to 3600).
-    pub angle_std_arcsec: f64,
-    /// Relative uncertainty of the local gravity magnitude (0 to 0.1).
-    pub gravity_rel_std: f64,
+    /// Indexing error of the dividing head, arcseconds (1σ, 0 to 3600;
+    /// default 0). Known orientations only.
+    #[serde(default)]
+    pub angle_std_arcsec: Option<f64>,
+    /// Relative uncertainty of the local gravity magnitude (0 to 0.1;
+    /// default 0).
+    #[serde(default)]
+    pub gravity_rel_std: Option<f64>,
 }
 
 /// Orientations: given, or a named set.
@@ -315,6 +321,14 @@ impl TriadBody {
                     }
                 }
             }
+            if named.stand.is_some() && self.orientations.is_none() {
+                errors.add(
+                    standards_at.key("stand"),
+                    "is for known orientations: a fit from the gravity magnitude uses no \
+                     orientation, so its result does not depend on a stand (name the `gravity` \
+                     standard alone)",
+                );
+            }
             if named.stand.is_none() && named.gravity.is_none() {
                 errors.add(
                     root.key("standards"),
@@ -360,10 +374,18 @@ impl TriadBody {
             None => Stand::default(),
             Some(st) => {
                 let at = root.key("stand");
-                if self.orientations.is_none() {
+                if st.angle_std_arcsec.is_none() && st.gravity_rel_std.is_none() {
                     errors.add(
                         at,
-                        "is for known orientations: a fit from the gravity magnitude has no stand",
+                        "must give `angle_std_arcsec`, `gravity_rel_std` or both",
+                    );
+                }
+                if st.angle_std_arcsec.is_some() && self.orientations.is_none() {
+                    errors.add(
+                        at.key("angle_std_arcsec"),
+                        "is for known orientations: a fit from the gravity magnitude uses no \
+                         orientation, so no indexing error enters its budget (give \
+                         `gravity_rel_std` alone)",
                     );
                 }
                 for (name, v, max) in [
@@ -374,13 +396,13 @@ impl TriadBody {
                     ),
                     ("gravity_rel_std", st.gravity_rel_std, MAX_GRAVITY_REL_STD),
                 ] {
-                    if !(v.is_finite() && (0.0..=max).contains(&v)) {
+                    if v.is_some_and(|v| !(v.is_finite() && (0.0..=max).contains(&v))) {
                         errors.add(at.key(name), format!("must be a number from 0 to {max}"));
                     }
                 }
                 Stand {
-                    angle_std_rad: st.angle_std_arcsec * ARCSEC,
-                    gravity_rel_std: st.gravity_rel_std,
+                    angle_std_rad: st.angle_std_arcsec.unwrap_or(0.0) * ARCSEC,
+                    gravity_rel_std: st.gravity_rel_std.unwrap_or(0.0),
                 }
             }
         };
@@ -625,6 +647,59 @@ pub struct FitReport {
     pub min_spread: f64,
     /// Root mean square of the residuals, g.
     pub rms_g: f64,
+    /// Residual degrees of freedom, positions − 9 (the standard errors rest
+    /// on them; none with exactly nine).
+    pub degrees_of_freedom: usize,
+}
+
+/// The elements of `S` that are zero by the frame convention of a triad
+/// found from the gravity magnitude (the sensor's x axis and xy-plane
+/// define the frame): `(row, column)` above the diagonal. Not measured,
+/// so never judged.
+pub const FIXED_BY_CONVENTION: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
+
+/// The uncertainty budget of a triad found from the gravity magnitude,
+/// element by element ([`accelcal_core::gravity_budget`]).
+#[derive(Debug, Clone, Serialize, ToSchema)]
+pub struct GravityUncertainty {
+    /// The coverage factor of the expanded uncertainties.
+    pub coverage_factor: f64,
+    /// The fit's residual degrees of freedom, which the statistical
+    /// components rest on.
+    pub degrees_of_freedom: usize,
+    /// The relative uncertainty of the gravity magnitude used (1σ).
+    pub gravity_rel_std: f64,
+    /// Per element of `b` and of `S` on and below the diagonal (`b_x`,
+    /// `S_yx`, …): statistical (the fit's standard error), indexing (0:
+    /// the fit uses no orientation), gravity, model (0: the residuals'
+    /// scatter holds any misfit), combined, expanded.
+    #[schema(value_type = BTreeMap<String, Object>)]
+    pub elements: BTreeMap<String, TermBudget>,
+    /// The elements of `S` zero by the frame convention: not measured, not
+    /// judged.
+    pub fixed_by_convention: Vec<String>,
+}
+
+impl GravityUncertainty {
+    fn of(budget: &GravityBudget, gravity_rel_std: f64) -> Self {
+        let mut elements = BTreeMap::new();
+        for m in 0..3 {
+            elements.insert(element(m, Slot::B), budget.b[m]);
+            for k in 0..=m {
+                elements.insert(element(m, Slot::S(k)), budget.s[m][k]);
+            }
+        }
+        GravityUncertainty {
+            coverage_factor: budget.coverage_factor,
+            degrees_of_freedom: budget.degrees_of_freedom,
+            gravity_rel_std,
+            elements,
+            fixed_by_convention: FIXED_BY_CONVENTION
+                .iter()
+                .map(|(m, k)| element(*m, Slot::S(*k)))
+                .collect(),
+        }
+    }
 }
 
 /// One static interval of a recording.
@@ -702,18 +777,23 @@ pub struct TriadResult {
     /// Their expanded uncertainties.
     #[serde(rename = "S2_expanded", skip_serializing_if = "Option::is_none")]
     pub s2_expanded: Option<[f64; 3]>,
-    /// Known orientations: the coverage factor of the expanded
-    /// uncertainties.
+    /// The coverage factor of the expanded uncertainties (none from the
+    /// gravity magnitude with exactly nine positions).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub coverage_factor: Option<f64>,
-    /// Known orientations: `b`'s expanded uncertainties (each axis's `k0`
-    /// budget).
+    /// `b`'s expanded uncertainties: known orientations, each axis's `k0`
+    /// budget; the gravity magnitude, the fit's budget (`uncertainty`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub b_expanded: Option<[f64; 3]>,
-    /// Known orientations: `S`'s expanded uncertainties (each axis's `ki`,
-    /// `kp`, `ko` budgets).
+    /// `S`'s expanded uncertainties: known orientations, each axis's `ki`,
+    /// `kp`, `ko` budgets; the gravity magnitude, the fit's budget (0 above
+    /// the diagonal, fixed by the frame convention).
     #[serde(rename = "S_expanded", skip_serializing_if = "Option::is_none")]
     pub s_expanded: Option<[[f64; 3]; 3]>,
+    /// The gravity magnitude: the budget element by element (known
+    /// orientations have theirs per axis, `axes[m].uncertainty`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub uncertainty: Option<GravityUncertainty>,
     /// Stored triads of a typed sensor: the decision against its limits,
     /// element by element.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -812,10 +892,13 @@ fn element(m: usize, slot: Slot) -> String {
     }
 }
 
-/// Judges a known-orientation triad against `limits` (a sensor type's, per
-/// single-axis term) with `rule`: each axis's `k0, ki, kp, ko` are its
-/// elements ([`row_terms`]), each judged with its value and expanded
-/// uncertainty. `Err` names a limited term a triad does not identify.
+/// Judges a triad against `limits` (a sensor type's, per single-axis term)
+/// with `rule`: each axis's `k0, ki, kp, ko` are its elements
+/// ([`row_terms`]), each judged with its value and expanded uncertainty —
+/// but for the elements of a triad from the gravity magnitude that are
+/// zero by the frame convention ([`FIXED_BY_CONVENTION`]), which are not
+/// measured. `None` without expanded uncertainties; `Err` names a limited
+/// term a triad does not identify.
 pub fn decide_triad(
     r: &TriadResult,
     rule: Rule,
@@ -843,7 +926,21 @@ pub fn decide_triad(
         };
         let values = map(&r.b, &r.s, r.s2.as_ref());
         let expanded = map(&b_u, &s_u, r.s2_expanded.as_ref());
-        let d = decide(rule, limits, &values, &expanded)?;
+        let fixed = |t: Term| {
+            r.method == GRAVITY_MAGNITUDE
+                && terms.iter().any(|(term, slot)| {
+                    *term == t
+                        && matches!(slot, Slot::S(k) if FIXED_BY_CONVENTION.contains(&(m, *k)))
+                })
+        };
+        let limits = TermMap(
+            limits
+                .iter()
+                .filter(|(t, _)| !fixed(*t))
+                .map(|(t, l)| (t, *l))
+                .collect(),
+        );
+        let d = decide(rule, &limits, &values, &expanded)?;
         verdict = verdict.max(d.verdict);
         for (term, td) in d.terms.iter() {
             let slot = terms
@@ -910,6 +1007,11 @@ pub fn as_found(r: &TriadResult, previous: uuid::Uuid, prev: &Triad) -> Option<T
     })
 }
 
+/// The method of a triad with known orientations.
+pub const KNOWN_ORIENTATIONS: &str = "known_orientations";
+/// The method of a triad found from the gravity magnitude.
+pub const GRAVITY_MAGNITUDE: &str = "gravity_magnitude";
+
 /// The model equation.
 pub const MODEL: &str = "u = b + S g";
 /// The compensation.
@@ -969,6 +1071,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         coverage_factor: None,
         b_expanded: None,
         s_expanded: None,
+        uncertainty: None,
         decision: None,
         decision_note: None,
         as_found: None,
@@ -1001,7 +1104,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                     "S is singular: the outputs do not determine the specific force",
                 )
             })?;
-            let mut r = base("known_orientations", bias, matrix, t);
+            let mut r = base(KNOWN_ORIENTATIONS, bias, matrix, t);
             r.b_std_errors = Some(cal.std_errors.bias);
             r.s_std_errors = Some(cal.std_errors.matrix);
             if *second_order {
@@ -1073,7 +1176,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         Form::Unknown { means } => {
             let f = gravity_fit::fit(means)
                 .map_err(|e| fit_problem(Loc::Root.key("static_positions"), &e))?;
-            let mut r = unknown(base, f, None);
+            let mut r = unknown(base, f, None, &sub);
             r.means = means.clone();
             Ok(r)
         }
@@ -1101,21 +1204,32 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                 ));
             }
             let f = gravity_fit::fit(&positions).map_err(|e| fit_problem(at, &e))?;
-            let mut r = unknown(base, f, Some(report));
+            let mut r = unknown(base, f, Some(report), &sub);
             r.means = positions;
             Ok(r)
         }
     }
 }
 
+/// The result of a fit from the gravity magnitude, with its uncertainty
+/// budget for the submission's gravity and coverage factor.
 fn unknown(
     base: impl Fn(&'static str, [f64; 3], [[f64; 3]; 3], [[f64; 3]; 3]) -> TriadResult,
     f: GravityFit,
     detection: Option<DetectionReport>,
+    sub: &TriadSubmission,
 ) -> TriadResult {
-    let mut r = base("gravity_magnitude", f.bias, f.s, f.t);
+    let mut r = base(GRAVITY_MAGNITUDE, f.bias, f.s, f.t);
     r.b_std_errors = f.bias_std;
+    r.s_std_errors = f.s_std;
     r.t_std_errors = f.t_std;
+    let gravity = sub.stand.gravity_rel_std;
+    if let Some(u) = gravity_budget::budget(&f, gravity, sub.coverage_factor) {
+        r.coverage_factor = Some(u.coverage_factor);
+        r.b_expanded = Some(u.b.map(|e| e.expanded));
+        r.s_expanded = Some(u.s.map(|row| row.map(|e| e.expanded)));
+        r.uncertainty = Some(GravityUncertainty::of(&u, gravity));
+    }
     r.residuals = f.residuals_g.iter().map(|x| vec![*x]).collect();
     r.fit = Some(FitReport {
         evaluations: f.evaluations,
@@ -1123,6 +1237,7 @@ fn unknown(
         spread: f.spread,
         min_spread: gravity_fit::MIN_SPREAD,
         rms_g: f.rms_g,
+        degrees_of_freedom: f.degrees_of_freedom,
     });
     r.directions = Some(f.directions);
     r.detection = detection;

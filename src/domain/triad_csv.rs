@@ -1,9 +1,10 @@
 //! Triad submissions as CSV (RFC 4180, the `csv` crate), read into the
 //! same [`TriadBody`] as JSON. `# key: value` lines before the header carry
-//! `sensor_id`, `station_id`, `performed_at`, `sensor_type`, `unit`, `batches` and the
-//! stand's `angle_std_arcsec` and `gravity_rel_std` (known orientations) and, for a recording, `rate_hz` and the
-//! detector's `still_s`, `window_s`, `threshold`, `min_static_s`; the header
-//! chooses the form:
+//! `sensor_id`, `station_id`, `performed_at`, `sensor_type`, `unit`,
+//! `gravity_rel_std`, with known orientations `batches`, `second_order` and
+//! the stand's `angle_std_arcsec`, and for a recording `rate_hz` and the
+//! detector's `still_s`, `window_s`, `threshold`, `min_static_s`; the
+//! header chooses the form:
 //!
 //! ```text
 //! u_x,u_y,u_z                      a recording (needs `# rate_hz:`)
@@ -47,6 +48,14 @@ fn value(line: u64, text: &str, errors: &mut Errors) -> f64 {
 }
 
 /// Three numbers on line `line`.
+/// The stand of a fit from the gravity magnitude: its gravity alone.
+fn gravity_only(gravity_rel_std: Option<f64>) -> Option<TriadStandBody> {
+    gravity_rel_std.map(|g| TriadStandBody {
+        angle_std_arcsec: None,
+        gravity_rel_std: Some(g),
+    })
+}
+
 fn triple(line: u64, f: &[String], errors: &mut Errors) -> [f64; 3] {
     [
         value(line, &f[0], errors),
@@ -159,6 +168,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             threshold: number("threshold", &mut errors),
             min_static_s: number("min_static_s", &mut errors),
         };
+        body.stand = gravity_only(number("gravity_rel_std", &mut errors));
         match number("rate_hz", &mut errors) {
             Some(rate_hz) => {
                 body.recording = Some(RecordingBody {
@@ -184,6 +194,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             "window_s",
             "threshold",
             "min_static_s",
+            "gravity_rel_std",
         ]
     } else if columns == STATIC {
         let mut order: HashMap<String, usize> = HashMap::new();
@@ -197,12 +208,14 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             positions[p].push(triple(*line, &f[1..], &mut errors));
         }
         body.static_positions = Some(positions);
+        body.stand = gravity_only(number("gravity_rel_std", &mut errors));
         &[
             "sensor_id",
             "station_id",
             "performed_at",
             "sensor_type",
             "unit",
+            "gravity_rel_std",
         ]
     } else if columns == KNOWN {
         known(&rows, &mut body, &mut errors);
@@ -216,12 +229,12 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
                 None
             }
         };
-        let angle = number("angle_std_arcsec", &mut errors);
-        let gravity = number("gravity_rel_std", &mut errors);
-        if angle.is_some() || gravity.is_some() {
+        let angle_std_arcsec = number("angle_std_arcsec", &mut errors);
+        let gravity_rel_std = number("gravity_rel_std", &mut errors);
+        if angle_std_arcsec.is_some() || gravity_rel_std.is_some() {
             body.stand = Some(TriadStandBody {
-                angle_std_arcsec: angle.unwrap_or(0.0),
-                gravity_rel_std: gravity.unwrap_or(0.0),
+                angle_std_arcsec,
+                gravity_rel_std,
             });
         }
         &[

@@ -31,9 +31,10 @@ use crate::domain::sensor_types::SensorType;
 use crate::domain::submission::performed_when;
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
-use crate::domain::triad::{Form, TriadResult, as_found, compute, decide_triad};
+use crate::domain::triad::{Form, GRAVITY_MAGNITUDE, TriadResult, as_found, compute, decide_triad};
 use crate::domain::triad_export::{Exported, Format};
 use crate::store::{CalibrationSummary, NewCalibration, TriadElements};
+use accelcal_core::gravity_fit::MIN_POSITIONS;
 use accelcal_core::uncertainty::{ARCSEC, Stand};
 
 /// A stored triad's result document (`POST /v1/calibrations/triad`, and
@@ -54,21 +55,34 @@ pub struct StoredTriad {
     pub result: TriadResult,
 }
 
-/// Judges `r` against sensor type `t`'s limits ([`decide_triad`]): a
-/// known-orientation triad element by element; one from the gravity
-/// magnitude, whose `S` has no uncertainty budget yet, is not judged and
-/// says so.
+/// Judges `r` against sensor type `t`'s limits ([`decide_triad`]), element
+/// by element. A triad from the gravity magnitude is judged on the elements
+/// it measures (those zero by the frame convention are not, and the note
+/// says so); with exactly nine positions it has no uncertainty and is not
+/// judged, saying why.
 fn judge(r: &mut TriadResult, t: &SensorType) -> Result<(), Problem> {
     if t.limits.is_empty() {
         return Ok(());
     }
     match decide_triad(r, t.decision_rule, &t.limits) {
-        Ok(Some(d)) => r.decision = Some(d),
+        Ok(Some(d)) => {
+            if r.method == GRAVITY_MAGNITUDE {
+                r.decision_note = Some(format!(
+                    "S_xy, S_xz and S_yz are zero by the frame convention of a triad found from \
+                     the gravity magnitude (the sensor's x axis and xy-plane define the frame): \
+                     not measured, so not judged against sensor type `{}`",
+                    t.type_id
+                ));
+            }
+            r.decision = Some(d);
+        }
         Ok(None) => {
             r.decision_note = Some(format!(
-                "not judged against sensor type `{}`: a triad found from the gravity magnitude \
-                 has no uncertainty budget for S yet (known orientations have one)",
-                t.type_id
+                "not judged against sensor type `{}`: with exactly {MIN_POSITIONS} static \
+                 positions the fit from the gravity magnitude has no degree of freedom left, so \
+                 no standard error and no uncertainty (hold at least {} orientations)",
+                t.type_id,
+                MIN_POSITIONS + 1
             ))
         }
         Err(term) => {

@@ -271,26 +271,117 @@ fn lower_outputs(g: [f64; 3]) -> [f64; 3] {
     [x0 + b[0], x1 + b[1], x2 + b[2]]
 }
 
-#[tokio::test]
-async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
-    let app = TestApp::spawn(Sqlite).await;
-    let mut noise = Gauss(0x9e37_79b9_7f4a_7c15);
-    let positions: Vec<Value> = spiral(30)
-        .into_iter()
-        .map(|g| {
-            let u = lower_outputs(g);
-            json!(
+/// The planted `S = T⁻¹` of [`lower`], column `k` being the outputs at
+/// `g = e_k` less `b` (forward substitution, not the service's inverse).
+pub(crate) fn lower_s() -> [[f64; 3]; 3] {
+    let (b, _) = lower();
+    let columns = [0, 1, 2].map(|k| {
+        let mut e = [0.0; 3];
+        e[k] = 1.0;
+        lower_outputs(e)
+    });
+    [0, 1, 2].map(|m| [0, 1, 2].map(|k| columns[k][m] - b[m]))
+}
+
+/// Static positions of the [`lower`] triad at `n` spiral directions, three
+/// samples each scattered by 2e-4 g, in g.
+pub(crate) fn gravity_positions(n: usize, seed: u64) -> Value {
+    positions_at(&spiral(n), seed)
+}
+
+/// Static positions of the [`lower`] triad at `dirs`, three samples each
+/// scattered by 2e-4 g, in g.
+pub(crate) fn positions_at(dirs: &[[f64; 3]], seed: u64) -> Value {
+    let mut noise = Gauss(seed);
+    json!(
+        dirs.iter()
+            .map(|g| {
+                let g = *g;
+                let u = lower_outputs(g);
                 (0..3)
                     .map(|_| [0, 1, 2].map(|m| u[m] + 2e-4 * noise.next()))
                     .collect::<Vec<_>>()
-            )
-        })
-        .collect();
-    let res = triad(&app, &json!({"unit": "g", "static_positions": positions})).await;
+            })
+            .collect::<Vec<_>>()
+    )
+}
+
+#[tokio::test]
+async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
+    let app = TestApp::spawn(Sqlite).await;
+    let positions = gravity_positions(30, 0x9e37_79b9_7f4a_7c15);
+    let gravity_rel_std = 5e-5;
+    let res = triad(
+        &app,
+        &json!({"unit": "g", "static_positions": positions,
+            "stand": {"gravity_rel_std": gravity_rel_std}}),
+    )
+    .await;
     assert_eq!(res.status(), StatusCode::OK);
     let r: Value = res.json().await.unwrap();
     assert_eq!(r["method"], "gravity_magnitude");
+    assert_eq!(r["fit"]["degrees_of_freedom"], 21);
     let (b, t) = lower();
+    // S = T⁻¹ within its standard errors (propagated from T's covariance);
+    // above the diagonal zero by the convention, with a zero error.
+    let s = lower_s();
+    for m in 0..3 {
+        for k in 0..3 {
+            let se = f(&r["S_std_errors"][m][k]);
+            if k <= m {
+                assert!(
+                    se > 0.0 && (f(&r["S"][m][k]) - s[m][k]).abs() < 4.0 * se,
+                    "S{m}{k}: {} vs {} ± {se}",
+                    r["S"][m][k],
+                    s[m][k]
+                );
+            } else {
+                assert_eq!((f(&r["S"][m][k]), se), (0.0, 0.0), "S{m}{k}");
+            }
+        }
+    }
+    // The budget, element by element: the fit's standard error and the
+    // gravity's u·|S_ij| (none on b), combined in quadrature, k = 2.
+    let u = &r["uncertainty"];
+    assert_eq!(u["coverage_factor"], 2.0);
+    assert_eq!(u["degrees_of_freedom"], 21);
+    assert_eq!(u["gravity_rel_std"], gravity_rel_std);
+    assert_eq!(u["fixed_by_convention"], json!(["S_xy", "S_xz", "S_yz"]));
+    let axes = ["x", "y", "z"];
+    let elements = u["elements"].as_object().unwrap();
+    assert_eq!(elements.len(), 9, "b and S on and below the diagonal");
+    for m in 0..3 {
+        let e = &elements[&format!("b_{}", axes[m])];
+        assert_eq!(f(&e["statistical"]), f(&r["b_std_errors"][m]));
+        assert_eq!(
+            (f(&e["gravity"]), f(&e["indexing"]), f(&e["model"])),
+            (0.0, 0.0, 0.0)
+        );
+        assert_eq!(f(&e["expanded"]), f(&r["b_expanded"][m]));
+        assert!((f(&e["expanded"]) - 2.0 * f(&r["b_std_errors"][m])).abs() < 1e-18);
+        for k in 0..3 {
+            let u_s = f(&r["S_expanded"][m][k]);
+            if k > m {
+                assert_eq!(u_s, 0.0);
+                continue;
+            }
+            let e = &elements[&format!("S_{}{}", axes[m], axes[k])];
+            let (stat, grav) = (
+                f(&r["S_std_errors"][m][k]),
+                gravity_rel_std * f(&r["S"][m][k]).abs(),
+            );
+            assert_eq!(f(&e["statistical"]), stat);
+            assert!((f(&e["gravity"]) - grav).abs() <= 1e-15 * grav, "S{m}{k}");
+            let want = 2.0 * (stat * stat + grav * grav).sqrt();
+            assert!(
+                (u_s - want).abs() <= 1e-12 * want,
+                "S{m}{k}: {u_s} vs {want}"
+            );
+            assert_eq!(f(&e["expanded"]), u_s);
+        }
+    }
+    // A diagonal element's gravity part is of the order of u·1 g/g.
+    assert!(f(&elements["S_xx"]["gravity"]) > 4e-5);
     for m in 0..3 {
         let se = f(&r["b_std_errors"][m]);
         assert!(
@@ -459,6 +550,21 @@ async fn each_refusal_names_its_field() {
             json!({"static_positions": vec![vec![[1.0, 0.0, 0.0]]; 8]}),
             vec!["/static_positions"],
             "8 positions",
+        ),
+        (
+            json!({"static_positions": vec![vec![[1.0, 0.0, 0.0]]; 9], "stand": {"angle_std_arcsec": 5}}),
+            vec!["/stand/angle_std_arcsec"],
+            "no indexing error",
+        ),
+        (
+            json!({"static_positions": vec![vec![[1.0, 0.0, 0.0]]; 9], "stand": {}}),
+            vec!["/stand"],
+            "must give",
+        ),
+        (
+            json!({"static_positions": vec![vec![[1.0, 0.0, 0.0]]; 9], "stand": {"gravity_rel_std": 0.5}}),
+            vec!["/stand/gravity_rel_std"],
+            "from 0 to 0.1",
         ),
         (
             json!({"recording": {"rate_hz": 0, "samples": [[0, 0, 1]]}}),

@@ -10,7 +10,7 @@ use reqwest::header::{CONTENT_TYPE, LOCATION};
 use rstest::rstest;
 use serde_json::{Value, json};
 
-use super::triad::{f, faces, known_body};
+use super::triad::{f, faces, gravity_positions, known_body, lower_s, positions_at};
 use accelcal_testkit::Engine::{Postgres, Sqlite};
 use accelcal_testkit::*;
 
@@ -614,7 +614,9 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
         .await;
     assert_eq!(res.status(), StatusCode::CONFLICT);
 
-    // From the gravity magnitude S has no budget yet: not judged, and said.
+    // From the gravity magnitude: judged on the elements the fit measures
+    // (kp's S_xy and S_yz are zero by the frame convention; S_zx is
+    // measured), and the note says which are not.
     let res = post_static_csv(
         &app,
         "# sensor_id: IMU-7\n# unit: m/s2\n",
@@ -624,13 +626,24 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
     .await;
     assert_eq!(res.status(), StatusCode::CREATED);
     let g: Value = res.json().await.unwrap();
-    assert!(g.get("decision").is_none(), "{g}");
-    assert!(
-        g["decision_note"].as_str().unwrap().contains("IMU-NAV"),
+    let judged: Vec<&String> = g["decision"]["elements"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .collect();
+    assert_eq!(
+        judged,
+        ["S_xx", "S_yy", "S_zx", "S_zz", "b_x", "b_y", "b_z"],
         "{g}"
     );
+    assert_eq!(g["decision"]["verdict"], "pass");
+    let note = g["decision_note"].as_str().unwrap();
+    assert!(
+        note.contains("S_xy, S_xz and S_yz") && note.contains("IMU-NAV"),
+        "{note}"
+    );
     let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
-    assert_eq!(sensor["latest_verdict"], Value::Null);
+    assert_eq!(sensor["latest_verdict"], "pass");
 
     // A type limiting a term a triad does not identify is refused.
     let res = app
@@ -947,4 +960,155 @@ async fn a_triads_standards_enter_its_budget_its_certificate_and_the_reverse_tra
     assert_eq!(traced["calibrations"][0]["state"], "under_review");
     let c = app.get_json("/v1/sensors/IMU-7/coefficients", ADMIN).await;
     assert_eq!(c["usable"], false, "{c}");
+}
+
+/// A triad from the gravity magnitude with a noisy twenty-position set,
+/// stored under a typed sensor: its budget makes expanded uncertainties for
+/// b and S, which the decision judges (by hand here, with the guarded rule)
+/// and the certificate states rounded to them; the planted S lies within
+/// them. With exactly nine positions there is no uncertainty: not judged,
+/// and the note says why.
+#[rstest]
+#[tokio::test]
+async fn a_triad_from_the_gravity_magnitude_is_judged_and_certified_with_its_budget(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let limits = json!({
+        "k0": {"min": -0.05, "max": 0.05},
+        "ki": {"min": 0.97, "max": 1.03},
+        "kp": {"min": -0.02, "max": 0.02},
+    });
+    let res = app
+        .put(
+            "/v1/sensor-types/IMU-G",
+            ADMIN,
+            &json!({"unit": "g", "limits": limits, "decision_rule": "guarded",
+                "interval_days": 365, "coverage_factor": 2.0}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let body = json!({"sensor_id": "IMU-G", "unit": "g", "sensor_type": "IMU-G",
+        "stand": {"gravity_rel_std": 2e-5},
+        "static_positions": gravity_positions(20, 0x5eed_1234_abcd_0001)});
+    let r = store(&app, ADMIN, &body).await;
+    assert_eq!(r["method"], "gravity_magnitude");
+    let (s_true, axes) = (lower_s(), ["x", "y", "z"]);
+    // Every measured element judged by hand from the stored value and U.
+    let mut want = Vec::new();
+    for m in 0..3 {
+        for (term, slot) in [("k0", None), ("ki", Some(m)), ("kp", Some((m + 1) % 3))] {
+            let (name, v, u) = match slot {
+                None => (
+                    format!("b_{}", axes[m]),
+                    f(&r["b"][m]),
+                    f(&r["b_expanded"][m]),
+                ),
+                Some(k) if k > m => continue, // zero by the frame convention
+                Some(k) => {
+                    let (v, u) = (f(&r["S"][m][k]), f(&r["S_expanded"][m][k]));
+                    // The planted S within the expanded uncertainty.
+                    assert!(
+                        (v - s_true[m][k]).abs() < u,
+                        "S{m}{k}: {v} vs {} ± {u}",
+                        s_true[m][k]
+                    );
+                    (format!("S_{}{}", axes[m], axes[k]), v, u)
+                }
+            };
+            assert!(u > 0.0, "{name}");
+            let verdict = guarded(v, u, f(&limits[term]["min"]), f(&limits[term]["max"]));
+            want.push((name, verdict, v, u));
+        }
+    }
+    let elements = r["decision"]["elements"].as_object().unwrap();
+    assert_eq!(elements.len(), want.len());
+    assert_eq!(want.len(), 7);
+    for (name, verdict, v, u) in &want {
+        let e = &elements[name];
+        assert_eq!(e["verdict"], *verdict, "{name}: {e}");
+        assert_eq!((f(&e["value"]), f(&e["expanded"])), (*v, *u), "{name}");
+    }
+    // S_yx = 0.013-ish against ±0.02 with U: its verdict is what the rule gives.
+    let sensor = app.get_json("/v1/sensors/IMU-G", ADMIN).await;
+    assert_eq!(sensor["latest_verdict"], r["decision"]["verdict"]);
+    assert_eq!(sensor["latest"]["triad"]["S_std_errors"], r["S_std_errors"]);
+    assert_eq!(sensor["latest"]["triad"]["S_expanded"], r["S_expanded"]);
+
+    // The certificate: b and S's measured elements rounded to U (computed
+    // here), the convention's zeros said as such.
+    let id = r["id"].as_str().unwrap();
+    let html = app
+        .get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+        .await
+        .text()
+        .await
+        .unwrap();
+    for m in 0..3 {
+        let mut elements = vec![(format!("b_{}", axes[m]), &r["b"][m], &r["b_expanded"][m])];
+        for k in 0..=m {
+            elements.push((
+                format!("S_{}{}", axes[m], axes[k]),
+                &r["S"][m][k],
+                &r["S_expanded"][m][k],
+            ));
+        }
+        for (name, v, u) in elements {
+            let (v, u) = (f(v), f(u));
+            let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
+            let cells = certificate_row(&html, &name);
+            assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
+            assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+        }
+    }
+    for fixed in ["S_xy", "S_xz", "S_yz"] {
+        let start = html.find(&format!("data-element=\"{fixed}\"")).unwrap();
+        let row = &html[start..start + html[start..].find("</tr>").unwrap()];
+        assert!(row.contains("by the frame convention"), "{row}");
+    }
+    assert!(html.contains("degrees of freedom"));
+
+    // Nine positions (the six faces and three corners): no degree of
+    // freedom, no uncertainty, not judged.
+    let c = 1.0 / 3f64.sqrt();
+    let mut dirs = faces();
+    dirs.extend([[c, c, c], [-c, c, c], [c, -c, c]]);
+    let nine = json!({"sensor_id": "IMU-G", "unit": "g",
+        "static_positions": positions_at(&dirs, 0x5eed_1234_abcd_0002)});
+    let g = store(&app, ADMIN, &nine).await;
+    assert_eq!(g["fit"]["degrees_of_freedom"], 0);
+    assert!(
+        g.get("decision").is_none() && g.get("uncertainty").is_none(),
+        "{g}"
+    );
+    assert!(
+        g.get("S_expanded").is_none() && g["S_std_errors"].is_null(),
+        "{g}"
+    );
+    assert!(
+        g["decision_note"]
+            .as_str()
+            .unwrap()
+            .contains("no degree of freedom"),
+        "{g}"
+    );
+
+    // A stand cannot be named for a fit that uses no orientation.
+    let stand: Value =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    assert_eq!(
+        app.put("/v1/standards/STAND-1", ADMIN, &stand)
+            .await
+            .status(),
+        StatusCode::CREATED
+    );
+    let mut named = body.clone();
+    named["stand"] = Value::Null;
+    named["standards"] = json!({"stand": "STAND-1"});
+    let p = problem(
+        app.post("/v1/calibrations/triad", ADMIN, &named).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/standards/stand"], "{p}");
 }

@@ -139,6 +139,10 @@ pub struct FitDoc {
     pub spread: f64,
     /// Residuals' RMS, g.
     pub rms_g: f64,
+    /// Residual degrees of freedom (absent in results stored before they
+    /// were reported).
+    #[serde(default)]
+    pub degrees_of_freedom: usize,
 }
 
 /// The firmware files offered, with their labels.
@@ -279,8 +283,10 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             } }
             @if let Some(f) = &d.fit {
                 div { dt { "Fit" } dd {
-                    "RMS residual " (num(f.rms_g)) " g; " (f.evaluations) " evaluations (" (f.stop)
-                    "); spread of the directions " (num(f.spread))
+                    "RMS residual " (num(f.rms_g)) " g on " (f.degrees_of_freedom) " degrees of freedom; "
+                    (f.evaluations) " evaluations (" (f.stop) "); spread of the directions " (num(f.spread))
+                    "; S_xy, S_xz and S_yz are zero by the frame convention (the sensor's x axis and "
+                    "xy-plane define the frame)"
                 } }
             }
         }

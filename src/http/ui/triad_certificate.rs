@@ -4,8 +4,10 @@
 //! and the certificate's own URL, the A4 print layout), with the triad's
 //! results: `b` and `S` element by element, each rounded to its expanded
 //! uncertainty (GUM 7.2.6) where the method gives one (known orientations:
-//! each axis's single-axis budget), else with its standard error; `T` for
-//! compensation; the decision element by element and as found.
+//! each axis's single-axis budget; the gravity magnitude: the fit's budget,
+//! with `S`'s elements above the diagonal stated as zero by the frame
+//! convention), else with its standard error; `T` for compensation; the
+//! decision element by element and as found.
 
 use maud::{DOCTYPE, Markup, PreEscaped, html};
 
@@ -103,9 +105,18 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                         } @else {
                             "The orientations were not known (" (d.residuals.len()) " static positions): b and a "
                             "lower-triangular T were found from the gravity magnitude by Levenberg–Marquardt "
-                            "(the sensor's x axis defines the frame's x axis, its xy-plane the frame's xy-plane). "
-                            "Standard errors come from the fit's Jacobian; no expanded uncertainty is stated for "
-                            "this method."
+                            "(the sensor's x axis defines the frame's x axis, its xy-plane the frame's xy-plane, "
+                            "so S_xy, S_xz and S_yz are zero by this convention, not measured). "
+                            @if let Some(k) = d.coverage_factor {
+                                "Uncertainty after the GUM per element: the fit's standard error (from its Jacobian, "
+                                "the residuals' scatter on " (d.fit.as_ref().map_or(0, |f| f.degrees_of_freedom)) " degrees of freedom; "
+                                "S's propagated from T's covariance) and the uncertainty of gravity, combined in "
+                                "quadrature and expanded with coverage factor k = " (k) ", " (probability(k)) ". "
+                                "The orientations' own errors do not enter: the fit does not use them."
+                            } @else {
+                                "With exactly nine positions the fit has no degree of freedom left: no standard error "
+                                "or expanded uncertainty is stated."
+                            }
                         }
                     }
                     h2 { "Results" }
@@ -128,7 +139,15 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                                 }
                                 @for (m, r) in AXES.iter().enumerate() {
                                     @for (k, col) in AXES.iter().enumerate() {
-                                        (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), &per_g))
+                                        @if !known && k > m {
+                                            tr data-element={"S_" (r) (col)} {
+                                                th scope="row" { "S_" (r) (col) }
+                                                td.num { "0" } td.num { "—" } td.num { "—" }
+                                                td { "by the frame convention" }
+                                            }
+                                        } @else {
+                                            (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), &per_g))
+                                        }
                                     }
                                 }
                                 @if let Some(s2) = d.s2 {
