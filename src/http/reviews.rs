@@ -17,7 +17,7 @@ use uuid::Uuid;
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::evaluation::assess;
+use super::evaluation::{Assessed, assess};
 use super::path_id;
 use super::problem::{Kind, Problem};
 use super::query::Params;
@@ -184,8 +184,9 @@ pub struct SupersedeQuery {
     tag = "review",
     operation_id = "supersedeCalibration",
     summary = "Replace a calibration by a corrected submission.",
-    description = "The body is a submission, as for `POST /v1/calibrations` (JSON or \
-        CSV, of any sensor: a wrong sensor id is corrected so). It is computed and \
+    description = "The body is a submission of the calibration's kind, as for \
+        `POST /v1/calibrations` or, for a triad's, `POST /v1/calibrations/triad` (JSON or \
+        CSV, of any sensor of that kind: a wrong sensor id is corrected so). It is computed and \
         stored as a new calibration that records what it `supersedes` and why, while \
         the old one becomes `superseded` (it stays, marked, and stops counting) — both \
         in one transaction, or neither. A reviewer or admin may supersede any \
@@ -194,12 +195,12 @@ pub struct SupersedeQuery {
         superseded once (409 afterwards, as for a `rejected` or `withdrawn` one).",
     params(super::openapi::CalibrationIdPath, SupersedeQuery),
     request_body(content(
-        (super::openapi::SubmissionSchema = "application/json"),
+        (super::openapi::CorrectionSchema = "application/json"),
         (super::openapi::RawBodySchema = "text/csv"),
     )),
     responses(
         (status = 201, description = "The corrected calibration, stored; the old one superseded.",
-            body = super::openapi::StoredCalibrationSchema,
+            body = super::openapi::StoredResultSchema,
             headers(("Location" = String, description = "The new calibration's URL."))),
         (status = 400, response = super::openapi::BadRequest),
         (status = 403, response = super::openapi::Forbidden),
@@ -226,23 +227,20 @@ pub async fn supersede(
     let Some(summary) = state.store.calibration_summary(old).await? else {
         return Err(unknown(old));
     };
-    super::triads::single_axis(
-        &summary,
-        "superseding (withdraw it and submit the corrected triad)",
-    )?;
     let received_at = Timestamp::now();
     let new = Uuid::now_v7();
     let supersedes = Supersedes {
         calibration_id: old,
         reason: reason.clone(),
     };
-    let assessed = assess(
+    let assessed = evaluate(
         &state,
         &principal,
+        &summary,
         body,
         received_at,
-        Some(new),
-        Some(supersedes),
+        new,
+        supersedes,
     )
     .await?;
     let Some(record) = assessed.record else {
@@ -253,6 +251,33 @@ pub async fn supersede(
     tracing::info!(calibration = %old, by = %new, "calibration superseded");
     metrics::counter!("accelcal_reviews_total", "action" => "supersede").increment(1);
     Ok(super::calibrations::created(new, assessed.result))
+}
+
+/// `body` computed as the calibration `new` that supersedes `old`, as
+/// `old`'s kind is computed: a triad's body for a triad, a single-axis
+/// submission otherwise.
+async fn evaluate(
+    state: &AppState,
+    principal: &Principal,
+    old: &CalibrationSummary,
+    body: Body,
+    received_at: Timestamp,
+    new: Uuid,
+    supersedes: Supersedes,
+) -> Result<Assessed, Problem> {
+    if old.triad.is_some() {
+        super::triads::assess(state, principal, body, received_at, new, Some(supersedes)).await
+    } else {
+        assess(
+            state,
+            principal,
+            body,
+            received_at,
+            Some(new),
+            Some(supersedes),
+        )
+        .await
+    }
 }
 
 /// What reprocessing came to.
@@ -283,7 +308,9 @@ pub struct Reprocessed {
 
 /// What differs between a stored calibration and its submission computed
 /// again: the model, unit, runs, and every fused coefficient, standard
-/// error and expanded uncertainty, compared bit for bit.
+/// error and expanded uncertainty — a triad's method and every element of
+/// `b`, `S`, `T` (and `S2`) with their standard errors and expanded
+/// uncertainties — compared bit for bit.
 fn differences(old: &CalibrationSummary, new: &NewCalibration) -> Vec<String> {
     let mut changed = Vec::new();
     if old.model != new.model {
@@ -314,6 +341,28 @@ fn differences(old: &CalibrationSummary, new: &NewCalibration) -> Vec<String> {
             changed.push(format!("{} {what}", term.name()));
         }
     }
+    match (&old.triad, &new.triad) {
+        (Some(a), Some(b)) => {
+            if a.method != b.method {
+                changed.push("method".to_owned());
+            }
+            let (was, now) = (a.numbers(), b.numbers());
+            for (name, x) in &now {
+                if was
+                    .iter()
+                    .find(|(n, _)| n == name)
+                    .is_none_or(|(_, y)| y.to_bits() != x.to_bits())
+                {
+                    changed.push(name.clone());
+                }
+            }
+            for (name, _) in was.iter().filter(|(n, _)| !now.iter().any(|(m, _)| m == n)) {
+                changed.push(name.clone());
+            }
+        }
+        (None, None) => {}
+        _ => changed.push("kind".to_owned()),
+    }
     changed
 }
 
@@ -327,7 +376,8 @@ fn differences(old: &CalibrationSummary, new: &NewCalibration) -> Vec<String> {
     description = "The stored submission is evaluated again as it was received (same \
         body, same reception time) with this accelcal's method. When every number — \
         model, unit, runs, each fused coefficient, standard error and expanded \
-        uncertainty, bit for bit — is the same, a `confirm` signature records it \
+        uncertainty (a triad's: its method and every element of b, S, T and S2 with \
+        theirs), bit for bit — is the same, a `confirm` signature records it \
         and the state is kept; otherwise a new calibration supersedes it, with the \
         reason \"reprocessed with accelcal … (core …)\" and what changed. Only a \
         `submitted` or `approved` calibration is reprocessed (409 otherwise). The \
@@ -356,7 +406,6 @@ pub async fn reprocess(
         .calibration_summary(id)
         .await?
         .ok_or_else(|| unknown(id))?;
-    super::triads::single_axis(&old, "reprocessing")?;
     let stored = state
         .store
         .submission(id)
@@ -374,13 +423,14 @@ pub async fn reprocess(
         reason: reason.clone(),
     };
     // As it was received: the same body at the same reception time.
-    let assessed = assess(
+    let assessed = evaluate(
         &state,
         &principal,
+        &old,
         body,
         old.received_at,
-        Some(new),
-        Some(supersedes),
+        new,
+        supersedes,
     )
     .await?;
     let Some(record) = assessed.record else {

@@ -19,14 +19,14 @@ use uuid::Uuid;
 use super::auth::{require, station};
 use super::body::Body;
 use super::calibrations::{claimed, store};
-use super::evaluation::{resolve, sensor_type};
+use super::evaluation::{Assessed, resolve, sensor_type};
 use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::triad::{file, read};
 use super::{AppState, path_id};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::{Invalid, Loc};
-use crate::domain::review::Basis;
+use crate::domain::review::{Basis, Supersedes};
 use crate::domain::sensor_types::SensorType;
 use crate::domain::submission::performed_when;
 use crate::domain::text::echo;
@@ -50,6 +50,10 @@ pub struct StoredTriad {
     pub performed_at: Timestamp,
     /// When accelcal received it.
     pub received_at: Timestamp,
+    /// The calibration this one supersedes, and why (a correction or a
+    /// reprocessing).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub supersedes: Option<Supersedes>,
     /// The triad.
     #[serde(flatten)]
     pub result: TriadResult,
@@ -162,23 +166,6 @@ pub fn wrong_kind(sensor_id: &str, is_triad: bool, triad: bool) -> Result<(), Pr
         .with_errors(Invalid::one(Loc::Root.key("sensor_id"), why)))
 }
 
-/// Refuses `what` (a single-axis document or act) of a triad's
-/// calibration `c`, saying what there is instead.
-pub fn single_axis(c: &CalibrationSummary, what: &str) -> Result<(), Problem> {
-    if c.triad.is_none() {
-        return Ok(());
-    }
-    Err(Problem::new(
-        Kind::WrongKind,
-        format!(
-            "calibration {} is a triad's: {what} is for single-axis calibrations; a triad's \
-             result is at GET /v1/calibrations/{}, its firmware files at \
-             GET /v1/calibrations/{}/export",
-            c.id, c.id, c.id
-        ),
-    ))
-}
-
 /// `POST /v1/calibrations/triad`: check, compute, store durably, answer 201;
 /// with an `Idempotency-Key`, at most once per key.
 #[utoipa::path(
@@ -227,8 +214,27 @@ pub async fn submit(
         Ok(claimed) => claimed,
         Err(answered) => return Ok(answered),
     };
-    let received_at = Timestamp::now();
-    let id = Uuid::now_v7();
+    let (id, received_at) = (Uuid::now_v7(), Timestamp::now());
+    let assessed = assess(&state, &principal, body, received_at, id, None).await?;
+    let Some(record) = assessed.record else {
+        return Err(Problem::internal());
+    };
+    store(&state, record, key, guard).await
+}
+
+/// A triad body computed as it is stored under `id` — checked, with the
+/// sensor type in force and its decision, the registered standards and as
+/// found against the previous triad — and its result document rendered
+/// once; with `supersedes`, the calibration it corrects is recorded in it.
+/// What `POST /v1/calibrations/triad`, superseding and reprocessing store.
+pub async fn assess(
+    state: &AppState,
+    principal: &Principal,
+    body: Body,
+    received_at: Timestamp,
+    id: Uuid,
+    supersedes: Option<Supersedes>,
+) -> Result<Assessed, Problem> {
     let (submission, content_type) = (body.bytes.clone(), body.content_type.clone());
     let size = body.bytes.len();
     let sub = state.compute_for(size, move || read(&body)).await??;
@@ -239,15 +245,15 @@ pub async fn submit(
             "is required to store a triad (POST /v1/identify/triad computes one without)",
         ))
     })?;
-    let station_id = station(&principal, sub.station_id.as_deref())?;
+    let station_id = station(principal, sub.station_id.as_deref())?;
     let performed_at = match sub.performed_at {
         None => received_at,
         Some(t) => performed_when(t, received_at)
             .map_err(|why| Problem::validation(Invalid::one(root.key("performed_at"), why)))?,
     };
     let sensor_type = sensor_type(
-        &state,
-        &principal,
+        state,
+        principal,
         &sensor_id,
         sub.sensor_type.as_ref(),
         true,
@@ -278,7 +284,7 @@ pub async fn submit(
             .iter()
             .map(|(role, id)| (*role, Some(id.clone())))
             .collect();
-        let (stand, used) = resolve(&state, &roles, performed_at).await?;
+        let (stand, used) = resolve(state, &roles, performed_at).await?;
         sub.stand = Stand {
             angle_std_rad: stand.angle_std_arcsec * ARCSEC,
             gravity_rel_std: stand.gravity_rel_std,
@@ -317,7 +323,7 @@ pub async fn submit(
         .map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
     let record = NewCalibration {
         id,
-        sensor_id,
+        sensor_id: sensor_id.clone(),
         station_id: station_id.clone(),
         performed_at,
         received_at,
@@ -348,13 +354,18 @@ pub async fn submit(
         station_id,
         performed_at,
         received_at,
+        supersedes,
         result,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
         tracing::error!(error = %err, "a triad's result did not serialise");
         Problem::internal()
     })?);
-    store(&state, NewCalibration { result, ..record }, key, guard).await
+    Ok(Assessed {
+        sensor_id,
+        result: result.clone(),
+        record: Some(NewCalibration { result, ..record }),
+    })
 }
 
 /// The query of `GET /v1/calibrations/{id}/export`.

@@ -324,20 +324,39 @@ async fn single_axis_and_triad_calibrations_do_not_mix(#[values(Sqlite, Postgres
             .contains("Digital Calibration Certificate"),
         "{p}"
     );
+    // A calibration is superseded by a submission of its own kind.
     let p = problem(
         app.post(
-            &format!("/v1/calibrations/{id}/reprocess"),
+            &format!("/v1/calibrations/{id}/supersede?reason=x"),
             ADMIN,
-            &json!({}),
+            &submission("IMU-7", "2026-01-01T00:00:00Z", 4),
         )
         .await,
-        StatusCode::CONFLICT,
+        StatusCode::UNPROCESSABLE_ENTITY,
     )
     .await;
-    assert!(
-        p["detail"].as_str().unwrap().contains("reprocessing"),
-        "{p}"
-    );
+    assert!(p.to_string().contains("positions"), "{p}");
+    let p = problem(
+        app.post(
+            &format!("/v1/calibrations/{single_id}/supersede?reason=x"),
+            ADMIN,
+            &known_body(),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(p.to_string().contains("orientations"), "{p}");
+    for sensor in ["IMU-7", "AXIS-1"] {
+        let history = app
+            .get_json(&format!("/v1/sensors/{sensor}/calibrations"), ADMIN)
+            .await;
+        assert_eq!(
+            history["items"].as_array().unwrap().len(),
+            1,
+            "nothing stored"
+        );
+    }
     // Exports are for triads.
     let p = problem(
         app.get(
@@ -1111,4 +1130,237 @@ async fn a_triad_from_the_gravity_magnitude_is_judged_and_certified_with_its_bud
     )
     .await;
     assert_eq!(pointers(&p), ["/standards/stand"], "{p}");
+}
+
+/// Superseding and reprocessing a triad: a corrected triad replaces it in
+/// one act (the new one computed as `POST /v1/identify/triad` computes the
+/// corrected body, recording what it supersedes; the old one superseded,
+/// its signature naming the new); reprocessing confirms a triad whose
+/// numbers are today's, and supersedes one stored by an older method — a
+/// triad from the gravity magnitude stored without `S`'s standard errors,
+/// inserted here as such — naming every element that changed.
+#[rstest]
+#[tokio::test]
+async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let mut wrong = known_body();
+    wrong["performed_at"] = json!("2026-10-01T08:00:00Z");
+    let a = store(&app, ADMIN, &wrong).await["id"].clone();
+    let a_id = a.as_str().unwrap().to_owned();
+    let mut right = wrong.clone();
+    right["performed_at"] = json!("2026-10-02T08:00:00Z");
+    right["batches"] = json!(3);
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{a_id}/supersede?reason=wrong%20batches"),
+            &rita,
+            &right,
+        )
+        .await;
+    let location = res.headers().get(LOCATION).cloned();
+    let text = res.text().await.unwrap();
+    let b: Value = serde_json::from_str(&text).unwrap();
+    assert_eq!(b["kind"], "triad", "{text}");
+    let b_id = b["id"].as_str().unwrap().to_owned();
+    assert_eq!(
+        location.unwrap().to_str().unwrap(),
+        format!("/v1/calibrations/{b_id}")
+    );
+    assert_eq!(
+        b["supersedes"],
+        json!({"calibration_id": a, "reason": "wrong batches"})
+    );
+    // The corrected body's numbers, as computed without storing.
+    let mut plain = right.clone();
+    plain.as_object_mut().unwrap().remove("performed_at");
+    let computed: Value = app
+        .post("/v1/identify/triad", ADMIN, &plain)
+        .await
+        .json()
+        .await
+        .unwrap();
+    for key in [
+        "b",
+        "S",
+        "T",
+        "b_std_errors",
+        "S_std_errors",
+        "S_expanded",
+        "residuals",
+    ] {
+        assert_eq!(b[key], computed[key], "{key}");
+    }
+    let record = app
+        .get_json(&format!("/v1/calibrations/{a_id}/signatures"), ADMIN)
+        .await;
+    assert_eq!(record["state"], "superseded");
+    assert_eq!(record["signatures"][0]["superseded_by"], b_id.as_str());
+    assert_eq!(
+        app.get_json("/v1/sensors/IMU-7", ADMIN).await["latest"]["id"],
+        b_id.as_str()
+    );
+    assert_eq!(
+        app.get_json(&format!("/v1/calibrations/{b_id}"), ADMIN)
+            .await,
+        b
+    );
+    // The page and the certificate say what it replaces.
+    let (session, _) = super::ui::sign_in(&app, ADMIN).await;
+    let page = super::ui::page(&app, &format!("/ui/calibrations/{b_id}"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        page.contains("This calibration supersedes") && page.contains(&a_id),
+        "{page}"
+    );
+    let certificate = app
+        .get(&format!("/v1/calibrations/{b_id}/certificate"), ADMIN)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(certificate.contains(&format!("replaces certificate No. <code>{a_id}</code>")));
+    // Superseded once.
+    let p = problem(
+        app.post(
+            &format!("/v1/calibrations/{a_id}/supersede?reason=again"),
+            &rita,
+            &right,
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert!(p["detail"].as_str().unwrap().contains("superseded"), "{p}");
+
+    // Reprocessing the corrected triad: today's numbers, confirmed.
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{b_id}/reprocess"),
+            &rita,
+            &json!({}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(r["outcome"], "confirmed", "{r}");
+    assert_eq!(r["changed"], json!([]));
+    assert_eq!(r["signature"]["action"], "confirm");
+
+    // A triad from the gravity magnitude stored by an older method, without
+    // S's standard errors and expanded uncertainties.
+    let body = json!({"sensor_id": "IMU-OLD", "unit": "g",
+        "static_positions": gravity_positions(16, 0x0bad_cafe_0000_0001)});
+    let truth: Value = app
+        .post("/v1/identify/triad", ADMIN, &body)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let store = accelcal::store::open(&app.db().url).await.unwrap();
+    let old_id = uuid::Uuid::now_v7();
+    let at = accelcal::domain::timestamp::Timestamp::parse("2026-11-01T00:00:00Z").unwrap();
+    let elements = accelcal::store::TriadElements {
+        method: "gravity_magnitude".into(),
+        b: vector(&truth["b"]),
+        b_std_errors: Some(vector(&truth["b_std_errors"])),
+        s: matrix(&truth["S"]),
+        s_std_errors: None,
+        t: matrix(&truth["T"]),
+        t_std_errors: Some(matrix(&truth["T_std_errors"])),
+        b_expanded: None,
+        s_expanded: None,
+        s2: None,
+        s2_std_errors: None,
+        s2_expanded: None,
+    };
+    store
+        .insert_calibration(
+            accelcal::store::NewCalibration {
+                id: old_id,
+                sensor_id: "IMU-OLD".into(),
+                station_id: None,
+                performed_at: at,
+                received_at: at,
+                unit: "g".into(),
+                model: accelcal_core::Model::new(vec![
+                    accelcal_core::Term::K0,
+                    accelcal_core::Term::Ki,
+                    accelcal_core::Term::Kp,
+                    accelcal_core::Term::Ko,
+                ])
+                .unwrap(),
+                runs: 1,
+                coefficients: accelcal_core::TermMap(Vec::new()),
+                std_errors: accelcal_core::TermMap(Vec::new()),
+                result: bytes::Bytes::from(truth.to_string()),
+                submission: bytes::Bytes::from(body.to_string()),
+                content_type: "application/json".into(),
+                submitted_by: "env-admin".into(),
+                sensor_type: None,
+                assigns_type: false,
+                verdict: None,
+                due_at: None,
+                expanded: None,
+                triad: Some(elements),
+            },
+            None,
+        )
+        .await
+        .unwrap();
+    store.close().await;
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{old_id}/reprocess"),
+            &rita,
+            &json!({}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(r["outcome"], "superseded", "{r}");
+    // What changed: S's standard errors (six below the diagonal and the
+    // convention's three zeros) and the expanded uncertainties of b and S.
+    let mut want = Vec::new();
+    for (name, suffix) in [("S", "_std_error"), ("b", "_expanded"), ("S", "_expanded")] {
+        for row in ["x", "y", "z"] {
+            if name == "b" {
+                want.push(format!("b_{row}{suffix}"));
+                continue;
+            }
+            for column in ["x", "y", "z"] {
+                want.push(format!("S_{row}{column}{suffix}"));
+            }
+        }
+    }
+    let mut changed: Vec<String> = r["changed"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c.as_str().unwrap().to_owned())
+        .collect();
+    changed.sort();
+    want.sort();
+    assert_eq!(changed, want);
+    let new = r["replacement_id"].as_str().unwrap();
+    let result = app
+        .get_json(&format!("/v1/calibrations/{new}"), ADMIN)
+        .await;
+    for key in ["b", "S", "T", "S_std_errors", "S_expanded", "uncertainty"] {
+        assert_eq!(result[key], truth[key], "today's {key}, bit for bit");
+    }
+    assert_eq!(result["received_at"], "2026-11-01T00:00:00.000000Z");
+    assert_eq!(result["supersedes"]["calibration_id"], old_id.to_string());
+    assert!(
+        r["signature"]["comment"]
+            .as_str()
+            .unwrap()
+            .contains("S_yx_std_error"),
+        "{r}"
+    );
 }

@@ -58,7 +58,7 @@ impl Modify for Bearer {
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
             MountSchema, PositionInSchema, ReadingInSchema, RunInSchema, SubmissionSchema, RawBodySchema, RunResultSchema,
             MeanEstimateSchema, BatchSchema, FusedEstimateSchema, EstimatesSchema, NormalizedSchema,
-            PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, StoredResultSchema, SensorPageSchema,
+            PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, StoredResultSchema, CorrectionSchema, SensorPageSchema,
             CalibrationPageSchema, AuditPageSchema, super::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,

@@ -531,6 +531,17 @@ marker_schema!(
         .build()))
 );
 
+marker_schema!(
+    /// A corrected submission: a single-axis one to supersede a single-axis
+    /// calibration, a triad's body to supersede a triad's.
+    CorrectionSchema => RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
+        .description(Some("The submission that replaces the calibration, of its kind: \
+            a single-axis submission, or a triad's body (as for `POST /v1/calibrations/triad`)."))
+        .item(reference("Submission"))
+        .item(reference("TriadBody"))
+        .build()))
+);
+
 fn page(item: &str) -> RefOr<Schema> {
     ObjectBuilder::new()
         .property("items", array(reference(item)))

@@ -108,7 +108,7 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                             h1 { "Calibration certificate" }
                             p.muted { "No. " code { (d.id) } }
                             @if let Some(s) = &d.supersedes {
-                                p.cert-replaces { "This certificate replaces certificate No. " code { (s.calibration_id) } ", which is superseded and no longer to be used. Reason: " (s.reason) }
+                                (replaces(s))
                             }
                             (laboratory(&c.laboratory))
                         }
@@ -342,6 +342,13 @@ fn local_gravity(d: &ResultDoc) -> String {
             u.standard_id
         ),
         None => "not stated: the positions are in units of the local g (1 g)".into(),
+    }
+}
+
+/// The statement that a certificate replaces the superseded one's.
+pub fn replaces(s: &crate::domain::review::Supersedes) -> Markup {
+    html! {
+        p.cert-replaces { "This certificate replaces certificate No. " code { (s.calibration_id) } ", which is superseded and no longer to be used. Reason: " (s.reason) }
     }
 }
 

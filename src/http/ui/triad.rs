@@ -91,6 +91,9 @@ pub struct TriadDoc {
     /// The reference standards named, as used.
     #[serde(default)]
     pub standards: Vec<crate::domain::standards::UsedStandard>,
+    /// The calibration this one supersedes, and why.
+    #[serde(default)]
+    pub supersedes: Option<crate::domain::review::Supersedes>,
 }
 
 /// A triad's decision.
@@ -196,6 +199,13 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
         h1 { "Triad calibration of " (d.sensor_id) " " (review::state_badge(review_state)) }
         @if let Some(n) = review::notice(review_state, &signatures) {
             p.notice.error role="status" { (n) }
+        }
+        @if let Some(s) = &d.supersedes {
+            p.notice role="note" {
+                "This calibration supersedes "
+                a href={"/ui/calibrations/" (s.calibration_id)} { code { (s.calibration_id) } }
+                ": " (s.reason)
+            }
         }
         p.lead { "Performed " (when(&d.performed_at)) }
         dl.facts {

@@ -14,7 +14,8 @@ use maud::{DOCTYPE, Markup, PreEscaped, html};
 use super::assets::STYLESHEET;
 use super::calibration::when;
 use super::certificate::{
-    Context, PAPER, customer_and_item, laboratory, probability, traceability, verification,
+    Context, PAPER, customer_and_item, laboratory, probability, replaces, traceability,
+    verification,
 };
 use super::format::{num, unc, value_and_uncertainty};
 use super::triad::TriadDoc;
@@ -70,6 +71,9 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                             }
                             h1 { "Calibration certificate" }
                             p.muted { "No. " code { (d.id) } }
+                            @if let Some(s) = &d.supersedes {
+                                (replaces(s))
+                            }
                             (laboratory(&c.laboratory))
                         }
                         div {
