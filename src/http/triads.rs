@@ -54,6 +54,10 @@ pub struct StoredTriad {
     /// reprocessing).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub supersedes: Option<Supersedes>,
+    /// When the sensor is next due: a judged triad's performance date plus
+    /// its type's interval.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub due_at: Option<Timestamp>,
     /// The triad.
     #[serde(flatten)]
     pub result: TriadResult,
@@ -355,6 +359,7 @@ pub async fn assess(
         performed_at,
         received_at,
         supersedes,
+        due_at,
         result,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {

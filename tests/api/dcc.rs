@@ -426,3 +426,247 @@ async fn a_dcc_needs_the_laboratory_and_the_customer(#[values(Sqlite)] engine: E
         assert!(detail.contains(what), "{detail} names {what}");
     }
 }
+
+/// The conformity a DCC states for a verdict (a guarded `conditional`
+/// split by whether the value lies within the limits).
+fn dcc_conformity(e: &Value) -> &'static str {
+    let v = e["value"].as_f64().unwrap();
+    let within =
+        e["min"].as_f64().is_none_or(|m| v >= m) && e["max"].as_f64().is_none_or(|m| v <= m);
+    match e["verdict"].as_str().unwrap() {
+        "pass" => "pass",
+        "fail" => "fail",
+        _ if within => "conditionalPass",
+        _ => "conditionalFail",
+    }
+}
+
+/// The DCC of an approved triad, from known orientations and from the
+/// gravity magnitude: the administrative data of any calibration's, and
+/// every measured element of b and S as si:real in the output's D-SI unit,
+/// rounded to its expanded uncertainty (computed here), with each limited
+/// element's conformity as the decision gives it.
+#[rstest]
+#[tokio::test]
+async fn an_approved_triad_has_a_dcc(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::configured(engine, lab).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    app.put(
+        "/v1/customers/ACME",
+        ADMIN,
+        &json!({"name": "Acme Navigation GmbH", "due_date_agreed": true}),
+    )
+    .await;
+    for sensor in ["IMU-7", "IMU-G"] {
+        app.put(
+            &format!("/v1/sensors/{sensor}/item"),
+            ADMIN,
+            &json!({"manufacturer": "Bosch", "model": "BMI088", "serial": format!("SN-{sensor}"), "customer": "ACME"}),
+        )
+        .await;
+    }
+    let stand: Value =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    app.put("/v1/standards/STAND-1", ADMIN, &stand).await;
+    for (id, unit, limits) in [
+        (
+            "IMU-NAV",
+            "m/s2",
+            json!({"k0": {"min": -0.15, "max": 0.15}, "ki": {"min": 9.7, "max": 9.9}}),
+        ),
+        (
+            "IMU-G",
+            "g",
+            json!({"k0": {"min": -0.05, "max": 0.05}, "kp": {"min": -0.02, "max": 0.02}}),
+        ),
+    ] {
+        let res = app
+            .put(
+                &format!("/v1/sensor-types/{id}"),
+                ADMIN,
+                &json!({"unit": unit, "limits": limits, "decision_rule": "guarded",
+                    "interval_days": 365, "coverage_factor": 2.0}),
+            )
+            .await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+    }
+    let mut known = super::triad::known_body();
+    known["sensor_type"] = json!("IMU-NAV");
+    known["performed_at"] = json!("2026-10-01T08:00:00Z");
+    known["standards"] = json!({"stand": "STAND-1"});
+    let gravity = json!({"sensor_id": "IMU-G", "unit": "g", "sensor_type": "IMU-G",
+        "performed_at": "2026-10-02T08:00:00Z", "stand": {"gravity_rel_std": 2e-5},
+        "static_positions": super::triad::gravity_positions(20, 0x5eed_0000_dcc0_0001)});
+    for (body, unit, elements) in [
+        (
+            known,
+            r"\metre\second\tothe{-2}",
+            vec![
+                "b_x", "b_y", "b_z", "S_xx", "S_xy", "S_xz", "S_yx", "S_yy", "S_yz", "S_zx",
+                "S_zy", "S_zz",
+            ],
+        ),
+        (
+            gravity,
+            "|g",
+            vec![
+                "b_x", "b_y", "b_z", "S_xx", "S_yx", "S_yy", "S_zx", "S_zy", "S_zz",
+            ],
+        ),
+    ] {
+        let res = app.post("/v1/calibrations/triad", ADMIN, &body).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+        let stored: Value = res.json().await.unwrap();
+        let id = stored["id"].as_str().unwrap().to_owned();
+        let sensor = stored["sensor_id"].as_str().unwrap();
+        // Submitted: refused, naming the state; approved: issued.
+        let p = problem(dcc(&app, &id, ADMIN).await, StatusCode::CONFLICT).await;
+        assert!(p["detail"].as_str().unwrap().contains("submitted"), "{p}");
+        let res = app
+            .post(
+                &format!("/v1/calibrations/{id}/review"),
+                &rita,
+                &json!({"decision": "approve"}),
+            )
+            .await;
+        assert_eq!(res.status(), StatusCode::OK);
+        let res = dcc(&app, &id, ADMIN).await;
+        assert_eq!(res.status(), StatusCode::OK);
+        assert_eq!(
+            res.headers()["content-disposition"],
+            format!("inline; filename=\"dcc-{id}.xml\"").as_str()
+        );
+        let xml = res.text().await.unwrap();
+        validate_if_asked(&xml);
+        let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
+        let root = doc.root_element();
+        assert_eq!(root.attribute("schemaVersion"), Some("3.3.0"));
+        for n in root.descendants().filter(|n| n.is_element()) {
+            let ns = n.tag_name().namespace();
+            assert!(ns == Some(DCC) || ns == Some(SI), "{:?}", n.tag_name());
+        }
+        let admin = child(root, "administrativeData");
+        assert_eq!(
+            names(admin),
+            [
+                "dccSoftware",
+                "coreData",
+                "items",
+                "calibrationLaboratory",
+                "respPersons",
+                "customer",
+                "statements"
+            ]
+        );
+        let core = child(admin, "coreData");
+        assert_eq!(text_of(core, &["uniqueIdentifier"]), id);
+        assert_eq!(
+            text_of(core, &["beginPerformanceDate"]),
+            stored["performed_at"].as_str().unwrap()[..10]
+        );
+        let item = child(child(admin, "items"), "item");
+        assert!(
+            text_of(item, &["name", "content"]).starts_with("Accelerometer triad Bosch BMI088"),
+            "{}",
+            text_of(item, &["name", "content"])
+        );
+        let statements: Vec<String> = kids(child(admin, "statements"))
+            .into_iter()
+            .map(|s| text_of(s, &["name", "content"]))
+            .collect();
+        assert_eq!(
+            statements,
+            [
+                "Metrological traceability",
+                "Scope of the results",
+                "Statement of conformity",
+                "Recalibration due"
+            ],
+            "{sensor}"
+        );
+        let due = kids(child(admin, "statements"))[3];
+        assert_eq!(
+            text_of(due, &["date"]),
+            stored["due_at"].as_str().unwrap()[..10]
+        );
+        let decided = stored["decision"]["elements"].as_object().unwrap();
+        let worst = decided
+            .values()
+            .map(dcc_conformity)
+            .max_by_key(|c| {
+                ["pass", "conditionalPass", "conditionalFail", "fail"]
+                    .iter()
+                    .position(|x| x == c)
+            })
+            .unwrap();
+        assert_eq!(
+            text_of(kids(child(admin, "statements"))[2], &["conformity"]),
+            worst
+        );
+
+        let mr = child(child(root, "measurementResults"), "measurementResult");
+        assert_eq!(
+            text_of(mr, &["name", "content"]),
+            "Static model of the accelerometer triad"
+        );
+        let quantities = kids(child(child(child(mr, "results"), "result"), "data"));
+        let labels: Vec<String> = quantities
+            .iter()
+            .map(|q| text_of(*q, &["real", "label"]))
+            .collect();
+        assert_eq!(labels, elements, "{sensor}");
+        for q in &quantities {
+            let real = child(*q, "real");
+            let name = text_of(real, &["label"]);
+            let (matrix, at) = name.split_once('_').unwrap();
+            let index = |c: char| "xyz".find(c).unwrap();
+            let mut chars = at.chars();
+            let m = index(chars.next().unwrap());
+            let (v, u) = match chars.next() {
+                None => (&stored[matrix][m], &stored[format!("{matrix}_expanded")][m]),
+                Some(c) => (
+                    &stored[matrix][m][index(c)],
+                    &stored[format!("{matrix}_expanded")][m][index(c)],
+                ),
+            };
+            let (v, u) = (v.as_f64().unwrap(), u.as_f64().unwrap());
+            assert!(u > 0.0, "{name}");
+            let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
+            assert_eq!(text_of(real, &["unit"]), unit);
+            assert_eq!(
+                text_of(real, &["value"]),
+                format!("{v:.decimals$}"),
+                "{name}"
+            );
+            let mu = child(
+                child(real, "measurementUncertaintyUnivariate"),
+                "expandedMU",
+            );
+            assert_eq!(
+                text_of(mu, &["valueExpandedMU"]),
+                format!("{u:.decimals$}"),
+                "{name}"
+            );
+            assert_eq!(text_of(mu, &["coverageFactor"]), "2");
+            assert_eq!(text_of(mu, &["coverageProbability"]), "0.9545");
+            // A judged element carries its conformity; the others none.
+            match decided.get(&name) {
+                Some(e) => assert_eq!(
+                    text_of(*q, &["measurementMetaData", "metaData", "conformity"]),
+                    dcc_conformity(e),
+                    "{name}"
+                ),
+                None => assert!(
+                    kids(*q)
+                        .iter()
+                        .all(|n| n.tag_name().name() != "measurementMetaData")
+                ),
+            }
+        }
+        // Known orientations name the stand among the equipment.
+        let equipment = kids(mr)
+            .into_iter()
+            .any(|n| n.tag_name().name() == "measuringEquipments");
+        assert_eq!(equipment, sensor == "IMU-7");
+    }
+}

@@ -306,24 +306,6 @@ async fn single_axis_and_triad_calibrations_do_not_mix(#[values(Sqlite, Postgres
     )
     .await;
     assert!(p["detail"].as_str().unwrap().contains("single-axis"), "{p}");
-    // The single-axis documents and acts not yet made for triads are refused.
-    let res = app
-        .client
-        .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
-        .bearer_auth(ADMIN)
-        .header("accept", "application/xml")
-        .send()
-        .await
-        .unwrap();
-    let p = problem(res, StatusCode::CONFLICT).await;
-    assert!(p["type"].as_str().unwrap().ends_with("wrong-kind"), "{p}");
-    assert!(
-        p["detail"]
-            .as_str()
-            .unwrap()
-            .contains("Digital Calibration Certificate"),
-        "{p}"
-    );
     // A calibration is superseded by a submission of its own kind.
     let p = problem(
         app.post(

@@ -53,16 +53,6 @@ pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Pr
     })
 }
 
-/// Reads a stored single-axis result document (404 for an unknown id; 409
-/// `wrong-kind` for a triad's, which has no single-axis tables or
-/// certificate).
-pub async fn load(state: &AppState, raw_id: &str) -> Result<ResultDoc, Problem> {
-    match load_stored(state, raw_id).await? {
-        StoredDoc::Axis(d) => Ok(*d),
-        StoredDoc::Triad(d) => Err(triad_refusal(d.id)),
-    }
-}
-
 /// Whether a stored result is a triad's (`"kind": "triad"`): those are
 /// not single-axis result documents.
 pub fn is_triad(result: &[u8]) -> bool {
@@ -71,20 +61,6 @@ pub fn is_triad(result: &[u8]) -> bool {
         kind: Option<String>,
     }
     serde_json::from_slice::<Kind>(result).is_ok_and(|k| k.kind.as_deref() == Some("triad"))
-}
-
-/// The refusal of a single-axis document (the Digital Calibration
-/// Certificate) for triad `id`.
-fn triad_refusal(id: uuid::Uuid) -> Problem {
-    Problem::new(
-        crate::http::problem::Kind::WrongKind,
-        format!(
-            "calibration {id} is a triad's: the Digital Calibration Certificate is issued for \
-             single-axis calibrations only (not yet for triads); its printable certificate is \
-             GET /v1/calibrations/{id}/certificate (text/html), its firmware files \
-             GET /v1/calibrations/{id}/export"
-        ),
-    )
 }
 
 /// A calibration's state and signatures.

@@ -28,7 +28,7 @@ use maud::{DOCTYPE, Markup, PreEscaped, html};
 use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
-use super::calibration::{StoredDoc, as_found, budget, decision, load, when};
+use super::calibration::{StoredDoc, as_found, budget, decision, when};
 use super::format::{num, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
@@ -368,18 +368,6 @@ fn own_url(state: &AppState, headers: &HeaderMap, id: &uuid::Uuid) -> String {
             _ => path,
         },
     }
-}
-
-/// What a certificate of calibration `raw_id` shows: its result document
-/// and the [`Context`] around it (the HTML and the XML certificate alike).
-pub async fn gather(
-    state: &AppState,
-    headers: &HeaderMap,
-    raw_id: &str,
-) -> Result<(ResultDoc, Context), Problem> {
-    let d = load(state, raw_id).await?;
-    let ctx = context(state, headers, raw_id, &d.sensor_id).await?;
-    Ok((d, ctx))
 }
 
 /// The [`Context`] of calibration `raw_id` of sensor `sensor_id`: the

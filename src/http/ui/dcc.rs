@@ -36,6 +36,9 @@
 //! and otherwise as a non-D-SI unit, `|` followed by the submission's text
 //! (`|LSB`), which D-SI readers treat as such.
 //!
+//! A triad's calibration has the same administrative data and its own
+//! measurement results ([`super::triad_dcc`]); [`document`] writes either.
+//!
 //! A DCC is issued only for an **approved** calibration (it names the
 //! persons responsible), and only when the laboratory's name and country
 //! and the item's customer are recorded: the schema requires them.
@@ -44,6 +47,7 @@ use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use maud::{Markup, PreEscaped, html};
 
+use super::calibration::StoredDoc;
 use super::certificate::{Context, PAPER};
 use super::format::value_and_uncertainty;
 use super::result::ResultDoc;
@@ -111,7 +115,7 @@ fn xml_text(text: &str) -> String {
 
 /// `dcc:content` in English: the inside of every `dcc:textType` and
 /// `dcc:richContentType` accelcal writes.
-fn content(text: &str) -> Markup {
+pub fn content(text: &str) -> Markup {
     html! { dcc:content lang="en" { (xml_text(text)) } }
 }
 
@@ -215,7 +219,7 @@ fn location(address: Option<&str>, country: Option<&str>) -> Markup {
 }
 
 /// One `si:real` with its expanded uncertainty when there is one.
-fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, f64)>) -> Markup {
+pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, f64)>) -> Markup {
     let (v, u) = match expanded {
         Some((u, _)) if u.is_finite() && u > 0.0 => {
             let (v, u) = value_and_uncertainty(value, u);
@@ -265,16 +269,103 @@ fn approvals(signatures: &[Signature]) -> Vec<&Signature> {
         .collect()
 }
 
-/// The DCC document of a calibration ([`issuable`] must have passed).
+/// The statement of conformity of a judged calibration.
+pub struct Judged<'a> {
+    /// `simple` or `guarded`.
+    pub rule: &'a str,
+    /// The worst verdict.
+    pub verdict: &'a str,
+    /// The worst DCC conformity of the limited terms or elements.
+    pub worst: &'static str,
+}
+
+impl<'a> Judged<'a> {
+    /// The statement of a decision whose limited quantities give
+    /// `(verdict, value, min, max)`.
+    pub fn of(
+        rule: &'a str,
+        verdict: &'a str,
+        each: impl Iterator<Item = (&'a str, f64, Option<f64>, Option<f64>)>,
+    ) -> Self {
+        const ORDER: [&str; 4] = ["pass", "conditionalPass", "conditionalFail", "fail"];
+        let worst = each
+            .map(|(v, x, min, max)| conformity(v, x, min, max))
+            .max_by_key(|c| ORDER.iter().position(|x| x == c))
+            .unwrap_or("pass");
+        Judged {
+            rule,
+            verdict,
+            worst,
+        }
+    }
+}
+
+/// What the DCC's administrative data reads of a calibration, of either
+/// kind.
+pub struct Admin<'a> {
+    /// The calibration.
+    pub id: uuid::Uuid,
+    /// The item's sensor id.
+    pub sensor_id: &'a str,
+    /// What the item is called (`Accelerometer`, `Accelerometer triad`).
+    pub item: &'static str,
+    /// When performed (RFC 3339).
+    pub performed_at: &'a str,
+    /// When the item was received, if stated.
+    pub item_received_at: Option<&'a str>,
+    /// Its condition on receipt, if stated.
+    pub item_condition: Option<&'a str>,
+    /// The calibration it supersedes.
+    pub supersedes: Option<&'a crate::domain::review::Supersedes>,
+    /// The reference standards, as used.
+    pub standards: &'a [crate::domain::standards::UsedStandard],
+    /// The decision, when judged.
+    pub judged: Option<Judged<'a>>,
+    /// The due date, when judged.
+    pub due_at: Option<&'a str>,
+}
+
+impl<'a> Admin<'a> {
+    /// A single-axis calibration's.
+    fn of(d: &'a ResultDoc) -> Self {
+        Admin {
+            id: d.id,
+            sensor_id: &d.sensor_id,
+            item: "Accelerometer",
+            performed_at: &d.performed_at,
+            item_received_at: d.item_received_at.as_deref(),
+            item_condition: d.item_condition.as_deref(),
+            supersedes: d.supersedes.as_ref(),
+            standards: &d.standards,
+            judged: d.decision.as_ref().map(|dec| {
+                Judged::of(
+                    &dec.rule,
+                    &dec.verdict,
+                    dec.terms
+                        .iter()
+                        .map(|(_, x)| (x.verdict.as_str(), x.value, x.min, x.max)),
+                )
+            }),
+            due_at: d.due_at.as_deref(),
+        }
+    }
+}
+
+/// The DCC document of a single-axis calibration ([`issuable`] must have
+/// passed).
 pub fn render(d: &ResultDoc, c: &Context) -> String {
+    document(&Admin::of(d), c, &results(d))
+}
+
+/// The DCC of the calibration `a` describes, with its measurement
+/// results `results`.
+pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
     let approvals = approvals(&c.signatures);
     let issued = approvals
         .last()
         .map(|s| s.signed_at.to_string())
         .unwrap_or_else(|| c.issued.to_string());
     let country = c.laboratory.country.as_deref();
-    let unit = dsi_unit(&d.unit);
-    let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
     let lab_name = c.laboratory.name.as_deref().unwrap_or("");
     let doc = html! {
         (PreEscaped("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"))
@@ -302,12 +393,12 @@ pub fn render(d: &ResultDoc, c: &Context) -> String {
                             dcc:name { (content("This certificate's URL")) }
                         }
                     }
-                    @if let Some(r) = &d.item_received_at { dcc:receiptDate { (date(r)) } }
-                    dcc:beginPerformanceDate { (date(&d.performed_at)) }
-                    dcc:endPerformanceDate { (date(&d.performed_at)) }
+                    @if let Some(r) = d.item_received_at { dcc:receiptDate { (date(r)) } }
+                    dcc:beginPerformanceDate { (date(d.performed_at)) }
+                    dcc:endPerformanceDate { (date(d.performed_at)) }
                     dcc:performanceLocation { "laboratory" }
                     dcc:issueDate { (date(&issued)) }
-                    @if let Some(s) = &d.supersedes {
+                    @if let Some(s) = d.supersedes {
                         dcc:reportAmendedSubstituted {
                             dcc:typeOfChange { "substituted" }
                             dcc:replacedUniqueIdentifier { (s.calibration_id) }
@@ -348,7 +439,18 @@ pub fn render(d: &ResultDoc, c: &Context) -> String {
                 }
                 (statements(d, c))
             }
-            dcc:measurementResults {
+            dcc:measurementResults { (results) }
+        }
+    };
+    doc.into_string()
+}
+
+/// A single-axis calibration's `dcc:measurementResult`: the method, the
+/// standards, the influence conditions and every fused coefficient.
+fn results(d: &ResultDoc) -> Markup {
+    let unit = dsi_unit(&d.unit);
+    let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
+    html! {
                 dcc:measurementResult {
                     dcc:name { (content("Static model of the accelerometer")) }
                     dcc:description {
@@ -376,8 +478,8 @@ pub fn render(d: &ResultDoc, c: &Context) -> String {
                         dcc:norm { "ISO/IEC Guide 98-3 (GUM)" }
                         dcc:reference { (PAPER) }
                     } }
-                    (equipment(d))
-                    (conditions(d))
+                    (equipment(&d.standards))
+                    (conditions(d.temperatures_c.as_deref(), &d.standards))
                     dcc:results { dcc:result {
                         dcc:name { (content("Fused coefficients")) }
                         dcc:data {
@@ -387,40 +489,49 @@ pub fn render(d: &ResultDoc, c: &Context) -> String {
                                 dcc:quantity {
                                     dcc:name { (content(&format!("{} — {} ({})", t.name(), term_meaning(t), super::format::term_unit(t, &d.unit)))) }
                                     (real(t.name(), *v, &unit, expanded))
-                                    @if let Some(x) = d.decision.as_ref().and_then(|dec| dec.terms.get(t)) {
-                                        dcc:measurementMetaData { dcc:metaData {
-                                            dcc:name { (content("Conformity with the sensor type's limits")) }
-                                            dcc:declaration { (content(&format!(
-                                                "limits {} to {} {}, {} rule (ILAC-G8)",
-                                                x.min.map_or("−∞".into(), decimal),
-                                                x.max.map_or("+∞".into(), decimal),
-                                                super::format::term_unit(t, &d.unit),
-                                                d.decision.as_ref().map_or("", |dec| dec.rule.as_str())
-                                            ))) }
-                                            dcc:conformity { (conformity(&x.verdict, x.value, x.min, x.max)) }
-                                        } }
+                                    @if let (Some(dec), Some(x)) = (&d.decision, d.decision.as_ref().and_then(|dec| dec.terms.get(t))) {
+                                        (conforms(&dec.rule, &super::format::term_unit(t, &d.unit), &x.verdict, x.value, x.min, x.max))
                                     }
                                 }
                             }
                         }
                     } }
                 }
-            }
-        }
-    };
-    doc.into_string()
+    }
+}
+
+/// A quantity's `dcc:measurementMetaData`: its limits and conformity.
+pub fn conforms(
+    rule: &str,
+    unit: &str,
+    verdict: &str,
+    value: f64,
+    min: Option<f64>,
+    max: Option<f64>,
+) -> Markup {
+    html! {
+        dcc:measurementMetaData { dcc:metaData {
+            dcc:name { (content("Conformity with the sensor type's limits")) }
+            dcc:declaration { (content(&format!(
+                "limits {} to {} {unit}, {rule} rule (ILAC-G8)",
+                min.map_or("−∞".into(), decimal),
+                max.map_or("+∞".into(), decimal),
+            ))) }
+            dcc:conformity { (conformity(verdict, value, min, max)) }
+        } }
+    }
 }
 
 /// `dcc:items`: the item behind the sensor id.
-fn items(d: &ResultDoc, c: &Context) -> Markup {
+fn items(d: &Admin<'_>, c: &Context) -> Markup {
     let item = c.item.as_ref();
     html! {
         dcc:items { dcc:item {
             @let described = item.map(|i| i.describe()).filter(|_| item.is_some_and(|i| {
                 i.manufacturer.is_some() || i.model.is_some() || i.serial.is_some()
             }));
-            dcc:name { (content(&format!("Accelerometer {}", described.unwrap_or_else(|| d.sensor_id.clone())))) }
-            @if let Some(cond) = &d.item_condition {
+            dcc:name { (content(&format!("{} {}", d.item, described.unwrap_or_else(|| d.sensor_id.to_owned())))) }
+            @if let Some(cond) = d.item_condition {
                 dcc:description { (content(&format!("Condition on receipt: {cond}"))) }
             }
             @if let Some(m) = item.and_then(|i| i.manufacturer.as_deref()) {
@@ -439,7 +550,7 @@ fn items(d: &ResultDoc, c: &Context) -> Markup {
                 }
                 dcc:identification {
                     dcc:issuer { "calibrationLaboratory" }
-                    dcc:value { (xml_text(&d.sensor_id)) }
+                    dcc:value { (xml_text(d.sensor_id)) }
                     dcc:name { (content("Sensor id")) }
                 }
             }
@@ -449,7 +560,7 @@ fn items(d: &ResultDoc, c: &Context) -> Markup {
 
 /// `dcc:statements`: traceability, conformity, the item-only statement, the
 /// due date when agreed.
-fn statements(d: &ResultDoc, c: &Context) -> Markup {
+fn statements(d: &Admin<'_>, c: &Context) -> Markup {
     let due_agreed = c.customer.as_ref().is_none_or(|cu| cu.due_date_agreed);
     html! {
         dcc:statements {
@@ -462,7 +573,7 @@ fn statements(d: &ResultDoc, c: &Context) -> Markup {
                     dcc:traceable { "true" }
                     dcc:declaration {
                         (content("The results are traceable to the SI through the reference standards listed under measuringEquipments, each in calibration when the test was performed."))
-                        @for u in &d.standards {
+                        @for u in d.standards {
                             (content(&format!("{} (certificate {} of {}): {}", u.standard_id, u.certificate.number, u.certificate.issued_by, u.traceability)))
                         }
                     }
@@ -472,7 +583,7 @@ fn statements(d: &ResultDoc, c: &Context) -> Markup {
                 dcc:name { (content("Scope of the results")) }
                 dcc:declaration { (content("The results relate only to the item calibrated.")) }
             }
-            @if let Some(dec) = &d.decision {
+            @if let Some(dec) = &d.judged {
                 dcc:statement {
                     dcc:name { (content("Statement of conformity")) }
                     dcc:declaration { (content(&format!(
@@ -481,14 +592,10 @@ fn statements(d: &ResultDoc, c: &Context) -> Markup {
                         if dec.rule == "guarded" { " (guard band w = U)" } else { " (the value alone against the limits)" },
                         dec.verdict
                     ))) }
-                    @let worst = dec.terms.iter()
-                        .map(|(_, x)| conformity(&x.verdict, x.value, x.min, x.max))
-                        .max_by_key(|c| ["pass", "conditionalPass", "conditionalFail", "fail"].iter().position(|x| x == c))
-                        .unwrap_or("pass");
-                    dcc:conformity { (worst) }
+                    dcc:conformity { (dec.worst) }
                 }
             }
-            @if let (true, Some(due)) = (due_agreed, &d.due_at) {
+            @if let (true, Some(due)) = (due_agreed, d.due_at) {
                 dcc:statement {
                     dcc:name { (content("Recalibration due")) }
                     dcc:declaration { (content("Recalibration is due by the date given, as agreed with the customer.")) }
@@ -500,11 +607,11 @@ fn statements(d: &ResultDoc, c: &Context) -> Markup {
 }
 
 /// `dcc:measuringEquipments`: the reference standards used.
-fn equipment(d: &ResultDoc) -> Markup {
+pub fn equipment(standards: &[crate::domain::standards::UsedStandard]) -> Markup {
     html! {
-        @if !d.standards.is_empty() {
+        @if !standards.is_empty() {
             dcc:measuringEquipments {
-                @for u in &d.standards {
+                @for u in standards {
                     dcc:measuringEquipment {
                         dcc:name { (content(&format!("{} ({}): {}", u.standard_id, u.role, u.description))) }
                         dcc:description { (content(&format!(
@@ -586,10 +693,12 @@ fn standard_quantities(u: &crate::domain::standards::UsedStandard) -> Vec<Markup
 }
 
 /// `dcc:influenceConditions`: the run temperatures and local g.
-fn conditions(d: &ResultDoc) -> Markup {
-    let temps = d.temperatures_c.as_deref().filter(|t| !t.is_empty());
-    let gravity = d
-        .standards
+pub fn conditions(
+    temperatures_c: Option<&[f64]>,
+    standards: &[crate::domain::standards::UsedStandard],
+) -> Markup {
+    let temps = temperatures_c.filter(|t| !t.is_empty());
+    let gravity = standards
         .iter()
         .find(|u| u.role == "gravity")
         .and_then(|u| {
@@ -602,7 +711,7 @@ fn conditions(d: &ResultDoc) -> Markup {
                 @if let Some(t) = temps {
                     @let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
                     @let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                    @let thermometer = d.standards.iter().find(|u| u.role == "thermometer").and_then(|u| u.temperature_std_c);
+                    @let thermometer = standards.iter().find(|u| u.role == "thermometer").and_then(|u| u.temperature_std_c);
                     dcc:influenceCondition {
                         dcc:name { (content("Ambient temperature over the runs")) }
                         dcc:data {
@@ -638,15 +747,25 @@ pub async fn respond(
     headers: &HeaderMap,
     raw_id: &str,
 ) -> Result<Response, Problem> {
-    let (d, ctx) = super::certificate::gather(state, headers, raw_id).await?;
-    issuable(&ctx)?;
-    let mut res = render(&d, &ctx).into_response();
+    let (id, xml) = match super::calibration::load_stored(state, raw_id).await? {
+        StoredDoc::Axis(d) => {
+            let ctx = super::certificate::context(state, headers, raw_id, &d.sensor_id).await?;
+            issuable(&ctx)?;
+            (d.id, render(&d, &ctx))
+        }
+        StoredDoc::Triad(d) => {
+            let ctx = super::certificate::context(state, headers, raw_id, &d.sensor_id).await?;
+            issuable(&ctx)?;
+            (d.id, super::triad_dcc::render(&d, &ctx))
+        }
+    };
+    let mut res = xml.into_response();
     let h = res.headers_mut();
     h.insert(
         header::CONTENT_TYPE,
         HeaderValue::from_static("application/xml; charset=utf-8"),
     );
-    if let Ok(v) = HeaderValue::from_str(&format!("inline; filename=\"dcc-{}.xml\"", d.id)) {
+    if let Ok(v) = HeaderValue::from_str(&format!("inline; filename=\"dcc-{id}.xml\"")) {
         h.insert(header::CONTENT_DISPOSITION, v);
     }
     Ok(res)

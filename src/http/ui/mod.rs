@@ -28,6 +28,7 @@ pub mod sensor;
 pub mod session;
 pub mod triad;
 pub mod triad_certificate;
+pub mod triad_dcc;
 
 use axum::Router;
 use axum::http::{HeaderName, HeaderValue, StatusCode, header};

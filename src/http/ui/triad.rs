@@ -94,6 +94,9 @@ pub struct TriadDoc {
     /// The calibration this one supersedes, and why.
     #[serde(default)]
     pub supersedes: Option<crate::domain::review::Supersedes>,
+    /// When the sensor is next due, when the triad was judged.
+    #[serde(default)]
+    pub due_at: Option<String>,
 }
 
 /// A triad's decision.
@@ -232,6 +235,7 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                 a href={"/ui/calibrations/" (d.id) "/export/" (format)} { (label) }
             }
             " · " a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" }
+            " · " a #dcc-link href={"/ui/calibrations/" (d.id) "/certificate.xml"} type="application/xml" { "Digital Calibration Certificate (XML)" }
             " · " a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
         }
         @if let Some(dec) = &d.decision {
