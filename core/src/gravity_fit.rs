@@ -419,14 +419,16 @@ fn covariance(solved: &Problem<'_>, n: usize, sum_sq: f64) -> Option<DMatrix<f64
 }
 
 /// `S`'s standard errors from the parameters' covariance `cov`:
-/// `∂S_ij/∂T_rc = −S_ir S_cj` over `T`'s free elements (module doc).
+/// `∂S_ij/∂T_rc = −S_ir S_cj` over `T`'s free elements (module doc). The
+/// variance is a quadratic form in the gradient, so its common sign drops
+/// out: `g_q = S_ir S_cj` gives the same `gᵀ C g`.
 fn s_standard_errors(s: &Matrix3<f64>, cov: &DMatrix<f64>) -> [[f64; 3]; 3] {
     let mut out = [[0.0; 3]; 3];
     for (i, row) in out.iter_mut().enumerate() {
         for (j, x) in row.iter_mut().enumerate() {
             let g: Vec<f64> = LOWER
                 .iter()
-                .map(|(r, c)| -s[(i, *r)] * s[(*c, j)])
+                .map(|(r, c)| s[(i, *r)] * s[(*c, j)])
                 .collect();
             let mut var = 0.0;
             for (q, gq) in g.iter().enumerate() {
