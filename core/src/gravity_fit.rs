@@ -426,10 +426,7 @@ fn s_standard_errors(s: &Matrix3<f64>, cov: &DMatrix<f64>) -> [[f64; 3]; 3] {
     let mut out = [[0.0; 3]; 3];
     for (i, row) in out.iter_mut().enumerate() {
         for (j, x) in row.iter_mut().enumerate() {
-            let g: Vec<f64> = LOWER
-                .iter()
-                .map(|(r, c)| s[(i, *r)] * s[(*c, j)])
-                .collect();
+            let g: Vec<f64> = LOWER.iter().map(|(r, c)| s[(i, *r)] * s[(*c, j)]).collect();
             let mut var = 0.0;
             for (q, gq) in g.iter().enumerate() {
                 for (q2, gq2) in g.iter().enumerate() {

@@ -221,6 +221,48 @@ impl TriadElements {
         out
     }
 
+    /// The measured elements of `b`, `S` and `S2` by name, each with its
+    /// standard error and expanded uncertainty when stored: what the
+    /// sensor's page charts. A triad from the gravity magnitude has `S`'s
+    /// elements above the diagonal zero by its frame convention, not
+    /// measured, and they are left out.
+    pub fn measured(&self) -> Vec<(String, f64, Option<f64>, Option<f64>)> {
+        let convention = self.method == crate::domain::triad::GRAVITY_MAGNITUDE;
+        let mut out = Vec::with_capacity(15);
+        for (m, axis) in AXES.iter().enumerate() {
+            out.push((
+                format!("b_{axis}"),
+                self.b[m],
+                self.b_std_errors.map(|e| e[m]),
+                self.b_expanded.map(|e| e[m]),
+            ));
+        }
+        for (m, row) in AXES.iter().enumerate() {
+            for (k, column) in AXES.iter().enumerate() {
+                if convention && k > m {
+                    continue;
+                }
+                out.push((
+                    format!("S_{row}{column}"),
+                    self.s[m][k],
+                    self.s_std_errors.map(|e| e[m][k]),
+                    self.s_expanded.map(|e| e[m][k]),
+                ));
+            }
+        }
+        if let Some(s2) = self.s2 {
+            for (m, axis) in AXES.iter().enumerate() {
+                out.push((
+                    format!("S2_{axis}"),
+                    s2[m],
+                    self.s2_std_errors.map(|e| e[m]),
+                    self.s2_expanded.map(|e| e[m]),
+                ));
+            }
+        }
+        out
+    }
+
     /// Every stored number with its name (`b_x`, `S_xy`, `T_zz`,
     /// `b_x_std_error`, …): what must be finite, and what stability is
     /// judged on element by element.

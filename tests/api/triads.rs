@@ -272,6 +272,60 @@ async fn stability_is_judged_element_by_element() {
     // T has no standard errors from known orientations: its change is not judged.
     assert_eq!(elements["T_xx"]["latest_change_expanded"], Value::Null);
     assert!(elements["S_yz"]["latest_change_expanded"].is_number());
+
+    // The sensor's page charts every element of b and S over time: each
+    // chart's table has both calibrations, newest first, with the stored
+    // value and its expanded uncertainty as the error bar.
+    let (session, _) = super::ui::sign_in(&app, ADMIN).await;
+    let page = super::ui::page(&app, "/ui/sensors/IMU-7", &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    let mut charted = Vec::new();
+    for (m, row) in ["x", "y", "z"].iter().enumerate() {
+        charted.push((
+            format!("b_{row}"),
+            [&a, &b].map(|c| (f(&c["b"][m]), f(&c["b_expanded"][m]))),
+        ));
+        for (k, column) in ["x", "y", "z"].iter().enumerate() {
+            charted.push((
+                format!("S_{row}{column}"),
+                [&a, &b].map(|c| (f(&c["S"][m][k]), f(&c["S_expanded"][m][k]))),
+            ));
+        }
+    }
+    for (name, values) in &charted {
+        assert!(
+            page.contains(&format!("id=\"chart-{name}\"")),
+            "a chart of {name}"
+        );
+        let start = page
+            .find(&format!("<table class=\"cards\" data-term=\"{name}\""))
+            .unwrap_or_else(|| panic!("a table of {name}"));
+        let table = &page[start..start + page[start..].find("</table>").unwrap()];
+        let rows: Vec<&str> = table.split("<tr data-calibration-id=").skip(1).collect();
+        assert_eq!(rows.len(), 2, "{name}");
+        for (row, (c, (v, _))) in rows.iter().zip([(&b, values[1]), (&a, values[0])]) {
+            assert!(
+                row.starts_with(&format!("\"{}\"", c["id"].as_str().unwrap())),
+                "{name}: newest first"
+            );
+            assert!(
+                row.contains(&format!("data-value=\"{v}\"")),
+                "{name}: {row}"
+            );
+            assert!(row.contains(" (U)"), "{name}: the expanded uncertainty");
+        }
+    }
+    assert!(
+        !page.contains("id=\"chart-T_xx\""),
+        "T is derived: tabled, not charted"
+    );
+    assert!(
+        page.contains("<tr data-term=\"T_xx\""),
+        "T's stability is tabled"
+    );
 }
 
 #[rstest]

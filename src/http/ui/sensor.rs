@@ -1,4 +1,5 @@
-//! `GET /ui/sensors/{sensor_id}`: one chart per coefficient over
+//! `GET /ui/sensors/{sensor_id}`: one chart per coefficient (a triad's:
+//! per measured element of `b`, `S` and `S2`) over
 //! `performed_at`, with ±expanded-uncertainty error bars (±2 fused standard
 //! errors for calibrations stored without a budget), the individuals-chart
 //! control limits and the fitted drift line; the stability numbers; the list
@@ -88,49 +89,104 @@ fn query(raw: Option<&str>) -> Result<Query, Problem> {
     Ok(q)
 }
 
-/// The error bar of one calibration's term: its expanded uncertainty, or
-/// two fused standard errors when it was stored without a budget.
-fn bar(c: &CalibrationSummary, term: Term) -> Option<(f64, bool)> {
-    c.expanded
-        .as_ref()
-        .and_then(|e| e.get(term).copied())
+/// One charted quantity over the series: a single-axis term, or a
+/// triad's element (`b_x`, `S_yx`, `S2_z`).
+struct Quantity<'a> {
+    /// Its name.
+    name: String,
+    /// Per calibration of the series, oldest first: its value and error
+    /// bar — the expanded uncertainty (`true`), or two standard errors for
+    /// a calibration stored without one (`false`) — when it has this
+    /// quantity.
+    values: Vec<Option<(f64, Option<(f64, bool)>)>>,
+    /// Its stability over the series.
+    stability: Option<&'a TermStability>,
+}
+
+/// An error bar: `U`, else two standard errors.
+fn bar(expanded: Option<f64>, std_error: Option<f64>) -> Option<(f64, bool)> {
+    expanded
         .map(|u| (u, true))
-        .or_else(|| c.std_errors.get(term).map(|se| (2.0 * se, false)))
+        .or_else(|| std_error.map(|se| (2.0 * se, false)))
 }
 
-/// Every term of the window, in model order of first appearance.
-fn terms(series: &[CalibrationSummary]) -> Vec<Term> {
-    let mut out: Vec<Term> = Vec::new();
-    for c in series {
-        for (t, _) in c.coefficients.iter() {
-            if !out.contains(&t) {
-                out.push(t);
-            }
+/// Every quantity of the window: a single-axis sensor's terms in model
+/// order, a triad's measured elements of `b`, `S` and `S2` in the order of
+/// first appearance.
+fn quantities(r: &Report) -> Vec<Quantity<'_>> {
+    let series = &r.series;
+    let mut names: Vec<String> = Vec::new();
+    let mut add = |name: String| {
+        if !names.contains(&name) {
+            names.push(name);
         }
+    };
+    let mut terms: Vec<Term> = series
+        .iter()
+        .flat_map(|c| c.coefficients.iter().map(|(t, _)| t))
+        .collect();
+    terms.sort();
+    terms.dedup();
+    for t in &terms {
+        add(t.name().to_owned());
     }
-    out.sort();
-    out
+    let measured: Vec<_> = series
+        .iter()
+        .map(|c| c.triad.as_ref().map(|t| t.measured()).unwrap_or_default())
+        .collect();
+    for (name, ..) in measured.iter().flatten() {
+        add(name.clone());
+    }
+    names
+        .into_iter()
+        .map(|name| {
+            let term = terms.iter().find(|t| t.name() == name).copied();
+            let values = series
+                .iter()
+                .zip(&measured)
+                .map(|(c, elements)| match term {
+                    Some(t) => c.coefficients.get(t).map(|v| {
+                        let u = c.expanded.as_ref().and_then(|e| e.get(t).copied());
+                        (*v, bar(u, c.std_errors.get(t).copied()))
+                    }),
+                    None => elements
+                        .iter()
+                        .find(|(n, ..)| *n == name)
+                        .map(|(_, v, se, u)| (*v, bar(*u, *se))),
+                })
+                .collect();
+            let stability = match term {
+                Some(t) => r.stability.terms.get(t),
+                None => r.stability.elements.as_ref().and_then(|e| e.get(&name)),
+            };
+            Quantity {
+                name,
+                values,
+                stability,
+            }
+        })
+        .collect()
 }
 
-/// The chart of one term.
-fn chart(r: &Report, term: Term, unit: &str) -> Chart {
-    let s = r.stability.terms.get(term);
+/// The chart of one quantity.
+fn chart(r: &Report, q: &Quantity<'_>, unit: &str) -> Chart {
+    let s = q.stability;
+    let name = &q.name;
     let flagged = |id: &Uuid| s.is_some_and(|s| s.control.out_of_control.contains(&id.to_string()));
     let points: Vec<Point> = r
         .series
         .iter()
-        .filter_map(|c| {
-            let v = *c.coefficients.get(term)?;
-            let err = bar(c, term);
+        .zip(&q.values)
+        .filter_map(|(c, v)| {
+            let (v, err) = (*v)?;
             Some(Point {
                 x: c.performed_at.unix_micros() as f64 / 1e6,
                 y: v,
                 err: err.map(|(e, _)| e),
                 data: vec![("calibration-id", c.id.to_string())],
                 label: format!(
-                    "{}: {} = {} ± {} {unit}",
+                    "{}: {name} = {} ± {} {unit}",
                     date(&c.performed_at),
-                    term.name(),
                     num(v),
                     err.map_or("—".into(), |(e, _)| unc(e))
                 ),
@@ -178,16 +234,15 @@ fn chart(r: &Report, term: Term, unit: &str) -> Chart {
         }
     }
     Chart {
-        id: format!("chart-{}", term.name()),
+        id: format!("chart-{name}"),
         title: format!(
-            "{} of {} over time, with error bars",
-            term.name(),
+            "{name} of {} over time, with error bars",
             r.sensor.sensor_id
         ),
-        y_label: format!("{} ({unit})", term.name()),
+        y_label: format!("{name} ({unit})"),
         x: XAxis::Time,
         series: vec![Series {
-            name: term.name().to_owned(),
+            name: name.clone(),
             points,
         }],
         rules,
@@ -195,35 +250,37 @@ fn chart(r: &Report, term: Term, unit: &str) -> Chart {
     }
 }
 
-/// The table beside a term's chart: the same points.
-fn chart_table(r: &Report, term: Term) -> Markup {
-    let s = r.stability.terms.get(term);
-    let values = Notation::of(
-        r.series
+/// The table beside a quantity's chart: the same points.
+fn chart_table(r: &Report, q: &Quantity<'_>) -> Markup {
+    let s = q.stability;
+    let name = &q.name;
+    let values = Notation::of(q.values.iter().flatten().map(|(v, _)| *v));
+    let bars = Notation::of(
+        q.values
             .iter()
-            .filter_map(|c| c.coefficients.get(term).copied()),
+            .flatten()
+            .filter_map(|(_, e)| e.map(|(e, _)| e)),
     );
-    let bars = Notation::of(r.series.iter().filter_map(|c| bar(c, term).map(|(e, _)| e)));
     html! {
-        div.table-wrap tabindex="0" role="region" aria-label={(term.name()) " per calibration"} {
-            table data-term=(term.name()) .cards {
-                caption { (term.name()) " per calibration, newest first (error bar: expanded uncertainty U, or 2σ)" }
+        div.table-wrap tabindex="0" role="region" aria-label={(name) " per calibration"} {
+            table data-term=(name) .cards {
+                caption { (name) " per calibration, newest first (error bar: expanded uncertainty U, or 2σ)" }
                 thead { tr {
                     th scope="col" { "Performed" }
-                    th scope="col" .num { (term.name()) }
+                    th scope="col" .num { (name) }
                     th scope="col" .num { "±" }
                     th scope="col" { "" }
                 } }
                 tbody {
                     // Newest first: the rows a scrolled-off box shows are the latest.
-                    @for c in r.series.iter().rev() {
-                        @if let Some(v) = c.coefficients.get(term) {
+                    @for (c, value) in r.series.iter().zip(&q.values).rev() {
+                        @if let Some((v, err)) = value {
                             tr data-calibration-id=(c.id) {
                                 td data-label="Performed" { a href={"/ui/calibrations/" (c.id)} { (date(&c.performed_at)) } }
-                                td.num data-label=(term.name()) data-value=(v) { (values.num(*v)) }
-                                td.num data-label="±" { @match bar(c, term) {
-                                    Some((e, true)) => { (bars.unc(e)) " (U)" },
-                                    Some((e, false)) => { (bars.unc(e)) " (2σ)" },
+                                td.num data-label=(name) data-value=(v) { (values.num(*v)) }
+                                td.num data-label="±" { @match err {
+                                    Some((e, true)) => { (bars.unc(*e)) " (U)" },
+                                    Some((e, false)) => { (bars.unc(*e)) " (2σ)" },
                                     None => "—",
                                 } }
                                 td data-label="Control" { @if s.is_some_and(|s| s.control.out_of_control.contains(&c.id.to_string())) {
@@ -392,10 +449,10 @@ pub async fn page(
             p.notice { "No calibration in this window." }
         } @else {
             div.charts {
-                @for term in terms(&report.series) {
-                    section.chart-block aria-label={(term.name()) " over time"} {
-                        (plot::render(&chart(&report, term, &unit)))
-                        (chart_table(&report, term))
+                @for q in quantities(&report) {
+                    section.chart-block aria-label={(q.name) " over time"} {
+                        (plot::render(&chart(&report, &q, &unit)))
+                        (chart_table(&report, &q))
                     }
                 }
             }
