@@ -617,10 +617,13 @@ async fn csv_carries_each_form_to_the_same_answer() {
             .body(body)
             .send()
     };
+    let mut example = example;
+    example["stand"] = json!({"gravity_rel_std": 3e-5});
     let json_answer: Value = triad(&app, &example).await.json().await.unwrap();
     // The recording, its samples written with Rust's shortest round-trip text.
-    let mut csv =
-        String::from("# sensor_id: IMU-DEMO-1\n# unit: m/s2\n# rate_hz: 50\nu_x,u_y,u_z\n");
+    let mut csv = String::from(
+        "# sensor_id: IMU-DEMO-1\n# unit: m/s2\n# rate_hz: 50\n# gravity_rel_std: 3e-5\nu_x,u_y,u_z\n",
+    );
     for u in example["recording"]["samples"].as_array().unwrap() {
         csv.push_str(&format!("{},{},{}\n", f(&u[0]), f(&u[1]), f(&u[2])));
     }
@@ -630,6 +633,8 @@ async fn csv_carries_each_form_to_the_same_answer() {
     assert_eq!(csv_answer["b"], json_answer["b"]);
     assert_eq!(csv_answer["T"], json_answer["T"]);
     assert_eq!(csv_answer["detection"], json_answer["detection"]);
+    assert_eq!(csv_answer["uncertainty"], json_answer["uncertainty"]);
+    assert_eq!(csv_answer["uncertainty"]["gravity_rel_std"], 3e-5);
     // Known orientations, one sample a row.
     let body = known_body();
     let mut csv = String::from("# unit: m/s2\n# batches: 2\nrun,g_x,g_y,g_z,u_x,u_y,u_z\n");
@@ -653,6 +658,16 @@ async fn csv_carries_each_form_to_the_same_answer() {
     let from_json: Value = triad(&app, &body).await.json().await.unwrap();
     assert_eq!(from_csv["S"], from_json["S"]);
     assert_eq!(from_csv["b_std_errors"], from_json["b_std_errors"]);
+    // Without known orientations the stand's indexing error has no place.
+    let res = csv_post("# angle_std_arcsec: 5\nposition,u_x,u_y,u_z\nA,1,0,0\n".into())
+        .await
+        .unwrap();
+    let p = problem(res, StatusCode::UNPROCESSABLE_ENTITY).await;
+    assert!(
+        p.to_string()
+            .contains("`angle_std_arcsec` is not known for this layout"),
+        "{p}"
+    );
     // A bad line is named.
     let res = csv_post("position,u_x,u_y,u_z\nA,1,0,zero\n".into())
         .await

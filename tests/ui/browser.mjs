@@ -306,9 +306,16 @@ try {
   const download = await page.request.get(`/ui/calibrations/${triad.id}/export/px4`);
   assert.equal(download.status(), 200);
   assert.match(await download.text(), /CAL_ACC0_XOFF/);
+  assert.ok(await page.$('#dcc-link'), 'the triad page links its Digital Calibration Certificate');
   await page.goto('/ui/sensors/IMU-DEMO-1');
   assert.ok(await page.$('#stability tr[data-term="b_x"]'), 'the triad sensor shows stability element by element');
-  ok('triad: the page shows b and T as stored, offers the firmware files, and the sensor page lists its elements');
+  // A gravity-magnitude triad: b and S on and below the diagonal charted,
+  // the frame convention's zeros not.
+  const charted = await page.$$eval('figure.chart', (figures) => figures.map((f) => f.id));
+  assert.deepEqual(charted, ['chart-b_x', 'chart-b_y', 'chart-b_z', 'chart-S_xx', 'chart-S_yx', 'chart-S_yy', 'chart-S_zx', 'chart-S_zy', 'chart-S_zz']);
+  const plotted = Number(await page.getAttribute('table[data-term="b_x"] tr[data-calibration-id] td[data-value]', 'data-value'));
+  close(plotted, triad.b[0], 1e-12, 'b_x charted as stored');
+  ok('triad: the page shows b and T as stored, offers the firmware files and the DCC, and the sensor page charts and lists its elements');
 
   // ---------------------------------- accessibility and screenshots
   const pages = {
@@ -318,6 +325,7 @@ try {
     certificate: `/ui/calibrations/${recal.id}/certificate`,
     triad: `/ui/calibrations/${triad.id}`,
     triadCertificate: `/ui/calibrations/${triad.id}/certificate`,
+    triadSensor: '/ui/sensors/IMU-DEMO-1',
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },
