@@ -338,7 +338,7 @@ impl TriadBody {
             if self.stand.is_some() {
                 errors.add(
                     root.key("stand"),
-                    "is given with `standards`: the registered stand's indexing error is the one used",
+                    "is given with `standards`: the registered standards' values (the stand's indexing error, the gravity's uncertainty) are the ones used",
                 );
             }
         }
