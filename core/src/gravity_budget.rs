@@ -68,53 +68,11 @@ pub fn budget(
 mod tests {
     use super::*;
     use crate::gravity_fit::fit;
-
-    /// `b` and lower-triangular `T`, and the outputs `b + T⁻¹ g` of a
-    /// specific force `g` (forward substitution of `T x = g`).
-    fn outputs(g: [f64; 3]) -> [f64; 3] {
-        let b = [0.02, -0.01, 0.03];
-        let t = [[1.01, 0.0, 0.0], [0.02, 0.99, 0.0], [-0.01, 0.015, 1.02]];
-        let x0 = g[0] / t[0][0];
-        let x1 = (g[1] - t[1][0] * x0) / t[1][1];
-        let x2 = (g[2] - t[2][0] * x0 - t[2][1] * x1) / t[2][2];
-        [x0 + b[0], x1 + b[1], x2 + b[2]]
-    }
-
-    /// Twelve directions: the six faces and six of the cube's edges.
-    fn directions() -> Vec<[f64; 3]> {
-        let r = 1.0 / 2f64.sqrt();
-        vec![
-            [1.0, 0.0, 0.0],
-            [-1.0, 0.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, -1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [0.0, 0.0, -1.0],
-            [r, r, 0.0],
-            [-r, 0.0, r],
-            [0.0, r, -r],
-            [r, 0.0, r],
-            [0.0, -r, -r],
-            [-r, r, 0.0],
-        ]
-    }
-
-    /// A little deterministic noise, so that the fit has standard errors.
-    fn noisy(scale: f64) -> Vec<[f64; 3]> {
-        directions()
-            .into_iter()
-            .enumerate()
-            .map(|(p, g)| {
-                let u = outputs(g);
-                [0, 1, 2].map(|m| u[m] + 1e-4 * (((p * 3 + m) * 7919 % 13) as f64 - 6.0) / 6.0)
-            })
-            .map(|u| u.map(|x| x * scale))
-            .collect()
-    }
+    use crate::gravity_fit::tests::{directions, noisy, outputs, truth};
 
     #[test]
     fn the_components_combine_in_quadrature() {
-        let f = fit(&noisy(1.0)).unwrap();
+        let f = fit(&noisy(12, 11, 1e-4, 13)).unwrap();
         let u = 3e-4;
         let got = budget(&f, u, 2.0).unwrap();
         assert_eq!(got.degrees_of_freedom, 3);
@@ -148,10 +106,11 @@ mod tests {
     #[test]
     fn a_gravity_off_by_epsilon_scales_s_and_leaves_b() {
         let eps = 1e-4;
+        let (b, t) = truth();
         let at = |scale: f64| {
-            let means: Vec<[f64; 3]> = directions()
+            let means: Vec<[f64; 3]> = directions(12, 11)
                 .into_iter()
-                .map(|g| outputs(g.map(|x| x * scale)))
+                .map(|g| outputs(b, t, g.map(|x| x * scale)))
                 .collect();
             fit(&means).unwrap()
         };
@@ -176,8 +135,18 @@ mod tests {
     }
 
     #[test]
-    fn nine_positions_have_no_budget() {
-        let f = fit(&noisy(1.0)[..9]).unwrap();
-        assert_eq!(budget(&f, 1e-5, 2.0), None);
+    fn without_standard_errors_there_is_no_budget() {
+        let f = fit(&noisy(12, 11, 1e-4, 13)).unwrap();
+        for (b, s) in [(false, true), (true, false)] {
+            let mut g = f.clone();
+            if !b {
+                g.bias_std = None;
+            }
+            if !s {
+                g.s_std = None;
+            }
+            assert_eq!(budget(&g, 1e-5, 2.0), None);
+        }
+        assert!(budget(&f, 1e-5, 2.0).is_some());
     }
 }

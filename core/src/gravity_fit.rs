@@ -448,14 +448,14 @@ fn rows(m: &Matrix3<f64>) -> [[f64; 3]; 3] {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_distr::{Distribution, Normal, UnitSphere};
 
     /// A triad with `b` and lower-triangular `T` chosen here, and its
     /// `S = T⁻¹` by hand-checked back substitution.
-    fn truth() -> ([f64; 3], [[f64; 3]; 3]) {
+    pub(crate) fn truth() -> ([f64; 3], [[f64; 3]; 3]) {
         (
             [0.012, -0.034, 0.051],
             [
@@ -467,16 +467,31 @@ mod tests {
     }
 
     /// `S g + b`, `S = T⁻¹` by forward substitution of `T x = g`.
-    fn outputs(b: [f64; 3], t: [[f64; 3]; 3], g: [f64; 3]) -> [f64; 3] {
+    pub(crate) fn outputs(b: [f64; 3], t: [[f64; 3]; 3], g: [f64; 3]) -> [f64; 3] {
         let x0 = g[0] / t[0][0];
         let x1 = (g[1] - t[1][0] * x0) / t[1][1];
         let x2 = (g[2] - t[2][0] * x0 - t[2][1] * x1) / t[2][2];
         [x0 + b[0], x1 + b[1], x2 + b[2]]
     }
 
-    fn directions(n: usize, seed: u64) -> Vec<[f64; 3]> {
+    pub(crate) fn directions(n: usize, seed: u64) -> Vec<[f64; 3]> {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         (0..n).map(|_| UnitSphere.sample(&mut rng)).collect()
+    }
+
+    /// The [`truth`] triad's mean outputs at `n` random directions (seed
+    /// `at`), each scattered by normal noise of `sigma` (seed `seed`).
+    pub(crate) fn noisy(n: usize, at: u64, sigma: f64, seed: u64) -> Vec<[f64; 3]> {
+        let (b, t) = truth();
+        let noise = Normal::new(0.0, sigma).unwrap();
+        let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+        directions(n, at)
+            .into_iter()
+            .map(|g| {
+                let u = outputs(b, t, g);
+                [0, 1, 2].map(|m| u[m] + noise.sample(&mut rng))
+            })
+            .collect()
     }
 
     #[test]
@@ -670,16 +685,7 @@ mod tests {
     /// covariance `C`.
     #[test]
     fn the_standard_errors_of_s_are_t_s_covariance_propagated() {
-        let (b, t) = truth();
-        let noise = Normal::new(0.0, 5e-4).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(29);
-        let means: Vec<[f64; 3]> = directions(20, 31)
-            .into_iter()
-            .map(|g| {
-                let u = outputs(b, t, g);
-                [0, 1, 2].map(|m| u[m] + noise.sample(&mut rng))
-            })
-            .collect();
+        let means = noisy(20, 31, 5e-4, 29);
         let f = fit(&means).unwrap();
         assert_eq!(f.degrees_of_freedom, 11);
         let mut p = na::SVector::<f64, 9>::zeros();
@@ -735,16 +741,7 @@ mod tests {
     #[test]
     fn noisy_outputs_give_b_and_t_within_their_standard_errors() {
         let (b, t) = truth();
-        let noise = Normal::new(0.0, 2e-4).unwrap();
-        let mut rng = rand::rngs::StdRng::seed_from_u64(7);
-        let means: Vec<[f64; 3]> = directions(40, 3)
-            .into_iter()
-            .map(|g| {
-                let u = outputs(b, t, g);
-                [0, 1, 2].map(|m| u[m] + noise.sample(&mut rng))
-            })
-            .collect();
-        let f = fit(&means).unwrap();
+        let f = fit(&noisy(40, 3, 2e-4, 7)).unwrap();
         let (bs, ts) = (f.bias_std.unwrap(), f.t_std.unwrap());
         for m in 0..3 {
             assert!(bs[m] > 0.0 && bs[m] < 1e-3);

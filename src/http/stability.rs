@@ -19,7 +19,7 @@ use super::sensors::sensor;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use crate::domain::timestamp::Timestamp;
-use crate::store::{CalibrationSummary, SensorSummary, TriadElements};
+use crate::store::{CalibrationSummary, SensorSummary, TriadElement, TriadElements};
 
 /// The query of the stability report.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -86,15 +86,15 @@ fn elements(series: &[CalibrationSummary], k: f64) -> Option<BTreeMap<String, Te
     let ids: Vec<String> = series.iter().map(|c| c.id.to_string()).collect();
     let ids: Vec<&str> = ids.iter().map(String::as_str).collect();
     let t: Vec<f64> = series.iter().map(|c| years(c.performed_at)).collect();
-    let per: Vec<Vec<(String, f64, Option<f64>)>> = triads.iter().map(|e| e.elements()).collect();
+    let per: Vec<Vec<TriadElement>> = triads.iter().map(|e| e.elements()).collect();
     Some(
         per[0]
             .iter()
             .enumerate()
-            .map(|(i, (name, _, _))| {
-                let x: Vec<f64> = per.iter().map(|p| p[i].1).collect();
-                let se: Vec<Option<f64>> = per.iter().map(|p| p[i].2).collect();
-                (name.clone(), quantity(&ids, &t, &x, &se, k))
+            .map(|(i, first)| {
+                let x: Vec<f64> = per.iter().map(|p| p[i].value).collect();
+                let se: Vec<Option<f64>> = per.iter().map(|p| p[i].std_error).collect();
+                (first.name.clone(), quantity(&ids, &t, &x, &se, k))
             })
             .collect(),
     )

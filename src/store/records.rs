@@ -182,83 +182,66 @@ impl TriadElements {
 /// The axes' names, in the order of `b`'s elements and `S`'s rows.
 pub const AXES: [&str; 3] = ["x", "y", "z"];
 
+/// One element of a stored triad ([`TriadElements::elements`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriadElement {
+    /// `b_x`, `S_xy`, `S2_z`, `T_zz`.
+    pub name: String,
+    /// Its value.
+    pub value: f64,
+    /// Its standard error, when the method gives one.
+    pub std_error: Option<f64>,
+    /// Its expanded uncertainty, when the method gives one.
+    pub expanded: Option<f64>,
+    /// Whether the calibration measured it: `T`, derived from `S`, is not,
+    /// nor are the elements of `S` zero by a gravity-magnitude triad's
+    /// frame convention.
+    pub measured: bool,
+}
+
 impl TriadElements {
-    /// The elements of `b`, `S` and `T` by name (`b_x`, `S_xy`, `T_zz`), each
-    /// with its standard error when the method gives one: what stability
-    /// is judged on, element by element.
-    pub fn elements(&self) -> Vec<(String, f64, Option<f64>)> {
-        let mut out = Vec::with_capacity(21);
-        for (m, axis) in AXES.iter().enumerate() {
-            out.push((
-                format!("b_{axis}"),
-                self.b[m],
-                self.b_std_errors.map(|e| e[m]),
-            ));
-        }
-        if let Some(s2) = self.s2 {
+    /// The elements of `b`, `S`, `S2` and `T` by name (`b_x`, `S_xy`,
+    /// `S2_z`, `T_zz`), each with its standard error and expanded
+    /// uncertainty when the method gives them: what stability is judged on,
+    /// element by element, and what the sensor's page charts (those
+    /// [`TriadElement::measured`]).
+    pub fn elements(&self) -> Vec<TriadElement> {
+        let convention = self.method == crate::domain::triad::GRAVITY_MAGNITUDE;
+        let mut out = Vec::with_capacity(24);
+        let vector = |out: &mut Vec<TriadElement>,
+                      name,
+                      v: &[f64; 3],
+                      se: Option<[f64; 3]>,
+                      u: Option<[f64; 3]>| {
             for (m, axis) in AXES.iter().enumerate() {
-                out.push((
-                    format!("S2_{axis}"),
-                    s2[m],
-                    self.s2_std_errors.map(|e| e[m]),
-                ));
+                out.push(TriadElement {
+                    name: format!("{name}_{axis}"),
+                    value: v[m],
+                    std_error: se.map(|e| e[m]),
+                    expanded: u.map(|e| e[m]),
+                    measured: true,
+                });
             }
-        }
-        for (name, matrix, errors) in [
-            ("S", &self.s, &self.s_std_errors),
-            ("T", &self.t, &self.t_std_errors),
+        };
+        vector(&mut out, "b", &self.b, self.b_std_errors, self.b_expanded);
+        for (name, matrix, se, u) in [
+            ("S", &self.s, self.s_std_errors, self.s_expanded),
+            ("T", &self.t, self.t_std_errors, None),
         ] {
             for (m, row) in AXES.iter().enumerate() {
                 for (k, column) in AXES.iter().enumerate() {
-                    out.push((
-                        format!("{name}_{row}{column}"),
-                        matrix[m][k],
-                        errors.map(|e| e[m][k]),
-                    ));
+                    out.push(TriadElement {
+                        name: format!("{name}_{row}{column}"),
+                        value: matrix[m][k],
+                        std_error: se.map(|e| e[m][k]),
+                        expanded: u.map(|e| e[m][k]),
+                        measured: name == "S" && !(convention && k > m),
+                    });
                 }
             }
         }
-        out
-    }
-
-    /// The measured elements of `b`, `S` and `S2` by name, each with its
-    /// standard error and expanded uncertainty when stored: what the
-    /// sensor's page charts. A triad from the gravity magnitude has `S`'s
-    /// elements above the diagonal zero by its frame convention, not
-    /// measured, and they are left out.
-    pub fn measured(&self) -> Vec<(String, f64, Option<f64>, Option<f64>)> {
-        let convention = self.method == crate::domain::triad::GRAVITY_MAGNITUDE;
-        let mut out = Vec::with_capacity(15);
-        for (m, axis) in AXES.iter().enumerate() {
-            out.push((
-                format!("b_{axis}"),
-                self.b[m],
-                self.b_std_errors.map(|e| e[m]),
-                self.b_expanded.map(|e| e[m]),
-            ));
-        }
-        for (m, row) in AXES.iter().enumerate() {
-            for (k, column) in AXES.iter().enumerate() {
-                if convention && k > m {
-                    continue;
-                }
-                out.push((
-                    format!("S_{row}{column}"),
-                    self.s[m][k],
-                    self.s_std_errors.map(|e| e[m][k]),
-                    self.s_expanded.map(|e| e[m][k]),
-                ));
-            }
-        }
-        if let Some(s2) = self.s2 {
-            for (m, axis) in AXES.iter().enumerate() {
-                out.push((
-                    format!("S2_{axis}"),
-                    s2[m],
-                    self.s2_std_errors.map(|e| e[m]),
-                    self.s2_expanded.map(|e| e[m]),
-                ));
-            }
+        if let Some(s2) = &self.s2 {
+            vector(&mut out, "S2", s2, self.s2_std_errors, self.s2_expanded);
         }
         out
     }
@@ -875,9 +858,31 @@ mod tests {
         assert_eq!(get("T_xx_std_error"), None);
         let elements = e.elements();
         assert_eq!(elements.len(), 21);
-        assert_eq!(elements[1], ("b_y".into(), 0.2, Some(2e-3)));
-        assert_eq!(elements[3 + 7], ("S_zy".into(), 0.06, Some(1e-4)));
-        assert_eq!(elements[12 + 4], ("T_yy".into(), 0.47, None));
+        let at = |k: usize| {
+            let x = &elements[k];
+            (x.name.as_str(), x.value, x.std_error, x.measured)
+        };
+        assert_eq!(at(1), ("b_y", 0.2, Some(2e-3), true));
+        assert_eq!(at(3 + 7), ("S_zy", 0.06, Some(1e-4), true));
+        assert_eq!(at(12 + 4), ("T_yy", 0.47, None, false));
+        // From the gravity magnitude, S above the diagonal is the frame
+        // convention's, not measured.
+        let gravity = TriadElements {
+            method: "gravity_magnitude".into(),
+            ..e.clone()
+        }
+        .elements();
+        let measured: Vec<&str> = gravity
+            .iter()
+            .filter(|x| x.measured)
+            .map(|x| x.name.as_str())
+            .collect();
+        assert_eq!(
+            measured,
+            [
+                "b_x", "b_y", "b_z", "S_xx", "S_yx", "S_yy", "S_zx", "S_zy", "S_zz"
+            ]
+        );
         let record = |triad: TriadElements| NewCalibration {
             triad: Some(triad),
             ..NewCalibration {

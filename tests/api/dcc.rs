@@ -56,6 +56,54 @@ fn text_of<'a>(node: roxmltree::Node<'a, 'a>, path: &[&str]) -> String {
     n.text().unwrap_or("").to_owned()
 }
 
+/// The document's root and administrative data in the schema's sequence,
+/// every element in the DCC's or D-SI's namespace; answers the
+/// administrative data.
+fn assert_shape<'a>(root: roxmltree::Node<'a, 'a>) -> roxmltree::Node<'a, 'a> {
+    assert_eq!(
+        (root.tag_name().namespace(), root.tag_name().name()),
+        (Some(DCC), "digitalCalibrationCertificate")
+    );
+    assert_eq!(root.attribute("schemaVersion"), Some("3.3.0"));
+    for n in root.descendants().filter(|n| n.is_element()) {
+        let ns = n.tag_name().namespace();
+        assert!(ns == Some(DCC) || ns == Some(SI), "{:?}", n.tag_name());
+    }
+    assert_eq!(names(root), ["administrativeData", "measurementResults"]);
+    let admin = child(root, "administrativeData");
+    assert_eq!(
+        names(admin),
+        [
+            "dccSoftware",
+            "coreData",
+            "items",
+            "calibrationLaboratory",
+            "respPersons",
+            "customer",
+            "statements"
+        ]
+    );
+    admin
+}
+
+/// The statements of a judged calibration whose customer agreed to a due
+/// date: traceability, scope, conformity and the due date, in order.
+fn assert_all_statements(admin: roxmltree::Node) {
+    let statements: Vec<String> = kids(child(admin, "statements"))
+        .into_iter()
+        .map(|s| text_of(s, &["name", "content"]))
+        .collect();
+    assert_eq!(
+        statements,
+        [
+            "Metrological traceability",
+            "Scope of the results",
+            "Statement of conformity",
+            "Recalibration due"
+        ]
+    );
+}
+
 /// Validates `xml` with xmllint against `$DCC_XSD`, when set.
 fn validate_if_asked(xml: &str) {
     let Ok(xsd) = std::env::var("DCC_XSD") else {
@@ -184,30 +232,7 @@ async fn an_approved_calibration_has_a_dcc(#[values(Sqlite, Postgres)] engine: E
     validate_if_asked(&xml);
     let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
     let root = doc.root_element();
-    assert_eq!(
-        (root.tag_name().namespace(), root.tag_name().name()),
-        (Some(DCC), "digitalCalibrationCertificate")
-    );
-    assert_eq!(root.attribute("schemaVersion"), Some("3.3.0"));
-    for n in root.descendants().filter(|n| n.is_element()) {
-        let ns = n.tag_name().namespace();
-        assert!(ns == Some(DCC) || ns == Some(SI), "{:?}", n.tag_name());
-    }
-    assert_eq!(names(root), ["administrativeData", "measurementResults"]);
-
-    let admin = child(root, "administrativeData");
-    assert_eq!(
-        names(admin),
-        [
-            "dccSoftware",
-            "coreData",
-            "items",
-            "calibrationLaboratory",
-            "respPersons",
-            "customer",
-            "statements"
-        ]
-    );
+    let admin = assert_shape(root);
     assert_eq!(
         text_of(admin, &["dccSoftware", "software", "release"]),
         env!("CARGO_PKG_VERSION")
@@ -277,19 +302,7 @@ async fn an_approved_calibration_has_a_dcc(#[values(Sqlite, Postgres)] engine: E
         "Acme Navigation GmbH"
     );
     // Statements: traceability, scope, conformity, the agreed due date.
-    let statements: Vec<String> = kids(child(admin, "statements"))
-        .into_iter()
-        .map(|s| text_of(s, &["name", "content"]))
-        .collect();
-    assert_eq!(
-        statements,
-        [
-            "Metrological traceability",
-            "Scope of the results",
-            "Statement of conformity",
-            "Recalibration due"
-        ]
-    );
+    assert_all_statements(admin);
     let verdict = stored["decision"]["verdict"].as_str().unwrap();
     let conformity = kids(child(admin, "statements"))[2];
     assert_eq!(
@@ -480,15 +493,7 @@ async fn an_approved_triad_has_a_dcc(#[values(Sqlite, Postgres)] engine: Engine)
             json!({"k0": {"min": -0.05, "max": 0.05}, "kp": {"min": -0.02, "max": 0.02}}),
         ),
     ] {
-        let res = app
-            .put(
-                &format!("/v1/sensor-types/{id}"),
-                ADMIN,
-                &json!({"unit": unit, "limits": limits, "decision_rule": "guarded",
-                    "interval_days": 365, "coverage_factor": 2.0}),
-            )
-            .await;
-        assert_eq!(res.status(), StatusCode::CREATED);
+        super::triads::guarded_type(&app, id, unit, &limits).await;
     }
     let mut known = super::triad::known_body();
     known["sensor_type"] = json!("IMU-NAV");
@@ -540,24 +545,7 @@ async fn an_approved_triad_has_a_dcc(#[values(Sqlite, Postgres)] engine: Engine)
         validate_if_asked(&xml);
         let doc = roxmltree::Document::parse(&xml).expect("well-formed XML");
         let root = doc.root_element();
-        assert_eq!(root.attribute("schemaVersion"), Some("3.3.0"));
-        for n in root.descendants().filter(|n| n.is_element()) {
-            let ns = n.tag_name().namespace();
-            assert!(ns == Some(DCC) || ns == Some(SI), "{:?}", n.tag_name());
-        }
-        let admin = child(root, "administrativeData");
-        assert_eq!(
-            names(admin),
-            [
-                "dccSoftware",
-                "coreData",
-                "items",
-                "calibrationLaboratory",
-                "respPersons",
-                "customer",
-                "statements"
-            ]
-        );
+        let admin = assert_shape(root);
         let core = child(admin, "coreData");
         assert_eq!(text_of(core, &["uniqueIdentifier"]), id);
         assert_eq!(
@@ -570,20 +558,7 @@ async fn an_approved_triad_has_a_dcc(#[values(Sqlite, Postgres)] engine: Engine)
             "{}",
             text_of(item, &["name", "content"])
         );
-        let statements: Vec<String> = kids(child(admin, "statements"))
-            .into_iter()
-            .map(|s| text_of(s, &["name", "content"]))
-            .collect();
-        assert_eq!(
-            statements,
-            [
-                "Metrological traceability",
-                "Scope of the results",
-                "Statement of conformity",
-                "Recalibration due"
-            ],
-            "{sensor}"
-        );
+        assert_all_statements(admin);
         let due = kids(child(admin, "statements"))[3];
         assert_eq!(
             text_of(due, &["date"]),

@@ -597,6 +597,80 @@ fn guarded(v: f64, u: f64, lo: f64, hi: f64) -> &'static str {
     }
 }
 
+/// Creates sensor type `id` in `unit` with `limits`, the guarded rule, a
+/// year's interval and k = 2.
+pub(crate) async fn guarded_type(app: &TestApp, id: &str, unit: &str, limits: &Value) {
+    let res = app
+        .put(
+            &format!("/v1/sensor-types/{id}"),
+            ADMIN,
+            &json!({"unit": unit, "limits": limits, "decision_rule": "guarded",
+                "interval_days": 365, "coverage_factor": 2.0}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+}
+
+/// Each element a type's `k0`, `ki` and `kp` limits judge in triad `r`,
+/// judged here by the guarded rule from its stored value and expanded
+/// uncertainty: `(element, verdict, value, U)`. Without known orientations
+/// the frame convention's zeros (`S` above the diagonal) are not judged.
+fn judged_by_hand(r: &Value, limits: &Value) -> Vec<(String, &'static str, f64, f64)> {
+    let axes = ["x", "y", "z"];
+    let known = r["method"] == "known_orientations";
+    let mut want = Vec::new();
+    for m in 0..3 {
+        for (term, column) in [("k0", None), ("ki", Some(m)), ("kp", Some((m + 1) % 3))] {
+            if limits.get(term).is_none() {
+                continue;
+            }
+            let (name, v, u) = match column {
+                None => (
+                    format!("b_{}", axes[m]),
+                    f(&r["b"][m]),
+                    f(&r["b_expanded"][m]),
+                ),
+                Some(k) if !known && k > m => continue,
+                Some(k) => (
+                    format!("S_{}{}", axes[m], axes[k]),
+                    f(&r["S"][m][k]),
+                    f(&r["S_expanded"][m][k]),
+                ),
+            };
+            let (lo, hi) = (f(&limits[term]["min"]), f(&limits[term]["max"]));
+            want.push((name, guarded(v, u, lo, hi), v, u));
+        }
+    }
+    want
+}
+
+/// The decision's elements are exactly `want`, each with its verdict,
+/// value and U; answers the worst verdict.
+fn assert_judged(decision: &Value, want: &[(String, &'static str, f64, f64)]) -> &'static str {
+    let elements = decision["elements"].as_object().unwrap();
+    assert_eq!(elements.len(), want.len(), "{decision}");
+    let mut worst = "pass";
+    for (name, verdict, v, u) in want {
+        let e = &elements[name];
+        assert_eq!(e["verdict"], *verdict, "{name}: {e}");
+        assert_eq!((f(&e["value"]), f(&e["expanded"])), (*v, *u), "{name}");
+        if *verdict == "fail" || (*verdict == "conditional" && worst == "pass") {
+            worst = verdict;
+        }
+    }
+    assert_eq!(decision["verdict"], worst);
+    worst
+}
+
+/// The printed certificate's row `name` states `v` and `U` rounded to U's
+/// second significant digit (computed here).
+fn assert_rounded_row(html: &str, name: &str, v: f64, u: f64) {
+    let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
+    let cells = certificate_row(html, name);
+    assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
+    assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+}
+
 #[rstest]
 #[tokio::test]
 async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] engine: Engine) {
@@ -606,15 +680,7 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
         "ki": {"min": 9.7, "max": 9.9},
         "kp": {"min": -0.0305, "max": 0.0305},
     });
-    let res = app
-        .put(
-            "/v1/sensor-types/IMU-NAV",
-            ADMIN,
-            &json!({"label": "Navigation IMU", "unit": "m/s2", "limits": limits,
-                "decision_rule": "guarded", "interval_days": 365, "coverage_factor": 2.0}),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::CREATED);
+    guarded_type(&app, "IMU-NAV", "m/s2", &limits).await;
     let mut body = known_body();
     body["sensor_type"] = json!("IMU-NAV");
     body["performed_at"] = json!("2026-10-01T00:00:00Z");
@@ -624,35 +690,9 @@ async fn a_typed_triad_is_judged_element_by_element(#[values(Sqlite, Postgres)] 
     assert_eq!(d["rule"], "guarded");
     // Every limited term of every axis, named by its element, judged by hand
     // with the stored value and expanded uncertainty.
-    let axes = ["x", "y", "z"];
-    let mut worst = "pass";
-    for m in 0..3 {
-        for (term, column) in [("k0", None), ("ki", Some(m)), ("kp", Some((m + 1) % 3))] {
-            let (name, v, u) = match column {
-                None => (
-                    format!("b_{}", axes[m]),
-                    f(&r["b"][m]),
-                    f(&r["b_expanded"][m]),
-                ),
-                Some(k) => (
-                    format!("S_{}{}", axes[m], axes[k]),
-                    f(&r["S"][m][k]),
-                    f(&r["S_expanded"][m][k]),
-                ),
-            };
-            let want = guarded(v, u, f(&limits[term]["min"]), f(&limits[term]["max"]));
-            let e = &d["elements"][&name];
-            assert_eq!(e["verdict"], want, "{name}: {e}");
-            assert_eq!(f(&e["value"]), v);
-            assert_eq!(f(&e["expanded"]), u);
-            if want == "fail" || (want == "conditional" && worst == "pass") {
-                worst = want;
-            }
-        }
-    }
+    let worst = assert_judged(d, &judged_by_hand(&r, &limits));
     assert_eq!(d["elements"].as_object().unwrap().len(), 9);
     assert!(d["elements"].get("S_xz").is_none(), "ko is not limited");
-    assert_eq!(d["verdict"], worst);
     assert_eq!(worst, "fail", "b_y = −0.21 lies outside ±0.15");
     // The verdict and due date are the sensor's, as for a single axis.
     let sensor = app.get_json("/v1/sensors/IMU-7", ADMIN).await;
@@ -769,11 +809,7 @@ async fn a_triads_certificate_states_every_element_rounded_to_its_uncertainty() 
             ));
         }
         for (name, v, u) in elements {
-            let (v, u) = (f(&v), f(&u));
-            let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
-            let cells = certificate_row(&html, &name);
-            assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
-            assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+            assert_rounded_row(&html, &name, f(&v), f(&u));
         }
     }
     assert!(html.contains("k = 2"), "the coverage factor");
@@ -922,10 +958,7 @@ async fn second_order_terms_are_identified_per_axis_and_compensated_by_newton() 
         .text()
         .await
         .unwrap();
-    let cells = certificate_row(&html, "S2_y");
-    let (v, u) = (f(&r["S2"][1]), f(&r["S2_expanded"][1]));
-    let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
-    assert_eq!(cells[0], format!("{v:.decimals$}"));
+    assert_rounded_row(&html, "S2_y", f(&r["S2"][1]), f(&r["S2_expanded"][1]));
 
     // Without known orientations there is no second-order fit.
     let unknown = json!({"sensor_id": "IMU-10", "second_order": true,
@@ -1034,57 +1067,32 @@ async fn a_triad_from_the_gravity_magnitude_is_judged_and_certified_with_its_bud
         "ki": {"min": 0.97, "max": 1.03},
         "kp": {"min": -0.02, "max": 0.02},
     });
-    let res = app
-        .put(
-            "/v1/sensor-types/IMU-G",
-            ADMIN,
-            &json!({"unit": "g", "limits": limits, "decision_rule": "guarded",
-                "interval_days": 365, "coverage_factor": 2.0}),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::CREATED);
+    guarded_type(&app, "IMU-G", "g", &limits).await;
     let body = json!({"sensor_id": "IMU-G", "unit": "g", "sensor_type": "IMU-G",
         "stand": {"gravity_rel_std": 2e-5},
         "static_positions": gravity_positions(20, 0x5eed_1234_abcd_0001)});
     let r = store(&app, ADMIN, &body).await;
     assert_eq!(r["method"], "gravity_magnitude");
     let (s_true, axes) = (lower_s(), ["x", "y", "z"]);
-    // Every measured element judged by hand from the stored value and U.
-    let mut want = Vec::new();
+    // The planted S within the expanded uncertainty, element by element.
     for m in 0..3 {
-        for (term, slot) in [("k0", None), ("ki", Some(m)), ("kp", Some((m + 1) % 3))] {
-            let (name, v, u) = match slot {
-                None => (
-                    format!("b_{}", axes[m]),
-                    f(&r["b"][m]),
-                    f(&r["b_expanded"][m]),
-                ),
-                Some(k) if k > m => continue, // zero by the frame convention
-                Some(k) => {
-                    let (v, u) = (f(&r["S"][m][k]), f(&r["S_expanded"][m][k]));
-                    // The planted S within the expanded uncertainty.
-                    assert!(
-                        (v - s_true[m][k]).abs() < u,
-                        "S{m}{k}: {v} vs {} ± {u}",
-                        s_true[m][k]
-                    );
-                    (format!("S_{}{}", axes[m], axes[k]), v, u)
-                }
-            };
-            assert!(u > 0.0, "{name}");
-            let verdict = guarded(v, u, f(&limits[term]["min"]), f(&limits[term]["max"]));
-            want.push((name, verdict, v, u));
+        for k in 0..=m {
+            let (v, u) = (f(&r["S"][m][k]), f(&r["S_expanded"][m][k]));
+            assert!(
+                u > 0.0 && (v - s_true[m][k]).abs() < u,
+                "S{m}{k}: {v} vs {} ± {u}",
+                s_true[m][k]
+            );
         }
     }
-    let elements = r["decision"]["elements"].as_object().unwrap();
-    assert_eq!(elements.len(), want.len());
-    assert_eq!(want.len(), 7);
-    for (name, verdict, v, u) in &want {
-        let e = &elements[name];
-        assert_eq!(e["verdict"], *verdict, "{name}: {e}");
-        assert_eq!((f(&e["value"]), f(&e["expanded"])), (*v, *u), "{name}");
-    }
-    // S_yx = 0.013-ish against ±0.02 with U: its verdict is what the rule gives.
+    // Every measured element judged by hand from the stored value and U.
+    let want = judged_by_hand(&r, &limits);
+    assert_eq!(
+        want.len(),
+        7,
+        "b, S's diagonal and S_zx: S_xy and S_yz are the convention's"
+    );
+    assert_judged(&r["decision"], &want);
     let sensor = app.get_json("/v1/sensors/IMU-G", ADMIN).await;
     assert_eq!(sensor["latest_verdict"], r["decision"]["verdict"]);
     assert_eq!(sensor["latest"]["triad"]["S_std_errors"], r["S_std_errors"]);
@@ -1109,11 +1117,7 @@ async fn a_triad_from_the_gravity_magnitude_is_judged_and_certified_with_its_bud
             ));
         }
         for (name, v, u) in elements {
-            let (v, u) = (f(v), f(u));
-            let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
-            let cells = certificate_row(&html, &name);
-            assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
-            assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+            assert_rounded_row(&html, &name, f(v), f(u));
         }
     }
     for fixed in ["S_xy", "S_xz", "S_yz"] {
@@ -1275,15 +1279,21 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
     assert!(p["detail"].as_str().unwrap().contains("superseded"), "{p}");
 
     // Reprocessing the corrected triad: today's numbers, confirmed.
-    let res = app
-        .post(
-            &format!("/v1/calibrations/{b_id}/reprocess"),
-            &rita,
-            &json!({}),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::OK);
-    let r: Value = res.json().await.unwrap();
+    let reprocess = |id: String| {
+        let (app, rita) = (&app, &rita);
+        async move {
+            let res = app
+                .post(
+                    &format!("/v1/calibrations/{id}/reprocess"),
+                    rita,
+                    &json!({}),
+                )
+                .await;
+            assert_eq!(res.status(), StatusCode::OK);
+            res.json::<Value>().await.unwrap()
+        }
+    };
+    let r = reprocess(b_id.clone()).await;
     assert_eq!(r["outcome"], "confirmed", "{r}");
     assert_eq!(r["changed"], json!([]));
     assert_eq!(r["signature"]["action"], "confirm");
@@ -1350,15 +1360,7 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
         .await
         .unwrap();
     store.close().await;
-    let res = app
-        .post(
-            &format!("/v1/calibrations/{old_id}/reprocess"),
-            &rita,
-            &json!({}),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::OK);
-    let r: Value = res.json().await.unwrap();
+    let r = reprocess(old_id.to_string()).await;
     assert_eq!(r["outcome"], "superseded", "{r}");
     // What changed: S's standard errors (six below the diagonal and the
     // convention's three zeros) and the expanded uncertainties of b and S.

@@ -24,7 +24,7 @@ use crate::http::AppState;
 use crate::http::page::Page;
 use crate::http::problem::Problem;
 use crate::http::stability::{Report, report_of, years};
-use crate::store::{CalibrationSummary, HistoryQuery};
+use crate::store::{CalibrationSummary, HistoryQuery, TriadElement};
 
 /// Calibrations listed per page.
 const PAGE: usize = 50;
@@ -89,22 +89,24 @@ fn query(raw: Option<&str>) -> Result<Query, Problem> {
     Ok(q)
 }
 
+/// An error bar's half-length: the expanded uncertainty (`true`), or two
+/// standard errors for a calibration stored without one (`false`).
+type ErrorBar = (f64, bool);
+
 /// One charted quantity over the series: a single-axis term, or a
 /// triad's element (`b_x`, `S_yx`, `S2_z`).
 struct Quantity<'a> {
     /// Its name.
     name: String,
     /// Per calibration of the series, oldest first: its value and error
-    /// bar — the expanded uncertainty (`true`), or two standard errors for
-    /// a calibration stored without one (`false`) — when it has this
-    /// quantity.
-    values: Vec<Option<(f64, Option<(f64, bool)>)>>,
+    /// bar, when it has this quantity.
+    values: Vec<Option<(f64, Option<ErrorBar>)>>,
     /// Its stability over the series.
     stability: Option<&'a TermStability>,
 }
 
 /// An error bar: `U`, else two standard errors.
-fn bar(expanded: Option<f64>, std_error: Option<f64>) -> Option<(f64, bool)> {
+fn bar(expanded: Option<f64>, std_error: Option<f64>) -> Option<ErrorBar> {
     expanded
         .map(|u| (u, true))
         .or_else(|| std_error.map(|se| (2.0 * se, false)))
@@ -130,12 +132,17 @@ fn quantities(r: &Report) -> Vec<Quantity<'_>> {
     for t in &terms {
         add(t.name().to_owned());
     }
-    let measured: Vec<_> = series
+    let measured: Vec<Vec<TriadElement>> = series
         .iter()
-        .map(|c| c.triad.as_ref().map(|t| t.measured()).unwrap_or_default())
+        .map(|c| {
+            c.triad
+                .as_ref()
+                .map(|t| t.elements().into_iter().filter(|e| e.measured).collect())
+                .unwrap_or_default()
+        })
         .collect();
-    for (name, ..) in measured.iter().flatten() {
-        add(name.clone());
+    for e in measured.iter().flatten() {
+        add(e.name.clone());
     }
     names
         .into_iter()
@@ -151,8 +158,8 @@ fn quantities(r: &Report) -> Vec<Quantity<'_>> {
                     }),
                     None => elements
                         .iter()
-                        .find(|(n, ..)| *n == name)
-                        .map(|(_, v, se, u)| (*v, bar(*u, *se))),
+                        .find(|e| e.name == name)
+                        .map(|e| (e.value, bar(e.expanded, e.std_error))),
                 })
                 .collect();
             let stability = match term {
