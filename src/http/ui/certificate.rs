@@ -77,48 +77,7 @@ pub struct Context {
 /// The certificate document.
 pub fn render(d: &ResultDoc, c: &Context) -> Markup {
     let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
-    let notice = review::notice(c.state, &c.signatures);
-    html! {
-        (DOCTYPE)
-        html lang="en" {
-            head {
-                meta charset="utf-8";
-                meta name="viewport" content="width=device-width, initial-scale=1";
-                title { "Calibration certificate " (d.id) }
-                style { (PreEscaped(STYLESHEET)) }
-            }
-            body.certificate {
-                main {
-                    // The thead repeats on every printed page: the title
-                    // and the number; the page numbers are the stylesheet's
-                    // (`@page certificate`).
-                    table.cert-pages role="presentation" {
-                    thead { tr { td {
-                        div.cert-running { "Calibration certificate No. " (d.id) " · " (d.sensor_id) }
-                        @if let Some(n) = &notice {
-                            div.cert-withdrawn role="status" { (n) }
-                        }
-                    } } }
-                    tbody { tr { td {
-                    div.cert-head {
-                        div {
-                            @if let Some(logo) = &c.laboratory.logo {
-                                img.cert-logo src=(logo) alt="Laboratory logo";
-                            }
-                            h1 { "Calibration certificate" }
-                            p.muted { "No. " code { (d.id) } }
-                            @if let Some(s) = &d.supersedes {
-                                (replaces(s))
-                            }
-                            (laboratory(&c.laboratory))
-                        }
-                        div {
-                            @if let Some(dec) = &d.decision {
-                                p { "Verdict " (badge(&dec.verdict, &dec.verdict)) }
-                            }
-                            p { "State " (review::state_badge(c.state)) }
-                        }
-                    }
+    let body = html! {
                     h2 { "Item and calibration" }
                     dl.facts {
                         (customer_and_item(c))
@@ -221,7 +180,80 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                     }
                     (traceability(&d.standards))
                     (verification(c, Some(MethodDoc::describe(d.method.as_ref()))))
-                    p.cert-end { "End of certificate No. " (d.id) }
+    };
+    frame(
+        &Frame {
+            id: &d.id,
+            running: &d.sensor_id,
+            supersedes: d.supersedes.as_ref(),
+            verdict: d.decision.as_ref().map(|dec| dec.verdict.as_str()),
+        },
+        c,
+        body,
+    )
+}
+
+/// What a printed certificate's frame shows of its calibration.
+pub struct Frame<'a> {
+    /// The calibration (the certificate's number).
+    pub id: &'a uuid::Uuid,
+    /// After the number in the running header: the sensor (and its kind).
+    pub running: &'a str,
+    /// The calibration it supersedes.
+    pub supersedes: Option<&'a crate::domain::review::Supersedes>,
+    /// The verdict, when judged.
+    pub verdict: Option<&'a str>,
+}
+
+/// A printed certificate around its `body`: the document with the inline
+/// stylesheet, the running header repeated on every printed page (the
+/// number, and the review notice of a withdrawn or superseded one; the
+/// page numbers are the stylesheet's, `@page certificate`), the head (logo,
+/// number, the certificate it replaces, the laboratory; verdict and state)
+/// and the end line. The single-axis and the triad certificate alike.
+pub fn frame(f: &Frame<'_>, c: &Context, body: Markup) -> Markup {
+    let notice = review::notice(c.state, &c.signatures);
+    let id = f.id;
+    html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                meta name="viewport" content="width=device-width, initial-scale=1";
+                title { "Calibration certificate " (id) }
+                style { (PreEscaped(STYLESHEET)) }
+            }
+            body.certificate {
+                main {
+                    table.cert-pages role="presentation" {
+                    thead { tr { td {
+                        div.cert-running { "Calibration certificate No. " (id) " · " (f.running) }
+                        @if let Some(n) = &notice {
+                            div.cert-withdrawn role="status" { (n) }
+                        }
+                    } } }
+                    tbody { tr { td {
+                    div.cert-head {
+                        div {
+                            @if let Some(logo) = &c.laboratory.logo {
+                                img.cert-logo src=(logo) alt="Laboratory logo";
+                            }
+                            h1 { "Calibration certificate" }
+                            p.muted { "No. " code { (id) } }
+                            @if let Some(s) = f.supersedes {
+                                (replaces(s))
+                            }
+                            (laboratory(&c.laboratory))
+                        }
+                        div {
+                            @if let Some(v) = f.verdict {
+                                p { "Verdict " (badge(v, v)) }
+                            }
+                            p { "State " (review::state_badge(c.state)) }
+                        }
+                    }
+                    (body)
+                    p.cert-end { "End of certificate No. " (id) }
                     } } }
                     }
                 }

@@ -9,17 +9,15 @@
 //! convention), else with its standard error; `T` for compensation; the
 //! decision element by element and as found.
 
-use maud::{DOCTYPE, Markup, PreEscaped, html};
+use maud::{Markup, html};
 
-use super::assets::STYLESHEET;
+use super::badge;
 use super::calibration::when;
 use super::certificate::{
-    Context, PAPER, customer_and_item, laboratory, probability, replaces, traceability,
-    verification,
+    Context, Frame, PAPER, customer_and_item, frame, probability, traceability, verification,
 };
 use super::format::{num, unc, value_and_uncertainty};
 use super::triad::TriadDoc;
-use super::{badge, review};
 use crate::store::AXES;
 
 /// One row of the results: element, value, standard error, U, unit.
@@ -44,45 +42,9 @@ fn row(name: &str, v: f64, se: Option<f64>, u: Option<f64>, unit: &str) -> Marku
 
 /// The certificate of triad `d`.
 pub fn render(d: &TriadDoc, c: &Context) -> Markup {
-    let notice = review::notice(c.state, &c.signatures);
     let known = d.method == "known_orientations";
     let per_g = format!("{} per g", d.unit);
-    html! {
-        (DOCTYPE)
-        html lang="en" {
-            head {
-                meta charset="utf-8";
-                meta name="viewport" content="width=device-width, initial-scale=1";
-                title { "Calibration certificate " (d.id) }
-                style { (PreEscaped(STYLESHEET)) }
-            }
-            body.certificate {
-                main {
-                    table.cert-pages role="presentation" {
-                    thead { tr { td {
-                        div.cert-running { "Calibration certificate No. " (d.id) " · " (d.sensor_id) " (triad)" }
-                        @if let Some(n) = &notice { div.cert-withdrawn role="status" { (n) } }
-                    } } }
-                    tbody { tr { td {
-                    div.cert-head {
-                        div {
-                            @if let Some(logo) = &c.laboratory.logo {
-                                img.cert-logo src=(logo) alt="Laboratory logo";
-                            }
-                            h1 { "Calibration certificate" }
-                            p.muted { "No. " code { (d.id) } }
-                            @if let Some(s) = &d.supersedes {
-                                (replaces(s))
-                            }
-                            (laboratory(&c.laboratory))
-                        }
-                        div {
-                            @if let Some(dec) = &d.decision {
-                                p { "Verdict " (badge(&dec.verdict, &dec.verdict)) }
-                            }
-                            p { "State " (review::state_badge(c.state)) }
-                        }
-                    }
+    let body = html! {
                     h2 { "Item and calibration" }
                     dl.facts {
                         (customer_and_item(c))
@@ -210,11 +172,15 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                     }
                     (traceability(&d.standards))
                     (verification(c, None))
-                    p.cert-end { "End of certificate No. " (d.id) }
-                    } } }
-                    }
-                }
-            }
-        }
-    }
+    };
+    frame(
+        &Frame {
+            id: &d.id,
+            running: &format!("{} (triad)", d.sensor_id),
+            supersedes: d.supersedes.as_ref(),
+            verdict: d.decision.as_ref().map(|dec| dec.verdict.as_str()),
+        },
+        c,
+        body,
+    )
 }
