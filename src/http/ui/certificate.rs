@@ -107,24 +107,7 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         div { dt { "Temperature" } dd { (temperatures(d)) } }
                         div { dt { "Local gravity" } dd { (local_gravity(d)) } }
                     }
-                    @if !d.standards.is_empty() {
-                        h2 { "Reference standards" }
-                        table {
-                            thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } th { "Traceability" } } }
-                            tbody {
-                                @for u in &d.standards {
-                                    tr {
-                                        td { (u.role) }
-                                        td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
-                                        td { (u.certificate.number) ", " (u.certificate.issued_by) }
-                                        td { (when(&u.certificate.calibrated_at.to_string())) }
-                                        td { (when(&u.due_at.to_string())) }
-                                        td { (u.traceability) }
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    (standards(&d.standards))
                     h2 { "Method" }
                     p {
                         "Tumble test in the 1 g field on a dividing head (" (d.mount) " mount, "
@@ -255,6 +238,31 @@ pub fn frame(f: &Frame<'_>, c: &Context, body: Markup) -> Markup {
                     (body)
                     p.cert-end { "End of certificate No. " (id) }
                     } } }
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The reference standards used, with their certificates and
+/// traceability (nothing when none was named).
+pub fn standards(standards: &[crate::domain::standards::UsedStandard]) -> Markup {
+    html! {
+        @if !standards.is_empty() {
+            h2 { "Reference standards" }
+            table {
+                thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } th { "Traceability" } } }
+                tbody {
+                    @for u in standards {
+                        tr {
+                            td { (u.role) }
+                            td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
+                            td { (u.certificate.number) ", " (u.certificate.issued_by) }
+                            td { (when(&u.certificate.calibrated_at.to_string())) }
+                            td { (when(&u.due_at.to_string())) }
+                            td { (u.traceability) }
+                        }
                     }
                 }
             }

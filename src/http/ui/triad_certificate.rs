@@ -14,7 +14,8 @@ use maud::{Markup, html};
 use super::badge;
 use super::calibration::when;
 use super::certificate::{
-    Context, Frame, PAPER, customer_and_item, frame, probability, traceability, verification,
+    Context, Frame, PAPER, customer_and_item, frame, probability, standards, traceability,
+    verification,
 };
 use super::format::{num, unc, value_and_uncertainty};
 use super::triad::TriadDoc;
@@ -153,23 +154,7 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                         h2 { "As found" }
                         p { "With the previous calibration " code { (a.previous_calibration_id) } ", this test's positions come out with a largest error of " (num(a.max_abs_error_g)) " g." }
                     }
-                    @if !d.standards.is_empty() {
-                        h2 { "Reference standards" }
-                        table {
-                            thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } } }
-                            tbody {
-                                @for u in &d.standards {
-                                    tr {
-                                        td { (u.role) }
-                                        td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
-                                        td { (u.certificate.number) ", " (u.certificate.issued_by) }
-                                        td { (when(&u.certificate.calibrated_at.to_string())) }
-                                        td { (when(&u.due_at.to_string())) }
-                                    }
-                                }
-                            }
-                        }
-                    }
+                    (standards(&d.standards))
                     (traceability(&d.standards))
                     (verification(c, None))
     };
