@@ -35,6 +35,7 @@ fn identify_and_fuse(c: &mut Criterion) {
 /// factorisation per candidate term) and the uncertainty budget.
 fn quality_and_budget(c: &mut Criterion) {
     use accelcal_core::adequacy::model_uncertainty;
+    use accelcal_core::coverage::Coverage;
     use accelcal_core::quality::assess;
     use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
     let test = paper::paper_tumble();
@@ -42,6 +43,7 @@ fn quality_and_budget(c: &mut Criterion) {
     let stand = Stand {
         angle_std_rad: 2.0 * ARCSEC,
         gravity_rel_std: 1e-5,
+        ..Stand::default()
     };
     c.bench_function("paper six runs: quality flags + uncertainty budget", |b| {
         b.iter(|| {
@@ -51,9 +53,9 @@ fn quality_and_budget(c: &mut Criterion) {
                 budget(
                     &test,
                     &cal.fused.coefficients,
-                    &cal.fused.std_errors,
+                    (&cal.fused.std_errors, &cal.fused.dof),
                     stand,
-                    2.0,
+                    Coverage::default(),
                     &model,
                 )
                 .unwrap(),

@@ -41,6 +41,12 @@ pub struct FusedEstimate {
     pub coefficients: TermMap<f64>,
     /// Fused standard error `1/sqrt(Σ w_p)` per term.
     pub std_errors: TermMap<f64>,
+    /// The degrees of freedom of each standard error
+    /// ([`crate::coverage`]): from the batches and their weights, or a
+    /// single run's residual degrees of freedom. Stated in each term's
+    /// uncertainty budget rather than here.
+    #[serde(skip)]
+    pub dof: TermMap<f64>,
     /// Eq. 8 about the fused value, absolute; `None` for a single run.
     pub dispersion: Option<TermMap<f64>>,
     /// Eq. 8 about the fused value divided by `|x⁺|` (`null` when `x⁺ = 0`);
@@ -138,6 +144,7 @@ pub fn estimate_with_floors(
             batches: batch_summaries,
             coefficients: per_term(&|_, f| f.value),
             std_errors: per_term(&|_, f| f.std_error),
+            dof: per_term(&|_, f| f.dof),
             dispersion: Some(fused_abs),
             relative_dispersion: Some(fused_rel),
             note: None,
@@ -156,8 +163,9 @@ pub fn estimate_with_floors(
 }
 
 /// The estimates of a single run: its coefficients and its own standard
-/// errors, no batches and no eq. 8 ([`SINGLE_RUN`]).
-pub fn single_run(coefficients: &TermMap<f64>, std_errors: &TermMap<f64>) -> Estimates {
+/// errors on its `dof` residual degrees of freedom, no batches and no eq. 8
+/// ([`SINGLE_RUN`]).
+pub fn single_run(coefficients: &TermMap<f64>, std_errors: &TermMap<f64>, dof: usize) -> Estimates {
     Estimates {
         mean: MeanEstimate {
             coefficients: coefficients.clone(),
@@ -168,6 +176,7 @@ pub fn single_run(coefficients: &TermMap<f64>, std_errors: &TermMap<f64>) -> Est
             batches: Vec::new(),
             coefficients: coefficients.clone(),
             std_errors: std_errors.clone(),
+            dof: TermMap(std_errors.iter().map(|(t, _)| (t, dof as f64)).collect()),
             dispersion: None,
             relative_dispersion: None,
             note: Some(SINGLE_RUN),

@@ -180,6 +180,9 @@ pub struct Fusion {
     pub value: f64,
     /// Fused standard error `1 / sqrt(Σ w_p)`.
     pub std_error: f64,
+    /// Its degrees of freedom, `1 / Σ_p (w_p/W)² / (n_p − 1)` with the
+    /// weights used ([`crate::coverage::fused_dof`]).
+    pub dof: f64,
 }
 
 /// Fuses `values` (one per run, in submission order) over `k` batches.
@@ -217,10 +220,12 @@ pub fn fuse_with_floor(values: &[f64], k: usize, floor: f64) -> Result<Fusion, F
     let weighed = |b: &Batch| b.std.max(floor);
     let s_min = batches.iter().map(weighed).fold(f64::INFINITY, f64::min);
     let (mut sum_w, mut sum_wx) = (0.0, 0.0);
+    let mut weights = Vec::with_capacity(batches.len());
     for b in &batches {
         let w = b.runs.len() as f64 * (s_min / weighed(b)).powi(2);
         sum_w += w;
         sum_wx += w * b.mean;
+        weights.push((b.runs.len(), w));
     }
     let (value, std_error) = (sum_wx / sum_w, s_min / sum_w.sqrt());
     if !(value.is_finite() && std_error.is_finite()) {
@@ -230,6 +235,7 @@ pub fn fuse_with_floor(values: &[f64], k: usize, floor: f64) -> Result<Fusion, F
         batches,
         value,
         std_error,
+        dof: crate::coverage::fused_dof(&weights),
     })
 }
 
@@ -301,6 +307,8 @@ mod tests {
         assert_eq!(f.value, 35.0 / 4.0);
         assert_eq!(f.std_error, 0.5);
         assert_eq!(f.batches[0].runs, 0..3);
+        // ν = 1 / ((3/4)²/2 + (1/4)²/1).
+        assert!((f.dof - 1.0 / (9.0 / 32.0 + 1.0 / 16.0)).abs() < 1e-12);
     }
 
     #[test]

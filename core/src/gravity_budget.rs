@@ -17,7 +17,10 @@
 //!   budget's `u·|k_t|` on the scale terms and 0 on the bias;
 //! * **model**: 0, since `σ̂` holds any lack of fit (there are no repeated
 //!   positions to tell pure error from it);
-//! * **combined** and **expanded** as in the single-axis budget.
+//! * **combined** and **expanded** as in the single-axis budget, the
+//!   statistical component on the fit's `n − 9` residual degrees of
+//!   freedom and the gravity component on its certificate's (infinite
+//!   unless stated).
 //!
 //! `S`'s elements above the diagonal are zero by the frame convention (the
 //! sensor's x axis and xy-plane define the frame): not measured, their
@@ -26,14 +29,16 @@
 
 use serde::Serialize;
 
+use crate::coverage::Coverage;
 use crate::gravity_fit::GravityFit;
-use crate::uncertainty::TermBudget;
+use crate::uncertainty::{ComponentDof, TermBudget};
 
 /// The budget of a triad found from the gravity magnitude.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct GravityBudget {
-    /// The coverage factor `k` of the expanded uncertainties.
-    pub coverage_factor: f64,
+    /// What the expanded uncertainties hold fixed.
+    #[serde(flatten, serialize_with = "crate::uncertainty::stated")]
+    pub coverage: Coverage,
     /// The fit's residual degrees of freedom (`n − 9`), which the
     /// statistical components rest on.
     pub degrees_of_freedom: usize,
@@ -44,19 +49,26 @@ pub struct GravityBudget {
 }
 
 /// The budget of `fit` for a gravity magnitude of relative uncertainty
-/// `gravity_rel_std` (1σ) and a coverage factor; `None` without standard
-/// errors (exactly nine positions).
+/// `gravity_rel_std` (1σ) on `gravity_dof` degrees of freedom (`None`:
+/// infinite) and a coverage; `None` without standard errors (exactly nine
+/// positions).
 pub fn budget(
     fit: &GravityFit,
-    gravity_rel_std: f64,
-    coverage_factor: f64,
+    (gravity_rel_std, gravity_dof): (f64, Option<f64>),
+    coverage: Coverage,
 ) -> Option<GravityBudget> {
     let (b_std, s_std) = (fit.bias_std?, fit.s_std?);
+    let dof = ComponentDof {
+        statistical: Some(fit.degrees_of_freedom as f64),
+        indexing: None,
+        gravity: gravity_dof,
+        model: None,
+    };
     let element = |statistical: f64, gravity: f64| {
-        TermBudget::new(statistical, 0.0, gravity, 0.0, coverage_factor)
+        TermBudget::new([statistical, 0.0, gravity, 0.0], dof, coverage)
     };
     Some(GravityBudget {
-        coverage_factor,
+        coverage,
         degrees_of_freedom: fit.degrees_of_freedom,
         b: [0, 1, 2].map(|m| element(b_std[m], 0.0)),
         s: [0, 1, 2]
@@ -74,7 +86,7 @@ mod tests {
     fn the_components_combine_in_quadrature() {
         let f = fit(&noisy(12, 11, 1e-4, 13)).unwrap();
         let u = 3e-4;
-        let got = budget(&f, u, 2.0).unwrap();
+        let got = budget(&f, (u, None), Coverage::Factor(2.0)).unwrap();
         assert_eq!(got.degrees_of_freedom, 3);
         let (b_std, s_std) = (f.bias_std.unwrap(), f.s_std.unwrap());
         for m in 0..3 {
@@ -100,6 +112,25 @@ mod tests {
         assert!(got.s[0][0].gravity > 0.0 && got.s[2][1].statistical > 0.0);
     }
 
+    /// At a stated probability, `b` (statistical only, on the fit's three
+    /// degrees of freedom) is expanded by Student's t on 3: scipy's
+    /// `t.ppf(0.977 25, 3)` = 3.306 829 920 720 108; an element of `S` with
+    /// a gravity component of infinite degrees of freedom has more.
+    #[test]
+    fn the_coverage_factor_follows_the_fits_degrees_of_freedom() {
+        let f = fit(&noisy(12, 11, 1e-4, 13)).unwrap();
+        let got = budget(&f, (3e-4, None), Coverage::default()).unwrap();
+        for e in got.b {
+            assert_eq!(e.effective_dof, Some(3));
+            assert!((e.coverage_factor - 3.306_829_920_720_108).abs() < 1e-9);
+            assert!((e.expanded - e.coverage_factor * e.combined).abs() <= 1e-15 * e.expanded);
+        }
+        let s00 = got.s[0][0];
+        let by_hand = (s00.combined.powi(4) / (s00.statistical.powi(4) / 3.0)).floor() as u64;
+        assert_eq!(s00.effective_dof, Some(by_hand));
+        assert!(by_hand >= 3);
+    }
+
     /// The gravity component against the fit itself: the same positions
     /// under a gravity 1 + ε (outputs `b + S (1 + ε) g`) give an `S` larger
     /// by `ε S` to first order and the same `b`.
@@ -115,7 +146,7 @@ mod tests {
             fit(&means).unwrap()
         };
         let (nominal, off) = (at(1.0), at(1.0 + eps));
-        let u = budget(&nominal, eps, 1.0).unwrap();
+        let u = budget(&nominal, (eps, None), Coverage::Factor(1.0)).unwrap();
         for m in 0..3 {
             assert!((off.bias[m] - nominal.bias[m]).abs() < 1e-12, "b{m}");
             for k in 0..=m {
@@ -145,8 +176,8 @@ mod tests {
             if !s {
                 g.s_std = None;
             }
-            assert_eq!(budget(&g, 1e-5, 2.0), None);
+            assert_eq!(budget(&g, (1e-5, None), Coverage::default()), None);
         }
-        assert!(budget(&f, 1e-5, 2.0).is_some());
+        assert!(budget(&f, (1e-5, None), Coverage::default()).is_some());
     }
 }

@@ -22,6 +22,7 @@
 //!    ([`decision`]), as found and stability over a sensor's history
 //!    ([`history`]), temperature sensitivity ([`temperature`]), the model's
 //!    adequacy — pure error, lack of fit, unmodelled terms ([`adequacy`]) —
+//!    coverage factors from effective degrees of freedom ([`coverage`]) —
 //!    and quality flags with their F tests ([`quality`], [`ftest`]);
 //! 6. triads — three outputs at once, `u = b + S g` — as a view over three
 //!    single-axis tumble tests sharing their positions ([`triad`]), or from
@@ -51,11 +52,14 @@ mod error;
 
 /// The core's version, recorded with every result it computes: raised
 /// whenever a number the core computes for the same input can change (0.2.0:
-/// the design factorised by faer's SVD, and the adequacy tests).
+/// the design factorised by faer's SVD, and the adequacy tests; 0.3.0: each
+/// expanded uncertainty's coverage factor from its effective degrees of
+/// freedom, [`coverage`]).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub mod adequacy;
 pub mod compensate;
+pub mod coverage;
 pub mod decision;
 pub mod derived;
 pub mod estimate;

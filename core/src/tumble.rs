@@ -171,7 +171,7 @@ impl TumbleTest {
                     positions: self.positions.len(),
                     terms: self.model().len(),
                 })?;
-                estimate::single_run(&run.coefficients, se)
+                estimate::single_run(&run.coefficients, se, run.dof)
             }
             _ => estimate::estimate_with_floors(&values, batches, &consistency_floors(&runs))?,
         };

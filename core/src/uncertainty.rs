@@ -30,10 +30,16 @@
 //!   when lack of fit is flagged, 0 otherwise
 //!   ([`crate::adequacy::model_uncertainty`]).
 //! * **combined** `= √(statistical² + indexing² + gravity² + model²)`;
-//!   **expanded** `U = coverage_factor × combined`.
+//!   **expanded** `U = k × combined`, with `k` from the effective degrees of
+//!   freedom of the four ([`crate::coverage`]): the statistical component's
+//!   are the fused standard error's (`FusedEstimate::dof`), the model
+//!   component's `P − p` of the run-averaged fit (positions less terms),
+//!   and the stand's (indexing, gravity) infinite unless its certificate
+//!   states them ([`Stand`]).
 
 use serde::Serialize;
 
+use crate::coverage::{Coverage, effective_dof};
 use crate::estimate::finite;
 use crate::fusion::scaled_norm;
 use crate::term::TermMap;
@@ -43,13 +49,33 @@ use crate::{Error, Term};
 /// One arcsecond in radians.
 pub const ARCSEC: f64 = std::f64::consts::PI / (180.0 * 3600.0);
 
-/// The tumble stand's systematic uncertainties (1σ).
+/// The tumble stand's systematic uncertainties (1σ), each with the degrees
+/// of freedom its certificate states (`None`: infinite, a Type B
+/// evaluation with no stated degrees of freedom).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Stand {
     /// Indexing (angle) error of the dividing head, in radians.
     pub angle_std_rad: f64,
     /// Relative uncertainty of the local gravity magnitude.
     pub gravity_rel_std: f64,
+    /// The indexing error's degrees of freedom.
+    pub angle_dof: Option<f64>,
+    /// The gravity value's degrees of freedom.
+    pub gravity_dof: Option<f64>,
+}
+
+/// The degrees of freedom of each component of a budget; `null` (`None`)
+/// where infinite.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ComponentDof {
+    /// Of the statistical component.
+    pub statistical: Option<f64>,
+    /// Of the indexing component.
+    pub indexing: Option<f64>,
+    /// Of the gravity component.
+    pub gravity: Option<f64>,
+    /// Of the model component.
+    pub model: Option<f64>,
 }
 
 /// The budget of one coefficient, in the coefficient's unit.
@@ -65,29 +91,44 @@ pub struct TermBudget {
     pub model: f64,
     /// Root-sum-square of the four.
     pub combined: f64,
-    /// `coverage_factor × combined`.
+    /// The degrees of freedom of each component.
+    pub degrees_of_freedom: ComponentDof,
+    /// Their effective degrees of freedom (Welch–Satterthwaite, truncated);
+    /// `null` when infinite.
+    pub effective_dof: Option<u64>,
+    /// The coverage factor `k`.
+    pub coverage_factor: f64,
+    /// The coverage probability `p`.
+    pub coverage_probability: f64,
+    /// `k × combined`.
     pub expanded: f64,
 }
 
 impl TermBudget {
-    /// The four components combined in quadrature and expanded by
-    /// `coverage_factor`.
-    pub fn new(
-        statistical: f64,
-        indexing: f64,
-        gravity: f64,
-        model: f64,
-        coverage_factor: f64,
-    ) -> Self {
+    /// The four components (statistical, indexing, gravity, model) with
+    /// their degrees of freedom, combined in quadrature and expanded for
+    /// `coverage` at their effective degrees of freedom.
+    pub fn new(components: [f64; 4], dof: ComponentDof, coverage: Coverage) -> Self {
+        let [statistical, indexing, gravity, model] = components;
         let combined =
             (statistical.powi(2) + indexing.powi(2) + gravity.powi(2) + model.powi(2)).sqrt();
+        let covered = coverage.at(effective_dof(&[
+            (statistical, dof.statistical),
+            (indexing, dof.indexing),
+            (gravity, dof.gravity),
+            (model, dof.model),
+        ]));
         TermBudget {
             statistical,
             indexing,
             gravity,
             model,
             combined,
-            expanded: coverage_factor * combined,
+            degrees_of_freedom: dof,
+            effective_dof: covered.effective_dof,
+            coverage_factor: covered.factor,
+            coverage_probability: covered.probability,
+            expanded: covered.factor * combined,
         }
     }
 }
@@ -95,10 +136,27 @@ impl TermBudget {
 /// The budget of every fused coefficient.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Uncertainty {
-    /// The coverage factor `k` of the expanded uncertainties.
-    pub coverage_factor: f64,
+    /// What the expanded uncertainties hold fixed: the coverage
+    /// probability (each term's `k` then follows from its effective degrees
+    /// of freedom) or the coverage factor.
+    #[serde(flatten, serialize_with = "stated")]
+    pub coverage: Coverage,
     /// Per term, in model order.
     pub terms: TermMap<TermBudget>,
+}
+
+/// `coverage` as the two fields a budget states, the one not fixed `null`:
+/// `{"coverage_probability": 0.9545, "coverage_factor": null}`.
+pub fn stated<S: serde::Serializer>(coverage: &Coverage, s: S) -> Result<S::Ok, S::Error> {
+    use serde::ser::SerializeMap;
+    let (p, k) = match *coverage {
+        Coverage::Probability(p) => (Some(p), None),
+        Coverage::Factor(k) => (None, Some(k)),
+    };
+    let mut map = s.serialize_map(Some(2))?;
+    map.serialize_entry("coverage_probability", &p)?;
+    map.serialize_entry("coverage_factor", &k)?;
+    map.end()
 }
 
 impl Uncertainty {
@@ -167,14 +225,15 @@ pub fn coverage_probability(k: f64) -> f64 {
 }
 
 /// The budget of the fused coefficients `fused` (standard errors
-/// `std_errors`) of `test`, for a stand and a coverage factor, with each
-/// term's `model` component (none for a term `model` does not list).
+/// `std_errors` on `dof` degrees of freedom, per term) of `test`, for a
+/// stand and a coverage, with each term's `model` component (none for a
+/// term `model` does not list).
 pub fn budget(
     test: &TumbleTest,
     fused: &TermMap<f64>,
-    std_errors: &TermMap<f64>,
+    (std_errors, dof): (&TermMap<f64>, &TermMap<f64>),
     stand: Stand,
-    coverage_factor: f64,
+    coverage: Coverage,
     model: &TermMap<f64>,
 ) -> Result<Uncertainty, Error> {
     let design = test.design();
@@ -211,6 +270,8 @@ pub fn budget(
         })
         .collect();
     let explicit = explicit_indexing(test);
+    // The run-averaged fit's residual degrees of freedom: P − p.
+    let model_dof = test.positions().len().saturating_sub(terms.len()) as f64;
     let mut out = Vec::with_capacity(terms.len());
     for (row, t) in terms.iter().enumerate() {
         let g_row = pinv.row(row);
@@ -226,15 +287,21 @@ pub fn budget(
                 .abs();
         let statistical = std_errors.get(*t).copied().unwrap_or(0.0);
         let model = model.get(*t).copied().unwrap_or(0.0);
+        let dof = ComponentDof {
+            statistical: dof.get(*t).copied(),
+            indexing: stand.angle_dof,
+            gravity: stand.gravity_dof,
+            model: Some(model_dof),
+        };
         out.push((
             *t,
-            TermBudget::new(statistical, indexing, gravity, model, coverage_factor),
+            TermBudget::new([statistical, indexing, gravity, model], dof, coverage),
         ));
     }
     let expanded = TermMap(out.iter().map(|(t, b)| (*t, b.expanded)).collect());
     finite(&expanded, "expanded uncertainty")?;
     Ok(Uncertainty {
-        coverage_factor,
+        coverage,
         terms: TermMap(out),
     })
 }

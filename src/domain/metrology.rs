@@ -8,13 +8,13 @@ use accelcal_core::decision::{Decision, decide};
 use accelcal_core::history::{PositionError, as_found};
 use accelcal_core::quality::{Quality, assess};
 use accelcal_core::temperature::{Sensitivity, sensitivity};
-use accelcal_core::uncertainty::{ARCSEC, Stand, Uncertainty, budget};
+use accelcal_core::uncertainty::{Stand, Uncertainty, budget};
 use serde::Serialize;
 use uuid::Uuid;
 
 use super::field::{Invalid, Loc};
-use super::sensor_types::{DEFAULT_COVERAGE_FACTOR, SensorType};
-use super::submission::Evaluated;
+use super::sensor_types::{SensorType, coverage};
+use super::submission::{Evaluated, StandIn};
 use super::timestamp::Timestamp;
 
 /// The sensor's previous calibration, as far as as-found needs it.
@@ -72,10 +72,7 @@ pub fn assess_calibration(
 ) -> Result<Metrology, Invalid> {
     let s = &e.submission;
     let cal = &e.calibration;
-    let stand = s.stand.as_ref().map_or(Stand::default(), |st| Stand {
-        angle_std_rad: st.angle_std_arcsec * ARCSEC,
-        gravity_rel_std: st.gravity_rel_std,
-    });
+    let stand = s.stand.as_ref().map_or(Stand::default(), StandIn::core);
     if let Some(t) = sensor_type
         && let Some(unit) = t.unit.as_ref().filter(|u| **u != s.unit)
     {
@@ -88,14 +85,13 @@ pub fn assess_calibration(
             ),
         ));
     }
-    let coverage = sensor_type.map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor);
     let quality = assess(&s.test, cal);
     let uncertainty = budget(
         &s.test,
         &cal.fused.coefficients,
-        &cal.fused.std_errors,
+        (&cal.fused.std_errors, &cal.fused.dof),
         stand,
-        coverage,
+        coverage(sensor_type),
         &model_uncertainty(&s.test, &quality.lack_of_fit),
     )
     .map_err(|err| Invalid::one(Loc::Root.key("stand"), err.to_string()))?;

@@ -296,6 +296,28 @@ pub fn coverage_factor() -> ObjectBuilder {
         .maximum(Some(MAX_COVERAGE_FACTOR))
 }
 
+/// What an expanded uncertainty holds fixed, as a budget states it: the
+/// coverage probability or the coverage factor, the other null.
+#[derive(utoipa::ToSchema)]
+#[allow(dead_code)]
+pub struct CoverageStated {
+    /// The coverage probability each coefficient's coverage factor was
+    /// chosen for (Student's t at its effective degrees of freedom); null
+    /// when the sensor type fixes the factor.
+    pub coverage_probability: Option<f64>,
+    /// The coverage factor the sensor type fixes; null when a probability
+    /// is stated.
+    pub coverage_factor: Option<f64>,
+}
+
+/// `coverage_probability`, optional.
+pub fn coverage_probability() -> ObjectBuilder {
+    ObjectBuilder::new()
+        .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+        .minimum(Some(super::sensor_types::MIN_COVERAGE_PROBABILITY))
+        .maximum(Some(super::sensor_types::MAX_COVERAGE_PROBABILITY))
+}
+
 /// `interval_days`, optional.
 pub fn interval_days() -> ObjectBuilder {
     ObjectBuilder::new()

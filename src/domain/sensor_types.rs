@@ -1,8 +1,12 @@
 //! Sensor types: the limits a sensor's fused coefficients must meet, the
-//! decision rule, the coverage factor of its expanded uncertainties and its
-//! calibration interval.
+//! decision rule, the coverage of its expanded uncertainties — a coverage
+//! probability (the coverage factor then follows from each coefficient's
+//! effective degrees of freedom, [`accelcal_core::coverage`]) or a fixed
+//! coverage factor (the probability then follows) — and its calibration
+//! interval.
 
 use accelcal_core::TermMap;
+use accelcal_core::coverage::{Coverage, DEFAULT_PROBABILITY};
 use accelcal_core::decision::{Limit, Rule};
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
@@ -12,8 +16,14 @@ use super::limits::{MAX_LABEL_CHARS, MAX_UNIT_CHARS};
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
-/// Coverage factor when a type gives none (about 95 % for a normal distribution).
+/// The large-sample coverage factor of [`DEFAULT_PROBABILITY`] (a
+/// normal distribution), for comparisons that carry no degrees of freedom
+/// (a stability report's latest change).
 pub const DEFAULT_COVERAGE_FACTOR: f64 = 2.0;
+/// Smallest coverage probability accepted.
+pub const MIN_COVERAGE_PROBABILITY: f64 = 0.5;
+/// Largest coverage probability accepted.
+pub const MAX_COVERAGE_PROBABILITY: f64 = 0.9999;
 /// Calibration interval when a type gives none, in days.
 pub const DEFAULT_INTERVAL_DAYS: u32 = 365;
 /// Smallest coverage factor accepted: below 1 an "expanded" uncertainty
@@ -44,7 +54,16 @@ pub struct SensorTypeBody {
     /// with the expanded uncertainty as guard band).
     #[schema(value_type = crate::domain::schema::RuleSchema)]
     pub decision_rule: Rule,
-    /// Coverage factor of the expanded uncertainties (default 2).
+    /// The coverage probability of the expanded uncertainties (default
+    /// 0.9545): each coefficient's coverage factor is Student's t for it at
+    /// the coefficient's effective degrees of freedom. Not with
+    /// `coverage_factor`.
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::coverage_probability)]
+    pub coverage_probability: Option<f64>,
+    /// A fixed coverage factor instead (each coefficient then states the
+    /// probability it achieves at its effective degrees of freedom). Not
+    /// with `coverage_probability`.
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::coverage_factor)]
     pub coverage_factor: Option<f64>,
@@ -72,12 +91,35 @@ pub struct SensorType {
     /// The decision rule.
     #[schema(value_type = crate::domain::schema::RuleSchema)]
     pub decision_rule: Rule,
-    /// Coverage factor of the expanded uncertainties.
-    pub coverage_factor: f64,
+    /// The coverage probability of the expanded uncertainties (null when
+    /// the type fixes the coverage factor).
+    #[serde(default)]
+    pub coverage_probability: Option<f64>,
+    /// The fixed coverage factor (null when the type states a probability).
+    /// A type written before coverage probabilities keeps the factor it was
+    /// written with (2 when it gave none).
+    pub coverage_factor: Option<f64>,
     /// Calibration interval in days.
     pub interval_days: u32,
     /// When it was last written.
     pub updated_at: Timestamp,
+}
+
+impl SensorType {
+    /// What its expanded uncertainties hold fixed.
+    pub fn coverage(&self) -> Coverage {
+        match (self.coverage_probability, self.coverage_factor) {
+            (Some(p), _) => Coverage::Probability(p),
+            (None, Some(k)) => Coverage::Factor(k),
+            (None, None) => Coverage::default(),
+        }
+    }
+}
+
+/// The coverage of a sensor's expanded uncertainties: its type's, else the
+/// default probability.
+pub fn coverage(t: Option<&SensorType>) -> Coverage {
+    t.map_or(Coverage::default(), SensorType::coverage)
 }
 
 impl SensorTypeBody {
@@ -117,15 +159,38 @@ impl SensorTypeBody {
                 _ => {}
             }
         }
-        let coverage_factor = self.coverage_factor.unwrap_or(DEFAULT_COVERAGE_FACTOR);
-        if !(MIN_COVERAGE_FACTOR..=MAX_COVERAGE_FACTOR).contains(&coverage_factor) {
+        let coverage_probability = match (self.coverage_probability, self.coverage_factor) {
+            (None, None) => Some(DEFAULT_PROBABILITY),
+            (p, _) => p,
+        };
+        if let Some(p) = self.coverage_probability
+            && !(MIN_COVERAGE_PROBABILITY..=MAX_COVERAGE_PROBABILITY).contains(&p)
+        {
             errors.add(
-                root.key("coverage_factor"),
+                root.key("coverage_probability"),
                 format!(
-                    "must be from {MIN_COVERAGE_FACTOR} to {MAX_COVERAGE_FACTOR} (2 gives about \
-                     95 % coverage for a normal distribution)"
+                    "must be from {MIN_COVERAGE_PROBABILITY} to {MAX_COVERAGE_PROBABILITY} \
+                     (0.9545: about two standard deviations)"
                 ),
             );
+        }
+        if let Some(k) = self.coverage_factor {
+            if self.coverage_probability.is_some() {
+                errors.add(
+                    root.key("coverage_factor"),
+                    "is given with `coverage_probability`: a type fixes one of them, and the \
+                     other follows from each coefficient's effective degrees of freedom",
+                );
+            } else if !(MIN_COVERAGE_FACTOR..=MAX_COVERAGE_FACTOR).contains(&k) {
+                errors.add(
+                    root.key("coverage_factor"),
+                    format!(
+                        "must be from {MIN_COVERAGE_FACTOR} to {MAX_COVERAGE_FACTOR} (or give \
+                         `coverage_probability` instead, and k follows from the degrees of \
+                         freedom)"
+                    ),
+                );
+            }
         }
         let interval = self
             .interval_days
@@ -144,7 +209,10 @@ impl SensorTypeBody {
             unit: Some(self.unit),
             limits: TermMap(limits),
             decision_rule: self.decision_rule,
-            coverage_factor,
+            coverage_probability,
+            coverage_factor: self
+                .coverage_factor
+                .filter(|_| coverage_probability.is_none()),
             interval_days: interval as u32,
             updated_at: now,
         })
@@ -183,7 +251,8 @@ mod tests {
     }
 
     /// A type judges something: at least one limit, and a coverage factor
-    /// from 1 to 10 (the issue's 1e-300 is refused; both ends are accepted).
+    /// from 1 to 10 (the issue's 1e-300 is refused; both ends are accepted)
+    /// or a coverage probability from 0.5 to 0.9999, never both.
     #[test]
     fn a_type_must_limit_something_with_a_meaningful_coverage_factor() {
         assert_eq!(
@@ -198,14 +267,35 @@ mod tests {
         for bad in ["1e-300", "0.999", "10.001"] {
             assert_eq!(with(bad).unwrap_err(), ["/coverage_factor"], "{bad}");
         }
-        assert_eq!(with("1").unwrap().coverage_factor, 1.0);
-        assert_eq!(with("10").unwrap().coverage_factor, 10.0);
+        assert_eq!(with("1").unwrap().coverage(), Coverage::Factor(1.0));
+        assert_eq!(with("10").unwrap().coverage(), Coverage::Factor(10.0));
+        assert_eq!(with("10").unwrap().coverage_probability, None);
+        let with_p = |p: &str| {
+            check(&format!(
+                r#"{{"unit": "mA", "limits": {{"k0": {{"max": 1}}}}, "decision_rule": "guarded", "coverage_probability": {p}}}"#
+            ))
+        };
+        for bad in ["0", "0.49", "1", "0.99991"] {
+            assert_eq!(with_p(bad).unwrap_err(), ["/coverage_probability"], "{bad}");
+        }
+        assert_eq!(
+            with_p("0.99").unwrap().coverage(),
+            Coverage::Probability(0.99)
+        );
+        assert_eq!(
+            check(r#"{"unit": "mA", "limits": {"k0": {"max": 1}}, "decision_rule": "simple", "coverage_probability": 0.95, "coverage_factor": 2}"#)
+                .unwrap_err(),
+            ["/coverage_factor"]
+        );
     }
 
     #[test]
     fn a_type_is_checked_field_by_field() {
         let t = check(r#"{"unit": "mA", "limits": {"kp": {"max": 0.01}, "k0": {"min": -1e-3, "max": 1e-3}}, "decision_rule": "guarded"}"#).unwrap();
-        assert_eq!((t.coverage_factor, t.interval_days), (2.0, 365));
+        assert_eq!(
+            (t.coverage(), t.interval_days),
+            (Coverage::Probability(DEFAULT_PROBABILITY), 365)
+        );
         let names: Vec<&str> = t.limits.iter().map(|(t, _)| t.name()).collect();
         assert_eq!(names, ["k0", "kp"], "limits in model order");
         assert_eq!(
@@ -261,5 +351,7 @@ mod units {
         )
         .unwrap();
         assert_eq!(old.unit, None);
+        // And keeps the coverage factor it was written with.
+        assert_eq!(old.coverage(), Coverage::Factor(2.0));
     }
 }

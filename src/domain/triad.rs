@@ -25,6 +25,7 @@ use accelcal_core::triad::{AXES, Triad, TriadError, TriadRun, TriadTest, six_fac
 use std::collections::BTreeMap;
 
 use accelcal_core::adequacy::model_uncertainty;
+use accelcal_core::coverage::Coverage;
 use accelcal_core::decision::{Limit, Rule, TermDecision, Verdict, decide};
 use accelcal_core::quality;
 use accelcal_core::uncertainty::{ARCSEC, Stand, TermBudget, budget};
@@ -37,7 +38,6 @@ use super::limits::{
     MAX_ANGLE_STD_ARCSEC, MAX_BATCHES, MAX_GRAVITY_REL_STD, MAX_ID_CHARS, MAX_POSITIONS,
     MAX_READING, MAX_RUNS, MAX_TOTAL_SAMPLES, MAX_UNIT_CHARS,
 };
-use super::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use super::standards::UsedStandard;
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
@@ -227,9 +227,10 @@ pub struct TriadSubmission {
     pub stand: Stand,
     /// The sensor type named, if any.
     pub sensor_type: Option<String>,
-    /// The coverage factor of the expanded uncertainties: the sensor
-    /// type's when one judges the triad (set by the caller), else 2.
-    pub coverage_factor: f64,
+    /// What the expanded uncertainties hold fixed: the sensor type's when
+    /// one judges the triad (set by the caller), else the default
+    /// probability.
+    pub coverage: Coverage,
     /// The reference standards named, by role (`stand`, `gravity`).
     pub standards: Vec<(&'static str, String)>,
 }
@@ -403,6 +404,7 @@ impl TriadBody {
                 Stand {
                     angle_std_rad: st.angle_std_arcsec.unwrap_or(0.0) * ARCSEC,
                     gravity_rel_std: st.gravity_rel_std.unwrap_or(0.0),
+                    ..Stand::default()
                 }
             }
         };
@@ -499,7 +501,7 @@ impl TriadBody {
             performed_at,
             stand,
             sensor_type,
-            coverage_factor: DEFAULT_COVERAGE_FACTOR,
+            coverage: Coverage::default(),
             standards,
             unit,
             form: form.expect("a form when nothing is wrong"),
@@ -658,12 +660,49 @@ pub struct FitReport {
 /// so never judged.
 pub const FIXED_BY_CONVENTION: [(usize, usize); 3] = [(0, 1), (0, 2), (1, 2)];
 
+/// `coverage` as [`accelcal_core::uncertainty::stated`] writes it, nothing
+/// when there is none.
+fn stated<S: serde::Serializer>(coverage: &Option<Coverage>, s: S) -> Result<S::Ok, S::Error> {
+    match coverage {
+        Some(c) => accelcal_core::uncertainty::stated(c, s),
+        None => serde::ser::SerializeMap::end(s.serialize_map(Some(0))?),
+    }
+}
+
+/// How one element's expanded uncertainty was formed: its combined
+/// standard uncertainty, effective degrees of freedom, coverage factor and
+/// probability (Welch–Satterthwaite and Student's t).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct ElementCoverage {
+    /// The combined standard uncertainty `u_c`.
+    pub combined: f64,
+    /// Its effective degrees of freedom; null when infinite.
+    pub effective_dof: Option<u64>,
+    /// `k`.
+    pub coverage_factor: f64,
+    /// `p`.
+    pub coverage_probability: f64,
+}
+
+impl From<&TermBudget> for ElementCoverage {
+    fn from(b: &TermBudget) -> Self {
+        ElementCoverage {
+            combined: b.combined,
+            effective_dof: b.effective_dof,
+            coverage_factor: b.coverage_factor,
+            coverage_probability: b.coverage_probability,
+        }
+    }
+}
+
 /// The uncertainty budget of a triad found from the gravity magnitude,
 /// element by element ([`accelcal_core::gravity_budget`]).
 #[derive(Debug, Clone, Serialize, ToSchema)]
 pub struct GravityUncertainty {
-    /// The coverage factor of the expanded uncertainties.
-    pub coverage_factor: f64,
+    /// What the expanded uncertainties hold fixed.
+    #[serde(flatten, serialize_with = "accelcal_core::uncertainty::stated")]
+    #[schema(value_type = crate::domain::schema::CoverageStated)]
+    pub coverage: Coverage,
     /// The fit's residual degrees of freedom, which the statistical
     /// components rest on.
     pub degrees_of_freedom: usize,
@@ -690,7 +729,7 @@ impl GravityUncertainty {
             }
         }
         GravityUncertainty {
-            coverage_factor: budget.coverage_factor,
+            coverage: budget.coverage,
             degrees_of_freedom: budget.degrees_of_freedom,
             gravity_rel_std,
             elements,
@@ -777,10 +816,21 @@ pub struct TriadResult {
     /// Their expanded uncertainties.
     #[serde(rename = "S2_expanded", skip_serializing_if = "Option::is_none")]
     pub s2_expanded: Option<[f64; 3]>,
-    /// The coverage factor of the expanded uncertainties (none from the
-    /// gravity magnitude with exactly nine positions).
+    /// What the expanded uncertainties hold fixed, as two fields:
+    /// `coverage_probability` (each element's coverage factor then follows
+    /// from its effective degrees of freedom, `coverage`) or
+    /// `coverage_factor` (a sensor type's fixed factor), the other null.
+    /// Both absent without expanded uncertainties (the gravity magnitude
+    /// with exactly nine positions).
+    #[serde(flatten, serialize_with = "stated")]
+    #[schema(value_type = crate::domain::schema::CoverageStated)]
+    pub stated: Option<Coverage>,
+    /// Each element's combined standard uncertainty, effective degrees of
+    /// freedom, coverage factor and probability, by name (`b_x`, `S_yx`,
+    /// `S2_z`).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub coverage_factor: Option<f64>,
+    #[schema(value_type = Option<BTreeMap<String, ElementCoverage>>)]
+    pub coverage: Option<BTreeMap<String, ElementCoverage>>,
     /// `b`'s expanded uncertainties: known orientations, each axis's `k0`
     /// budget; the gravity magnitude, the fit's budget (`uncertainty`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -1068,7 +1118,8 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         s2: None,
         s2_std_errors: None,
         s2_expanded: None,
-        coverage_factor: None,
+        stated: None,
+        coverage: None,
         b_expanded: None,
         s_expanded: None,
         uncertainty: None,
@@ -1134,27 +1185,29 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             let mut axes = Vec::with_capacity(3);
             let (mut b_expanded, mut s_expanded) = ([0.0; 3], [[0.0; 3]; 3]);
             let mut s2_expanded = [0.0; 3];
+            let mut coverage = BTreeMap::new();
             for (m, (axis_test, c)) in test.axes().iter().zip(&cal.axes).enumerate() {
                 let quality = quality::assess(axis_test, c);
                 let u = budget(
                     axis_test,
                     &c.fused.coefficients,
-                    &c.fused.std_errors,
+                    (&c.fused.std_errors, &c.fused.dof),
                     sub.stand,
-                    sub.coverage_factor,
+                    sub.coverage,
                     &model_uncertainty(axis_test, &quality.lack_of_fit),
                 )
                 .map_err(|e| problem(Loc::Root.key("stand"), e.to_string()))?;
-                let expanded = u.expanded();
                 for (term, slot) in row_terms(m) {
-                    let Some(x) = expanded.get(term).copied() else {
+                    let Some(b) = u.terms.get(term) else {
                         continue;
                     };
+                    let x = b.expanded;
                     match slot {
                         Slot::B => b_expanded[m] = x,
                         Slot::S(k) => s_expanded[m][k] = x,
                         Slot::S2 => s2_expanded[m] = x,
                     }
+                    coverage.insert(element(m, slot), ElementCoverage::from(b));
                 }
                 axes.push(AxisResult {
                     axis: AXES[m],
@@ -1164,7 +1217,8 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                     quality: serde_json::to_value(&quality).unwrap_or_default(),
                 });
             }
-            r.coverage_factor = Some(sub.coverage_factor);
+            r.stated = Some(sub.coverage);
+            r.coverage = Some(coverage);
             r.b_expanded = Some(b_expanded);
             r.s_expanded = Some(s_expanded);
             if *second_order {
@@ -1224,8 +1278,16 @@ fn unknown(
     r.s_std_errors = f.s_std;
     r.t_std_errors = f.t_std;
     let gravity = sub.stand.gravity_rel_std;
-    if let Some(u) = gravity_budget::budget(&f, gravity, sub.coverage_factor) {
-        r.coverage_factor = Some(u.coverage_factor);
+    if let Some(u) = gravity_budget::budget(&f, (gravity, sub.stand.gravity_dof), sub.coverage) {
+        r.stated = Some(u.coverage);
+        let mut coverage = BTreeMap::new();
+        for m in 0..3 {
+            coverage.insert(element(m, Slot::B), ElementCoverage::from(&u.b[m]));
+            for k in 0..=m {
+                coverage.insert(element(m, Slot::S(k)), ElementCoverage::from(&u.s[m][k]));
+            }
+        }
+        r.coverage = Some(coverage);
         r.b_expanded = Some(u.b.map(|e| e.expanded));
         r.s_expanded = Some(u.s.map(|row| row.map(|e| e.expanded)));
         r.uncertainty = Some(GravityUncertainty::of(&u, gravity));

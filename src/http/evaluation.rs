@@ -154,6 +154,8 @@ pub async fn resolve(
         id: used.first().map(|u| u.standard_id.clone()),
         angle_std_arcsec: angle.unwrap_or(0.0),
         gravity_rel_std: gravity.unwrap_or(0.0),
+        angle_dof: None,
+        gravity_dof: None,
     };
     Ok((stand, used))
 }

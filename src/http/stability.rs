@@ -3,6 +3,7 @@
 //! in `accelcal_core::history`).
 
 use accelcal_core::TermMap;
+use accelcal_core::coverage::Coverage;
 use std::collections::BTreeMap;
 
 use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, quantity, stability};
@@ -58,7 +59,10 @@ pub struct Stability {
     pub first_performed_at: Option<Timestamp>,
     /// The last one's `performed_at`.
     pub last_performed_at: Option<Timestamp>,
-    /// The coverage factor of `latest_change_expanded` (the sensor type's, else 2).
+    /// The coverage factor of `latest_change_expanded`: the sensor type's
+    /// fixed factor, else the large-sample (normal) factor of its coverage
+    /// probability (2 for 0.9545) — the change between two calibrations
+    /// carries no degrees of freedom of its own here.
     pub coverage_factor: f64,
     /// Per term present in every calibration of the window (empty for a
     /// triad).
@@ -112,6 +116,18 @@ pub struct Report {
 
 /// The stability of `sensor_id`'s calibrations performed within
 /// `from..=to` (404 for an unknown sensor).
+/// The coverage factor of a change between two calibrations: a fixed
+/// factor as it is, a probability's normal quantile (rounded to 0.01, so
+/// that 0.9545 gives 2).
+fn large_sample_factor(c: Coverage) -> f64 {
+    match c {
+        Coverage::Factor(k) => k,
+        Coverage::Probability(p) => {
+            (accelcal_core::coverage::factor(p, None) * 100.0).round() / 100.0
+        }
+    }
+}
+
 pub async fn report_of(
     state: &AppState,
     sensor_id: &str,
@@ -124,7 +140,9 @@ pub async fn report_of(
             .store
             .sensor_type(t.clone())
             .await?
-            .map_or(DEFAULT_COVERAGE_FACTOR, |t| t.coverage_factor),
+            .map_or(DEFAULT_COVERAGE_FACTOR, |t| {
+                large_sample_factor(t.coverage())
+            }),
         None => DEFAULT_COVERAGE_FACTOR,
     };
     let found = state

@@ -35,7 +35,6 @@ use crate::domain::triad::{Form, GRAVITY_MAGNITUDE, TriadResult, as_found, compu
 use crate::domain::triad_export::{Exported, Format};
 use crate::store::{CalibrationSummary, NewCalibration, TriadElements};
 use accelcal_core::gravity_fit::MIN_POSITIONS;
-use accelcal_core::uncertainty::{ARCSEC, Stand};
 
 /// A stored triad's result document (`POST /v1/calibrations/triad`, and
 /// `GET /v1/calibrations/{id}` for a triad): the triad's result with what
@@ -289,10 +288,7 @@ pub async fn assess(
             .map(|(role, id)| (*role, Some(id.clone())))
             .collect();
         let (stand, used) = resolve(state, &roles, performed_at).await?;
-        sub.stand = Stand {
-            angle_std_rad: stand.angle_std_arcsec * ARCSEC,
-            gravity_rel_std: stand.gravity_rel_std,
-        };
+        sub.stand = stand.core();
         used
     };
     let runs = match &sub.form {
@@ -308,7 +304,7 @@ pub async fn assess(
         .compute_for(size, move || -> Result<TriadResult, Problem> {
             let mut sub = sub;
             if let Some(t) = &judged_by {
-                sub.coverage_factor = t.coverage_factor;
+                sub.coverage = t.coverage();
             }
             let mut result = compute(sub)?;
             if let Some(t) = &judged_by {

@@ -48,6 +48,16 @@ fn child<'a>(node: roxmltree::Node<'a, 'a>, name: &str) -> roxmltree::Node<'a, '
         .unwrap_or_else(|| panic!("no <{name}> in <{}>", node.tag_name().name()))
 }
 
+/// A quantity's conformity: the `dcc:conformity` of its metadata that has
+/// one (beside the coverage metadata).
+fn conformity_of(quantity: roxmltree::Node) -> String {
+    kids(child(quantity, "measurementMetaData"))
+        .into_iter()
+        .find(|m| kids(*m).iter().any(|n| n.tag_name().name() == "conformity"))
+        .map(|m| text_of(m, &["conformity"]))
+        .unwrap_or_else(|| panic!("no conformity"))
+}
+
 fn text_of<'a>(node: roxmltree::Node<'a, 'a>, path: &[&str]) -> String {
     let mut n = node;
     for p in path {
@@ -379,9 +389,24 @@ async fn an_approved_calibration_has_a_dcc(#[values(Sqlite, Postgres)] engine: E
             "expandedMU",
         );
         assert_eq!(text_of(mu, &["valueExpandedMU"]), format!("{u:.decimals$}"));
-        assert_eq!(text_of(mu, &["coverageFactor"]), "2");
-        // erf(2/√2) = 0.954499…
-        assert_eq!(text_of(mu, &["coverageProbability"]), "0.9545");
+        // Each coefficient's own k (Student's t at its ν_eff) and p, as the
+        // result states them; u_c and ν_eff in its metadata.
+        let b = &stored["uncertainty"]["terms"][term];
+        let k = b["coverage_factor"].as_f64().unwrap();
+        let p = b["coverage_probability"].as_f64().unwrap();
+        assert_eq!(text_of(mu, &["coverageFactor"]), format!("{k}"));
+        assert_eq!(text_of(mu, &["coverageProbability"]), format!("{p:.4}"));
+        let declared = kids(child(*q, "measurementMetaData"))
+            .into_iter()
+            .map(|m| text_of(m, &["declaration", "content"]))
+            .find(|d| d.starts_with("u_c = "))
+            .unwrap_or_else(|| panic!("{term}: no coverage metadata"));
+        let nu = b["effective_dof"].as_u64().unwrap();
+        assert!(
+            declared.contains(&format!("ν_eff = {nu} "))
+                && declared.contains(&format!("p = {p:.4}")),
+            "{term}: {declared}"
+        );
     }
     // A limited term carries its own conformity.
     let ki = quantities
@@ -389,7 +414,7 @@ async fn an_approved_calibration_has_a_dcc(#[values(Sqlite, Postgres)] engine: E
         .find(|q| text_of(**q, &["real", "label"]) == "ki")
         .unwrap();
     assert_eq!(
-        text_of(*ki, &["measurementMetaData", "metaData", "conformity"]),
+        conformity_of(*ki),
         stored["decision"]["terms"]["ki"]["verdict"]
             .as_str()
             .unwrap()
@@ -622,20 +647,30 @@ async fn an_approved_triad_has_a_dcc(#[values(Sqlite, Postgres)] engine: Engine)
                 format!("{u:.decimals$}"),
                 "{name}"
             );
-            assert_eq!(text_of(mu, &["coverageFactor"]), "2");
-            assert_eq!(text_of(mu, &["coverageProbability"]), "0.9545");
-            // A judged element carries its conformity; the others none.
+            // The element's own k and p, as the stored triad states them.
+            let c = &stored["coverage"][&name];
+            assert_eq!(
+                text_of(mu, &["coverageFactor"]),
+                format!("{}", c["coverage_factor"].as_f64().unwrap()),
+                "{name}"
+            );
+            assert_eq!(
+                text_of(mu, &["coverageProbability"]),
+                format!("{:.4}", c["coverage_probability"].as_f64().unwrap()),
+                "{name}"
+            );
+            // A judged element carries its conformity beside its coverage.
+            let metas = kids(child(*q, "measurementMetaData"));
+            assert!(
+                text_of(metas[0], &["declaration", "content"]).contains(&format!(
+                    "ν_eff = {} ",
+                    c["effective_dof"].as_u64().unwrap()
+                )),
+                "{name}"
+            );
             match decided.get(&name) {
-                Some(e) => assert_eq!(
-                    text_of(*q, &["measurementMetaData", "metaData", "conformity"]),
-                    dcc_conformity(e),
-                    "{name}"
-                ),
-                None => assert!(
-                    kids(*q)
-                        .iter()
-                        .all(|n| n.tag_name().name() != "measurementMetaData")
-                ),
+                Some(e) => assert_eq!(conformity_of(*q), dcc_conformity(e), "{name}"),
+                None => assert_eq!(metas.len(), 1, "{name}: no conformity"),
             }
         }
         // Known orientations name the stand among the equipment.

@@ -10,6 +10,7 @@ mod audit;
 mod client;
 mod contract;
 mod corpus;
+mod coverage;
 mod customers;
 mod dcc;
 mod endpoints;

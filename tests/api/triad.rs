@@ -187,8 +187,35 @@ async fn known_orientations_give_b_and_s_and_each_row_is_a_single_axis_identific
             f(&u("ki")) > 2.0 * f(&one["fused"]["std_errors"]["ki"]),
             "the stand counts"
         );
+        // Each element's coverage is that term's, as the single axis states it.
+        let axis = ["x", "y", "z"][m];
+        for (term, name) in [
+            ("k0", format!("b_{axis}")),
+            ("ki", format!("S_{axis}{axis}")),
+        ] {
+            let b = &one["uncertainty"]["terms"][term];
+            let c = &r["coverage"][&name];
+            assert_eq!(
+                (
+                    &c["combined"],
+                    &c["effective_dof"],
+                    &c["coverage_factor"],
+                    &c["coverage_probability"]
+                ),
+                (
+                    &b["combined"],
+                    &b["effective_dof"],
+                    &b["coverage_factor"],
+                    &b["coverage_probability"]
+                ),
+                "{name}"
+            );
+        }
     }
-    assert_eq!(r["coverage_factor"], 2.0);
+    assert_eq!(
+        (&r["coverage_probability"], &r["coverage_factor"]),
+        (&json!(0.9545), &Value::Null)
+    );
 
     // Exports: PX4 carries b and T's diagonal; json and c carry T whole.
     let res = app
@@ -343,7 +370,10 @@ async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
     // The budget, element by element: the fit's standard error and the
     // gravity's u·|S_ij| (none on b), combined in quadrature, k = 2.
     let u = &r["uncertainty"];
-    assert_eq!(u["coverage_factor"], 2.0);
+    assert_eq!(
+        (&u["coverage_probability"], &u["coverage_factor"]),
+        (&json!(0.9545), &Value::Null)
+    );
     assert_eq!(u["degrees_of_freedom"], 21);
     assert_eq!(u["gravity_rel_std"], gravity_rel_std);
     assert_eq!(u["fixed_by_convention"], json!(["S_xy", "S_xz", "S_yz"]));
@@ -358,7 +388,14 @@ async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
             (0.0, 0.0, 0.0)
         );
         assert_eq!(f(&e["expanded"]), f(&r["b_expanded"][m]));
-        assert!((f(&e["expanded"]) - 2.0 * f(&r["b_std_errors"][m])).abs() < 1e-18);
+        // b: the fit's standard error alone, on its 21 degrees of freedom:
+        // scipy's t.ppf(0.97725, 21).
+        assert_eq!(e["effective_dof"], 21);
+        let k21 = 2.126_313_380_035_578;
+        assert!((f(&e["coverage_factor"]) - k21).abs() < 1e-9);
+        assert!(
+            (f(&e["expanded"]) - k21 * f(&r["b_std_errors"][m])).abs() < 1e-9 * f(&e["expanded"])
+        );
         for k in 0..3 {
             let u_s = f(&r["S_expanded"][m][k]);
             if k > m {
@@ -372,7 +409,7 @@ async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
             );
             assert_eq!(f(&e["statistical"]), stat);
             assert!((f(&e["gravity"]) - grav).abs() <= 1e-15 * grav, "S{m}{k}");
-            let want = 2.0 * (stat * stat + grav * grav).sqrt();
+            let want = f(&e["coverage_factor"]) * (stat * stat + grav * grav).sqrt();
             assert!(
                 (u_s - want).abs() <= 1e-12 * want,
                 "S{m}{k}: {u_s} vs {want}"

@@ -663,12 +663,31 @@ fn assert_judged(decision: &Value, want: &[(String, &'static str, f64, f64)]) ->
 }
 
 /// The printed certificate's row `name` states `v` and `U` rounded to U's
-/// second significant digit (computed here).
+/// second significant digit (computed here); its columns: value, standard
+/// error, u_c, ν_eff, k, p, U.
 fn assert_rounded_row(html: &str, name: &str, v: f64, u: f64) {
     let decimals = (1 - u.log10().floor() as i32).max(0) as usize;
     let cells = certificate_row(html, name);
     assert_eq!(cells[0], format!("{v:.decimals$}"), "{name}");
-    assert_eq!(cells[2], format!("{u:.decimals$}"), "{name}");
+    assert_eq!(cells[6], format!("{u:.decimals$}"), "{name}");
+}
+
+/// The printed certificate's row `name` states the element's ν_eff, k (to
+/// two decimals) and p (in per cent) as the stored result does.
+fn assert_coverage_row(html: &str, name: &str, stored: &Value) {
+    let c = &stored["coverage"][name];
+    let cells = certificate_row(html, name);
+    let k = format!("{:.2}", f(&c["coverage_factor"]));
+    let k = k.trim_end_matches('0').trim_end_matches('.');
+    assert_eq!(
+        (cells[3].as_str(), cells[4].as_str(), cells[5].as_str()),
+        (
+            c["effective_dof"].to_string().as_str(),
+            k,
+            format!("{:.2} %", 100.0 * f(&c["coverage_probability"])).as_str()
+        ),
+        "{name}"
+    );
 }
 
 #[rstest]
@@ -810,9 +829,14 @@ async fn a_triads_certificate_states_every_element_rounded_to_its_uncertainty() 
         }
         for (name, v, u) in elements {
             assert_rounded_row(&html, &name, f(&v), f(&u));
+            assert_coverage_row(&html, &name, &stored);
         }
     }
-    assert!(html.contains("k = 2"), "the coverage factor");
+    assert!(
+        html.contains("for a coverage probability of 95.45 %"),
+        "the coverage stated"
+    );
+    assert!(html.contains("The results relate only to the item calibrated"));
     assert!(html.contains(&format!("End of certificate No. {id}")));
 }
 

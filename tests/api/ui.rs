@@ -458,8 +458,18 @@ async fn the_certificate_is_verifiable(#[values(Sqlite, Postgres)] engine: Engin
         html.contains("k0 in output, ki in output/g, kp in output/g"),
         "the budget's units"
     );
-    assert!(html.contains("Expanded U (k = 2)"));
-    assert!(html.contains("k = 2, coverage probability ≈ 95.4 %"));
+    // Each coefficient's u_c, ν_eff, k and p beside U (issue 42), as the
+    // stored result states them; the statement of the coverage; the scope.
+    let b = &stored["uncertainty"]["terms"]["ki"];
+    let k = format!("{:.2}", b["coverage_factor"].as_f64().unwrap());
+    let k = k.trim_end_matches('0').trim_end_matches('.');
+    let row = format!(
+        "<td class=\"num\">{}</td><td class=\"num\">{k}</td><td class=\"num\">95.45 %</td>",
+        b["effective_dof"]
+    );
+    assert!(html.contains(&row), "ki's coverage: {row}");
+    assert!(html.contains("for a coverage probability of 95.45 %"));
+    assert!(html.contains("The results relate only to the item calibrated"));
     assert!(html.contains(&format!("End of certificate No. {id}")));
     // Who issues it, and where it was calibrated; the logo as embedded,
     // which the policy allows.

@@ -464,7 +464,8 @@ pub(crate) fn sensor_type(id: &str, interval_days: u32) -> SensorType {
             },
         )]),
         decision_rule: Rule::Guarded,
-        coverage_factor: 2.0,
+        coverage_probability: None,
+        coverage_factor: Some(2.0),
         interval_days,
         updated_at: now(),
     }

@@ -243,16 +243,22 @@ try {
   assert.ok(text.includes(`${BASE}/v1/calibrations/${recal.id}/certificate`), 'its own URL');
   assert.ok(text.includes('PAPER-2005') && text.includes('NAV') && text.includes('DH-1'), 'sensor, type, stand');
   assert.ok(/accelcal \d+\.\d+\.\d+/.test(text), 'the accelcal version');
-  const certRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelectorAll('td')[0].textContent, tr.querySelectorAll('td')[2].textContent, tr.querySelectorAll('td')[3].textContent]));
+  // Columns: value, standard error, u_c, ν_eff, k, p, U, unit.
+  const certRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, ...[0, 3, 4, 5, 6, 7].map((i) => tr.querySelectorAll('td')[i].textContent)]));
   const units = { k0: 'output', ki: 'output/g', kp: 'output/g', ko: 'output/g', kii: 'output/g²', kiii: 'output/g³' };
-  for (const [t, v, u, unit] of certRows) {
+  for (const [t, v, nu, k, p, u, unit] of certRows) {
     // Rounded to the place of U's second significant digit (GUM 7.2.6).
-    const expanded = recal.uncertainty.terms[t].expanded;
-    assert.ok(Math.abs(num(v) - recal.fused.coefficients[t]) <= expanded / 20, `certificate value of ${t}: ${v} is not ${recal.fused.coefficients[t]} to U/20`);
-    close(num(u), expanded, 0.05, `certificate U of ${t}`);
+    const b = recal.uncertainty.terms[t];
+    assert.ok(Math.abs(num(v) - recal.fused.coefficients[t]) <= b.expanded / 20, `certificate value of ${t}: ${v} is not ${recal.fused.coefficients[t]} to U/20`);
+    close(num(u), b.expanded, 0.05, `certificate U of ${t}`);
     assert.equal(unit, units[t], `the unit of ${t}`);
+    // Each coefficient's ν_eff, k and p as the result states them (issue 42).
+    assert.equal(nu, b.effective_dof === null ? '∞' : String(b.effective_dof), `ν_eff of ${t}`);
+    close(num(k), b.coverage_factor, 0.005, `k of ${t}`);
+    assert.equal(p, `${(100 * b.coverage_probability).toFixed(2)} %`, `p of ${t}`);
   }
-  assert.ok(/k = 2, coverage probability ≈ 95\.4 %/.test(text), 'the coverage probability beside k');
+  assert.ok(text.includes('for a coverage probability of 95.45 %'), 'the coverage probability stated');
+  assert.ok(text.includes('The results relate only to the item calibrated'), 'the scope of the results');
   assert.ok(text.includes('Environmental conditions') && text.includes('Metrological traceability'), 'conditions and traceability');
   assert.ok(text.includes(`End of certificate No. ${recal.id}`), 'the end marker');
   const pdf = await page.pdf({ format: 'A4' });

@@ -4,7 +4,13 @@ numpy and scipy (not accelcal's code): pure error, the lack-of-fit F test, the
 noisy-run F tests, unmodelled-term partial F tests, the model component of
 the budget, the indexing component of explicit positions (by central finite
 differences of small rotations through the least-squares fit, not by the
-derivative formula accelcal uses) and fusion with the consistency floor.
+derivative formula accelcal uses) and fusion with the consistency floor;
+and (issue 42) each coefficient's coverage: the statistical component's
+degrees of freedom from the batches and the weights they were fused with,
+the stand's components (indexing of dividing-head angles and gravity, by
+central differences of the model), Welch-Satterthwaite's effective degrees
+of freedom and scipy's Student t coverage factor for p = 0.9545; and a
+table of scipy's factors for 1 to 60 degrees of freedom.
 
     python3 -m venv /tmp/v && /tmp/v/bin/pip install numpy scipy
     /tmp/v/bin/python core/tests/data/adequacy.py > core/tests/data/adequacy.json
@@ -151,6 +157,10 @@ def analyse(case):
     for col, t in enumerate(model):
         floor = 0.01 * float(np.median([se[col] for se in run_se])) if nu else 0.0
         floors[t] = floor
+        if m == 1:
+            # A single run is its own estimate, with its own standard errors.
+            fused[t], fused_se[t] = float(coeff[0, col]), float(run_se[0][col])
+            continue
         w_sum = wx = 0.0
         for b, (lo, hi) in enumerate(batches(m, k)):
             xs = coeff[lo:hi, col]
@@ -166,6 +176,66 @@ def analyse(case):
     out["fused"] = fused
     out["fused_std_error"] = fused_se
     out["implausibly_consistent"] = consistent
+    out["coverage"] = coverage(case, model, gravity, A, fits, run_se, floors, fused, fused_se, out["model"], nu,
+                               out.get("explicit_indexing", {}))
+    return out
+
+
+P_DEFAULT = 0.9545
+
+
+def coverage(case, model, gravity, A, fits, run_se, floors, fused, fused_se, model_u, nu, explicit):
+    """Each term's budget components with their degrees of freedom, the
+    effective degrees of freedom (GUM G.2b, truncated) and k for p = 0.9545
+    (scipy's t.ppf), from the definitions of issue 42."""
+    m, k = len(fits), case["batches"]
+    P, p = A.shape
+    sigma = case["angle_std_arcsec"] * ARCSEC
+    u_grav = case.get("gravity_rel_std", 0.0)
+    pinv = np.linalg.pinv(A)
+    coeff = np.array([fits[j][0] for j in range(m)])
+
+    def output(a, c):
+        return sum(c[t] * regressor(t, a) for t in model)
+
+    h = 1e-6
+    # d_j: the output's change per radian of the head's angle at position j.
+    d = []
+    for q in case["positions"]:
+        if "angle_deg" not in q:
+            d.append(0.0)
+            continue
+        up, down = pendulum(q["angle_deg"] + math.degrees(h)), pendulum(q["angle_deg"] - math.degrees(h))
+        d.append((output(up, fused) - output(down, fused)) / (2 * h))
+    # s_j: the output's change per unit relative change of gravity.
+    s = [(output([x * (1 + h) for x in a], fused) - output([x * (1 - h) for x in a], fused)) / (2 * h)
+         for a in gravity]
+    out = {}
+    for col, t in enumerate(model):
+        if m == 1:
+            nu_stat = float(nu)
+            u_stat = float(run_se[0][col])
+        else:
+            ws = []
+            for lo, hi in batches(m, k):
+                sd = float(np.std(coeff[lo:hi, col], ddof=1))
+                ws.append((hi - lo, (hi - lo) / max(sd, floors.get(t, 0.0)) ** 2))
+            W = sum(w for _, w in ws)
+            nu_stat = 1.0 / sum((w / W) ** 2 / (n - 1) for n, w in ws)
+            u_stat = fused_se[t]
+        u_idx = math.hypot(sigma * math.sqrt(sum((pinv[col, j] * d[j]) ** 2 for j in range(P))),
+                           explicit.get(t, 0.0))
+        u_g = u_grav * abs(sum(pinv[col, j] * s[j] for j in range(P)))
+        u_mod = model_u[t] if model_u else 0.0
+        comps = [(u_stat, nu_stat), (u_idx, math.inf), (u_g, math.inf), (u_mod, float(P - p))]
+        uc2 = sum(u * u for u, _ in comps)
+        den = sum(u ** 4 / v for u, v in comps if u > 0 and math.isfinite(v))
+        nu_eff = math.floor(uc2 ** 2 / den) if den > 0 else None
+        kf = float(stats.t.ppf((1 + P_DEFAULT) / 2, nu_eff)) if nu_eff else float(stats.norm.ppf((1 + P_DEFAULT) / 2))
+        out[t] = {"statistical": u_stat, "statistical_dof": nu_stat, "indexing": u_idx, "gravity": u_g,
+                  "model": u_mod, "combined": math.sqrt(uc2), "effective_dof": nu_eff, "coverage_factor": kf,
+                  "expanded": kf * math.sqrt(uc2),
+                  "probability_at_k2": float(2 * stats.t.cdf(2.0, nu_eff) - 1) if nu_eff else None}
     return out
 
 
@@ -196,6 +266,10 @@ def main():
              for d in (0, 90, 180, 270)] for t in range(1, 7)]
     cases.append({"name": "paper", "model": ["k0", "ki", "kp"], "positions": tumble([0, 90, 180, 270]),
                   "runs": runs, "batches": 2, "angle_std_arcsec": 0.0})
+    # The same on a 2 arcsec stand (issue 42: k0's effective degrees of
+    # freedom about 4).
+    cases.append({"name": "paper_2arcsec", "model": ["k0", "ki", "kp"], "positions": tumble([0, 90, 180, 270]),
+                  "runs": runs, "batches": 2, "angle_std_arcsec": 2.0})
 
     # Eight angles, an unmodelled second-order term, five samples a position.
     angles = [45 * k for k in range(8)]
@@ -258,9 +332,22 @@ def main():
                   "positions": [{"a": x} for x in g],
                   "runs": simulate(rng, g, truth, 4, 3, 2e-5), "batches": 2, "angle_std_arcsec": 90.0})
 
+    # A single run of twelve angles on a 5 arcsec stand with a gravity value
+    # known to 1e-5: the run's own standard errors on P - p = 9 degrees of
+    # freedom.
+    angles = [30 * k for k in range(12)]
+    g = [pendulum(d) for d in angles]
+    cases.append({"name": "single_run", "model": ["k0", "ki", "kp"], "positions": tumble(angles),
+                  "runs": simulate(rng, g, {"k0": 1e-3, "ki": -1.2, "kp": 5e-3}, 1, 1, 3e-5),
+                  "batches": 1, "angle_std_arcsec": 5.0, "gravity_rel_std": 1e-5})
+
     for case in cases:
         case["expected"] = analyse(case)
-    print(json.dumps(cases, indent=1))
+    # scipy's two-sided 95.45 % Student t factors, 1 to 60 degrees of
+    # freedom: what a triad's element is expanded with at its ν_eff.
+    table = {"coverage_probability": P_DEFAULT,
+             "t_factors": [float(stats.t.ppf((1 + P_DEFAULT) / 2, n)) for n in range(1, 61)]}
+    print(json.dumps({"cases": cases, "students_t": table}, indent=1))
 
 
 if __name__ == "__main__":

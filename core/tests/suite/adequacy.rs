@@ -5,6 +5,7 @@
 //! expected figures).
 
 use accelcal_core::adequacy::{LackOfFit, model_uncertainty, unmodelled_terms};
+use accelcal_core::coverage::Coverage;
 use accelcal_core::quality::{Warning, assess};
 use accelcal_core::uncertainty::{ARCSEC, Stand, budget};
 use accelcal_core::{Model, Mount, Position, Reading, Run, Summary, Term, TermMap, TumbleTest};
@@ -26,8 +27,12 @@ fn term(v: &Value) -> Term {
     v.as_str().unwrap().parse().unwrap()
 }
 
-fn cases() -> Vec<Value> {
+fn reference() -> Value {
     serde_json::from_str(include_str!("../data/adequacy.json")).unwrap()
+}
+
+fn cases() -> Vec<Value> {
+    reference()["cases"].as_array().unwrap().clone()
 }
 
 /// The case's samples, or (`Form::Summaries`) each position's summary —
@@ -225,14 +230,80 @@ fn matches_the_reference(form: Form) {
         let stand = Stand {
             angle_std_rad: f(&case["angle_std_arcsec"]) * ARCSEC,
             gravity_rel_std: 0.0,
+            ..Stand::default()
         };
-        let b = budget(&t, &cal.fused.coefficients, &zero, stand, 2.0, &model).unwrap();
+        let b = budget(
+            &t,
+            &cal.fused.coefficients,
+            (&zero, &TermMap(vec![])),
+            stand,
+            Coverage::Factor(2.0),
+            &model,
+        )
+        .unwrap();
         if let Some(idx) = want.get("explicit_indexing") {
             for (k, v) in idx.as_object().unwrap() {
                 let tb = b.terms[k.parse().unwrap()];
                 near(tb.indexing, f(v), 1e-6, &format!("{name} indexing {k}"));
                 near(tb.combined, tb.indexing.hypot(tb.model), 1e-15, name);
             }
+        }
+
+        // The whole budget at the default probability: each component, the
+        // statistical degrees of freedom, ν_eff (Welch–Satterthwaite,
+        // truncated) and scipy's Student t factor (issue 42).
+        let stand = Stand {
+            angle_std_rad: f(&case["angle_std_arcsec"]) * ARCSEC,
+            gravity_rel_std: case["gravity_rel_std"].as_f64().unwrap_or(0.0),
+            ..Stand::default()
+        };
+        let full = budget(
+            &t,
+            &cal.fused.coefficients,
+            (&cal.fused.std_errors, &cal.fused.dof),
+            stand,
+            Coverage::default(),
+            &model,
+        )
+        .unwrap();
+        for (k, w) in want["coverage"].as_object().unwrap() {
+            let what = format!("{name} coverage {k}");
+            let tb = full.terms[k.parse().unwrap()];
+            for (got, field, tol) in [
+                (tb.statistical, "statistical", 1e-7),
+                (
+                    tb.degrees_of_freedom.statistical.unwrap(),
+                    "statistical_dof",
+                    1e-9,
+                ),
+                (tb.indexing, "indexing", 1e-6),
+                (tb.gravity, "gravity", 1e-6),
+                (tb.model, "model", 1e-9),
+                (tb.combined, "combined", 1e-7),
+            ] {
+                // Components zero by symmetry come out of the central
+                // differences as rounding: compared against u_c.
+                let want = f(&w[field]);
+                assert!(
+                    (got - want).abs() <= tol * want.abs() + 1e-9 * f(&w["combined"]),
+                    "{what} {field}: {got:e} vs {want:e}"
+                );
+            }
+            // Truncated, ν_eff is exact where it matters; a huge one (a
+            // component that swamps the statistical) carries the rounding of
+            // its fourth powers.
+            match (tb.effective_dof, w["effective_dof"].as_u64()) {
+                (Some(got), Some(want)) if want > 1_000_000 => {
+                    near(got as f64, want as f64, 1e-5, &what)
+                }
+                (got, want) => assert_eq!(got, want, "{what}"),
+            }
+            near(tb.coverage_factor, f(&w["coverage_factor"]), 1e-9, &what);
+            near(tb.expanded, f(&w["expanded"]), 1e-7, &what);
+            assert_eq!(
+                tb.coverage_probability,
+                accelcal_core::coverage::DEFAULT_PROBABILITY
+            );
         }
 
         // Fusion with the floor, and the warnings naming batch and term.
@@ -283,6 +354,57 @@ fn matches_the_reference(form: Form) {
             near(g.2, w.2, 1e-9, name);
         }
     }
+}
+
+/// The paper's Table 1 on a 2″ stand (issue 42): k0's effective degrees of
+/// freedom are 4 (Welch–Satterthwaite, 4.4 truncated), so k = 2 would cover
+/// 88.4 % and 95.45 % takes k = 2.869 (scipy); a fixed k = 2 states that
+/// probability.
+#[test]
+fn the_paper_on_a_two_arcsecond_stand_needs_students_t() {
+    let case = cases()
+        .into_iter()
+        .find(|c| c["name"] == "paper_2arcsec")
+        .unwrap();
+    let w = &case["expected"]["coverage"]["k0"];
+    assert_eq!(w["effective_dof"], 4);
+    near(
+        f(&w["coverage_factor"]),
+        2.869_315_169_696_382_6,
+        1e-12,
+        "scipy",
+    );
+    let t = tumble_of(&case);
+    let cal = t.calibrate(2).unwrap();
+    let stand = Stand {
+        angle_std_rad: 2.0 * ARCSEC,
+        ..Stand::default()
+    };
+    let q = assess(&t, &cal);
+    let model = model_uncertainty(&t, &q.lack_of_fit);
+    let fixed = budget(
+        &t,
+        &cal.fused.coefficients,
+        (&cal.fused.std_errors, &cal.fused.dof),
+        stand,
+        Coverage::Factor(2.0),
+        &model,
+    )
+    .unwrap();
+    let k0 = fixed.terms[Term::K0];
+    assert_eq!((k0.effective_dof, k0.coverage_factor), (Some(4), 2.0));
+    near(
+        k0.coverage_probability,
+        f(&w["probability_at_k2"]),
+        1e-10,
+        "p at k = 2",
+    );
+    near(
+        k0.coverage_probability,
+        0.883_883_476_483_184_4,
+        1e-10,
+        "p at k = 2",
+    );
 }
 
 /// The paper's data: lack of fit is tested (cw and ccw are the replicates)

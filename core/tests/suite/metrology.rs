@@ -2,6 +2,7 @@
 //! for the four-position tumble, finite differences through the fit for any
 //! schedule, hand-computed regressions and charts.
 
+use accelcal_core::coverage::Coverage;
 use accelcal_core::decision::Verdict;
 use accelcal_core::history::{Point, as_found, stability};
 use accelcal_core::quality::{Warning, assess};
@@ -83,12 +84,13 @@ fn four_position_budget_matches_the_closed_form() {
     let b = budget(
         &t,
         &k,
-        &se,
+        (&se, &TermMap(vec![])),
         Stand {
             angle_std_rad: sigma,
             gravity_rel_std: u,
+            ..Stand::default()
         },
-        2.0,
+        Coverage::Factor(2.0),
         &TermMap(vec![]),
     )
     .unwrap();
@@ -113,7 +115,7 @@ fn four_position_budget_matches_the_closed_form() {
         );
         near(tb.expanded, 2.0 * tb.combined, 1e-15);
     }
-    assert_eq!(b.coverage_factor, 2.0);
+    assert_eq!(b.coverage, Coverage::Factor(2.0));
 }
 
 /// Any schedule and model: the indexing and gravity sensitivities equal
@@ -138,12 +140,13 @@ fn budget_equals_finite_differences_through_the_fit() {
         let b = budget(
             &t,
             &truth,
-            &zero,
+            (&zero, &TermMap(vec![])),
             Stand {
                 angle_std_rad: sigma,
                 gravity_rel_std: u,
+                ..Stand::default()
             },
-            2.0,
+            Coverage::Factor(2.0),
             &TermMap(vec![]),
         )
         .unwrap();
@@ -209,14 +212,30 @@ fn without_stand_uncertainties_combined_is_statistical() {
             .collect(),
     );
     let se = TermMap(vec![(K0, 1e-6), (Ki, 2e-6), (Kp, 3e-6)]);
-    let b = budget(&t, &k, &se, Stand::default(), 3.0, &TermMap(vec![])).unwrap();
+    let b = budget(
+        &t,
+        &k,
+        (&se, &TermMap(vec![])),
+        Stand::default(),
+        Coverage::Factor(3.0),
+        &TermMap(vec![]),
+    )
+    .unwrap();
     for term in [K0, Ki, Kp] {
         assert_eq!(b.terms[term].combined, se[term]);
         assert_eq!(b.terms[term].expanded, 3.0 * se[term]);
     }
     // A model component enters in quadrature.
     let model = TermMap(vec![(Ki, 4e-6)]);
-    let b = budget(&t, &k, &se, Stand::default(), 3.0, &model).unwrap();
+    let b = budget(
+        &t,
+        &k,
+        (&se, &TermMap(vec![])),
+        Stand::default(),
+        Coverage::Factor(3.0),
+        &model,
+    )
+    .unwrap();
     assert_eq!(b.terms[Ki].model, 4e-6);
     near(b.terms[Ki].combined, (4e-12f64 + 16e-12).sqrt(), 1e-15);
     assert_eq!(b.terms[K0].model, 0.0);
@@ -251,9 +270,18 @@ fn explicit_positions_budget_equals_finite_rotations_through_the_fit() {
     let stand = Stand {
         angle_std_rad: sigma,
         gravity_rel_std: 0.0,
+        ..Stand::default()
     };
     let zero = TermMap(model.terms().iter().map(|t| (*t, 0.0)).collect());
-    let b = budget(&t, &truth, &zero, stand, 2.0, &TermMap(vec![])).unwrap();
+    let b = budget(
+        &t,
+        &truth,
+        (&zero, &TermMap(vec![])),
+        stand,
+        Coverage::Factor(2.0),
+        &TermMap(vec![]),
+    )
+    .unwrap();
     let averaged = t.averaged_values();
     let fit = |a: &[Gravity]| {
         Design::new(&model, a)
@@ -809,8 +837,17 @@ fn budget_equals_finite_differences_on_irregular_schedules() {
         let stand = Stand {
             angle_std_rad: sigma,
             gravity_rel_std: u,
+            ..Stand::default()
         };
-        let b = budget(&t, &truth, &zero, stand, 2.0, &TermMap(vec![])).unwrap();
+        let b = budget(
+            &t,
+            &truth,
+            (&zero, &TermMap(vec![])),
+            stand,
+            Coverage::Factor(2.0),
+            &TermMap(vec![]),
+        )
+        .unwrap();
         let nominal: Vec<Gravity> = positions.iter().map(|p| p.a).collect();
         let design = Design::new(&model, &nominal).unwrap();
         let c = Compensator::new(&truth).unwrap();

@@ -129,6 +129,7 @@ proptest! {
 }
 
 mod metrology {
+    use accelcal_core::coverage::Coverage;
     use accelcal_core::history::{Point, stability};
     use accelcal_core::uncertainty::{Stand, budget};
     use accelcal_core::{Compensator, Model, Mount, Position, Run, Term, TermMap, TumbleTest};
@@ -165,7 +166,7 @@ mod metrology {
         ) {
             let k = TermMap(vec![(Term::K0, k0), (Term::Ki, ki), (Term::Kp, kp)]);
             let se = TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0), (Term::Kp, 0.0)]);
-            let b = budget(&test_of(&k, n), &k, &se, Stand { angle_std_rad: 0.0, gravity_rel_std: u }, 2.0, &TermMap(vec![])).unwrap();
+            let b = budget(&test_of(&k, n), &k, (&se, &TermMap(vec![])), Stand { gravity_rel_std: u, ..Stand::default() }, Coverage::Factor(2.0), &TermMap(vec![])).unwrap();
             prop_assert!((b.terms[Term::Ki].gravity - u * ki.abs()).abs() <= 1e-12 * u.max(1e-300));
             prop_assert!((b.terms[Term::Kp].gravity - u * kp.abs()).abs() <= 1e-12 * u.max(1e-300));
             prop_assert!(b.terms[Term::K0].gravity <= 1e-13 * u);
@@ -179,7 +180,7 @@ mod metrology {
         ) {
             let coefficients = TermMap(vec![(Term::K0, 1e-3), (Term::Ki, -1.2), (Term::Kp, 6e-3)]);
             let se = TermMap(vec![(Term::K0, se0), (Term::Ki, se1), (Term::Kp, se2)]);
-            let b = budget(&test_of(&coefficients, 8), &coefficients, &se, Stand::default(), k, &TermMap(vec![])).unwrap();
+            let b = budget(&test_of(&coefficients, 8), &coefficients, (&se, &TermMap(vec![])), Stand::default(), Coverage::Factor(k), &TermMap(vec![])).unwrap();
             for (t, tb) in b.terms.iter() {
                 prop_assert_eq!(tb.combined, se[t]);
                 prop_assert_eq!(tb.expanded, k * se[t]);

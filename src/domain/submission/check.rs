@@ -437,6 +437,8 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
                 id: s.id,
                 angle_std_arcsec: s.angle_std_arcsec.unwrap_or(0.0),
                 gravity_rel_std: s.gravity_rel_std.unwrap_or(0.0),
+                angle_dof: None,
+                gravity_dof: None,
             }),
             _ => None,
         },

@@ -140,6 +140,26 @@ pub struct StandIn {
     pub angle_std_arcsec: f64,
     /// Relative uncertainty of the local gravity magnitude (default 0).
     pub gravity_rel_std: f64,
+    /// The indexing error's degrees of freedom, when the stand's certificate
+    /// states them (otherwise infinite: a Type B evaluation).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angle_dof: Option<f64>,
+    /// The gravity value's degrees of freedom, when its certificate states
+    /// them.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub gravity_dof: Option<f64>,
+}
+
+impl StandIn {
+    /// The stand as the core's budget takes it.
+    pub fn core(&self) -> accelcal_core::uncertainty::Stand {
+        accelcal_core::uncertainty::Stand {
+            angle_std_rad: self.angle_std_arcsec * accelcal_core::uncertainty::ARCSEC,
+            gravity_rel_std: self.gravity_rel_std,
+            angle_dof: self.angle_dof,
+            gravity_dof: self.gravity_dof,
+        }
+    }
 }
 
 /// The reference standards a submission names (`standards`), by id: the

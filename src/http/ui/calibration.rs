@@ -301,7 +301,7 @@ pub fn budget(d: &ResultDoc) -> Markup {
                             @if i > 0 { ", " }
                             (t.name()) " in " (super::format::term_unit(t, &d.unit))
                         }
-                        "); expanded with k = " (u.coverage_factor)
+                        "); expanded" (super::certificate::coverage_statement(u))
                     }
                     thead { tr {
                         th scope="col" { "Term" }
@@ -310,10 +310,14 @@ pub fn budget(d: &ResultDoc) -> Markup {
                         th scope="col" .num { "Gravity" }
                         th scope="col" .num { "Model" }
                         th scope="col" .num { "Combined" }
+                        th scope="col" .num { "ν" sub { "eff" } }
+                        th scope="col" .num { "k" }
+                        th scope="col" .num { "p" }
                         th scope="col" .num { "Expanded U" }
                     } }
                     tbody {
                         @for (t, b) in u.terms.iter() {
+                            @let c = b.covered(u.coverage_factor);
                             tr data-term=(t.name()) {
                                 th scope="row" { (t.name()) }
                                 td.num data-label="Statistical" { (unc(b.statistical)) }
@@ -321,6 +325,9 @@ pub fn budget(d: &ResultDoc) -> Markup {
                                 td.num data-label="Gravity" { (unc(b.gravity)) }
                                 td.num data-label="Model" { (unc(b.model)) }
                                 td.num data-label="Combined" { (unc(b.combined)) }
+                                td.num data-label="νeff" { (super::format::dof(c.effective_dof)) }
+                                td.num data-label="k" { (super::format::factor(c.k)) }
+                                td.num data-label="p" { (super::format::percent(c.p)) }
                                 td.num data-label="Expanded U" { (unc(b.expanded)) }
                             }
                         }

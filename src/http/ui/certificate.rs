@@ -29,7 +29,7 @@ use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
 use super::calibration::{StoredDoc, as_found, budget, decision, when};
-use super::format::{num, term_unit, unc, value_and_uncertainty};
+use super::format::{dof, factor, num, percent, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
 use super::{UiError, badge, review};
@@ -76,7 +76,7 @@ pub struct Context {
 
 /// The certificate document.
 pub fn render(d: &ResultDoc, c: &Context) -> Markup {
-    let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
+    let statement = d.uncertainty.as_ref().map(coverage_statement);
     let body = html! {
                     h2 { "Item and calibration" }
                     dl.facts {
@@ -118,24 +118,31 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                         (PAPER) ". Uncertainty after the GUM: the fused standard error, the stand's indexing "
                         "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short of the data, "
                         "the model's own standard error, combined in quadrature and expanded"
-                        @if let Some(k) = coverage { " with coverage factor k = " (k) ", " (probability(k)) } "."
+                        @if let Some(s) = &statement { (s) } "."
                     }
                     h2 { "Results" }
                     div.table-wrap tabindex="0" role="region" aria-label="Fused coefficients" {
                         table #certificate-results {
                             caption {
-                                "Fused coefficients, each rounded to its expanded uncertainty's second significant digit"
-                                @if let Some(k) = coverage { " (k = " (k) ", " (probability(k)) ")" }
+                                "Fused coefficients, each rounded to its expanded uncertainty's second significant digit, "
+                                "with its combined standard uncertainty u"
+                                sub { "c" } ", effective degrees of freedom ν"
+                                sub { "eff" } ", coverage factor k and coverage probability p"
                             }
                             thead { tr {
                                 th scope="col" { "Term" }
                                 th scope="col" .num { "Value" }
                                 th scope="col" .num { "Standard error" }
-                                th scope="col" .num { @match coverage { Some(k) => { "Expanded U (k = " (k) ")" }, None => "Expanded U" } }
+                                th scope="col" .num { "u" sub { "c" } }
+                                th scope="col" .num { "ν" sub { "eff" } }
+                                th scope="col" .num { "k" }
+                                th scope="col" .num { "p" }
+                                th scope="col" .num { "Expanded U" }
                                 th scope="col" { "Unit" }
                             } }
                             tbody {
                                 @for (t, v) in d.fused.coefficients.iter() {
+                                    @let covered = d.uncertainty.as_ref().and_then(|u| u.covered(t));
                                     @let expanded = d.uncertainty.as_ref().and_then(|u| u.terms.get(t)).map(|b| b.expanded);
                                     @let (value, u) = match expanded {
                                         Some(u) => { let (v, u) = value_and_uncertainty(*v, u); (v, Some(u)) }
@@ -145,6 +152,10 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                                         th scope="row" { (t.name()) }
                                         td.num { (value) }
                                         td.num { (d.fused.std_errors.get(t).map_or("—".into(), |x| unc(*x))) }
+                                        td.num { (covered.map_or("—".into(), |c| unc(c.combined))) }
+                                        td.num { (covered.map_or("—".into(), |c| dof(c.effective_dof))) }
+                                        td.num { (covered.map_or("—".into(), |c| factor(c.k))) }
+                                        td.num { (covered.map_or("—".into(), |c| percent(c.p))) }
                                         td.num { (u.unwrap_or_else(|| "—".into())) }
                                         td { (term_unit(t, &d.unit)) }
                                     }
@@ -175,6 +186,12 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
         body,
     )
 }
+
+/// What every certificate says of its own scope (ISO/IEC 17025
+/// §7.8.2.1 b, as the Digital Calibration Certificate's statements do).
+pub const SCOPE: &str = "The results relate only to the item calibrated, as received, at the time \
+    and in the conditions of the calibration stated in this certificate. This certificate may \
+    not be reproduced other than in full without the laboratory's written approval.";
 
 /// What a printed certificate's frame shows of its calibration.
 pub struct Frame<'a> {
@@ -236,6 +253,7 @@ pub fn frame(f: &Frame<'_>, c: &Context, body: Markup) -> Markup {
                         }
                     }
                     (body)
+                    p.cert-scope { (SCOPE) }
                     p.cert-end { "End of certificate No. " (id) }
                     } } }
                     }
@@ -324,10 +342,49 @@ pub fn verification(c: &Context, computed_by: Option<String>) -> Markup {
 
 /// The coverage probability of a coverage factor `k` for a normal
 /// distribution ([`accelcal_core::uncertainty::coverage_probability`]), as a
-/// certificate states it ("coverage probability ≈ 95.4 %").
+/// certificate states it ("coverage probability ≈ 95.4 %"): for results
+/// computed before each coefficient stated its own.
 pub fn probability(k: f64) -> String {
     let p = accelcal_core::uncertainty::coverage_probability(k) * 100.0;
     format!("coverage probability ≈ {p:.1} % (normal distribution)")
+}
+
+/// How the expanded uncertainties were formed, as the method's sentence
+/// ends ("… combined in quadrature and expanded" + this): for a stated
+/// probability, each coefficient's k from Student's t at its effective
+/// degrees of freedom; for a fixed k, each one's probability from them;
+/// for a result computed before either, k and the normal probability.
+pub fn coverage_statement(u: &super::result::UncertaintyDoc) -> String {
+    let per_term = u.terms.iter().all(|(_, b)| b.coverage_factor.is_some());
+    stated(u.coverage_probability, u.coverage_factor, per_term)
+}
+
+/// [`coverage_statement`] of a document that states `probability` or
+/// `factor`, for each coefficient (`per_term`) or, before that, once.
+pub fn stated(stated_p: Option<f64>, fixed: Option<f64>, per_term: bool) -> String {
+    let dof = "its effective degrees of freedom ν_eff (Welch–Satterthwaite, GUM G.2b, \
+               truncated; the Type B components of the standards on the degrees of freedom \
+               their certificates state, infinite otherwise)";
+    match (stated_p, fixed, per_term) {
+        (Some(p), _, true) => format!(
+            " for a coverage probability of {}: each coefficient's coverage factor k is \
+             Student's t for it at {dof}",
+            percent(p)
+        ),
+        (None, Some(k), true) => format!(
+            " with the coverage factor k = {} the sensor type fixes: each coefficient's \
+             coverage probability p follows from Student's t at {dof}",
+            factor(k)
+        ),
+        (_, k, _) => {
+            let k = k.unwrap_or(2.0);
+            format!(
+                " with coverage factor k = {}, {}",
+                factor(k),
+                probability(k)
+            )
+        }
+    }
 }
 
 /// Who issues the certificate: the laboratory's name, address and

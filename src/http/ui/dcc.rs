@@ -50,7 +50,7 @@ use maud::{Markup, PreEscaped, html};
 use super::calibration::StoredDoc;
 use super::certificate::{Context, PAPER};
 use super::format::value_and_uncertainty;
-use super::result::ResultDoc;
+use super::result::{Covered, ResultDoc};
 use crate::domain::review::{Action, Signature, State};
 use crate::http::problem::{Kind, Problem};
 
@@ -163,10 +163,10 @@ fn decimal(v: f64) -> String {
     format!("{v}")
 }
 
-/// The coverage probability of `k` as D-SI's `probabilityValueType` (no
-/// exponent, four decimals).
-fn probability(k: f64) -> String {
-    format!("{:.4}", accelcal_core::uncertainty::coverage_probability(k))
+/// A coverage probability as D-SI's `probabilityValueType` (no exponent,
+/// four decimals).
+fn probability(p: f64) -> String {
+    format!("{p:.4}")
 }
 
 /// The coverage factor as D-SI's `kValueType` (at least 1, no exponent).
@@ -218,8 +218,9 @@ fn location(address: Option<&str>, country: Option<&str>) -> Markup {
     }
 }
 
-/// One `si:real` with its expanded uncertainty when there is one.
-pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, f64)>) -> Markup {
+/// One `si:real` with its expanded uncertainty when there is one (`U`
+/// with its coverage factor and probability).
+pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, Covered)>) -> Markup {
     let (v, u) = match expanded {
         Some((u, _)) if u.is_finite() && u > 0.0 => {
             let (v, u) = value_and_uncertainty(value, u);
@@ -232,11 +233,11 @@ pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, f64)>) -
             si:label { (label) }
             si:value { (v) }
             si:unit { (unit) }
-            @if let (Some(u), Some((_, k))) = (u, expanded) {
+            @if let (Some(u), Some((_, c))) = (u, expanded) {
                 si:measurementUncertaintyUnivariate { si:expandedMU {
                     si:valueExpandedMU { (u) }
-                    si:coverageFactor { (coverage_factor(k)) }
-                    si:coverageProbability { (probability(k)) }
+                    si:coverageFactor { (coverage_factor(c.k)) }
+                    si:coverageProbability { (probability(c.p)) }
                     si:distribution { "normal" }
                 } }
             }
@@ -449,7 +450,10 @@ pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
 /// standards, the influence conditions and every fused coefficient.
 fn results(d: &ResultDoc) -> Markup {
     let unit = dsi_unit(&d.unit);
-    let coverage = d.uncertainty.as_ref().map(|u| u.coverage_factor);
+    let statement = d
+        .uncertainty
+        .as_ref()
+        .map(super::certificate::coverage_statement);
     html! {
                 dcc:measurementResult {
                     dcc:name { (content("Static model of the accelerometer")) }
@@ -473,7 +477,7 @@ fn results(d: &ResultDoc) -> Markup {
                              finds the model short of the data, the model's own standard error, combined in quadrature \
                              and expanded{}.",
                             d.mount, d.positions.len(), d.runs.len(), d.batches,
-                            coverage.map_or(String::new(), |k| format!(" with k = {k}"))
+                            statement.unwrap_or_default()
                         ))) }
                         dcc:norm { "ISO/IEC Guide 98-3 (GUM)" }
                         dcc:reference { (PAPER) }
@@ -485,13 +489,17 @@ fn results(d: &ResultDoc) -> Markup {
                         dcc:data {
                             @for (t, v) in d.fused.coefficients.iter() {
                                 @let expanded = d.uncertainty.as_ref()
-                                    .and_then(|u| u.terms.get(t).map(|b| (b.expanded, u.coverage_factor)));
+                                    .and_then(|u| u.terms.get(t).map(|b| (b.expanded, b.covered(u.coverage_factor))));
                                 dcc:quantity {
                                     dcc:name { (content(&format!("{} — {} ({})", t.name(), term_meaning(t), super::format::term_unit(t, &d.unit)))) }
                                     (real(t.name(), *v, &unit, expanded))
-                                    @if let (Some(dec), Some(x)) = (&d.decision, d.decision.as_ref().and_then(|dec| dec.terms.get(t))) {
-                                        (conforms(&dec.rule, &super::format::term_unit(t, &d.unit), &x.verdict, x.value, x.min, x.max))
-                                    }
+                                    (meta_data(
+                                        expanded.map(|(_, c)| c),
+                                        &super::format::term_unit(t, &d.unit),
+                                        d.decision.as_ref().and_then(|dec| dec.terms.get(t).map(|x| Judgement {
+                                            rule: &dec.rule, verdict: &x.verdict, value: x.value, min: x.min, max: x.max,
+                                        })),
+                                    ))
                                 }
                             }
                         }
@@ -500,8 +508,50 @@ fn results(d: &ResultDoc) -> Markup {
     }
 }
 
-/// A quantity's `dcc:measurementMetaData`: its limits and conformity.
-pub fn conforms(
+/// A judged quantity: the rule, its verdict, value and limits.
+pub struct Judgement<'a> {
+    /// `simple` or `guarded`.
+    pub rule: &'a str,
+    /// `pass`, `conditional` or `fail`.
+    pub verdict: &'a str,
+    /// The value judged.
+    pub value: f64,
+    /// Lower limit.
+    pub min: Option<f64>,
+    /// Upper limit.
+    pub max: Option<f64>,
+}
+
+/// A quantity's `dcc:measurementMetaData`: how its expanded uncertainty
+/// was formed (`u_c`, `ν_eff`, `k`, `p`) and, when judged, its limits and
+/// conformity; nothing when neither.
+pub fn meta_data(covered: Option<Covered>, unit: &str, judged: Option<Judgement<'_>>) -> Markup {
+    if covered.is_none() && judged.is_none() {
+        return html! {};
+    }
+    html! {
+        dcc:measurementMetaData {
+            @if let Some(c) = covered {
+                dcc:metaData {
+                    dcc:name { (content("Combined standard uncertainty, effective degrees of freedom, coverage")) }
+                    dcc:declaration { (content(&format!(
+                        "u_c = {} {unit}; ν_eff = {} (Welch–Satterthwaite, GUM G.2b); k = {}; p = {}",
+                        decimal(c.combined),
+                        super::format::dof(c.effective_dof),
+                        coverage_factor(c.k),
+                        probability(c.p),
+                    ))) }
+                }
+            }
+            @if let Some(j) = judged {
+                (conformity_data(j.rule, unit, j.verdict, j.value, j.min, j.max))
+            }
+        }
+    }
+}
+
+/// A `dcc:metaData` of a quantity's limits and conformity.
+fn conformity_data(
     rule: &str,
     unit: &str,
     verdict: &str,
@@ -510,7 +560,7 @@ pub fn conforms(
     max: Option<f64>,
 ) -> Markup {
     html! {
-        dcc:measurementMetaData { dcc:metaData {
+        dcc:metaData {
             dcc:name { (content("Conformity with the sensor type's limits")) }
             dcc:declaration { (content(&format!(
                 "limits {} to {} {unit}, {rule} rule (ILAC-G8)",
@@ -518,7 +568,7 @@ pub fn conforms(
                 max.map_or("+∞".into(), decimal),
             ))) }
             dcc:conformity { (conformity(verdict, value, min, max)) }
-        } }
+        }
     }
 }
 
@@ -819,8 +869,8 @@ mod tests {
 
     #[test]
     fn numbers_match_d_si_patterns() {
-        assert_eq!(probability(2.0), "0.9545");
-        assert_eq!(probability(3.0), "0.9973");
+        assert_eq!(probability(0.9545), "0.9545");
+        assert_eq!(probability(0.883_883_476_483_184_4), "0.8839");
         assert_eq!(coverage_factor(2.0), "2");
         assert_eq!(coverage_factor(2.5), "2.5");
         assert_eq!(decimal(-1.25e-7), "-0.000000125");

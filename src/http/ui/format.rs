@@ -138,6 +138,28 @@ pub fn opt(v: Option<f64>, f: fn(f64) -> String) -> String {
     v.map_or_else(|| "—".into(), f)
 }
 
+/// Effective degrees of freedom as a certificate prints them: the integer,
+/// `∞` when infinite, `—` when the result did not state them.
+pub fn dof(v: Option<Option<u64>>) -> String {
+    match v {
+        Some(Some(n)) => n.to_string(),
+        Some(None) => "∞".into(),
+        None => "—".into(),
+    }
+}
+
+/// A coverage factor to two decimals, trailing zeros dropped (`2.87`, `2`,
+/// `13.97`).
+pub fn factor(k: f64) -> String {
+    let s = format!("{k:.2}");
+    s.trim_end_matches('0').trim_end_matches('.').to_owned()
+}
+
+/// A probability in per cent to two decimals (`95.45 %`).
+pub fn percent(p: f64) -> String {
+    format!("{:.2} %", p * 100.0)
+}
+
 /// An instant as `2026-11-22 08:00 UTC` (seconds when not zero).
 pub fn instant(t: &Timestamp) -> String {
     let text = t.to_string();

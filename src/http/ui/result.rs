@@ -134,17 +134,79 @@ pub struct BudgetDoc {
     pub model: f64,
     /// Root-sum-square.
     pub combined: f64,
+    /// Its effective degrees of freedom (null: infinite; absent before
+    /// they were stated).
+    #[serde(default)]
+    pub effective_dof: Option<u64>,
+    /// Its coverage factor (absent before each term stated its own).
+    #[serde(default)]
+    pub coverage_factor: Option<f64>,
+    /// Its coverage probability (likewise).
+    #[serde(default)]
+    pub coverage_probability: Option<f64>,
     /// Expanded.
     pub expanded: f64,
+}
+
+/// How an expanded uncertainty was formed, as a certificate states it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Covered {
+    /// The combined standard uncertainty.
+    pub combined: f64,
+    /// Its effective degrees of freedom: `Some(None)` infinite, `None` not
+    /// stated (a result computed before they were).
+    pub effective_dof: Option<Option<u64>>,
+    /// `k`.
+    pub k: f64,
+    /// `p`; for a result computed before probabilities were stated, the
+    /// normal distribution's for `k`.
+    pub p: f64,
+}
+
+impl BudgetDoc {
+    /// This term's coverage, within a budget that held `fixed` (the
+    /// document's global factor, for results computed before each term
+    /// stated its own).
+    pub fn covered(&self, fixed: Option<f64>) -> Covered {
+        match (self.coverage_factor, self.coverage_probability) {
+            (Some(k), Some(p)) => Covered {
+                combined: self.combined,
+                effective_dof: Some(self.effective_dof),
+                k,
+                p,
+            },
+            _ => {
+                let k = fixed.unwrap_or(2.0);
+                Covered {
+                    combined: self.combined,
+                    effective_dof: None,
+                    k,
+                    p: accelcal_core::uncertainty::coverage_probability(k),
+                }
+            }
+        }
+    }
 }
 
 /// The uncertainty budget.
 #[derive(Debug, Clone, Deserialize)]
 pub struct UncertaintyDoc {
-    /// Coverage factor.
-    pub coverage_factor: f64,
+    /// The fixed coverage factor (a sensor type's; every result computed
+    /// before probabilities were stated has one); null otherwise.
+    #[serde(default)]
+    pub coverage_factor: Option<f64>,
+    /// The stated coverage probability; null when the factor is fixed.
+    #[serde(default)]
+    pub coverage_probability: Option<f64>,
     /// Per coefficient.
     pub terms: TermMap<BudgetDoc>,
+}
+
+impl UncertaintyDoc {
+    /// The coverage of term `t`'s expanded uncertainty.
+    pub fn covered(&self, t: accelcal_core::Term) -> Option<Covered> {
+        self.terms.get(t).map(|b| b.covered(self.coverage_factor))
+    }
 }
 
 /// One term's decision.

@@ -70,9 +70,16 @@ pub struct TriadDoc {
     pub s2_expanded: Option<[f64; 3]>,
     /// The model equation.
     pub model: String,
-    /// The coverage factor of the expanded uncertainties.
+    /// The coverage factor a sensor type fixes (every triad stored before
+    /// probabilities were stated has one); null otherwise.
     #[serde(default)]
     pub coverage_factor: Option<f64>,
+    /// The coverage probability the expanded uncertainties were formed for.
+    #[serde(default)]
+    pub coverage_probability: Option<f64>,
+    /// Each element's `u_c`, `ν_eff`, `k` and `p`, by name.
+    #[serde(default)]
+    pub coverage: Option<std::collections::BTreeMap<String, crate::domain::triad::ElementCoverage>>,
     /// `b`'s expanded uncertainties.
     #[serde(default)]
     pub b_expanded: Option<[f64; 3]>,
@@ -97,6 +104,47 @@ pub struct TriadDoc {
     /// When the sensor is next due, when the triad was judged.
     #[serde(default)]
     pub due_at: Option<String>,
+}
+
+impl TriadDoc {
+    /// Whether its elements have expanded uncertainties.
+    pub fn expanded(&self) -> bool {
+        self.coverage_factor.is_some() || self.coverage_probability.is_some()
+    }
+
+    /// How element `name`'s expanded uncertainty was formed: as the triad
+    /// states it, or, for a triad stored before each element did, with its
+    /// one coverage factor and the normal probability.
+    pub fn covered(&self, name: &str) -> Option<super::result::Covered> {
+        if let Some(c) = self.coverage.as_ref().and_then(|m| m.get(name)) {
+            return Some(super::result::Covered {
+                combined: c.combined,
+                effective_dof: Some(c.effective_dof),
+                k: c.coverage_factor,
+                p: c.coverage_probability,
+            });
+        }
+        let k = self.coverage_factor?;
+        Some(super::result::Covered {
+            combined: f64::NAN,
+            effective_dof: None,
+            k,
+            p: accelcal_core::uncertainty::coverage_probability(k),
+        })
+    }
+
+    /// How the expanded uncertainties were formed, as a method's sentence
+    /// ends ([`super::certificate::coverage_statement`]); empty without.
+    pub fn statement(&self) -> String {
+        if !self.expanded() {
+            return String::new();
+        }
+        super::certificate::stated(
+            self.coverage_probability,
+            self.coverage_factor,
+            self.coverage.is_some(),
+        )
+    }
 }
 
 /// A triad's decision.
@@ -241,8 +289,7 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
         @if let Some(dec) = &d.decision {
             h2 { "Decision " (badge(&dec.verdict, &dec.verdict)) }
             div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #triad-decision .numbers {
-                caption { (dec.rule) " rule; each element judged with its expanded uncertainty U (k = "
-                    (d.coverage_factor.map_or("2".into(), |k| k.to_string())) ")" }
+                caption { (dec.rule) " rule; each element judged with its expanded uncertainty U" }
                 thead { tr {
                     th scope="col" { "element" } th scope="col" { "value" } th scope="col" { "U" }
                     th scope="col" { "min" } th scope="col" { "max" } th scope="col" { "verdict" }
@@ -282,8 +329,28 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             } }
         }
         @if let (Some(bu), Some(su)) = (&d.b_expanded, &d.s_expanded) {
-            (matrix(&format!("Expanded uncertainties U of S (k = {}); of b: {}, {}, {}",
-                d.coverage_factor.unwrap_or(2.0), unc(bu[0]), unc(bu[1]), unc(bu[2])), "U", su, None))
+            (matrix(&format!("Expanded uncertainties U of S; of b: {}, {}, {}",
+                unc(bu[0]), unc(bu[1]), unc(bu[2])), "U", su, None))
+            @if let Some(cov) = &d.coverage {
+                div.table-wrap tabindex="0" role="region" aria-label="Coverage" { table #triad-coverage .numbers {
+                    caption { "Each element expanded" (d.statement()) }
+                    thead { tr {
+                        th scope="col" { "element" } th scope="col" { "u" sub { "c" } }
+                        th scope="col" { "ν" sub { "eff" } } th scope="col" { "k" } th scope="col" { "p" }
+                    } }
+                    tbody {
+                        @for (name, c) in cov {
+                            tr data-element=(name) {
+                                th scope="row" { (name) }
+                                td.num { (unc(c.combined)) }
+                                td.num { (super::format::dof(Some(c.effective_dof))) }
+                                td.num { (super::format::factor(c.coverage_factor)) }
+                                td.num { (super::format::percent(c.coverage_probability)) }
+                            }
+                        }
+                    }
+                } }
+            }
         }
         (matrix("T = S⁻¹, with standard errors u", "T", &d.t, d.t_std_errors.as_ref()))
         dl.facts {

@@ -14,15 +14,24 @@ use maud::{Markup, html};
 use super::badge;
 use super::calibration::when;
 use super::certificate::{
-    Context, Frame, PAPER, customer_and_item, frame, probability, standards, traceability,
-    verification,
+    Context, Frame, PAPER, customer_and_item, frame, standards, traceability, verification,
 };
-use super::format::{num, unc, value_and_uncertainty};
+use super::format::{dof, factor, num, percent, unc, value_and_uncertainty};
+use super::result::Covered;
 use super::triad::TriadDoc;
 use crate::store::AXES;
 
-/// One row of the results: element, value, standard error, U, unit.
-fn row(name: &str, v: f64, se: Option<f64>, u: Option<f64>, unit: &str) -> Markup {
+/// One row of the results: element, value, standard error, `u_c`,
+/// `ν_eff`, `k`, `p`, U, unit.
+fn row(
+    name: &str,
+    v: f64,
+    se: Option<f64>,
+    u: Option<f64>,
+    c: Option<Covered>,
+    unit: &str,
+) -> Markup {
+    let combined = c.map(|c| c.combined).filter(|x| x.is_finite());
     let (value, expanded) = match u {
         Some(u) => {
             let (v, u) = value_and_uncertainty(v, u);
@@ -35,6 +44,10 @@ fn row(name: &str, v: f64, se: Option<f64>, u: Option<f64>, unit: &str) -> Marku
             th scope="row" { (name) }
             td.num { (value) }
             td.num { (se.map_or("—".into(), unc)) }
+            td.num { (combined.map_or("—".into(), unc)) }
+            td.num { (c.map_or("—".into(), |c| dof(c.effective_dof))) }
+            td.num { (c.filter(|_| u.is_some()).map_or("—".into(), |c| factor(c.k))) }
+            td.num { (c.filter(|_| u.is_some()).map_or("—".into(), |c| percent(c.p))) }
             td.num { (expanded) }
             td { (unit) }
         }
@@ -68,17 +81,17 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                             ". Uncertainty after the GUM per axis: the fused standard error, the stand's indexing "
                             "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short, "
                             "the model's own standard error, combined in quadrature and expanded"
-                            @if let Some(k) = d.coverage_factor { " with coverage factor k = " (k) ", " (probability(k)) } "."
+                            (d.statement()) "."
                         } @else {
                             "The orientations were not known (" (d.residuals.len()) " static positions): b and a "
                             "lower-triangular T were found from the gravity magnitude by Levenberg–Marquardt "
                             "(the sensor's x axis defines the frame's x axis, its xy-plane the frame's xy-plane, "
                             "so S_xy, S_xz and S_yz are zero by this convention, not measured). "
-                            @if let Some(k) = d.coverage_factor {
+                            @if d.expanded() {
                                 "Uncertainty after the GUM per element: the fit's standard error (from its Jacobian, "
                                 "the residuals' scatter on " (d.fit.as_ref().map_or(0, |f| f.degrees_of_freedom)) " degrees of freedom; "
                                 "S's propagated from T's covariance) and the uncertainty of gravity, combined in "
-                                "quadrature and expanded with coverage factor k = " (k) ", " (probability(k)) ". "
+                                "quadrature and expanded" (d.statement()) ". "
                                 "The orientations' own errors do not enter: the fit does not use them."
                             } @else {
                                 "With exactly nine positions the fit has no degree of freedom left: no standard error "
@@ -90,36 +103,41 @@ pub fn render(d: &TriadDoc, c: &Context) -> Markup {
                     div.table-wrap tabindex="0" role="region" aria-label="Triad results" {
                         table #certificate-results {
                             caption {
-                                "b and S by element, each rounded to its expanded uncertainty's second significant digit where one is stated"
-                                @if let Some(k) = d.coverage_factor { " (k = " (k) ", " (probability(k)) ")" }
+                                "b and S by element, each rounded to its expanded uncertainty's second significant digit where one is stated, "
+                                "with its combined standard uncertainty u" sub { "c" } ", effective degrees of freedom ν" sub { "eff" }
+                                ", coverage factor k and coverage probability p"
                             }
                             thead { tr {
                                 th scope="col" { "Element" }
                                 th scope="col" .num { "Value" }
                                 th scope="col" .num { "Standard error" }
+                                th scope="col" .num { "u" sub { "c" } }
+                                th scope="col" .num { "ν" sub { "eff" } }
+                                th scope="col" .num { "k" }
+                                th scope="col" .num { "p" }
                                 th scope="col" .num { "Expanded U" }
                                 th scope="col" { "Unit" }
                             } }
                             tbody {
                                 @for (m, axis) in AXES.iter().enumerate() {
-                                    (row(&format!("b_{axis}"), d.b[m], d.b_std_errors.map(|e| e[m]), d.b_expanded.map(|e| e[m]), &d.unit))
+                                    (row(&format!("b_{axis}"), d.b[m], d.b_std_errors.map(|e| e[m]), d.b_expanded.map(|e| e[m]), d.covered(&format!("b_{axis}")), &d.unit))
                                 }
                                 @for (m, r) in AXES.iter().enumerate() {
                                     @for (k, col) in AXES.iter().enumerate() {
                                         @if !known && k > m {
                                             tr data-element={"S_" (r) (col)} {
                                                 th scope="row" { "S_" (r) (col) }
-                                                td.num { "0" } td.num { "—" } td.num { "—" }
+                                                td.num { "0" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" }
                                                 td { "by the frame convention" }
                                             }
                                         } @else {
-                                            (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), &per_g))
+                                            (row(&format!("S_{r}{col}"), d.s[m][k], d.s_std_errors.map(|e| e[m][k]), d.s_expanded.map(|e| e[m][k]), d.covered(&format!("S_{r}{col}")), &per_g))
                                         }
                                     }
                                 }
                                 @if let Some(s2) = d.s2 {
                                     @for (m, axis) in AXES.iter().enumerate() {
-                                        (row(&format!("S2_{axis}"), s2[m], d.s2_std_errors.map(|e| e[m]), d.s2_expanded.map(|e| e[m]), &format!("{} per g²", d.unit)))
+                                        (row(&format!("S2_{axis}"), s2[m], d.s2_std_errors.map(|e| e[m]), d.s2_expanded.map(|e| e[m]), d.covered(&format!("S2_{axis}")), &format!("{} per g²", d.unit)))
                                     }
                                 }
                             }

@@ -17,7 +17,9 @@
 use maud::{Markup, html};
 
 use super::certificate::{Context, PAPER};
-use super::dcc::{Admin, Judged, conditions, conforms, content, document, dsi_unit, real};
+use super::dcc::{
+    Admin, Judged, Judgement, conditions, content, document, dsi_unit, meta_data, real,
+};
 use super::triad::TriadDoc;
 use crate::domain::triad::{FIXED_BY_CONVENTION, KNOWN_ORIENTATIONS};
 use crate::store::AXES;
@@ -117,7 +119,7 @@ fn elements(d: &TriadDoc) -> Vec<Element> {
 fn results(d: &TriadDoc) -> Markup {
     let unit = dsi_unit(&d.unit);
     let known = d.method == KNOWN_ORIENTATIONS;
-    let k = d.coverage_factor;
+    let statement = d.statement();
     let model = if d.s2.is_some() {
         "u = b + S g + S2 ⊙ g² (S2_m g_m² on axis m)"
     } else {
@@ -147,7 +149,7 @@ fn results(d: &TriadDoc) -> Markup {
              lack-of-fit test finds the model short of the data, the model's own standard error, \
              combined in quadrature and expanded{}.",
             d.residuals.len(),
-            k.map_or(String::new(), |k| format!(" with k = {k}"))
+            statement
         )
     } else {
         format!(
@@ -159,10 +161,11 @@ fn results(d: &TriadDoc) -> Markup {
              orientations' own errors do not enter.",
             d.residuals.len(),
             d.fit.as_ref().map_or(0, |f| f.degrees_of_freedom),
-            k.map_or(
-                " (none: no degree of freedom left)".to_owned(),
-                |k| format!(" with k = {k}")
-            )
+            if d.expanded() {
+                statement
+            } else {
+                " (none: no degree of freedom left)".to_owned()
+            }
         )
     };
     html! {
@@ -187,10 +190,15 @@ fn results(d: &TriadDoc) -> Markup {
                     @for e in elements(d) {
                         dcc:quantity {
                             dcc:name { (content(&format!("{} — {} ({})", e.name, meaning(e.matrix, e.m, e.k), d.unit))) }
-                            (real(&e.name, e.value, &unit, e.expanded.zip(k)))
-                            @if let (Some(dec), Some(e)) = (&d.decision, d.decision.as_ref().and_then(|dec| dec.elements.get(&e.name))) {
-                                (conforms(&dec.rule, &d.unit, &e.verdict, e.value, e.min, e.max))
-                            }
+                            @let covered = d.covered(&e.name);
+                            (real(&e.name, e.value, &unit, e.expanded.zip(covered)))
+                            (meta_data(
+                                covered.filter(|c| c.combined.is_finite()),
+                                &d.unit,
+                                d.decision.as_ref().and_then(|dec| dec.elements.get(&e.name).map(|x| Judgement {
+                                    rule: &dec.rule, verdict: &x.verdict, value: x.value, min: x.min, max: x.max,
+                                })),
+                            ))
                         }
                     }
                 }
