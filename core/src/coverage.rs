@@ -95,29 +95,22 @@ impl Coverage {
 
 /// `ν_eff = u_c⁴ / Σ_i u_i⁴/ν_i` over `(u_i, ν_i)` (`ν_i` `None`: infinite),
 /// truncated to an integer; `None` when infinite (no component with a
-/// finite `ν_i` and `u_i > 0`). Computed on `u_i/u_max` so that neither
-/// the fourth powers of tiny uncertainties underflow nor those of huge
-/// ones overflow; a `ν_eff` below 1 (not reachable with every `ν_i ≥ 1`) is
-/// 1.
+/// finite `ν_i` and `u_i > 0`, or more than `u64` counts). Computed on
+/// `u_i/u_max` so that neither the fourth powers of tiny uncertainties
+/// underflow nor those of huge ones overflow; a `ν_eff` below 1 (not
+/// reachable with every `ν_i ≥ 1`) is 1.
 pub fn effective_dof(components: &[(f64, Option<f64>)]) -> Option<u64> {
     let scale = components.iter().fold(0.0_f64, |m, (u, _)| m.max(u.abs()));
-    if scale == 0.0 || !scale.is_finite() {
-        return None;
-    }
     let r = |u: f64| (u / scale).powi(2);
     let combined: f64 = components.iter().map(|(u, _)| r(*u)).sum();
     let sum: f64 = components
         .iter()
         .filter_map(|(u, nu)| nu.map(|nu| r(*u).powi(2) / nu))
         .sum();
-    if sum == 0.0 {
-        return None;
-    }
+    // All zero (0/0), all Type B (a zero sum) or past any count of degrees
+    // of freedom: infinite.
     let nu = combined.powi(2) / sum;
-    if !nu.is_finite() || nu >= u64::MAX as f64 {
-        return None;
-    }
-    Some((nu.floor() as u64).max(1))
+    (nu.is_finite() && nu < u64::MAX as f64).then(|| (nu.floor() as u64).max(1))
 }
 
 /// `ν_stat` of a fused value from its batches' sizes `n_b` and the weights
@@ -173,31 +166,27 @@ pub fn factor(p: f64, dof: Option<u64>) -> f64 {
     }
 }
 
-/// `p = 2·F_t(k; ν) − 1`, the normal's when `ν` is infinite (`None`). Past
-/// [`LARGE_DOF`], the `p` whose [`factor`] is `k`, found by bisection.
+/// `p = 2·F_t(k; ν) − 1`, the normal's when `ν` is infinite (`None`): for
+/// a finite `ν`, the `p` whose [`factor`] is `k`, found by bisection
+/// (sixty-four evaluations of [`factor`], so exactly as accurate — statrs'
+/// own t distribution loses digits past 1e5 degrees of freedom and is wrong
+/// past 1e9).
 pub fn probability(k: f64, dof: Option<u64>) -> f64 {
-    let cdf = match dof {
-        Some(nu) if nu <= LARGE_DOF => StudentsT::new(0.0, 1.0, nu as f64)
-            .map(|t| t.cdf(k))
-            .unwrap_or(f64::NAN),
-        Some(_) => {
-            let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
-            for _ in 0..200 {
-                let mid = (lo + hi) / 2.0;
-                if mid <= lo || mid >= hi {
-                    break;
-                }
-                if factor(mid, dof) < k {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            return (lo + hi) / 2.0;
+    if dof.is_none() {
+        return 2.0 * Normal::standard().cdf(k) - 1.0;
+    }
+    // Sixty-four halvings of [0, 1] leave less than a unit in the last
+    // place of any p ≥ 2⁻¹¹: converged.
+    let (mut lo, mut hi) = (0.0_f64, 1.0_f64);
+    for _ in 0..64 {
+        let mid = (lo + hi) / 2.0;
+        match factor(mid, dof).total_cmp(&k) {
+            std::cmp::Ordering::Less => lo = mid,
+            std::cmp::Ordering::Greater => hi = mid,
+            std::cmp::Ordering::Equal => return mid,
         }
-        None => Normal::standard().cdf(k),
-    };
-    2.0 * cdf - 1.0
+    }
+    (lo + hi) / 2.0
 }
 
 #[cfg(test)]
@@ -225,6 +214,28 @@ mod tests {
             let back = probability(k, nu);
             assert!((back - p).abs() < 1e-10, "{p} {nu:?}: {back}");
         }
+        // Just past the switch to Fisher's expansion, where its third and
+        // fourth terms still count: scipy to 4e-15.
+        for (p, nu, k) in [
+            (0.9545, 1001, 2.002_503_013_583_816_7),
+            (0.9545, 1500, 2.001_670_477_826_827_3),
+            (0.99, 1001, 2.580_749_768_750_524_5),
+            (0.99, 2000, 2.578_289_787_557_518_6),
+        ] {
+            let got = factor(p, Some(nu));
+            assert!((got - k).abs() <= 4e-15 * k, "{p} {nu}: {got} ≠ {k}");
+        }
+        // The probability k = 2 reaches, scipy's 2·t.cdf(2, ν) − 1, also
+        // where statrs' own distribution is off (1e7, 1e9).
+        for (nu, p) in [
+            (1_000, 0.954_229_653_506_748_3),
+            (100_000, 0.954_497_036_542_493_4),
+            (10_000_000, 0.954_499_709_108_157_1),
+            (1_000_000_000, 0.954_499_735_833_686_9),
+        ] {
+            let got = probability(2.0, Some(nu));
+            assert!((got - p).abs() < 1e-13, "{nu}: {got} ≠ {p}");
+        }
         // k = 2 on 4 degrees of freedom covers 88.4 %, not 95.45 %.
         assert!((probability(2.0, Some(4)) - 0.883_883_476_483_184_4).abs() < 1e-12);
     }
@@ -241,6 +252,17 @@ mod tests {
         // Only Type B, or only zeros: infinite.
         assert_eq!(effective_dof(&[(3.0, None), (0.0, Some(2.0))]), None);
         assert_eq!(effective_dof(&[(0.0, Some(2.0))]), None);
+        assert_eq!(effective_dof(&[]), None);
+        // A statistical component swamped by a Type B one: 1e20 degrees of
+        // freedom are more than a count holds, so infinite; 1e18 are not.
+        assert_eq!(effective_dof(&[(1e-5, Some(1.0)), (1.0, None)]), None);
+        let huge = effective_dof(&[(1e-5, Some(0.01)), (1.0, None)]).unwrap();
+        assert!((huge as f64 / 1e18 - 1.0).abs() < 1e-9, "{huge}");
+        // 2⁶⁴ (exact in binary) is past what a count holds: infinite.
+        assert_eq!(effective_dof(&[(1.0, Some(2f64.powi(64)))]), None);
+        assert_eq!(effective_dof(&[(1.0, Some(2f64.powi(63)))]), Some(1 << 63));
+        // Below one (not reachable with ν_i ≥ 1): one.
+        assert_eq!(effective_dof(&[(1.0, Some(0.25))]), Some(1));
         // Scale-free: 1e-200 and 1e200 give what 1 does.
         for s in [1e-200, 1e200] {
             assert_eq!(
@@ -260,6 +282,7 @@ mod tests {
         let want = 1.0 / (1.0 / 16.0 + 9.0 / 32.0);
         assert!((fused_dof(&[(2, 1.0), (3, 3.0)]) - want).abs() < 1e-12);
         assert_eq!(fused_dof(&[(1, 1.0), (3, 1.0)]), 0.0);
+        assert_eq!(fused_dof(&[]), 0.0);
     }
 
     #[test]

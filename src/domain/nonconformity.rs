@@ -201,7 +201,9 @@ pub struct Traced {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::domain::standards::{CertificatePeriod, StandardCertificate, StandardKind};
+    use crate::domain::standards::{
+        CertificatePeriod, Parameters, StandardCertificate, StandardKind,
+    };
 
     fn t(s: &str) -> Timestamp {
         Timestamp::parse(s).unwrap()
@@ -229,10 +231,20 @@ mod tests {
             gravity_m_s2: None,
             gravity_rel_std: None,
             temperature_std_c: None,
+            degrees_of_freedom: None,
             traceability: "PTB".into(),
             earlier: vec![CertificatePeriod {
                 certificate: certificate("2025-06-01T00:00:00Z"),
                 due_at: t("2026-06-01T00:00:00Z"),
+                parameters: Parameters {
+                    angle_std_arcsec: Some(2.0),
+                    gravity_m_s2: None,
+                    gravity_rel_std: None,
+                    temperature_std_c: None,
+                    degrees_of_freedom: None,
+                    traceability: "PTB".into(),
+                },
+                parameters_assumed: false,
             }],
             updated_at: t("2026-06-01T00:00:00Z"),
         }

@@ -379,7 +379,8 @@ pub struct Act {
     pub superseded_by: Option<uuid::Uuid>,
 }
 
-/// Who submitted a calibration, and when.
+/// Who submitted a calibration, and when; and who submitted the
+/// calibrations it replaces.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Submitter {
     /// The submitting token's id.
@@ -388,6 +389,22 @@ pub struct Submitter {
     pub holder: Option<String>,
     /// When accelcal received it.
     pub received_at: Timestamp,
+    /// For a calibration that supersedes others (a correction, a
+    /// reprocessing): the token and holder that submitted each calibration
+    /// it replaces, directly or through earlier supersessions, nearest
+    /// first — the last is the measurement's author. Nobody among them may
+    /// approve or reject it either.
+    pub earlier: Vec<(String, Option<String>)>,
+}
+
+impl Submitter {
+    /// Who may not review the calibration: its submitter and everyone who
+    /// submitted a calibration it replaces (the author included).
+    fn authors(&self) -> impl Iterator<Item = (&str, Identity)> {
+        std::iter::once((self.token_id.as_str(), self.holder.as_deref()))
+            .chain(self.earlier.iter().map(|(t, h)| (t.as_str(), h.as_deref())))
+            .map(|(t, h)| (t, Identity::of(t, h)))
+    }
 }
 
 /// Why an act is refused.
@@ -404,9 +421,10 @@ pub enum Refusal {
         /// The act.
         verb: &'static str,
     },
-    /// The signer submitted the calibration.
+    /// The signer submitted the calibration, or one it replaces.
     #[error(
-        "the calibration was submitted by the same person ({who}); another reviewer must {verb} it"
+        "the calibration, or one it replaces, was submitted by the same person ({who}); another \
+         reviewer must {verb} it"
     )]
     OwnWork {
         /// The holder or token.
@@ -491,9 +509,10 @@ impl Act {
             });
         }
         let signer = Identity::of(&self.signer.id, self.signer.holder.as_deref());
-        let author = Identity::of(&submitter.token_id, submitter.holder.as_deref());
         if matches!(self.action, Action::Approve | Action::Reject)
-            && signer.same(&self.signer.id, &author, &submitter.token_id)
+            && let Some((_, author)) = submitter
+                .authors()
+                .find(|(token, author)| signer.same(&self.signer.id, author, token))
         {
             let who = match author {
                 Identity::Holder(h) => h,
@@ -544,6 +563,7 @@ mod tests {
             token_id: token.into(),
             holder: holder.map(Into::into),
             received_at: Timestamp::parse("2026-11-24T10:00:00Z").unwrap(),
+            earlier: Vec::new(),
         }
     }
 
@@ -749,6 +769,41 @@ mod tests {
                     .is_ok()
             );
         }
+    }
+
+    /// A reprocessed or corrected calibration keeps its author: the one who
+    /// submitted the measurement (and anyone who submitted a version of it
+    /// since) may not approve or reject the replacement, whoever submitted
+    /// the replacement; someone else may.
+    #[test]
+    fn authorship_survives_supersession() {
+        let mut replacement = by("reprocessor", Some("Rita"));
+        replacement.earlier = vec![
+            ("corrector".into(), None),
+            ("station".into(), Some("Ann".into())),
+        ];
+        for (signer, own) in [
+            (principal("r2", Role::Reviewer, Some("Ann")), true),
+            (principal("station", Role::Admin, None), true),
+            (principal("corrector", Role::Reviewer, Some("Cy")), true),
+            (principal("r3", Role::Reviewer, Some("Rita")), true),
+            (principal("r4", Role::Reviewer, Some("Bob")), false),
+            (principal("r5", Role::Reviewer, None), false),
+        ] {
+            let out = act(Action::Approve, signer.clone()).check(State::Submitted, &replacement, 1);
+            assert_eq!(
+                matches!(out, Err(Refusal::OwnWork { .. })),
+                own,
+                "{signer:?}: {out:?}"
+            );
+        }
+        let e = act(
+            Action::Approve,
+            principal("r2", Role::Reviewer, Some("Ann")),
+        )
+        .check(State::Submitted, &replacement, 1)
+        .unwrap_err();
+        assert!(e.to_string().contains("(Ann)"), "{e}");
     }
 
     #[test]

@@ -310,6 +310,14 @@ pub struct CoverageStated {
     pub coverage_factor: Option<f64>,
 }
 
+/// A certificate's `degrees_of_freedom`, optional.
+pub fn degrees_of_freedom() -> ObjectBuilder {
+    ObjectBuilder::new()
+        .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
+        .minimum(Some(1.0))
+        .maximum(Some(super::standards::MAX_DEGREES_OF_FREEDOM))
+}
+
 /// `coverage_probability`, optional.
 pub fn coverage_probability() -> ObjectBuilder {
     ObjectBuilder::new()

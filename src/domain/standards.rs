@@ -22,6 +22,10 @@ use super::limits::{
     GRAVITY_M_S2, MAX_ANGLE_STD_ARCSEC, MAX_DESCRIPTION_CHARS, MAX_FUTURE_SECONDS,
     MAX_GRAVITY_REL_STD, MAX_LABEL_CHARS, MAX_NOTES_CHARS, MAX_TEMPERATURE_STD_C,
 };
+
+/// The most degrees of freedom a certificate may state (beyond, leave them
+/// out: infinite).
+pub const MAX_DEGREES_OF_FREEDOM: f64 = 1_000_000.0;
 use super::text::{Chars, check_str};
 use super::timestamp::Timestamp;
 
@@ -107,14 +111,47 @@ pub struct StandardBody {
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::temperature_std_c)]
     pub temperature_std_c: Option<f64>,
+    /// The degrees of freedom the certificate gives its uncertainty
+    /// (1 to 1 000 000; absent: infinite, a Type B evaluation).
+    #[serde(default)]
+    #[schema(schema_with = crate::domain::schema::degrees_of_freedom)]
+    pub degrees_of_freedom: Option<f64>,
     /// How its values are traceable to the SI (free text, at most 4096
     /// characters): the chain of calibrations up to a national institute.
     #[schema(schema_with = crate::domain::schema::notes)]
     pub traceability: String,
 }
 
+/// What a certificate of a standard states besides its dates: the
+/// uncertainty parameters of the standard's kind, their degrees of freedom
+/// when the certificate gives them, and the statement of traceability. A
+/// test performed under a certificate is budgeted with that certificate's
+/// parameters, whatever later certificates state.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+pub struct Parameters {
+    /// A tumble stand's indexing error, arcseconds (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub angle_std_arcsec: Option<f64>,
+    /// A gravity value's g, in m/s².
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity_m_s2: Option<f64>,
+    /// A gravity value's relative uncertainty (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gravity_rel_std: Option<f64>,
+    /// A thermometer's uncertainty, °C (1σ).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature_std_c: Option<f64>,
+    /// The degrees of freedom of the uncertainty the certificate states
+    /// (absent: infinite, as a Type B evaluation is taken without them).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degrees_of_freedom: Option<f64>,
+    /// How its values are traceable to the SI.
+    pub traceability: String,
+}
+
 /// A reference standard as stored and served.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
+#[serde(from = "stored::StandardStored")]
 pub struct Standard {
     /// Its id.
     pub standard_id: String,
@@ -132,7 +169,8 @@ pub struct Standard {
     pub certificate: StandardCertificate,
     /// When its calibration runs out.
     pub due_at: Timestamp,
-    /// A tumble stand's indexing error, arcseconds (1σ).
+    /// A tumble stand's indexing error, arcseconds (1σ), by its current
+    /// certificate.
     pub angle_std_arcsec: Option<f64>,
     /// A gravity value's g, in m/s².
     pub gravity_m_s2: Option<f64>,
@@ -140,33 +178,72 @@ pub struct Standard {
     pub gravity_rel_std: Option<f64>,
     /// A thermometer's uncertainty, °C (1σ).
     pub temperature_std_c: Option<f64>,
+    /// The degrees of freedom of that uncertainty, when the certificate
+    /// gives them (absent: infinite).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degrees_of_freedom: Option<f64>,
     /// How its values are traceable to the SI.
     pub traceability: String,
     /// Its earlier certificates, newest first, each with the due date it
-    /// set: kept when a `PUT` brings a new certificate, so that a test
-    /// performed under an earlier one is still judged by it.
+    /// set and the parameters it stated: kept when a `PUT` brings a new
+    /// certificate, so that a test performed under an earlier one is still
+    /// judged and budgeted by it.
     #[serde(default)]
     pub earlier: Vec<CertificatePeriod>,
     /// When it was last written.
     pub updated_at: Timestamp,
 }
 
-/// A certificate and the due date it set: the period a standard was in
-/// calibration by it, `calibrated_at` to `due_at`.
+/// A certificate, the due date it set and the parameters it stated: the
+/// period a standard was in calibration by it, `calibrated_at` to `due_at`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, ToSchema)]
 pub struct CertificatePeriod {
     /// The certificate.
     pub certificate: StandardCertificate,
     /// The due date it set.
     pub due_at: Timestamp,
+    /// The parameters it stated.
+    #[serde(flatten)]
+    pub parameters: Parameters,
+    /// True when the certificate's own parameters were not recorded — it
+    /// was replaced before accelcal kept parameters by certificate (0.3) —
+    /// and these are the standard's as they stood when it was first read
+    /// since: an assumption the standard's record states rather than hides.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub parameters_assumed: bool,
 }
 
 impl Standard {
+    /// The parameters its current certificate states.
+    pub fn parameters(&self) -> Parameters {
+        Parameters {
+            angle_std_arcsec: self.angle_std_arcsec,
+            gravity_m_s2: self.gravity_m_s2,
+            gravity_rel_std: self.gravity_rel_std,
+            temperature_std_c: self.temperature_std_c,
+            degrees_of_freedom: self.degrees_of_freedom,
+            traceability: self.traceability.clone(),
+        }
+    }
+
+    /// Every certificate with its period and parameters, the current one
+    /// first, then the earlier ones newest first.
+    pub fn periods(&self) -> impl Iterator<Item = CertificatePeriod> + '_ {
+        std::iter::once(CertificatePeriod {
+            certificate: self.certificate.clone(),
+            due_at: self.due_at,
+            parameters: self.parameters(),
+            parameters_assumed: false,
+        })
+        .chain(self.earlier.iter().cloned())
+    }
+
     /// This standard as written over `before` (the record it replaces, if
-    /// any): `before`'s certificate joins the earlier ones when this one's
-    /// differs.
+    /// any): `before`'s certificate, with its parameters, joins the earlier
+    /// ones when this one's differs.
     pub fn replacing(mut self, before: Option<Standard>) -> Standard {
         if let Some(b) = before {
+            let parameters = b.parameters();
             self.earlier = b.earlier;
             if b.certificate != self.certificate {
                 self.earlier.insert(
@@ -174,6 +251,8 @@ impl Standard {
                     CertificatePeriod {
                         certificate: b.certificate,
                         due_at: b.due_at,
+                        parameters,
+                        parameters_assumed: false,
                     },
                 );
             }
@@ -181,18 +260,12 @@ impl Standard {
         self
     }
 
-    /// Whether a test performed at `at` may use this standard: `at` lies
-    /// within a period of calibration, `calibrated_at ≤ at ≤ due_at`, of its
-    /// certificate or an earlier one. `Err` says why not.
-    pub fn in_calibration_at(
-        &self,
-        at: Timestamp,
-    ) -> Result<(&StandardCertificate, Timestamp), String> {
-        let current = std::iter::once((&self.certificate, self.due_at));
-        let earlier = self.earlier.iter().map(|p| (&p.certificate, p.due_at));
-        if let Some(period) = current
-            .chain(earlier)
-            .find(|(c, due)| c.calibrated_at <= at && at <= *due)
+    /// The certificate period covering `at`, `calibrated_at ≤ at ≤ due_at`,
+    /// of its certificate or an earlier one. `Err` says why there is none.
+    pub fn in_calibration_at(&self, at: Timestamp) -> Result<CertificatePeriod, String> {
+        if let Some(period) = self
+            .periods()
+            .find(|p| p.certificate.calibrated_at <= at && at <= p.due_at)
         {
             return Ok(period);
         }
@@ -220,6 +293,106 @@ impl Standard {
                 self.standard_id
             )
         })
+    }
+}
+
+/// How standards were stored before accelcal kept parameters by
+/// certificate: read as they are, an earlier certificate without its own
+/// parameters takes the standard's current ones, marked
+/// `parameters_assumed`.
+mod stored {
+    use super::*;
+
+    #[derive(Deserialize)]
+    pub struct PeriodStored {
+        certificate: StandardCertificate,
+        due_at: Timestamp,
+        #[serde(default)]
+        angle_std_arcsec: Option<f64>,
+        #[serde(default)]
+        gravity_m_s2: Option<f64>,
+        #[serde(default)]
+        gravity_rel_std: Option<f64>,
+        #[serde(default)]
+        temperature_std_c: Option<f64>,
+        #[serde(default)]
+        degrees_of_freedom: Option<f64>,
+        #[serde(default)]
+        traceability: Option<String>,
+        #[serde(default)]
+        parameters_assumed: bool,
+    }
+
+    #[derive(Deserialize)]
+    pub struct StandardStored {
+        standard_id: String,
+        kind: StandardKind,
+        description: String,
+        manufacturer: Option<String>,
+        model: Option<String>,
+        serial: Option<String>,
+        certificate: StandardCertificate,
+        due_at: Timestamp,
+        angle_std_arcsec: Option<f64>,
+        gravity_m_s2: Option<f64>,
+        gravity_rel_std: Option<f64>,
+        temperature_std_c: Option<f64>,
+        #[serde(default)]
+        degrees_of_freedom: Option<f64>,
+        traceability: String,
+        #[serde(default)]
+        earlier: Vec<PeriodStored>,
+        updated_at: Timestamp,
+    }
+
+    impl From<StandardStored> for Standard {
+        fn from(s: StandardStored) -> Standard {
+            let mut standard = Standard {
+                standard_id: s.standard_id,
+                kind: s.kind,
+                description: s.description,
+                manufacturer: s.manufacturer,
+                model: s.model,
+                serial: s.serial,
+                certificate: s.certificate,
+                due_at: s.due_at,
+                angle_std_arcsec: s.angle_std_arcsec,
+                gravity_m_s2: s.gravity_m_s2,
+                gravity_rel_std: s.gravity_rel_std,
+                temperature_std_c: s.temperature_std_c,
+                degrees_of_freedom: s.degrees_of_freedom,
+                traceability: s.traceability,
+                earlier: Vec::new(),
+                updated_at: s.updated_at,
+            };
+            let today = standard.parameters();
+            standard.earlier = s
+                .earlier
+                .into_iter()
+                .map(|p| match p.traceability {
+                    Some(traceability) => CertificatePeriod {
+                        certificate: p.certificate,
+                        due_at: p.due_at,
+                        parameters: Parameters {
+                            angle_std_arcsec: p.angle_std_arcsec,
+                            gravity_m_s2: p.gravity_m_s2,
+                            gravity_rel_std: p.gravity_rel_std,
+                            temperature_std_c: p.temperature_std_c,
+                            degrees_of_freedom: p.degrees_of_freedom,
+                            traceability,
+                        },
+                        parameters_assumed: p.parameters_assumed,
+                    },
+                    None => CertificatePeriod {
+                        certificate: p.certificate,
+                        due_at: p.due_at,
+                        parameters: today.clone(),
+                        parameters_assumed: true,
+                    },
+                })
+                .collect();
+            standard
+        }
     }
 }
 
@@ -253,6 +426,14 @@ pub struct UsedStandard {
     /// A thermometer's uncertainty, °C (1σ).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub temperature_std_c: Option<f64>,
+    /// The degrees of freedom the certificate gives its uncertainty
+    /// (absent: infinite).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub degrees_of_freedom: Option<f64>,
+    /// True when the certificate's own parameters were not recorded and the
+    /// standard's were assumed ([`CertificatePeriod::parameters_assumed`]).
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    pub parameters_assumed: bool,
     /// Its statement of traceability.
     pub traceability: String,
 }
@@ -280,20 +461,22 @@ impl Standard {
                 wanted.map_or(role.to_owned(), |k| k.as_str().to_owned())
             ));
         }
-        let (certificate, due_at) = self.in_calibration_at(at)?;
+        let p = self.in_calibration_at(at)?;
         Ok(UsedStandard {
             role: role.to_owned(),
             standard_id: self.standard_id.clone(),
             kind: self.kind,
             description: self.description.clone(),
             serial: self.serial.clone(),
-            certificate: certificate.clone(),
-            due_at,
-            angle_std_arcsec: self.angle_std_arcsec,
-            gravity_m_s2: self.gravity_m_s2,
-            gravity_rel_std: self.gravity_rel_std,
-            temperature_std_c: self.temperature_std_c,
-            traceability: self.traceability.clone(),
+            certificate: p.certificate,
+            due_at: p.due_at,
+            angle_std_arcsec: p.parameters.angle_std_arcsec,
+            gravity_m_s2: p.parameters.gravity_m_s2,
+            gravity_rel_std: p.parameters.gravity_rel_std,
+            temperature_std_c: p.parameters.temperature_std_c,
+            degrees_of_freedom: p.parameters.degrees_of_freedom,
+            parameters_assumed: p.parameters_assumed,
+            traceability: p.parameters.traceability,
         })
     }
 }
@@ -395,6 +578,24 @@ impl StandardBody {
                 unit: " °C",
             },
         ];
+        if let Some(nu) = self.degrees_of_freedom
+            && !(1.0..=MAX_DEGREES_OF_FREEDOM).contains(&nu)
+        {
+            errors.add(
+                root.key("degrees_of_freedom"),
+                format!(
+                    "must be from 1 to {MAX_DEGREES_OF_FREEDOM} (leave it out when the \
+                     certificate gives none: infinite), not {nu}"
+                ),
+            );
+        }
+        if self.degrees_of_freedom.is_some() && self.kind == StandardKind::ReferenceAccelerometer {
+            errors.add(
+                root.key("degrees_of_freedom"),
+                "belongs to a standard with an uncertainty parameter; a \
+                 `reference_accelerometer` has none",
+            );
+        }
         for p in &parameters {
             let at = root.key(p.name);
             match (p.value, p.kind == self.kind) {
@@ -435,6 +636,7 @@ impl StandardBody {
             gravity_m_s2: self.gravity_m_s2,
             gravity_rel_std: self.gravity_rel_std,
             temperature_std_c: self.temperature_std_c,
+            degrees_of_freedom: self.degrees_of_freedom,
             traceability: self.traceability,
             earlier: Vec::new(),
             updated_at: now,
@@ -563,7 +765,7 @@ mod tests {
             second
                 .in_calibration_at(at("2026-06-01T00:00:00Z"))
                 .unwrap()
-                .0
+                .certificate
                 .number,
             "CAL-2026-0117"
         );
@@ -571,7 +773,7 @@ mod tests {
             second
                 .in_calibration_at(at("2027-06-01T00:00:00Z"))
                 .unwrap()
-                .0
+                .certificate
                 .number,
             "CAL-2027-0200"
         );
@@ -583,6 +785,89 @@ mod tests {
         // nothing joins the earlier ones.
         let again = second.clone().replacing(Some(second.clone()));
         assert_eq!(again.earlier, second.earlier);
+    }
+
+    /// A recalibration keeps the earlier certificate's parameters with it:
+    /// a test performed under the old certificate is budgeted with the old
+    /// parameters, one under the new with the new.
+    #[test]
+    fn each_certificate_keeps_its_own_parameters() {
+        let mut old = stand();
+        old["angle_std_arcsec"] = json!(60.0);
+        old["degrees_of_freedom"] = json!(12);
+        old["traceability"] = json!("old chain");
+        let old = check(&old).unwrap();
+        let mut body = stand();
+        body["certificate"]["number"] = json!("CAL-NEW");
+        body["certificate"]["calibrated_at"] = json!("2026-11-01T00:00:00Z");
+        body["due_at"] = json!("2027-11-01T00:00:00Z");
+        body["angle_std_arcsec"] = json!(0.5);
+        let new = from_json::<StandardBody>(body.to_string().as_bytes())
+            .unwrap()
+            .check("STAND-1".into(), at("2026-11-20T00:00:00Z"))
+            .unwrap()
+            .replacing(Some(old));
+        let under_old = new.used_as("stand", at("2026-06-01T00:00:00Z")).unwrap();
+        assert_eq!(
+            (
+                under_old.certificate.number.as_str(),
+                under_old.angle_std_arcsec,
+                under_old.degrees_of_freedom,
+                under_old.traceability.as_str(),
+                under_old.parameters_assumed
+            ),
+            ("CAL-2026-0117", Some(60.0), Some(12.0), "old chain", false)
+        );
+        let under_new = new.used_as("stand", at("2026-11-10T00:00:00Z")).unwrap();
+        assert_eq!(
+            (
+                under_new.certificate.number.as_str(),
+                under_new.angle_std_arcsec,
+                under_new.degrees_of_freedom
+            ),
+            ("CAL-NEW", Some(0.5), None)
+        );
+        // Stored and read back, the same.
+        let back: Standard = serde_json::from_str(&serde_json::to_string(&new).unwrap()).unwrap();
+        assert_eq!(back, new);
+    }
+
+    /// A standard stored before parameters were kept by certificate: its
+    /// earlier certificates take today's parameters, and say so.
+    #[test]
+    fn an_earlier_certificate_without_parameters_takes_todays_and_says_so() {
+        let legacy = r#"{"standard_id": "S", "kind": "tumble_stand", "description": "d",
+            "manufacturer": null, "model": null, "serial": null,
+            "certificate": {"number": "NEW", "issued_by": "L", "calibrated_at": "2026-06-01T00:00:00Z"},
+            "due_at": "2027-06-01T00:00:00Z", "angle_std_arcsec": 0.5, "gravity_m_s2": null,
+            "gravity_rel_std": null, "temperature_std_c": null, "traceability": "today's chain",
+            "earlier": [{"certificate": {"number": "OLD", "issued_by": "L", "calibrated_at": "2025-06-01T00:00:00Z"},
+                         "due_at": "2026-06-01T00:00:00Z"}],
+            "updated_at": "2026-06-01T00:00:00Z"}"#;
+        let s: Standard = serde_json::from_str(legacy).unwrap();
+        let old = &s.earlier[0];
+        assert!(old.parameters_assumed);
+        assert_eq!(old.parameters, s.parameters());
+        let used = s.used_as("stand", at("2025-09-01T00:00:00Z")).unwrap();
+        assert!(used.parameters_assumed);
+        assert_eq!(used.angle_std_arcsec, Some(0.5));
+        let v = serde_json::to_value(&s).unwrap();
+        assert_eq!(v["earlier"][0]["parameters_assumed"], true);
+        assert_eq!(v["earlier"][0]["traceability"], "today's chain");
+    }
+
+    #[test]
+    fn degrees_of_freedom_are_a_count() {
+        for (nu, ok) in [
+            (json!(1), true),
+            (json!(30.5), true),
+            (json!(0.5), false),
+            (json!(2e6), false),
+        ] {
+            let mut b = stand();
+            b["degrees_of_freedom"] = nu.clone();
+            assert_eq!(check(&b).is_ok(), ok, "{nu}");
+        }
     }
 
     /// Ranges, dates and text are checked, each problem named.

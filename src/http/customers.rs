@@ -4,13 +4,15 @@
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::Response;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
+use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
 use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
@@ -19,20 +21,13 @@ use crate::domain::field::Invalid;
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
+use crate::store::conditional::etag;
 
 fn unknown_customer(customer_id: &str) -> Problem {
     Problem::not_found(format!("no customer `{}`", echo(customer_id)))
 }
 
 /// 201 when created, 200 when replaced.
-fn written(created: bool) -> StatusCode {
-    if created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    }
-}
-
 /// Refuses (400) an id in the path that cannot be one.
 fn path_identifier(id: &str, what: &str) -> Result<(), Problem> {
     check_str(id, MAX_ID_CHARS, Chars::Identifier)
@@ -46,15 +41,17 @@ fn path_identifier(id: &str, what: &str) -> Result<(), Problem> {
     tag = "customers",
     operation_id = "putCustomer",
     summary = "Create or replace a customer (admin).",
-    params(("customer_id" = crate::domain::schema::Identifier, Path, description = "The customer's id.")),
+    params(("customer_id" = crate::domain::schema::Identifier, Path, description = "The customer's id."),
+        super::openapi::ConditionalHeaders),
     request_body(content((CustomerBody = "application/json",
         example = json!({"name": "Acme Navigation GmbH", "address": "1 Gyro Way, 80331 Munich",
             "contact": "Dr. K. Lee", "due_date_agreed": true})))),
     responses(
-        (status = 200, description = "Replaced.", body = Customer),
-        (status = 201, description = "Created.", body = Customer),
+        (status = 200, description = "Replaced.", body = Customer, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
+        (status = 201, description = "Created.", body = Customer, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 400, response = super::openapi::BadRequest),
         (status = 403, response = super::openapi::Forbidden),
+        (status = 412, response = super::openapi::PreconditionFailed),
         super::openapi::Always,
         super::openapi::BodyProblems,
     )
@@ -63,19 +60,21 @@ pub async fn put_customer(
     State(state): State<AppState>,
     principal: Principal,
     Path(customer_id): Path<String>,
+    headers: HeaderMap,
     body: Body,
-) -> Result<(StatusCode, Json<Customer>), Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Admin)?;
     path_identifier(&customer_id, "customer")?;
+    let pre = precondition(&headers)?;
     let c = body
         .json::<CustomerBody>()?
         .check(customer_id, Timestamp::now())?;
-    let created = state
+    let put = state
         .store
-        .put_customer(c.clone(), Actor::from(&principal))
+        .put_customer(c.clone(), Actor::from(&principal), pre)
         .await?;
-    tracing::info!(customer = %c.customer_id, created, by = %principal.id, "customer written");
-    Ok((written(created), Json(c)))
+    tracing::info!(customer = %c.customer_id, created = put.created(), by = %principal.id, "customer written");
+    written(put, "customer")
 }
 
 /// A list of customers.
@@ -116,7 +115,7 @@ pub async fn list_customers(
     summary = "One customer.",
     params(("customer_id" = crate::domain::schema::Identifier, Path, description = "The customer's id.")),
     responses(
-        (status = 200, description = "The customer.", body = Customer),
+        (status = 200, description = "The customer.", body = Customer, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )
@@ -125,7 +124,7 @@ pub async fn get_customer(
     State(state): State<AppState>,
     principal: Principal,
     Path(customer_id): Path<String>,
-) -> Result<Json<Customer>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     if check_str(&customer_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
         return Err(unknown_customer(&customer_id));
@@ -134,7 +133,7 @@ pub async fn get_customer(
         .store
         .customer(customer_id.clone())
         .await?
-        .map(Json)
+        .map(|c| tagged(StatusCode::OK, &etag(&c), c))
         .ok_or_else(|| unknown_customer(&customer_id))
 }
 
@@ -148,15 +147,16 @@ pub async fn get_customer(
     description = "May be recorded before the sensor is first calibrated (when the item \
         arrives). A customer named must exist (422 otherwise). Certificates print the \
         item and its customer.",
-    params(super::openapi::SensorIdPath),
+    params(super::openapi::SensorIdPath, super::openapi::ConditionalHeaders),
     request_body(content((ItemBody = "application/json",
         example = json!({"manufacturer": "Honeywell", "model": "QA-3000", "serial": "QA-12345",
             "customer": "ACME"})))),
     responses(
-        (status = 200, description = "Replaced.", body = Item),
-        (status = 201, description = "Created.", body = Item),
+        (status = 200, description = "Replaced.", body = Item, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
+        (status = 201, description = "Created.", body = Item, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 400, response = super::openapi::BadRequest),
         (status = 403, response = super::openapi::Forbidden),
+        (status = 412, response = super::openapi::PreconditionFailed),
         super::openapi::Always,
         super::openapi::BodyProblems,
     )
@@ -165,10 +165,12 @@ pub async fn put_item(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
+    headers: HeaderMap,
     body: Body,
-) -> Result<(StatusCode, Json<Item>), Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Admin)?;
     path_identifier(&sensor_id, "sensor")?;
+    let pre = precondition(&headers)?;
     let item = body
         .json::<ItemBody>()?
         .check(sensor_id, Timestamp::now())?;
@@ -184,12 +186,12 @@ pub async fn put_item(
             ),
         )));
     }
-    let created = state
+    let put = state
         .store
-        .put_item(item.clone(), Actor::from(&principal))
+        .put_item(item.clone(), Actor::from(&principal), pre)
         .await?;
-    tracing::info!(sensor = %item.sensor_id, created, by = %principal.id, "item written");
-    Ok((written(created), Json(item)))
+    tracing::info!(sensor = %item.sensor_id, created = put.created(), by = %principal.id, "item written");
+    written(put, "item")
 }
 
 /// `GET /v1/sensors/{sensor_id}/item`.
@@ -201,7 +203,7 @@ pub async fn put_item(
     summary = "The item behind a sensor id.",
     params(super::openapi::SensorIdPath),
     responses(
-        (status = 200, description = "The item.", body = Item),
+        (status = 200, description = "The item.", body = Item, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )
@@ -210,7 +212,7 @@ pub async fn get_item(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
-) -> Result<Json<Item>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     let none = || {
         Problem::not_found(format!(
@@ -225,6 +227,6 @@ pub async fn get_item(
         .store
         .item(sensor_id.clone())
         .await?
-        .map(Json)
+        .map(|i| tagged(StatusCode::OK, &etag(&i), i))
         .ok_or_else(none)
 }

@@ -148,14 +148,19 @@ pub async fn resolve(
     if !errors.is_empty() {
         return Err(Problem::validation(errors.into_invalid()));
     }
-    let angle = used.iter().find_map(|u| u.angle_std_arcsec);
-    let gravity = used.iter().find_map(|u| u.gravity_rel_std);
+    // Each parameter with the degrees of freedom its certificate gives it.
+    let angle = used
+        .iter()
+        .find_map(|u| u.angle_std_arcsec.map(|a| (a, u.degrees_of_freedom)));
+    let gravity = used
+        .iter()
+        .find_map(|u| u.gravity_rel_std.map(|g| (g, u.degrees_of_freedom)));
     let stand = StandIn {
         id: used.first().map(|u| u.standard_id.clone()),
-        angle_std_arcsec: angle.unwrap_or(0.0),
-        gravity_rel_std: gravity.unwrap_or(0.0),
-        angle_dof: None,
-        gravity_dof: None,
+        angle_std_arcsec: angle.map_or(0.0, |a| a.0),
+        gravity_rel_std: gravity.map_or(0.0, |g| g.0),
+        angle_dof: angle.and_then(|a| a.1),
+        gravity_dof: gravity.and_then(|g| g.1),
     };
     Ok((stand, used))
 }

@@ -12,6 +12,7 @@ pub mod body;
 pub mod calibrations;
 pub mod coefficients;
 pub mod compute;
+pub mod conditional;
 pub mod connection;
 pub mod customers;
 pub mod evaluation;

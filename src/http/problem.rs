@@ -60,6 +60,9 @@ pub enum Kind {
     /// triad's (or the other way round): a sensor's calibrations are all of
     /// one kind.
     WrongKind,
+    /// 412: a conditional write (`If-Match`, `If-None-Match`) whose
+    /// precondition does not hold: the record changed since it was read.
+    PreconditionFailed,
     /// 413: the body is too large.
     TooLarge,
     /// 429: too many failed authentications from the client's address.
@@ -78,7 +81,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 19] = [
+    pub const ALL: [Kind; 20] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -91,6 +94,7 @@ impl Kind {
         Kind::StateConflict,
         Kind::Incomplete,
         Kind::WrongKind,
+        Kind::PreconditionFailed,
         Kind::TooLarge,
         Kind::TooManyRequests,
         Kind::UnsupportedMediaType,
@@ -115,6 +119,7 @@ impl Kind {
             Kind::StateConflict => "state-conflict",
             Kind::Incomplete => "incomplete-record",
             Kind::WrongKind => "wrong-kind",
+            Kind::PreconditionFailed => "precondition-failed",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
             Kind::UnsupportedMediaType => "unsupported-media-type",
@@ -140,6 +145,7 @@ impl Kind {
             Kind::StateConflict => "Not allowed in the calibration's state",
             Kind::Incomplete => "Records incomplete for this document",
             Kind::WrongKind => "Single-axis and triad calibrations do not mix",
+            Kind::PreconditionFailed => "The record changed since it was read",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
             Kind::UnsupportedMediaType => "Unsupported media type",
@@ -165,6 +171,7 @@ impl Kind {
             | Kind::StateConflict
             | Kind::Incomplete
             | Kind::WrongKind => StatusCode::CONFLICT,
+            Kind::PreconditionFailed => StatusCode::PRECONDITION_FAILED,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,
             Kind::UnsupportedMediaType => StatusCode::UNSUPPORTED_MEDIA_TYPE,

@@ -2,13 +2,15 @@
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::Response;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
+use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
 use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
@@ -16,6 +18,7 @@ use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::sensor_types::{SensorType, SensorTypeBody};
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
+use crate::store::conditional::etag;
 
 fn unknown_type(type_id: &str) -> Problem {
     Problem::not_found(format!("no sensor type `{}`", echo(type_id)))
@@ -30,13 +33,15 @@ fn unknown_type(type_id: &str) -> Problem {
     tag = "sensor-types",
     operation_id = "putSensorType",
     summary = "Create or replace a sensor type (admin).",
-    params(("type_id" = crate::domain::schema::Identifier, Path, description = "The type's id.")),
+    params(("type_id" = crate::domain::schema::Identifier, Path, description = "The type's id."),
+        super::openapi::ConditionalHeaders),
     request_body(content((SensorTypeBody = "application/json",
-        example = json!({"label": "Navigation grade", "limits": {"k0": {"min": -0.001, "max": 0.001}, "kp": {"min": -0.01, "max": 0.01}}, "decision_rule": "guarded", "coverage_factor": 2, "interval_days": 365})))),
+        example = json!({"label": "Navigation grade", "unit": "mA", "limits": {"k0": {"min": -0.001, "max": 0.001}, "kp": {"min": -0.01, "max": 0.01}}, "decision_rule": "guarded", "coverage_probability": 0.9545, "interval_days": 365})))),
     responses(
-        (status = 200, description = "Replaced.", body = SensorType),
-        (status = 201, description = "Created.", body = SensorType),
+        (status = 200, description = "Replaced.", body = SensorType, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
+        (status = 201, description = "Created.", body = SensorType, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 403, response = super::openapi::Forbidden),
+        (status = 412, response = super::openapi::PreconditionFailed),
         super::openapi::Always,
         super::openapi::BodyProblems,
     )
@@ -45,26 +50,23 @@ pub async fn put(
     State(state): State<AppState>,
     principal: Principal,
     Path(type_id): Path<String>,
+    headers: HeaderMap,
     body: Body,
-) -> Result<(StatusCode, Json<SensorType>), Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Admin)?;
     if let Err(why) = check_str(&type_id, MAX_ID_CHARS, Chars::Identifier) {
         return Err(Problem::bad_request(format!("the type id {why}")));
     }
+    let pre = precondition(&headers)?;
     let t = body
         .json::<SensorTypeBody>()?
         .check(type_id, Timestamp::now())?;
-    let created = state
+    let put = state
         .store
-        .put_sensor_type(t.clone(), Actor::from(&principal))
+        .put_sensor_type(t.clone(), Actor::from(&principal), pre)
         .await?;
-    tracing::info!(sensor_type = %t.type_id, created, by = %principal.id, "sensor type written");
-    let status = if created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    };
-    Ok((status, Json(t)))
+    tracing::info!(sensor_type = %t.type_id, created = put.created(), by = %principal.id, "sensor type written");
+    written(put, "sensor type")
 }
 
 /// A list of sensor types.
@@ -105,7 +107,7 @@ pub async fn list(
     summary = "One sensor type.",
     params(("type_id" = crate::domain::schema::Identifier, Path, description = "The type's id.")),
     responses(
-        (status = 200, description = "The type.", body = SensorType),
+        (status = 200, description = "The type.", body = SensorType, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )
@@ -114,7 +116,7 @@ pub async fn get(
     State(state): State<AppState>,
     principal: Principal,
     Path(type_id): Path<String>,
-) -> Result<Json<SensorType>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     if check_str(&type_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
         return Err(unknown_type(&type_id));
@@ -123,6 +125,6 @@ pub async fn get(
         .store
         .sensor_type(type_id.clone())
         .await?
-        .map(Json)
+        .map(|t| tagged(StatusCode::OK, &etag(&t), t))
         .ok_or_else(|| unknown_type(&type_id))
 }

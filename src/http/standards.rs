@@ -3,13 +3,15 @@
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::http::StatusCode;
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::Response;
 use serde::Serialize;
 use utoipa::ToSchema;
 
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
+use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
 use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
@@ -19,6 +21,7 @@ use crate::domain::review::{Act, Action};
 use crate::domain::standards::{Standard, StandardBody};
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
+use crate::store::conditional::etag;
 
 fn unknown_standard(standard_id: &str) -> Problem {
     Problem::not_found(format!("no standard `{}`", echo(standard_id)))
@@ -34,16 +37,18 @@ fn unknown_standard(standard_id: &str) -> Problem {
     tag = "standards",
     operation_id = "putStandard",
     summary = "Create or replace a reference standard (admin).",
-    params(("standard_id" = crate::domain::schema::Identifier, Path, description = "The standard's id.")),
+    params(("standard_id" = crate::domain::schema::Identifier, Path, description = "The standard's id."),
+        super::openapi::ConditionalHeaders),
     request_body(content((StandardBody = "application/json",
         example = json!({"kind": "tumble_stand", "description": "Two-axis dividing head", "serial": "SN-4411",
             "certificate": {"number": "CAL-2026-0117", "issued_by": "National Metrology Laboratory", "calibrated_at": "2026-01-17T00:00:00Z"},
             "due_at": "2027-01-17T00:00:00Z", "angle_std_arcsec": 2.5,
             "traceability": "Angle traceable to the SI through the laboratory's autocollimator (CAL-2026-0117)."})))),
     responses(
-        (status = 200, description = "Replaced.", body = Standard),
-        (status = 201, description = "Created.", body = Standard),
+        (status = 200, description = "Replaced.", body = Standard, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
+        (status = 201, description = "Created.", body = Standard, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 403, response = super::openapi::Forbidden),
+        (status = 412, response = super::openapi::PreconditionFailed),
         super::openapi::Always,
         super::openapi::BodyProblems,
     )
@@ -52,28 +57,26 @@ pub async fn put(
     State(state): State<AppState>,
     principal: Principal,
     Path(standard_id): Path<String>,
+    headers: HeaderMap,
     body: Body,
-) -> Result<(StatusCode, Json<Standard>), Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Admin)?;
     if let Err(why) = check_str(&standard_id, MAX_ID_CHARS, Chars::Identifier) {
         return Err(Problem::bad_request(format!("the standard id {why}")));
     }
+    let pre = precondition(&headers)?;
     let s = body
         .json::<StandardBody>()?
         .check(standard_id, Timestamp::now())?;
-    let before = state.store.standard(s.standard_id.clone()).await?;
-    let s = s.replacing(before);
-    let created = state
+    let id = s.standard_id.clone();
+    // The certificate it replaces joins its earlier ones in the store's
+    // transaction, so that two writes at once never lose one.
+    let put = state
         .store
-        .put_standard(s.clone(), Actor::from(&principal))
+        .put_standard(s, Actor::from(&principal), pre)
         .await?;
-    tracing::info!(standard = %s.standard_id, created, by = %principal.id, "standard written");
-    let status = if created {
-        StatusCode::CREATED
-    } else {
-        StatusCode::OK
-    };
-    Ok((status, Json(s)))
+    tracing::info!(standard = %id, created = put.created(), by = %principal.id, "standard written");
+    written(put, "standard")
 }
 
 /// A list of reference standards.
@@ -114,7 +117,7 @@ pub async fn list(
     summary = "One reference standard.",
     params(("standard_id" = crate::domain::schema::Identifier, Path, description = "The standard's id.")),
     responses(
-        (status = 200, description = "The standard.", body = Standard),
+        (status = 200, description = "The standard.", body = Standard, headers(("ETag" = String, description = "The record's entity tag, for If-Match."))),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )
@@ -123,7 +126,7 @@ pub async fn get(
     State(state): State<AppState>,
     principal: Principal,
     Path(standard_id): Path<String>,
-) -> Result<Json<Standard>, Problem> {
+) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     if check_str(&standard_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
         return Err(unknown_standard(&standard_id));
@@ -132,7 +135,7 @@ pub async fn get(
         .store
         .standard(standard_id.clone())
         .await?
-        .map(Json)
+        .map(|s| tagged(StatusCode::OK, &etag(&s), s))
         .ok_or_else(|| unknown_standard(&standard_id))
 }
 

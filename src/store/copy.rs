@@ -27,6 +27,7 @@
 
 use serde::Serialize;
 
+use super::Precondition;
 use super::{DoneKey, IDEMPOTENCY_RETENTION_SECONDS, SensorQuery, Signed, Store, StoreError};
 use crate::domain::audit::Actor;
 use crate::domain::auth::Principal;
@@ -168,7 +169,8 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_sensor_type(t, Actor::command_line()).await?;
+        to.put_sensor_type(t, Actor::command_line(), Precondition::Any)
+            .await?;
         copied.sensor_types += 1;
     }
     for s in from.standards().await? {
@@ -177,7 +179,8 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_standard(s, Actor::command_line()).await?;
+        to.put_standard(s, Actor::command_line(), Precondition::Any)
+            .await?;
         copied.standards += 1;
     }
     for c in from.customers().await? {
@@ -186,7 +189,8 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_customer(c, Actor::command_line()).await?;
+        to.put_customer(c, Actor::command_line(), Precondition::Any)
+            .await?;
         copied.customers += 1;
     }
     for i in from.items().await? {
@@ -195,7 +199,8 @@ pub async fn copy(
             copied.already_there += 1;
             continue;
         }
-        to.put_item(i, Actor::command_line()).await?;
+        to.put_item(i, Actor::command_line(), Precondition::Any)
+            .await?;
         copied.items += 1;
     }
     for t in from.tokens().await? {

@@ -14,6 +14,7 @@
 
 pub mod audit;
 pub mod cache;
+pub mod conditional;
 pub mod copy;
 mod error;
 pub mod postgres;
@@ -26,6 +27,7 @@ use async_trait::async_trait;
 use uuid::Uuid;
 
 pub use audit::AuditQuery;
+pub use conditional::{Precondition, Put};
 pub use error::{BoxError, StoreError};
 pub use records::*;
 
@@ -273,8 +275,14 @@ pub trait Sensors: Send + Sync + 'static {
 /// Sensor types: limits, intervals and the model they ask for.
 #[async_trait]
 pub trait SensorTypes: Send + Sync + 'static {
-    /// Creates or replaces a sensor type; true when it was created.
-    async fn put_sensor_type(&self, t: SensorType, by: Actor) -> Result<bool, StoreError>;
+    /// Creates or replaces a sensor type, if `pre` holds
+    /// ([`conditional`]).
+    async fn put_sensor_type(
+        &self,
+        t: SensorType,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<SensorType>, StoreError>;
     /// One sensor type.
     async fn sensor_type(&self, type_id: String) -> Result<Option<SensorType>, StoreError>;
     /// Every sensor type, in id order.
@@ -285,8 +293,16 @@ pub trait SensorTypes: Send + Sync + 'static {
 /// gravity values.
 #[async_trait]
 pub trait Standards: Send + Sync + 'static {
-    /// Creates or replaces a standard; true when it was created.
-    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError>;
+    /// Creates or replaces a standard, if `pre` holds ([`conditional`]):
+    /// the standard it replaces, read in the same transaction, gives its
+    /// certificate to the new one's earlier ones when they differ
+    /// ([`Standard::replacing`]).
+    async fn put_standard(
+        &self,
+        s: Standard,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Standard>, StoreError>;
     /// One standard.
     async fn standard(&self, standard_id: String) -> Result<Option<Standard>, StoreError>;
     /// Every standard, in id order.
@@ -296,14 +312,25 @@ pub trait Standards: Send + Sync + 'static {
 /// Customers, and the items behind sensor ids (issue 29).
 #[async_trait]
 pub trait Customers: Send + Sync + 'static {
-    /// Creates or replaces a customer; true when it was created.
-    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError>;
+    /// Creates or replaces a customer, if `pre` holds ([`conditional`]).
+    async fn put_customer(
+        &self,
+        c: Customer,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Customer>, StoreError>;
     /// One customer.
     async fn customer(&self, customer_id: String) -> Result<Option<Customer>, StoreError>;
     /// Every customer, in id order.
     async fn customers(&self) -> Result<Vec<Customer>, StoreError>;
-    /// Creates or replaces the item behind a sensor id; true when created.
-    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError>;
+    /// Creates or replaces the item behind a sensor id, if `pre` holds
+    /// ([`conditional`]).
+    async fn put_item(
+        &self,
+        i: Item,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Item>, StoreError>;
     /// The item behind a sensor id.
     async fn item(&self, sensor_id: String) -> Result<Option<Item>, StoreError>;
     /// Every item, in sensor id order.

@@ -531,6 +531,22 @@ pub fn made_with_sql(standards: &str, p: [&str; 3]) -> String {
     )
 }
 
+/// Who submitted each calibration that calibration `p` replaces (directly,
+/// or through earlier supersessions), nearest first: `submitted_by` — the
+/// last row is the measurement's author
+/// ([`crate::domain::review::Submitter::earlier`]).
+pub fn earlier_submitters_sql(p: &str) -> String {
+    format!(
+        "WITH RECURSIVE back(id, depth) AS ( \
+           SELECT s.calibration_id, 1 FROM signatures s \
+           WHERE s.superseded_by = {p} AND s.action = 'supersede' \
+           UNION ALL \
+           SELECT s.calibration_id, back.depth + 1 FROM signatures s JOIN back \
+             ON s.superseded_by = back.id WHERE s.action = 'supersede' AND back.depth < 1000) \
+         SELECT c.submitted_by FROM back JOIN calibrations c ON c.id = back.id ORDER BY back.depth"
+    )
+}
+
 /// What recording a signed act came to.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Signed {

@@ -7,6 +7,7 @@
 
 mod access;
 mod audit;
+mod authorship;
 mod client;
 mod contract;
 mod corpus;
@@ -18,12 +19,14 @@ mod errors;
 mod hardening;
 mod idempotency;
 mod limits;
+mod lost_updates;
 mod metrology;
 mod outage;
 mod paper;
 mod restart;
 mod review;
 mod round_three;
+mod standard_periods;
 mod standards;
 mod storage;
 mod trace;

@@ -8,6 +8,7 @@ use std::collections::BTreeSet;
 use accelcal::domain::audit::{Entry, GENESIS};
 use accelcal::domain::auth::Principal;
 use accelcal::domain::review::{Act, Action};
+use accelcal::store::Precondition;
 use accelcal::store::audit::{VerifyError, verify};
 use accelcal::store::{AuditQuery, Signed};
 use serde_json::{Value, json};
@@ -286,7 +287,7 @@ async fn some_acts(s: &dyn Store) -> Vec<NewCalibration> {
         s.insert_calibration(c.clone(), None).await.unwrap();
         out.push(c);
     }
-    s.put_sensor_type(super::sensor_type("NAV", 365), admin())
+    s.put_sensor_type(super::sensor_type("NAV", 365), admin(), Precondition::Any)
         .await
         .unwrap();
     out

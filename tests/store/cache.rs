@@ -2,6 +2,7 @@
 
 use super::*;
 use accelcal::domain::review::Basis;
+use accelcal::store::Precondition;
 
 /// A replica behind its sensor cache and listener, as `store::open` builds
 /// it, with the cache at hand; waits until the listener is connected.
@@ -44,7 +45,7 @@ async fn writes_keep_their_sensor_cached(
     settle: std::time::Duration,
 ) {
     store
-        .put_sensor_type(sensor_type("NAV", 365), admin())
+        .put_sensor_type(sensor_type("NAV", 365), admin(), Precondition::Any)
         .await
         .unwrap();
     let sensor = "KEEP";

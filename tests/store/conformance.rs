@@ -2,6 +2,7 @@
 
 use super::*;
 use accelcal::domain::review::Basis;
+use accelcal::store::Precondition;
 
 async fn calibrations_and_sensors(s: &dyn Store) {
     let a = calibration("S-1", "2026-01-01T00:00:00Z");
@@ -477,15 +478,17 @@ pub(crate) fn sensor_type(id: &str, interval_days: u32) -> SensorType {
 /// which must agree.
 async fn types_and_statuses(s: &dyn Store) {
     assert!(
-        s.put_sensor_type(sensor_type("NAV", 365), admin())
+        s.put_sensor_type(sensor_type("NAV", 365), admin(), Precondition::Any)
             .await
-            .unwrap(),
+            .unwrap()
+            .created(),
         "created"
     );
     assert!(
-        !s.put_sensor_type(sensor_type("NAV", 180), admin())
+        !s.put_sensor_type(sensor_type("NAV", 180), admin(), Precondition::Any)
             .await
-            .unwrap(),
+            .unwrap()
+            .created(),
         "replaced"
     );
     assert_eq!(
@@ -496,7 +499,7 @@ async fn types_and_statuses(s: &dyn Store) {
             .interval_days,
         180
     );
-    s.put_sensor_type(sensor_type("AAA", 30), admin())
+    s.put_sensor_type(sensor_type("AAA", 30), admin(), Precondition::Any)
         .await
         .unwrap();
     let ids: Vec<String> = s
@@ -764,7 +767,10 @@ async fn standards(s: &dyn Store) {
     assert!(s.standard("Z-STAND".into()).await.unwrap().is_none());
     assert!(s.is_empty().await.unwrap());
     assert!(
-        s.put_standard(stand.clone(), admin()).await.unwrap(),
+        s.put_standard(stand.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created(),
         "created"
     );
     assert_eq!(
@@ -774,11 +780,19 @@ async fn standards(s: &dyn Store) {
     let mut other = stand.clone();
     other.standard_id = "A-STAND".into();
     other.angle_std_arcsec = Some(0.25);
-    assert!(s.put_standard(other.clone(), admin()).await.unwrap());
+    assert!(
+        s.put_standard(other.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created()
+    );
     let mut recalibrated = stand.clone();
     recalibrated.due_at = t("2028-01-01T00:00:00Z");
     assert!(
-        !s.put_standard(recalibrated.clone(), admin()).await.unwrap(),
+        !s.put_standard(recalibrated.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created(),
         "replaced"
     );
     assert_eq!(s.standards().await.unwrap(), [other, recalibrated]);
@@ -1003,7 +1017,10 @@ async fn customers(s: &dyn Store) {
         updated_at: at,
     };
     assert!(
-        s.put_customer(acme.clone(), admin()).await.unwrap(),
+        s.put_customer(acme.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created(),
         "created"
     );
     let agreed = Customer {
@@ -1012,7 +1029,10 @@ async fn customers(s: &dyn Store) {
         ..acme.clone()
     };
     assert!(
-        !s.put_customer(agreed.clone(), admin()).await.unwrap(),
+        !s.put_customer(agreed.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created(),
         "replaced"
     );
     assert_eq!(
@@ -1024,7 +1044,9 @@ async fn customers(s: &dyn Store) {
         customer_id: "BETA".into(),
         ..acme
     };
-    s.put_customer(beta.clone(), admin()).await.unwrap();
+    s.put_customer(beta.clone(), admin(), Precondition::Any)
+        .await
+        .unwrap();
     assert_eq!(s.customers().await.unwrap(), [agreed, beta]);
     let item = Item {
         sensor_id: "ITEM-1".into(),
@@ -1034,7 +1056,12 @@ async fn customers(s: &dyn Store) {
         customer: Some("ACME".into()),
         updated_at: at,
     };
-    assert!(s.put_item(item.clone(), admin()).await.unwrap());
+    assert!(
+        s.put_item(item.clone(), admin(), Precondition::Any)
+            .await
+            .unwrap()
+            .created()
+    );
     assert_eq!(s.item("ITEM-1".into()).await.unwrap(), Some(item.clone()));
     assert_eq!(s.items().await.unwrap(), [item]);
     assert!(!s.is_empty().await.unwrap());

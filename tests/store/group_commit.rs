@@ -6,6 +6,7 @@
 use std::sync::Arc;
 
 use super::{calibration, key, pg, until};
+use accelcal::store::Precondition;
 use accelcal::store::prelude::*;
 use accelcal::store::{
     IdempotencyKey, NewCalibration, Store, StoreError, Stored, postgres::PostgresStore,
@@ -280,9 +281,14 @@ async fn postgres_a_batch_stores_what_one_at_a_time_stores() {
     for s in stores {
         for t in ["NAV", "GYR"] {
             assert!(
-                s.put_sensor_type(super::sensor_type(t, 365), super::admin())
-                    .await
-                    .unwrap()
+                s.put_sensor_type(
+                    super::sensor_type(t, 365),
+                    super::admin(),
+                    Precondition::Any
+                )
+                .await
+                .unwrap()
+                .created()
             );
         }
         let first = s

@@ -63,6 +63,11 @@ problem_response!(
     WrongKind,
     "Single-axis and triad calibrations do not mix (`wrong-kind`): a triad for a sensor id holding single-axis calibrations or the other way round, or a single-axis document asked of a triad; `detail` says what to use instead."
 );
+problem_response!(
+    PreconditionFailed,
+    "A conditional write whose `If-Match` or `If-None-Match` does not hold (`precondition-failed`): the record changed since it was read (or exists, or does not); `ETag` is the current one, if any.",
+    "ETag" => Type::String
+);
 problem_response!(Unavailable, "Database unavailable or server at capacity; retry after `Retry-After` seconds.", "Retry-After" => Type::Integer);
 
 /// Implements `IntoResponses` for a set of the reusable problem answers that
@@ -100,6 +105,34 @@ problem_set!(
         "422" => Invalid,
     }
 );
+
+/// The `If-Match` and `If-None-Match` headers of a conditional write.
+pub struct ConditionalHeaders;
+
+impl IntoParams for ConditionalHeaders {
+    fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
+        let header = |name: &str, description: &str| {
+            ParameterBuilder::new()
+                .name(name)
+                .parameter_in(ParameterIn::Header)
+                .description(Some(description))
+                .schema(Some(of_type(Type::String).max_length(Some(1024))))
+                .build()
+        };
+        vec![
+            header(
+                "If-Match",
+                "Write only if the record's current entity tag is one of these (as `GET` or the \
+                 last write answered it in `ETag`), or, with `*`, only if it exists: a write \
+                 based on what was read never replaces what someone else wrote since (412).",
+            ),
+            header(
+                "If-None-Match",
+                "`*`: create only — 412 if the record exists.",
+            ),
+        ]
+    }
+}
 
 /// The `Idempotency-Key` header.
 pub struct IdempotencyKeyHeader;

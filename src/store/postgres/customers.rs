@@ -7,6 +7,7 @@ use super::PostgresStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::customers::{Customer, Item};
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{Customers, StoreError};
 
 const CUSTOMERS: Table = Table {
@@ -25,17 +26,15 @@ const ITEMS: Table = Table {
 
 #[async_trait]
 impl Customers for PostgresStore {
-    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError> {
+    async fn put_customer(
+        &self,
+        c: Customer,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Customer>, StoreError> {
         op!(self, "put_customer", |client| {
-            definitions::put(
-                &mut client,
-                &CUSTOMERS,
-                &c.customer_id,
-                &c,
-                c.updated_at,
-                by,
-            )
-            .await
+            let id = c.customer_id.clone();
+            definitions::put(&mut client, &CUSTOMERS, &id, |_| c, &pre, by).await
         })
     }
 
@@ -51,9 +50,15 @@ impl Customers for PostgresStore {
         })
     }
 
-    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError> {
+    async fn put_item(
+        &self,
+        i: Item,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Item>, StoreError> {
         op!(self, "put_item", |client| {
-            definitions::put(&mut client, &ITEMS, &i.sensor_id, &i, i.updated_at, by).await
+            let id = i.sensor_id.clone();
+            definitions::put(&mut client, &ITEMS, &id, |_| i, &pre, by).await
         })
     }
 

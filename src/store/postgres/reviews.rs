@@ -16,13 +16,28 @@ use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, made_with_sql, sensor_forget,
-    sensor_recompute,
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, earlier_submitters_sql, made_with_sql,
+    sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
 const SIGNATURE_COLUMNS: &str =
     "seq, action, state, meaning, token_id, role, holder, signed_at, comment, superseded_by";
+
+/// The holder of the token `token_id` (a submission's `submitted_by`), if
+/// it is a stored token that names one.
+async fn holder_of(tx: &Transaction<'_>, token_id: &str) -> Result<Option<String>, StoreError> {
+    Ok(match Uuid::try_parse(token_id) {
+        Ok(token) => tx
+            .query_opt("SELECT holder FROM tokens WHERE id = $1", &[&token])
+            .await
+            .map_err(map)?
+            .map(|r| rows::get::<Option<String>>(&r, "holder"))
+            .transpose()?
+            .flatten(),
+        Err(_) => None,
+    })
+}
 
 /// Records `act` on calibration `id` within the transaction `tx` — after
 /// storing `replacement`, the calibration that supersedes it, when there is
@@ -62,20 +77,22 @@ async fn sign(
         Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(&row, "received_at")?);
     let state = rows::state(&row)?;
     let last: i32 = rows::get(&row, "last")?;
-    let holder = match Uuid::try_parse(&submitted_by) {
-        Ok(token) => tx
-            .query_opt("SELECT holder FROM tokens WHERE id = $1", &[&token])
-            .await
-            .map_err(map)?
-            .map(|r| rows::get::<Option<String>>(&r, "holder"))
-            .transpose()?
-            .flatten(),
-        Err(_) => None,
-    };
+    let holder = holder_of(tx, &submitted_by).await?;
+    let mut earlier = Vec::new();
+    for r in tx
+        .query(&earlier_submitters_sql("$1"), &[&id])
+        .await
+        .map_err(map)?
+    {
+        let token: String = rows::get(&r, "submitted_by")?;
+        let holder = holder_of(tx, &token).await?;
+        earlier.push((token, holder));
+    }
     let submitter = Submitter {
         token_id: submitted_by,
         holder,
         received_at,
+        earlier,
     };
     let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let s = match act.check(state, &submitter, seq) {

@@ -6,6 +6,7 @@ use super::PostgresStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::sensor_types::SensorType;
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{SensorTypes, StoreError};
 
 const SENSOR_TYPES: Table = Table {
@@ -17,9 +18,15 @@ const SENSOR_TYPES: Table = Table {
 
 #[async_trait]
 impl SensorTypes for PostgresStore {
-    async fn put_sensor_type(&self, t: SensorType, by: Actor) -> Result<bool, StoreError> {
+    async fn put_sensor_type(
+        &self,
+        t: SensorType,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<SensorType>, StoreError> {
         op!(self, "put_sensor_type", |client| {
-            definitions::put(&mut client, &SENSOR_TYPES, &t.type_id, &t, t.updated_at, by).await
+            let id = t.type_id.clone();
+            definitions::put(&mut client, &SENSOR_TYPES, &id, |_| t, &pre, by).await
         })
     }
 

@@ -6,6 +6,7 @@ use super::PostgresStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::standards::Standard;
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{Standards, StoreError};
 
 const STANDARDS: Table = Table {
@@ -17,14 +18,20 @@ const STANDARDS: Table = Table {
 
 #[async_trait]
 impl Standards for PostgresStore {
-    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError> {
+    async fn put_standard(
+        &self,
+        s: Standard,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Standard>, StoreError> {
         op!(self, "put_standard", |client| {
+            let id = s.standard_id.clone();
             definitions::put(
                 &mut client,
                 &STANDARDS,
-                &s.standard_id,
-                &s,
-                s.updated_at,
+                &id,
+                |before| s.replacing(before),
+                &pre,
                 by,
             )
             .await

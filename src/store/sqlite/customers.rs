@@ -7,6 +7,7 @@ use super::SqliteStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::customers::{Customer, Item};
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{Customers, StoreError};
 
 const CUSTOMERS: Table = Table {
@@ -27,10 +28,17 @@ const ITEMS: Table = Table {
 
 #[async_trait]
 impl Customers for SqliteStore {
-    async fn put_customer(&self, c: Customer, by: Actor) -> Result<bool, StoreError> {
+    async fn put_customer(
+        &self,
+        c: Customer,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Customer>, StoreError> {
         self.write("put_customer", move |conn| {
-            let created = definitions::put(conn, &CUSTOMERS, &c.customer_id, &c, c.updated_at, by)?;
-            Ok((created, true))
+            let id = c.customer_id.clone();
+            let put = definitions::put(conn, &CUSTOMERS, &id, |_| c, &pre, by)?;
+            let commit = matches!(put, Put::Written { .. });
+            Ok((put, commit))
         })
         .await
     }
@@ -47,10 +55,17 @@ impl Customers for SqliteStore {
             .await
     }
 
-    async fn put_item(&self, i: Item, by: Actor) -> Result<bool, StoreError> {
+    async fn put_item(
+        &self,
+        i: Item,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Item>, StoreError> {
         self.write("put_item", move |conn| {
-            let created = definitions::put(conn, &ITEMS, &i.sensor_id, &i, i.updated_at, by)?;
-            Ok((created, true))
+            let id = i.sensor_id.clone();
+            let put = definitions::put(conn, &ITEMS, &id, |_| i, &pre, by)?;
+            let commit = matches!(put, Put::Written { .. });
+            Ok((put, commit))
         })
         .await
     }

@@ -9,8 +9,8 @@ use serde::de::DeserializeOwned;
 use super::errors::map;
 use super::{audit, rows};
 use crate::domain::audit::Actor;
-use crate::domain::timestamp::Timestamp;
 use crate::store::StoreError;
+use crate::store::conditional::{Precondition, Put, Updated, etag_of_text};
 
 /// A table of definitions: its name and its key column (fixed strings,
 /// never input).
@@ -32,25 +32,36 @@ fn decode<T: DeserializeOwned>(row: &rusqlite::Row<'_>, what: &str) -> Result<T,
     serde_json::from_str(&text).map_err(|e| StoreError::corrupt(what, e))
 }
 
-/// Creates or replaces the record `id` and appends `{kind}.put` to the
-/// audit trail, in the writer's transaction; true when it was created.
-pub fn put<T: Serialize>(
+/// Creates or replaces the record `id` with `make` of the record it
+/// replaces, if `pre` holds for that one, and appends `{kind}.put` to the
+/// audit trail — all in the writer's transaction, so nothing is written
+/// between the read and the write ([`crate::store::conditional`]).
+pub fn put<T: Serialize + DeserializeOwned + Updated>(
     conn: &Connection,
     t: &Table,
     id: &str,
-    record: &T,
-    updated_at: Timestamp,
+    make: impl FnOnce(Option<T>) -> T,
+    pre: &Precondition,
     by: Actor,
-) -> Result<bool, StoreError> {
-    let definition =
-        serde_json::to_string(record).map_err(|e| StoreError::Refused(e.to_string()))?;
-    let existed = rows::first(
+) -> Result<Put<T>, StoreError> {
+    let before: Option<(String, T)> = rows::first(
         conn,
-        &format!("SELECT 1 AS one FROM {} WHERE {} = ?1", t.name, t.key),
+        &format!("SELECT definition FROM {} WHERE {} = ?1", t.name, t.key),
         [id],
-        |_| Ok(()),
-    )?
-    .is_some();
+        |r| {
+            let text: String = r.get("definition").map_err(map)?;
+            let record = serde_json::from_str(&text).map_err(|e| StoreError::corrupt(t.what, e))?;
+            Ok((text, record))
+        },
+    )?;
+    let current = before.as_ref().map(|(text, _)| etag_of_text(text));
+    if !pre.holds(current.as_deref()) {
+        return Ok(Put::Failed { current });
+    }
+    let created = before.is_none();
+    let record = make(before.map(|(_, r)| r));
+    let definition =
+        serde_json::to_string(&record).map_err(|e| StoreError::Refused(e.to_string()))?;
     conn.execute(
         &format!(
             "INSERT INTO {0} ({1}, definition, updated_at) VALUES (?1, ?2, ?3) \
@@ -58,13 +69,17 @@ pub fn put<T: Serialize>(
              updated_at = excluded.updated_at",
             t.name, t.key
         ),
-        params![id, definition, updated_at.to_string()],
+        params![id, definition, record.updated_at().to_string()],
     )
     .map_err(map)?;
     let path = format!("{}{id}", t.object);
-    let event = crate::store::audit::put(t.kind, path, !existed, record, updated_at, by);
+    let event = crate::store::audit::put(t.kind, path, created, &record, record.updated_at(), by);
     audit::append(conn, event)?;
-    Ok(!existed)
+    Ok(Put::Written {
+        created,
+        etag: etag_of_text(&definition),
+        record,
+    })
 }
 
 /// The record `id`.

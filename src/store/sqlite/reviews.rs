@@ -11,8 +11,8 @@ use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, made_with_sql, sensor_forget,
-    sensor_recompute,
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, earlier_submitters_sql,
+    made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -53,24 +53,23 @@ fn sign(
     let Some((sensor_id, submitted_by, received_at, state, last)) = found else {
         return Ok((Signed::NotFound, false));
     };
-    let holder = match Uuid::try_parse(&submitted_by) {
-        Ok(token) => rows::first(
-            conn,
-            "SELECT holder FROM tokens WHERE id = ?1",
-            [token.to_string()],
-            |r| {
-                r.get::<_, Option<String>>("holder")
-                    .map_err(super::errors::map)
-            },
-        )?
-        .flatten(),
-        Err(_) => None,
-    };
+    let holder = holder_of(conn, &submitted_by)?;
+    let earlier = rows::all(conn, &earlier_submitters_sql("?1"), [id.to_string()], |r| {
+        r.get::<_, String>("submitted_by")
+            .map_err(super::errors::map)
+    })?
+    .into_iter()
+    .map(|token| {
+        let holder = holder_of(conn, &token)?;
+        Ok((token, holder))
+    })
+    .collect::<Result<Vec<_>, StoreError>>()?;
     let submitter = Submitter {
         token_id: submitted_by,
         holder,
         received_at: Timestamp::parse(&received_at)
             .map_err(|e| StoreError::corrupt("column `received_at`", e))?,
+        earlier,
     };
     let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let signature = match act.check(state, &submitter, seq) {
@@ -93,6 +92,24 @@ fn sign(
     rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
     rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
     Ok((Signed::Done(signature, sensor_id), true))
+}
+
+/// The holder of the token `token_id` (a submission's `submitted_by`), if
+/// it is a stored token that names one.
+fn holder_of(conn: &Connection, token_id: &str) -> Result<Option<String>, StoreError> {
+    Ok(match Uuid::try_parse(token_id) {
+        Ok(token) => rows::first(
+            conn,
+            "SELECT holder FROM tokens WHERE id = ?1",
+            [token.to_string()],
+            |r| {
+                r.get::<_, Option<String>>("holder")
+                    .map_err(super::errors::map)
+            },
+        )?
+        .flatten(),
+        Err(_) => None,
+    })
 }
 
 /// Appends a signature.

@@ -6,6 +6,7 @@ use super::SqliteStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::sensor_types::SensorType;
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{SensorTypes, StoreError};
 
 const SENSOR_TYPES: Table = Table {
@@ -18,10 +19,17 @@ const SENSOR_TYPES: Table = Table {
 
 #[async_trait]
 impl SensorTypes for SqliteStore {
-    async fn put_sensor_type(&self, t: SensorType, by: Actor) -> Result<bool, StoreError> {
+    async fn put_sensor_type(
+        &self,
+        t: SensorType,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<SensorType>, StoreError> {
         self.write("put_sensor_type", move |conn| {
-            let created = definitions::put(conn, &SENSOR_TYPES, &t.type_id, &t, t.updated_at, by)?;
-            Ok((created, true))
+            let id = t.type_id.clone();
+            let put = definitions::put(conn, &SENSOR_TYPES, &id, |_| t, &pre, by)?;
+            let commit = matches!(put, Put::Written { .. });
+            Ok((put, commit))
         })
         .await
     }

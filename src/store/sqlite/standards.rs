@@ -6,6 +6,7 @@ use super::SqliteStore;
 use super::definitions::{self, Table};
 use crate::domain::audit::Actor;
 use crate::domain::standards::Standard;
+use crate::store::conditional::{Precondition, Put};
 use crate::store::{Standards, StoreError};
 
 const STANDARDS: Table = Table {
@@ -18,10 +19,24 @@ const STANDARDS: Table = Table {
 
 #[async_trait]
 impl Standards for SqliteStore {
-    async fn put_standard(&self, s: Standard, by: Actor) -> Result<bool, StoreError> {
+    async fn put_standard(
+        &self,
+        s: Standard,
+        by: Actor,
+        pre: Precondition,
+    ) -> Result<Put<Standard>, StoreError> {
         self.write("put_standard", move |conn| {
-            let created = definitions::put(conn, &STANDARDS, &s.standard_id, &s, s.updated_at, by)?;
-            Ok((created, true))
+            let id = s.standard_id.clone();
+            let put = definitions::put(
+                conn,
+                &STANDARDS,
+                &id,
+                |before| s.replacing(before),
+                &pre,
+                by,
+            )?;
+            let commit = matches!(put, Put::Written { .. });
+            Ok((put, commit))
         })
         .await
     }
