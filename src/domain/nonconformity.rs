@@ -13,16 +13,26 @@
 //!
 //! Each calibration in the window that counts (`submitted`, `approved`) is
 //! put `under_review` by a `hold` signature ([`super::review`]): its
-//! coefficients stop being usable until a reviewer approves it again or
-//! withdraws it. Calibrations already withdrawn, rejected, superseded or
+//! coefficients stop being usable until a reviewer records a disposition —
+//! approves it again with the reason (`no effect: …`), or withdraws or
+//! supersedes it. Calibrations already withdrawn, rejected, superseded or
 //! under review are listed, and left as they are.
+//!
+//! The nonconformity bears on every test with the standard, whenever it is
+//! submitted ([`bearing`]): one performed in the window is stored held; one
+//! performed after `found_at` under a certificate calibrated before it (the
+//! standard not yet repaired and recalibrated) is refused — the standard is
+//! out of service until a new certificate is recorded. A correction or a
+//! reprocessing of a held calibration that still uses the standard is held
+//! under the same nonconformity.
 
 use serde::{Deserialize, Serialize};
 use utoipa::ToSchema;
 
 use super::audit::Actor;
+use super::auth::Role;
 use super::field::Invalid;
-use super::review::{State, check_reason};
+use super::review::{Action, Signature, State, check_reason};
 use super::standards::Standard;
 use super::timestamp::Timestamp;
 
@@ -125,6 +135,108 @@ impl NonconformityBody {
     }
 }
 
+/// A nonconformity that holds a calibration as it is stored, as its result
+/// names it.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct HeldBy {
+    /// The nonconformity.
+    pub nonconformity_id: uuid::Uuid,
+    /// Its standard.
+    pub standard_id: String,
+    /// When the standard was found nonconforming.
+    pub found_at: Timestamp,
+    /// What was found.
+    pub reason: String,
+}
+
+impl From<&Nonconformity> for HeldBy {
+    fn from(nc: &Nonconformity) -> Self {
+        HeldBy {
+            nonconformity_id: nc.id,
+            standard_id: nc.standard_id.clone(),
+            found_at: nc.found_at,
+            reason: nc.reason.clone(),
+        }
+    }
+}
+
+/// How a nonconformity bears on a test performed with its standard at `at`
+/// under the certificate calibrated at `certificate_calibrated_at` (the one
+/// in force at `at`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Bearing {
+    /// Not at all: performed before the window, or after a recalibration
+    /// that followed `found_at`.
+    Clear,
+    /// Performed in the window `[window_from, found_at]`: stored held.
+    Held,
+    /// Performed after `found_at` under a certificate from before it: the
+    /// standard was out of service; refused.
+    OutOfService,
+}
+
+/// How `nc` bears on a test performed at `at` under the certificate
+/// calibrated at `certificate_calibrated_at` ([`Bearing`]).
+pub fn bearing(nc: &Nonconformity, certificate_calibrated_at: Timestamp, at: Timestamp) -> Bearing {
+    if at < nc.window_from {
+        Bearing::Clear
+    } else if at <= nc.found_at {
+        Bearing::Held
+    } else if certificate_calibrated_at <= nc.found_at {
+        Bearing::OutOfService
+    } else {
+        Bearing::Clear
+    }
+}
+
+/// Why a standard out of service refuses a test ([`Bearing::OutOfService`]).
+pub fn out_of_service(nc: &Nonconformity, at: Timestamp) -> String {
+    format!(
+        "standard `{}` was found nonconforming on {} (nonconformity {}: {}) and is out of \
+         service until a new certificate is recorded; a test performed at {at} used it \
+         unrepaired — recalibrate it, record the new certificate (PUT /v1/standards/{}), \
+         then repeat the test",
+        nc.standard_id, nc.found_at, nc.id, nc.reason, nc.standard_id
+    )
+}
+
+/// The comment of a hold placed on a calibration performed inside the
+/// windows of `held_by`.
+pub fn hold_reason(held_by: &[&Nonconformity]) -> String {
+    let each: Vec<String> = held_by
+        .iter()
+        .map(|nc| {
+            format!(
+                "standard {} found nonconforming {} (nonconformity {}): {}",
+                nc.standard_id, nc.found_at, nc.id, nc.reason
+            )
+        })
+        .collect();
+    format!(
+        "performed with a standard inside a nonconformity's window: {}",
+        each.join("; ")
+    )
+}
+
+/// The `hold` signature, `seq`-th, of a calibration stored at `at` inside
+/// the windows of `held_by` (at least one): signed in the name of the one
+/// who recorded the first of them, since the hold follows from that record.
+pub fn hold_on_storing(held_by: &[&Nonconformity], seq: u32, at: Timestamp) -> Signature {
+    let by = &held_by[0].recorded_by;
+    Signature {
+        seq,
+        action: Action::Hold,
+        state: State::UnderReview,
+        meaning: Action::Hold.meaning().to_owned(),
+        token_id: by.token_id.clone(),
+        role: Role::parse(&by.role).unwrap_or(Role::Admin),
+        holder: by.holder.clone(),
+        signed_at: at,
+        comment: Some(hold_reason(held_by)),
+        superseded_by: None,
+    }
+}
+
 /// When the calibration of `standard` in force at `at` was made: the
 /// latest of its certificates (the current one and the earlier ones)
 /// calibrated at or before `at`.
@@ -148,11 +260,26 @@ pub struct Affected {
     pub state_found: State,
     /// Its state now.
     pub state: State,
-    /// What became of it: `under_review` (placed under review, not yet
-    /// resolved), `re_approved` (a reviewer approved it again), `withdrawn`,
-    /// `superseded`, or `unchanged` (it no longer counted when the
+    /// The calibration that stands for it now when it was superseded (the
+    /// last of its replacements), with that one's state.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub replaced_by: Option<Replacement>,
+    /// What became of it: `under_review` (held, in itself or in the
+    /// replacement that stands for it: no disposition yet), `re_approved`
+    /// (a reviewer recorded a disposition and approved it again),
+    /// `withdrawn`, `rejected`, `superseded` (replaced by a calibration that
+    /// is not held), or `unchanged` (it no longer counted when the
     /// nonconformity was recorded, and was left as it was).
     pub outcome: Outcome,
+}
+
+/// The calibration that stands for a superseded one.
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct Replacement {
+    /// Its id.
+    pub calibration_id: uuid::Uuid,
+    /// Its state now.
+    pub state: State,
 }
 
 /// What became of an affected calibration.
@@ -166,25 +293,35 @@ pub enum Outcome {
     ReApproved,
     /// Withdrawn since.
     Withdrawn,
-    /// Superseded by a corrected calibration since.
+    /// Superseded by a calibration that is not held.
     Superseded,
+    /// Rejected since (in itself or in its replacement).
+    Rejected,
     /// Left as it was (it did not count, or was under review already).
     Unchanged,
 }
 
 impl Outcome {
-    /// The outcome of a calibration found in `found` and now in `now`.
-    pub fn of(found: State, now: State) -> Outcome {
+    /// The outcome of a calibration found in `found`, now in `now`, and,
+    /// when superseded, standing for it now `replacement` (the last of its
+    /// replacements) in its state: a superseded calibration is dealt with
+    /// only when what replaced it is not held.
+    pub fn of(found: State, now: State, replacement: Option<State>) -> Outcome {
         if !matches!(found, State::Submitted | State::Approved) {
             return Outcome::Unchanged;
         }
-        match now {
-            State::UnderReview => Outcome::UnderReview,
-            State::Approved => Outcome::ReApproved,
-            State::Withdrawn => Outcome::Withdrawn,
-            State::Superseded => Outcome::Superseded,
+        match (now, replacement) {
+            (State::UnderReview, _) | (State::Superseded, Some(State::UnderReview)) => {
+                Outcome::UnderReview
+            }
+            (State::Approved, _) => Outcome::ReApproved,
+            (State::Withdrawn, _) | (State::Superseded, Some(State::Withdrawn)) => {
+                Outcome::Withdrawn
+            }
+            (State::Rejected, _) | (State::Superseded, Some(State::Rejected)) => Outcome::Rejected,
+            (State::Superseded, _) => Outcome::Superseded,
             // Not reachable from a hold; said as it is.
-            State::Submitted | State::Rejected => Outcome::Unchanged,
+            (State::Submitted, _) => Outcome::Unchanged,
         }
     }
 }
@@ -306,11 +443,57 @@ mod tests {
     #[test]
     fn outcomes_follow_the_states() {
         use State::*;
-        assert_eq!(Outcome::of(Approved, UnderReview), Outcome::UnderReview);
-        assert_eq!(Outcome::of(Submitted, Approved), Outcome::ReApproved);
-        assert_eq!(Outcome::of(Approved, Withdrawn), Outcome::Withdrawn);
-        assert_eq!(Outcome::of(Approved, Superseded), Outcome::Superseded);
-        assert_eq!(Outcome::of(Withdrawn, Withdrawn), Outcome::Unchanged);
-        assert_eq!(Outcome::of(UnderReview, Approved), Outcome::Unchanged);
+        assert_eq!(
+            Outcome::of(Approved, UnderReview, None),
+            Outcome::UnderReview
+        );
+        assert_eq!(Outcome::of(Submitted, Approved, None), Outcome::ReApproved);
+        assert_eq!(Outcome::of(Approved, Withdrawn, None), Outcome::Withdrawn);
+        assert_eq!(Outcome::of(Approved, Superseded, None), Outcome::Superseded);
+        assert_eq!(Outcome::of(Withdrawn, Withdrawn, None), Outcome::Unchanged);
+        assert_eq!(Outcome::of(UnderReview, Approved, None), Outcome::Unchanged);
+        // Superseded: what stands for it decides.
+        for (replacement, outcome) in [
+            (UnderReview, Outcome::UnderReview),
+            (Submitted, Outcome::Superseded),
+            (Approved, Outcome::Superseded),
+            (Withdrawn, Outcome::Withdrawn),
+            (Rejected, Outcome::Rejected),
+        ] {
+            assert_eq!(
+                Outcome::of(Submitted, Superseded, Some(replacement)),
+                outcome,
+                "{replacement:?}"
+            );
+        }
+    }
+
+    /// Before the window, clear; in it, held; after `found_at`, out of
+    /// service under a certificate from before it, clear under one after.
+    #[test]
+    fn a_nonconformity_bears_on_tests_by_when_they_were_made() {
+        let nc = check(body("2026-11-01T00:00:00Z", Some("2026-08-01T00:00:00Z"))).unwrap();
+        let old = t("2026-06-01T00:00:00Z");
+        let new = t("2026-11-10T00:00:00Z");
+        for (at, certificate, want) in [
+            ("2026-07-31T23:59:59Z", old, Bearing::Clear),
+            ("2026-08-01T00:00:00Z", old, Bearing::Held),
+            ("2026-11-01T00:00:00Z", old, Bearing::Held),
+            ("2026-11-01T00:00:01Z", old, Bearing::OutOfService),
+            (
+                "2026-11-20T00:00:00Z",
+                t("2026-11-01T00:00:00Z"),
+                Bearing::OutOfService,
+            ),
+            ("2026-11-20T00:00:00Z", new, Bearing::Clear),
+        ] {
+            assert_eq!(bearing(&nc, certificate, t(at)), want, "{at}");
+        }
+        let why = out_of_service(&nc, t("2026-11-20T00:00:00Z"));
+        assert!(
+            why.contains("DH-1") && why.contains(&nc.id.to_string()),
+            "{why}"
+        );
+        assert!(hold_reason(&[&nc]).contains("indexing error 9″"));
     }
 }

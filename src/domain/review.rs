@@ -30,9 +30,12 @@
 //! * `confirm` records that the stored submission, computed again with the
 //!   current method, gave every number the same; it keeps the state;
 //! * `hold` (an admin's, for a nonconformity of a reference standard the
-//!   calibration was made with) puts it `under_review`: it still counts,
-//!   but its coefficients are not usable until a reviewer approves it again
-//!   (not the one who submitted it) or withdraws or supersedes it;
+//!   calibration was made with, or placed as it is stored inside a
+//!   nonconformity's window) puts it `under_review`: it still counts, but
+//!   its coefficients are not usable until a reviewer records a disposition
+//!   — approves it again (not the one who submitted it) with the reason in
+//!   its comment (`no effect: …`) — or withdraws or supersedes it (a
+//!   correction still using the standard is held in turn);
 //! * `rejected`, `withdrawn` and `superseded` are final.
 //!
 //! Which calibrations a reader uses is the [`Basis`]: every calibration not
@@ -432,6 +435,14 @@ pub enum Refusal {
         /// The act.
         verb: &'static str,
     },
+    /// A hold released without a recorded disposition.
+    #[error(
+        "the calibration is under review (held: a reference standard it was made with was \
+         found nonconforming); approving it releases the hold, which takes the disposition \
+         in `comment` — why the nonconformity has no effect on it (`no effect: …`) or what \
+         was done (re-measured, …)"
+    )]
+    Disposition,
     /// The calibration's state does not allow the act.
     #[error("the calibration is {}: only a {from} calibration can be {}", .state.as_str(), .target_past)]
     State {
@@ -446,9 +457,9 @@ pub enum Refusal {
 
 impl Refusal {
     /// Whether it is a matter of permission (403) rather than of the
-    /// calibration's state (409).
+    /// calibration's state (409) or the act's content (422).
     pub fn is_permission(&self) -> bool {
-        !matches!(self, Refusal::State { .. })
+        matches!(self, Refusal::Role { .. } | Refusal::OwnWork { .. })
     }
 }
 
@@ -519,6 +530,9 @@ impl Act {
                 Identity::Token(t) => format!("token {t}"),
             };
             return Err(Refusal::OwnWork { who, verb });
+        }
+        if self.action == Action::Approve && state == State::UnderReview && self.comment.is_none() {
+            return Err(Refusal::Disposition);
         }
         Ok(Signature {
             seq,
@@ -769,6 +783,22 @@ mod tests {
                     .is_ok()
             );
         }
+    }
+
+    /// Approving a held calibration releases the hold: only with a
+    /// disposition in the comment.
+    #[test]
+    fn a_hold_is_released_by_a_disposition() {
+        let reviewer = principal("r", Role::Reviewer, Some("R"));
+        let mut a = act(Action::Approve, reviewer);
+        a.comment = None;
+        let refused = a.check(State::UnderReview, &by("s", None), 2);
+        assert_eq!(refused, Err(Refusal::Disposition));
+        assert!(!Refusal::Disposition.is_permission());
+        assert!(a.check(State::Submitted, &by("s", None), 2).is_ok());
+        a.comment = Some("no effect: the 9″ error is within kp's tolerance".into());
+        let s = a.check(State::UnderReview, &by("s", None), 2).unwrap();
+        assert_eq!(s.state, State::Approved);
     }
 
     /// A reprocessed or corrected calibration keeps its author: the one who

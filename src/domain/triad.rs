@@ -844,6 +844,10 @@ pub struct TriadResult {
     /// orientations have theirs per axis, `axes[m].uncertainty`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub uncertainty: Option<GravityUncertainty>,
+    /// The nonconformities of its standards it was performed inside the
+    /// windows of (a stored triad): it is stored under review.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub held_by: Vec<crate::domain::nonconformity::HeldBy>,
     /// Stored triads of a typed sensor: the decision against its limits,
     /// element by element.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -1128,6 +1132,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
         as_found: None,
         as_found_note: None,
         standards: Vec::new(),
+        held_by: Vec::new(),
         means: Vec::new(),
         gravity: None,
         scale_factors: s.map(|row| row.iter().map(|x| x * x).sum::<f64>().sqrt()),

@@ -14,13 +14,14 @@ use super::problem::Problem;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::{Errors, Invalid, Loc};
 use crate::domain::metrology::{Previous, assess_calibration};
+use crate::domain::nonconformity::{Bearing, HeldBy, bearing, out_of_service};
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Evaluated, ResultView, StandIn, evaluate};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
-use crate::store::NewCalibration;
+use crate::store::{NewCalibration, StandardUse};
 
 /// A submission ready to be answered (and stored).
 pub struct Assessed {
@@ -103,24 +104,51 @@ async fn resolve_standards(
         ("thermometer", named.thermometer.clone()),
         ("gravity", named.gravity.clone()),
     ];
-    let (stand, used) = resolve(state, &roles, performed_at).await?;
-    e.submission.stand = Some(stand);
-    e.submission.standards_used = used;
+    let r = resolve(state, &roles, performed_at).await?;
+    e.submission.stand = Some(r.stand);
+    e.submission.standards_used = r.used;
+    e.submission.held_by = r.held_by;
     Ok(())
 }
 
+/// The standards a submission names, resolved ([`resolve`]).
+pub struct Resolved {
+    /// The stand they make.
+    pub stand: StandIn,
+    /// Each as used: the certificate in force and its parameters.
+    pub used: Vec<UsedStandard>,
+    /// The nonconformities that hold the test.
+    pub held_by: Vec<HeldBy>,
+}
+
+impl Resolved {
+    /// What the store judges of them as it stores the test.
+    pub fn uses(used: &[UsedStandard]) -> Vec<StandardUse> {
+        used.iter()
+            .map(|u| StandardUse {
+                standard_id: u.standard_id.clone(),
+                calibrated_at: u.certificate.calibrated_at,
+            })
+            .collect()
+    }
+}
+
 /// Resolves the standards named by role against the registry, for a test performed
-/// at `performed_at`: each must exist, be of its role's kind and be in
-/// calibration then (by its certificate or an earlier one); every problem
-/// is a 422 naming the role (`/standards/stand`, …). Answers the stand
-/// they make (the stand's indexing error, the gravity value's relative
-/// uncertainty) and the standards as used. Single-axis and triad
-/// submissions alike.
+/// at `performed_at`: each must exist, be of its role's kind, be in
+/// calibration then (by its certificate or an earlier one) and in service —
+/// no recorded nonconformity of it found before `performed_at` without a
+/// certificate since ([`bearing`]); every problem is a 422 naming the role
+/// (`/standards/stand`, …). Answers the stand they make — the stand's
+/// indexing error and the gravity value's relative uncertainty as the
+/// certificate in force at `performed_at` states them, each with its
+/// degrees of freedom — the standards as used, and the nonconformities in
+/// whose windows the test was performed (it will be stored held).
+/// Single-axis and triad submissions alike.
 pub async fn resolve(
     state: &AppState,
     roles: &[(&str, Option<String>)],
     performed_at: Timestamp,
-) -> Result<(StandIn, Vec<UsedStandard>), Problem> {
+) -> Result<Resolved, Problem> {
     let mut errors = Errors::default();
     let mut used = Vec::new();
     let root = Loc::Root;
@@ -145,6 +173,22 @@ pub async fn resolve(
             },
         }
     }
+    let mut held_by = Vec::new();
+    if !used.is_empty() {
+        let ids = used.iter().map(|u| u.standard_id.clone()).collect();
+        let findings = state.store.findings(ids).await?;
+        for u in &used {
+            for nc in findings.iter().filter(|nc| nc.standard_id == u.standard_id) {
+                match bearing(nc, u.certificate.calibrated_at, performed_at) {
+                    Bearing::Clear => {}
+                    Bearing::Held => held_by.push(HeldBy::from(nc)),
+                    Bearing::OutOfService => {
+                        errors.add(standards_at.key(&u.role), out_of_service(nc, performed_at))
+                    }
+                }
+            }
+        }
+    }
     if !errors.is_empty() {
         return Err(Problem::validation(errors.into_invalid()));
     }
@@ -162,7 +206,11 @@ pub async fn resolve(
         angle_dof: angle.and_then(|a| a.1),
         gravity_dof: gravity.and_then(|g| g.1),
     };
-    Ok((stand, used))
+    Ok(Resolved {
+        stand,
+        used,
+        held_by,
+    })
 }
 
 /// Evaluates a body for `principal`; with `id`, also builds the record to
@@ -255,6 +303,7 @@ pub async fn assess(
                 due_at: metrology.due_at,
                 expanded: Some(metrology.uncertainty.expanded()),
                 triad: None,
+                standards: Resolved::uses(&e.submission.standards_used),
             });
             Ok(Assessed {
                 sensor_id: e.submission.sensor_id.clone(),

@@ -23,7 +23,7 @@ use super::problem::{Kind, Problem};
 use super::query::Params;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::review::{
-    Act, Action, ReviewBody, Signature, State as ReviewState, Supersedes, WithdrawBody,
+    Act, Action, Refusal, ReviewBody, Signature, State as ReviewState, Supersedes, WithdrawBody,
     check_reason, supersession,
 };
 use crate::domain::submission::Method;
@@ -81,6 +81,9 @@ fn outcome(signed: Signed, id: Uuid) -> Result<Reviewed, Problem> {
         }),
         Signed::NotFound => Err(unknown(id)),
         Signed::Refused(why) if why.is_permission() => Err(Problem::forbidden(why.to_string())),
+        Signed::Refused(why @ Refusal::Disposition) => Err(Problem::validation(
+            crate::domain::field::Invalid::one("/comment", why.to_string()),
+        )),
         Signed::Refused(why) => Err(Problem::new(Kind::StateConflict, why.to_string())),
     }
 }
@@ -93,9 +96,12 @@ fn outcome(signed: Signed, id: Uuid) -> Result<Reviewed, Problem> {
     operation_id = "reviewCalibration",
     summary = "Approve or reject a submitted calibration (reviewer or admin).",
     description = "Signs the decision with the token's holder, role and id. The \
-        reviewer may not be who submitted the calibration (the same holder, or \
-        the same token when it names none): 403. Only a `submitted` calibration \
-        can be approved or rejected: 409 otherwise. A rejection needs a comment.",
+        reviewer may not be who submitted the calibration, or a calibration it \
+        replaces (the same holder, or the same token when it names none): 403. Only a \
+        `submitted` calibration can be approved or rejected, or an `under_review` one \
+        approved: 409 otherwise. A rejection needs a comment; approving a held \
+        (`under_review`) calibration releases the hold and needs the disposition in the \
+        comment (422 at `/comment` without).",
     params(super::openapi::CalibrationIdPath),
     request_body(content((ReviewBody = "application/json",
         example = json!({"decision": "approve", "comment": "Residuals and budget checked."})))),

@@ -198,10 +198,6 @@ pub async fn nonconformity(
         now,
         Actor::from(&principal),
     )?;
-    let made = state
-        .store
-        .made_with(standard_id.clone(), nc.window_from, nc.found_at)
-        .await?;
     let hold = Act {
         action: Action::Hold,
         signer: principal.clone(),
@@ -212,7 +208,7 @@ pub async fn nonconformity(
         )),
         superseded_by: None,
     };
-    let calibrations = state.store.hold(nc.clone(), made, hold).await?;
+    let calibrations = state.store.hold(nc.clone(), hold).await?;
     let held = calibrations
         .iter()
         .filter(|c| c.outcome == crate::domain::nonconformity::Outcome::UnderReview)

@@ -19,7 +19,7 @@ use uuid::Uuid;
 use super::auth::{require, station};
 use super::body::Body;
 use super::calibrations::{claimed, store};
-use super::evaluation::{Assessed, resolve, sensor_type};
+use super::evaluation::{Assessed, Resolved, resolve, sensor_type};
 use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::triad::{file, read};
@@ -279,18 +279,19 @@ pub async fn assess(
     }
     let assigns_type = sub.sensor_type.is_some();
     let mut sub = sub;
-    let used = if sub.standards.is_empty() {
-        Vec::new()
+    let (used, held_by) = if sub.standards.is_empty() {
+        (Vec::new(), Vec::new())
     } else {
         let roles: Vec<(&str, Option<String>)> = sub
             .standards
             .iter()
             .map(|(role, id)| (*role, Some(id.clone())))
             .collect();
-        let (stand, used) = resolve(state, &roles, performed_at).await?;
-        sub.stand = stand.core();
-        used
+        let r = resolve(state, &roles, performed_at).await?;
+        sub.stand = r.stand.core();
+        (r.used, r.held_by)
     };
+    let uses = Resolved::uses(&used);
     let runs = match &sub.form {
         Form::Known { runs, .. } => runs.len(),
         _ => 1,
@@ -314,6 +315,7 @@ pub async fn assess(
                 found(&mut result, p);
             }
             result.standards = used;
+            result.held_by = held_by;
             Ok(result)
         })
         .await??;
@@ -348,6 +350,7 @@ pub async fn assess(
         due_at,
         expanded: None,
         triad: Some(elements(&result)),
+        standards: uses,
     };
     let view = StoredTriad {
         id,

@@ -136,8 +136,11 @@ pub trait Audit: Send + Sync + 'static {
 pub trait Calibrations: Send + Sync + 'static {
     /// Stores a calibration and updates its sensor, atomically and durably;
     /// with a key, also records the key as done in the same transaction
-    /// (unless another request completed the key first). Refuses a record
-    /// holding a non-finite number ([`NewCalibration::check`]).
+    /// (unless another request completed the key first). A calibration
+    /// naming standards is judged against their nonconformities in that
+    /// transaction and stored held (`under_review`) when one bears on it
+    /// ([`NewCalibration::standards`]). Refuses a record holding a
+    /// non-finite number ([`NewCalibration::check`]).
     async fn insert_calibration(
         &self,
         c: NewCalibration,
@@ -227,21 +230,24 @@ pub trait Reviews: Send + Sync + 'static {
         to: Timestamp,
     ) -> Result<Vec<MadeWith>, StoreError>;
     /// Records the nonconformity `nc` and, in the same transaction, `hold`s
-    /// each of `made` (read by [`Reviews::made_with`]) that counts
+    /// each calibration made with its standard in its window
+    /// ([`Reviews::made_with`], read in that transaction) that counts
     /// (`act` signed for each: an admin's `hold`); the others are listed
-    /// and left. Answers each calibration with its state then and now.
-    async fn hold(
-        &self,
-        nc: Nonconformity,
-        made: Vec<MadeWith>,
-        act: Act,
-    ) -> Result<Vec<Affected>, StoreError>;
+    /// and left. Serialised with every store of a calibration naming the
+    /// standard (which judges the standard's nonconformities in its own
+    /// transaction), so that none is stored unheld in between. Answers each
+    /// calibration with its state then and now.
+    async fn hold(&self, nc: Nonconformity, act: Act) -> Result<Vec<Affected>, StoreError>;
+    /// The nonconformities recorded of any of `standard_ids`, without their
+    /// calibrations, oldest `found_at` first.
+    async fn findings(&self, standard_ids: Vec<String>) -> Result<Vec<Nonconformity>, StoreError>;
     /// Stores a nonconformity as another database recorded it, with the
     /// calibrations of its window and their states then, holding nothing
     /// (`accelcal migrate`: the holds come across as signatures).
     async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError>;
     /// A standard's nonconformities, oldest `found_at` first, each with its
-    /// calibrations as they stand now.
+    /// calibrations as they stand now (a superseded one with the last of
+    /// its replacements).
     async fn nonconformities(&self, standard_id: String) -> Result<Vec<Traced>, StoreError>;
 }
 

@@ -8,7 +8,7 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::StoreError;
-use crate::domain::nonconformity::{Affected, Outcome};
+use crate::domain::nonconformity::{Affected, Outcome, Replacement};
 use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
@@ -57,6 +57,23 @@ pub struct NewCalibration {
     pub expanded: Option<TermMap<f64>>,
     /// A triad's elements (none for a single-axis calibration).
     pub triad: Option<TriadElements>,
+    /// The reference standards the test used, each with the calibration
+    /// date of its certificate in force when it was performed: what the
+    /// store judges against the standards' nonconformities in the
+    /// transaction that stores it, holding it when one bears on it
+    /// ([`crate::domain::nonconformity::bearing`]). Not a column: the
+    /// result document names them; empty for a record copied or exported.
+    pub standards: Vec<StandardUse>,
+}
+
+/// A reference standard as a calibration used it, for the store's judgement
+/// of its nonconformities.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StandardUse {
+    /// The standard.
+    pub standard_id: String,
+    /// When its certificate in force at the test was calibrated.
+    pub calibrated_at: Timestamp,
 }
 
 impl NewCalibration {
@@ -494,27 +511,59 @@ pub struct MadeWith {
 
 impl MadeWith {
     /// What a nonconformity's list says of this calibration: found in
-    /// `found`, in `now` now, and what became of it.
-    pub fn affected(self, found: State, now: State) -> Affected {
+    /// `found`, in `now` now, standing for it `replaced_by` when superseded,
+    /// and what became of it.
+    pub fn affected(self, found: State, now: State, replaced_by: Option<Replacement>) -> Affected {
         Affected {
             calibration_id: self.calibration_id,
             sensor_id: self.sensor_id,
             performed_at: self.performed_at,
             state_found: found,
             state: now,
-            outcome: Outcome::of(found, now),
+            outcome: Outcome::of(found, now, replaced_by.as_ref().map(|r| r.state)),
+            replaced_by,
         }
     }
 
     /// [`MadeWith::affected`] from the stored name of the state it was
-    /// found in (`state_found`), its state as read being its state now.
+    /// found in (`state_found`), its state as read being its state now;
+    /// without its replacement (see [`chain_end_sql`]).
     pub fn found_as(self, stored: &str) -> Result<Affected, StoreError> {
         let found = State::parse(stored)
             .ok_or_else(|| StoreError::corrupt("column `state_found`", stored.to_owned()))?;
         let now = self.state;
-        Ok(self.affected(found, now))
+        Ok(self.affected(found, now, None))
     }
 }
+
+impl Affected {
+    /// This entry, superseded, with what stands for it now.
+    pub fn replaced(mut self, by: Replacement) -> Affected {
+        self.outcome = Outcome::of(self.state_found, self.state, Some(by.state));
+        self.replaced_by = Some(by);
+        self
+    }
+}
+
+/// The last of the calibrations that replaced calibration `p` through
+/// supersessions (`p` itself when none did), with its state: `id`, `state`.
+pub fn chain_end_sql(p: &str) -> String {
+    format!(
+        "WITH RECURSIVE fwd(id, depth) AS ( \
+           SELECT s.superseded_by, 1 FROM signatures s \
+           WHERE s.calibration_id = {p} AND s.action = 'supersede' \
+           UNION ALL \
+           SELECT s.superseded_by, fwd.depth + 1 FROM signatures s JOIN fwd \
+             ON s.calibration_id = fwd.id WHERE s.action = 'supersede' AND fwd.depth < 1000) \
+         SELECT c.id, {} AS state FROM fwd JOIN calibrations c ON c.id = fwd.id \
+         ORDER BY fwd.depth DESC LIMIT 1",
+        crate::state_sql!()
+    )
+}
+
+/// The columns of a nonconformity's row.
+pub const NONCONFORMITY_COLUMNS: &str = "id, standard_id, found_at, last_known_good_at, \
+     window_from, reason, recorded_at, token_id, role, holder";
 
 /// The calibrations performed with the standard `$1` within `$2..=$3`
 /// (`?1`… in SQLite), oldest first, with their states: the one query of
@@ -833,6 +882,7 @@ mod tests {
             due_at: c.due_at,
             expanded: c.expanded.clone(),
             triad: c.triad.clone(),
+            standards: Vec::new(),
         };
         assert_eq!(CalibrationSummary::from(&n), c);
         n.check().unwrap();
@@ -922,6 +972,7 @@ mod tests {
                 due_at: None,
                 expanded: None,
                 triad: None,
+                standards: Vec::new(),
             }
         };
         record(e.clone()).check().unwrap();

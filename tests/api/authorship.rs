@@ -141,6 +141,7 @@ async fn the_author_may_not_approve_a_reprocessing_of_their_measurement(
                 due_at: None,
                 expanded: None,
                 triad: None,
+                standards: Vec::new(),
             },
             None,
         )

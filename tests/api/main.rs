@@ -21,6 +21,7 @@ mod idempotency;
 mod limits;
 mod lost_updates;
 mod metrology;
+mod out_of_service;
 mod outage;
 mod paper;
 mod restart;

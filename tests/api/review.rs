@@ -759,6 +759,7 @@ async fn reprocessing_confirms_or_supersedes(#[values(Sqlite, Postgres)] engine:
                         .collect(),
                 )),
                 triad: None,
+                standards: Vec::new(),
             },
             None,
         )

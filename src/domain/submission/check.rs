@@ -444,6 +444,7 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
         },
         standards,
         standards_used: Vec::new(),
+        held_by: Vec::new(),
         item_received_at,
         item_condition: match item_condition {
             Slot::Value(c) => Some(c),

@@ -125,6 +125,9 @@ pub struct Submission {
     /// Those standards as the registry describes them, once resolved
     /// (empty until then, and for a body that names none).
     pub standards_used: Vec<crate::domain::standards::UsedStandard>,
+    /// The nonconformities of those standards that hold the test (performed
+    /// in their windows), once resolved: it is stored under review.
+    pub held_by: Vec<crate::domain::nonconformity::HeldBy>,
     /// Each run's temperature (°C), when the runs give them (all or none).
     pub temperatures_c: Option<Vec<f64>>,
     /// The tumble test handed to the core.

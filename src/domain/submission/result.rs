@@ -89,6 +89,11 @@ pub struct ResultView<'a> {
     /// certificate it was in calibration by when the test was performed.
     #[serde(skip_serializing_if = "<[_]>::is_empty")]
     pub standards: &'a [UsedStandard],
+    /// The nonconformities of those standards it was performed inside the
+    /// windows of: it is stored under review, its coefficients not usable
+    /// until a reviewer records a disposition.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    pub held_by: &'a [crate::domain::nonconformity::HeldBy],
     /// When the laboratory received the item, when the body said.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub item_received_at: Option<Timestamp>,
@@ -136,6 +141,7 @@ impl<'a> ResultView<'a> {
             sensor_type,
             stand: s.stand.as_ref(),
             standards: &s.standards_used,
+            held_by: &s.held_by,
             item_received_at: s.item_received_at,
             item_condition: s.item_condition.as_deref(),
             temperatures_c: s.temperatures_c.as_deref(),

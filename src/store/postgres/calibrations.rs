@@ -265,9 +265,11 @@ pub async fn insert(
     key: Option<&IdempotencyKey>,
 ) -> Result<(Stored, Option<SensorRow>), StoreError> {
     let tx = client.transaction().await.map_err(map)?;
+    super::holds::lock(&tx, &row.n).await?;
     match write(&tx, row, key).await? {
         Written::New(sensor) => {
-            let events = super::audit::stored(&tx, &[&row.n]).await?;
+            let mut events = super::audit::stored(&tx, &[&row.n]).await?;
+            events.extend(super::holds::place(&tx, &row.n, &[]).await?);
             super::audit::append(&tx, events).await?;
             tx.commit().await.map_err(map)?;
             Ok((Stored::New, Some(sensor)))
@@ -344,6 +346,21 @@ impl Calibrations for PostgresStore {
         let started = Instant::now();
         let row = Row::new(n);
         let out = match row {
+            // One naming standards may be stored held: in a transaction of
+            // its own that locks them first ([`super::holds`]), its
+            // sensor's cached entry dropped rather than kept as submitted.
+            Ok(row) if !row.new_calibration().standards.is_empty() => {
+                let sensor = [row.sensor_id().to_owned()];
+                let this = self.clone();
+                let write = async move {
+                    op!(this, "insert_calibration", |client| {
+                        insert(&mut client, &row, key.as_ref())
+                            .await
+                            .map(|(stored, _)| stored)
+                    })
+                };
+                self.cache.changing(&sensor, write).await
+            }
             Ok(row) => {
                 let c = CalibrationSummary::from(row.new_calibration());
                 let writer = self.writer.clone();

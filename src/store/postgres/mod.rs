@@ -37,6 +37,7 @@ pub mod connect;
 mod customers;
 mod definitions;
 mod errors;
+mod holds;
 mod idempotency;
 pub mod listen;
 mod migrations;

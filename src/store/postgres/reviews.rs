@@ -12,12 +12,12 @@ use super::calibrations::{Row, Written, write};
 use super::errors::map;
 use super::rows;
 use crate::domain::audit::{Actor, Event};
-use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
+use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, earlier_submitters_sql, made_with_sql,
-    sensor_forget, sensor_recompute,
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, chain_end_sql, earlier_submitters_sql,
+    made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -49,6 +49,11 @@ async fn sign(
     act: &Act,
     replacement: Option<&Row>,
 ) -> Result<(Signed, Vec<Event>), StoreError> {
+    // The standards a replacement names, locked before anything else
+    // ([`super::holds`]).
+    if let Some(r) = replacement {
+        super::holds::lock(tx, r.new_calibration()).await?;
+    }
     let locked = tx
         .query_opt(
             "SELECT id FROM calibrations WHERE id = $1 FOR NO KEY UPDATE",
@@ -99,6 +104,7 @@ async fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), Vec::new())),
     };
+    let mut held = Vec::new();
     if let Some(r) = replacement {
         match write(tx, r, None).await? {
             Written::New(_) => {}
@@ -109,7 +115,47 @@ async fn sign(
                 ));
             }
         }
+        // A correction of a held calibration is held too, under the same
+        // nonconformities, while it uses their standards.
+        let inherited = if state == State::UnderReview {
+            super::holds::holding(tx, id).await?
+        } else {
+            Vec::new()
+        };
+        held = super::holds::place(tx, r.new_calibration(), &inherited).await?;
     }
+    insert_signature(tx, id, &s).await?;
+    // The sensor's row locked first, in a statement of its own: the
+    // recompute's own snapshot, taken after the lock is held, then sees
+    // every calibration committed before it (under READ COMMITTED a
+    // statement that waited for the lock would count from its older one).
+    tx.execute(
+        "SELECT 1 FROM sensors WHERE sensor_id = $1 FOR UPDATE",
+        &[&sensor_id],
+    )
+    .await
+    .map_err(map)?;
+    tx.execute(&sensor_recompute("$1"), &[&sensor_id])
+        .await
+        .map_err(map)?;
+    tx.execute(&sensor_forget("$1"), &[&sensor_id])
+        .await
+        .map_err(map)?;
+    let mut events = match replacement {
+        Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
+        None => Vec::new(),
+    };
+    events.extend(held);
+    events.push(crate::store::audit::signed(id, &s, state));
+    Ok((Signed::Done(s, sensor_id), events))
+}
+
+/// Appends signature `s` to calibration `id`'s.
+pub async fn insert_signature(
+    tx: &Transaction<'_>,
+    id: Uuid,
+    s: &Signature,
+) -> Result<(), StoreError> {
     let seq = i32::try_from(s.seq).map_err(|e| StoreError::corrupt("signatures", e))?;
     tx.execute(
         &format!(
@@ -132,28 +178,7 @@ async fn sign(
     )
     .await
     .map_err(map)?;
-    // The sensor's row locked first, in a statement of its own: the
-    // recompute's own snapshot, taken after the lock is held, then sees
-    // every calibration committed before it (under READ COMMITTED a
-    // statement that waited for the lock would count from its older one).
-    tx.execute(
-        "SELECT 1 FROM sensors WHERE sensor_id = $1 FOR UPDATE",
-        &[&sensor_id],
-    )
-    .await
-    .map_err(map)?;
-    tx.execute(&sensor_recompute("$1"), &[&sensor_id])
-        .await
-        .map_err(map)?;
-    tx.execute(&sensor_forget("$1"), &[&sensor_id])
-        .await
-        .map_err(map)?;
-    let mut events = match replacement {
-        Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
-        None => Vec::new(),
-    };
-    events.push(crate::store::audit::signed(id, &s, state));
-    Ok((Signed::Done(s, sensor_id), events))
+    Ok(())
 }
 
 /// Inserts the record of a nonconformity.
@@ -198,14 +223,42 @@ async fn insert_concerned(
     Ok(())
 }
 
-/// The nonconformity `nc` recorded and each of `made` that counts held,
-/// within `tx`; the audit trail appended last.
+/// The calibrations made with standard `standard_id` within `from..=to`.
+async fn made_with_in(
+    client: &impl GenericClient,
+    standard_id: &str,
+    from: Timestamp,
+    to: Timestamp,
+) -> Result<Vec<MadeWith>, StoreError> {
+    let sql = made_with_sql(
+        "EXISTS (SELECT 1 FROM json_array_elements(c.result::json -> 'standards') s \
+         WHERE s.value ->> 'standard_id' = $1)",
+        ["$1", "$2", "$3"],
+    );
+    client
+        .query(&sql, &[&standard_id, &from.datetime(), &to.datetime()])
+        .await
+        .map_err(map)?
+        .iter()
+        .map(made_with)
+        .collect()
+}
+
+/// The nonconformity `nc` recorded and each calibration made with its
+/// standard in its window that counts held, within `tx`, the standard's row
+/// locked first ([`super::holds`]); the audit trail appended last.
 async fn hold(
     tx: &Transaction<'_>,
     nc: &Nonconformity,
-    made: Vec<MadeWith>,
     act: &Act,
 ) -> Result<Vec<Affected>, StoreError> {
+    tx.execute(
+        "SELECT 1 FROM standards WHERE standard_id = $1 FOR UPDATE",
+        &[&nc.standard_id],
+    )
+    .await
+    .map_err(map)?;
+    let made = made_with_in(tx, &nc.standard_id, nc.window_from, nc.found_at).await?;
     insert_nonconformity(tx, nc).await?;
     let mut events = vec![crate::store::audit::nonconformity(nc, made.len())];
     let mut out = Vec::with_capacity(made.len());
@@ -220,7 +273,7 @@ async fn hold(
         };
         insert_concerned(tx, nc, m.calibration_id, m.state).await?;
         let found = m.state;
-        out.push(m.affected(found, now));
+        out.push(m.affected(found, now, None));
     }
     super::audit::append(tx, events).await?;
     Ok(out)
@@ -238,7 +291,7 @@ fn made_with(r: &tokio_postgres::Row) -> Result<MadeWith, StoreError> {
     })
 }
 
-fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
+pub fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
     let at = |column: &str| -> Result<Timestamp, StoreError> {
         Ok(Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(
             r, column,
@@ -336,38 +389,39 @@ impl Reviews for PostgresStore {
         to: Timestamp,
     ) -> Result<Vec<MadeWith>, StoreError> {
         op!(self, "made_with", |client| {
-            let sql = made_with_sql(
-                "EXISTS (SELECT 1 FROM json_array_elements(c.result::json -> 'standards') s \
-                 WHERE s.value ->> 'standard_id' = $1)",
-                ["$1", "$2", "$3"],
-            );
-            let found = client
-                .query(&sql, &[&standard_id, &from.datetime(), &to.datetime()])
-                .await
-                .map_err(map)?;
-            found.iter().map(made_with).collect()
+            made_with_in(&client, &standard_id, from, to).await
         })
     }
 
-    async fn hold(
-        &self,
-        nc: Nonconformity,
-        made: Vec<MadeWith>,
-        act: Act,
-    ) -> Result<Vec<Affected>, StoreError> {
-        let mut sensors: Vec<String> = made.iter().map(|m| m.sensor_id.clone()).collect();
+    async fn hold(&self, nc: Nonconformity, act: Act) -> Result<Vec<Affected>, StoreError> {
+        // The sensors whose cached entries the holds change, read first;
+        // one stored meanwhile is dropped after.
+        let before = self
+            .made_with(nc.standard_id.clone(), nc.window_from, nc.found_at)
+            .await?;
+        let mut sensors: Vec<String> = before.iter().map(|m| m.sensor_id.clone()).collect();
         sensors.sort();
         sensors.dedup();
         let this = self.clone();
         let write = async move {
             op!(this, "hold", |client| {
                 let tx = client.transaction().await.map_err(map)?;
-                let out = hold(&tx, &nc, made, &act).await?;
+                let out = hold(&tx, &nc, &act).await?;
                 tx.commit().await.map_err(map)?;
                 Ok(out)
             })
         };
-        self.cache.changing(&sensors, write).await
+        let out = self.cache.changing(&sensors, write).await?;
+        for a in out.iter().filter(|a| !sensors.contains(&a.sensor_id)) {
+            self.cache.sensor_changed(&a.sensor_id);
+        }
+        Ok(out)
+    }
+
+    async fn findings(&self, standard_ids: Vec<String>) -> Result<Vec<Nonconformity>, StoreError> {
+        op!(self, "findings", |client| {
+            super::holds::findings(&client, &standard_ids).await
+        })
     }
 
     async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError> {
@@ -413,7 +467,24 @@ impl Reviews for PostgresStore {
                     .map_err(map)?
                     .iter()
                     .map(affected)
-                    .collect::<Result<_, _>>()?;
+                    .collect::<Result<Vec<_>, _>>()?;
+                let mut calibrations = calibrations;
+                for a in &mut calibrations {
+                    if a.state != State::Superseded {
+                        continue;
+                    }
+                    if let Some(r) = client
+                        .query_opt(&chain_end_sql("$1"), &[&a.calibration_id])
+                        .await
+                        .map_err(map)?
+                    {
+                        let by = Replacement {
+                            calibration_id: rows::get(&r, "id")?,
+                            state: rows::state(&r)?,
+                        };
+                        *a = a.clone().replaced(by);
+                    }
+                }
                 out.push(Traced {
                     nonconformity: nc,
                     calibrations,

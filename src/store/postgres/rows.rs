@@ -123,6 +123,7 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
         due_at: s.due_at,
         expanded: s.expanded,
         triad: s.triad,
+        standards: Vec::new(),
     })
 }
 

@@ -92,6 +92,7 @@ pub(super) fn insert(
     tx: &Connection,
     n: NewCalibration,
     key: Option<IdempotencyKey>,
+    inherited: &[crate::domain::nonconformity::Nonconformity],
 ) -> Result<(Stored, Option<SensorRow>), StoreError> {
     n.check()?;
     let id = n.id.to_string();
@@ -170,6 +171,7 @@ pub(super) fn insert(
     )?;
     let by = super::audit::submitter(tx, &n.submitted_by)?;
     super::audit::append(tx, crate::store::audit::stored(&n, by))?;
+    super::holds::place(tx, &n, inherited)?;
     Ok((Stored::New, row))
 }
 
@@ -204,14 +206,22 @@ impl Calibrations for SqliteStore {
         self.follow_the_file()?;
         let this = self.clone();
         let summary = CalibrationSummary::from(&n);
+        // One naming standards may be stored held: its sensor's entry is
+        // dropped rather than kept as submitted.
+        let may_hold = !n.standards.is_empty();
         let write = async move {
             this.write("insert_calibration", move |conn| {
-                let stored = insert(conn, n, key)?;
+                let stored = insert(conn, n, key, &[])?;
                 let keep = stored.0 == Stored::New;
                 Ok((stored, keep))
             })
             .await
         };
+        if may_hold {
+            let sensor = [summary.sensor_id.clone()];
+            let written = async move { write.await.map(|(stored, _)| stored) };
+            return self.cache.changing(&sensor, written).await;
+        }
         self.cache.insert_calibration(summary, write).await
     }
 

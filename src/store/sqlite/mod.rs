@@ -16,6 +16,7 @@ mod customers;
 mod definitions;
 mod errors;
 mod holder;
+mod holds;
 mod idempotency;
 mod migrations;
 mod pool;

@@ -7,12 +7,12 @@ use uuid::Uuid;
 
 use super::SqliteStore;
 use super::rows;
-use crate::domain::nonconformity::{Affected, Nonconformity, Traced};
+use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, earlier_submitters_sql,
-    made_with_sql, sensor_forget, sensor_recompute,
+    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, chain_end_sql,
+    earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -77,7 +77,14 @@ fn sign(
         Err(refusal) => return Ok((Signed::Refused(refusal), false)),
     };
     if let Some(n) = replacement {
-        match super::calibrations::insert(conn, n, None)? {
+        // A correction of a held calibration is held too, under the same
+        // nonconformities, while it uses their standards.
+        let inherited = if state == State::UnderReview {
+            super::holds::holding(conn, &id.to_string())?
+        } else {
+            Vec::new()
+        };
+        match super::calibrations::insert(conn, n, None, &inherited)? {
             (Stored::New, _) => {}
             (Stored::Existing(_), _) => {
                 return Err(StoreError::corrupt(
@@ -113,7 +120,7 @@ fn holder_of(conn: &Connection, token_id: &str) -> Result<Option<String>, StoreE
 }
 
 /// Appends a signature.
-fn insert(conn: &Connection, id: Uuid, s: &Signature) -> Result<(), StoreError> {
+pub(super) fn insert(conn: &Connection, id: Uuid, s: &Signature) -> Result<(), StoreError> {
     rows::execute(
         conn,
         &format!(
@@ -177,14 +184,31 @@ fn insert_concerned(
     Ok(())
 }
 
-/// The nonconformity `nc` recorded and each of `made` that counts held,
-/// inside the writer's transaction.
-fn hold(
+/// The calibrations made with standard `standard_id` within `from..=to`.
+fn made_with_in(
     conn: &Connection,
-    nc: &Nonconformity,
-    made: Vec<MadeWith>,
-    act: &Act,
-) -> Result<Vec<Affected>, StoreError> {
+    standard_id: &str,
+    from: Timestamp,
+    to: Timestamp,
+) -> Result<Vec<MadeWith>, StoreError> {
+    let sql = made_with_sql(
+        "EXISTS (SELECT 1 FROM json_each(c.result, '$.standards') s \
+         WHERE json_extract(s.value, '$.standard_id') = ?1)",
+        ["?1", "?2", "?3"],
+    );
+    rows::all(
+        conn,
+        &sql,
+        params![standard_id, from.to_string(), to.to_string()],
+        made_with,
+    )
+}
+
+/// The nonconformity `nc` recorded and each calibration made with its
+/// standard in its window that counts held, inside the writer's
+/// transaction (which no store of a calibration runs beside).
+fn hold(conn: &Connection, nc: &Nonconformity, act: &Act) -> Result<Vec<Affected>, StoreError> {
+    let made = made_with_in(conn, &nc.standard_id, nc.window_from, nc.found_at)?;
     insert_nonconformity(conn, nc)?;
     super::audit::append(conn, crate::store::audit::nonconformity(nc, made.len()))?;
     let mut out = Vec::with_capacity(made.len());
@@ -196,7 +220,7 @@ fn hold(
         };
         insert_concerned(conn, nc, m.calibration_id, m.state)?;
         let found = m.state;
-        out.push(m.affected(found, now));
+        out.push(m.affected(found, now, None));
     }
     Ok(out)
 }
@@ -277,37 +301,38 @@ impl Reviews for SqliteStore {
     ) -> Result<Vec<MadeWith>, StoreError> {
         self.follow_the_file()?;
         self.run("made_with", move |conn| {
-            let sql = made_with_sql(
-                "EXISTS (SELECT 1 FROM json_each(c.result, '$.standards') s \
-                 WHERE json_extract(s.value, '$.standard_id') = ?1)",
-                ["?1", "?2", "?3"],
-            );
-            rows::all(
-                conn,
-                &sql,
-                params![standard_id, from.to_string(), to.to_string()],
-                made_with,
-            )
+            made_with_in(conn, &standard_id, from, to)
         })
         .await
     }
 
-    async fn hold(
-        &self,
-        nc: Nonconformity,
-        made: Vec<MadeWith>,
-        act: Act,
-    ) -> Result<Vec<Affected>, StoreError> {
-        self.follow_the_file()?;
-        let mut sensors: Vec<String> = made.iter().map(|m| m.sensor_id.clone()).collect();
+    async fn hold(&self, nc: Nonconformity, act: Act) -> Result<Vec<Affected>, StoreError> {
+        // The sensors whose cached entries the holds change, read first;
+        // one stored meanwhile is dropped after.
+        let before = self
+            .made_with(nc.standard_id.clone(), nc.window_from, nc.found_at)
+            .await?;
+        let mut sensors: Vec<String> = before.iter().map(|m| m.sensor_id.clone()).collect();
         sensors.sort();
         sensors.dedup();
         let this = self.clone();
         let write = async move {
-            this.write("hold", move |conn| Ok((hold(conn, &nc, made, &act)?, true)))
+            this.write("hold", move |conn| Ok((hold(conn, &nc, &act)?, true)))
                 .await
         };
-        self.cache.changing(&sensors, write).await
+        let out = self.cache.changing(&sensors, write).await?;
+        for a in out.iter().filter(|a| !sensors.contains(&a.sensor_id)) {
+            self.cache.sensor_changed(&a.sensor_id);
+        }
+        Ok(out)
+    }
+
+    async fn findings(&self, standard_ids: Vec<String>) -> Result<Vec<Nonconformity>, StoreError> {
+        self.follow_the_file()?;
+        self.run("findings", move |conn| {
+            super::holds::findings(conn, &standard_ids)
+        })
+        .await
     }
 
     async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError> {
@@ -349,7 +374,10 @@ impl Reviews for SqliteStore {
                         ),
                         [nc.id.to_string()],
                         affected,
-                    )?;
+                    )?
+                    .into_iter()
+                    .map(|a| replaced(conn, a))
+                    .collect::<Result<Vec<_>, _>>()?;
                     Ok(Traced {
                         nonconformity: nc,
                         calibrations,
@@ -376,7 +404,7 @@ impl Reviews for SqliteStore {
     }
 }
 
-fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
+pub(super) fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
     use super::errors::map;
     let at = |column: &str| -> Result<Timestamp, StoreError> {
         let text: String = r.get(column).map_err(map)?;
@@ -401,6 +429,28 @@ fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
             role: r.get("role").map_err(map)?,
             holder: r.get("holder").map_err(map)?,
         },
+    })
+}
+
+/// `a` with the last of its replacements, when it was superseded.
+fn replaced(conn: &Connection, a: Affected) -> Result<Affected, StoreError> {
+    if a.state != State::Superseded {
+        return Ok(a);
+    }
+    let end = rows::first(
+        conn,
+        &chain_end_sql("?1"),
+        [a.calibration_id.to_string()],
+        |r| {
+            Ok(Replacement {
+                calibration_id: rows::uuid(r, "id")?,
+                state: rows::state(r)?,
+            })
+        },
+    )?;
+    Ok(match end {
+        Some(by) => a.replaced(by),
+        None => a,
     })
 }
 

@@ -150,6 +150,7 @@ pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError>
         due_at: s.due_at,
         expanded: s.expanded,
         triad: s.triad,
+        standards: Vec::new(),
     })
 }
 
