@@ -121,6 +121,24 @@ impl Application {
             "require_approval".into(),
             (config.web.basis == crate::domain::review::Basis::ApprovedOnly).into(),
         );
+        // The laboratory's identity, which every certificate issued from
+        // now on prints (issued ones keep theirs): a change at a start is
+        // an entry of the trail. The logo by its SHA-256.
+        let lab = &config.web.laboratory;
+        settings.insert(
+            "laboratory".into(),
+            serde_json::json!({
+                "name": lab.name,
+                "address": lab.address,
+                "country": lab.country,
+                "accreditation": lab.accreditation,
+                "logo_sha256": lab.logo.as_ref().map(|l| {
+                    use sha2::Digest;
+                    hex::encode(sha2::Sha256::digest(l.as_bytes()))
+                }),
+                "public_url": config.web.public_url,
+            }),
+        );
         if store.configure(settings).await? {
             tracing::info!(basis = ?config.web.basis, "configuration recorded in the audit trail");
         }

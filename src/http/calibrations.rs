@@ -2,7 +2,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::{Path, State};
+use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, HeaderName, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use bytes::Bytes;
@@ -334,7 +334,18 @@ pub async fn submission(
     Ok(([(header::CONTENT_TYPE, content_type)], s.body).into_response())
 }
 
-/// `GET /v1/calibrations/{id}/certificate`: the printable certificate.
+/// The query of `GET /v1/calibrations/{id}/certificate`.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct CertificateQuery {
+    /// The revision of the issued certificate to answer (1 as issued, 2 for
+    /// the first amendment, …); the latest without.
+    #[param(minimum = 1)]
+    #[allow(dead_code)]
+    revision: Option<u32>,
+}
+
+/// `GET /v1/calibrations/{id}/certificate`: the certificate as issued.
 #[utoipa::path(
     get,
     path = "/v1/calibrations/{id}/certificate",
@@ -342,12 +353,22 @@ pub async fn submission(
     operation_id = "getCertificate",
     summary = "The calibration certificate: an HTML document that prints on A4, or with \
         `Accept: application/xml` a Digital Calibration Certificate (PTB DCC 3.3.0).",
-    params(super::openapi::CalibrationIdPath),
+    description = "An approved calibration's certificate is issued with the approval and \
+        answered as issued ever after — the DCC byte for byte — whatever changes later to the \
+        item, the customer or the laboratory; changing it is an amendment \
+        (`POST …/amend`), a new revision of the same number, and `?revision=N` answers any \
+        revision (`Certificate-Revision` says which). A calibration withdrawn, superseded or \
+        held since is answered with that notice before the issued document. One not \
+        approved is rendered on request as a draft (`Certificate-Revision: draft`), and has \
+        no DCC (409).",
+    params(super::openapi::CalibrationIdPath, CertificateQuery),
     responses(
         (status = 200, description = "The certificate: sensor, type, station and stand, times, method, \
             fused coefficients with expanded uncertainty, decision, as found, due date, the SHA-256 of \
             the stored submission, the accelcal version and its own URL.",
-            content((String = "text/html"), (String = "application/xml"))),
+            content((String = "text/html"), (String = "application/xml")),
+            headers(("Certificate-Revision" = String, description = "The revision answered, or `draft`."))),
+        (status = 400, response = super::openapi::BadRequest),
         (status = 404, response = super::openapi::NotFound),
         (status = 409, response = super::openapi::Incomplete),
         super::openapi::Always,
@@ -358,7 +379,8 @@ pub async fn certificate(
     principal: Principal,
     headers: HeaderMap,
     Path(id): Path<String>,
+    RawQuery(query): RawQuery,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    super::ui::certificate::respond(&state, &headers, &id).await
+    super::ui::certificate::respond(&state, &headers, &id, query.as_deref()).await
 }

@@ -312,6 +312,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(calibrations::submission))
         .routes(routes!(reviews::review))
         .routes(routes!(reviews::withdraw))
+        .routes(routes!(reviews::amend))
         .routes(routes!(reviews::supersede))
         .routes(routes!(reviews::reprocess))
         .routes(routes!(reviews::signatures))

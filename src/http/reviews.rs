@@ -9,7 +9,8 @@
 
 use axum::Json;
 use axum::extract::{Path, State};
-use axum::response::Response;
+use axum::http::HeaderMap;
+use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 use uuid::Uuid;
@@ -59,10 +60,32 @@ fn unknown(id: Uuid) -> Problem {
 }
 
 /// Records `act` on calibration `id`, answering its outcome (also for the
-/// pages' review form).
-pub(crate) async fn record(state: &AppState, id: Uuid, act: Act) -> Result<Reviewed, Problem> {
+/// pages' review form). An approval issues the certificate in its
+/// transaction ([`super::ui::issue`]), rendered from what is read now.
+pub(crate) async fn record(
+    state: &AppState,
+    headers: &HeaderMap,
+    id: Uuid,
+    act: Act,
+) -> Result<Reviewed, Problem> {
     let action = act.action;
-    let reviewed = outcome(state.store.sign(id, act).await?, id)?;
+    let signed = match action {
+        Action::Approve => match super::ui::issue::draft(state, headers, &id.to_string()).await {
+            Ok(draft) => {
+                let render = draft.issuing_at(act.at);
+                state.store.approve_issuing(id, act, render).await?
+            }
+            // No certificate can be rendered (an unknown calibration, or a
+            // stored result that does not read back): the act is judged as
+            // any other, and the certificate issued at its first request.
+            Err(p) => {
+                tracing::warn!(calibration = %id, problem = %p.detail, "an approval issues no certificate now");
+                state.store.sign(id, act).await?
+            }
+        },
+        _ => state.store.sign(id, act).await?,
+    };
+    let reviewed = outcome(signed, id)?;
     metrics::counter!("accelcal_reviews_total", "action" => action.as_str()).increment(1);
     tracing::info!(
         calibration = %id, action = action.as_str(),
@@ -117,6 +140,7 @@ fn outcome(signed: Signed, id: Uuid) -> Result<Reviewed, Problem> {
 pub async fn review(
     State(state): State<AppState>,
     principal: Principal,
+    headers: HeaderMap,
     Path(id): Path<String>,
     body: Body,
 ) -> Result<Json<Reviewed>, Problem> {
@@ -125,7 +149,7 @@ pub async fn review(
     let act = body
         .json::<ReviewBody>()?
         .act(principal, Timestamp::now())?;
-    record(&state, id, act).await.map(Json)
+    record(&state, &headers, id, act).await.map(Json)
 }
 
 /// `POST /v1/calibrations/{id}/withdraw`.
@@ -154,6 +178,7 @@ pub async fn review(
 pub async fn withdraw(
     State(state): State<AppState>,
     principal: Principal,
+    headers: HeaderMap,
     Path(id): Path<String>,
     body: Body,
 ) -> Result<Json<Reviewed>, Problem> {
@@ -162,7 +187,73 @@ pub async fn withdraw(
     let act = body
         .json::<WithdrawBody>()?
         .act(principal, Timestamp::now())?;
-    record(&state, id, act).await.map(Json)
+    record(&state, &headers, id, act).await.map(Json)
+}
+
+/// The body of `POST /v1/calibrations/{id}/amend`.
+#[derive(Clone, Debug, Deserialize, ToSchema)]
+#[serde(deny_unknown_fields)]
+pub struct AmendBody {
+    /// Why the issued certificate is amended (printed on the amendment);
+    /// 1–2 000 characters.
+    #[schema(schema_with = crate::domain::schema::reason)]
+    pub reason: String,
+}
+
+/// `POST /v1/calibrations/{id}/amend`.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations/{id}/amend",
+    tag = "review",
+    operation_id = "amendCertificate",
+    summary = "Amend an issued certificate: its next revision, with today's facts (reviewer or admin).",
+    description = "An issued certificate never changes; what it says changes by an amendment. \
+        The next revision of the same certificate number is rendered from the current item, \
+        customer and laboratory, marked \"Amendment n to certificate No. …\" with the reason (the \
+        DCC's `reportAmendedSubstituted`, `amended`), stored, and answered from then on; every \
+        revision stays retrievable (`GET …/certificate?revision=N`). The amendment's SHA-256s \
+        are in the audit trail. Only an approved calibration's certificate is amended (409 \
+        otherwise).",
+    params(super::openapi::CalibrationIdPath),
+    request_body(content((AmendBody = "application/json",
+        example = json!({"reason": "The customer's address was corrected."})))),
+    responses(
+        (status = 201, description = "The new revision.", body = crate::store::Revision,
+            headers(("Location" = String, description = "The new revision's certificate."))),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 404, response = super::openapi::NotFound),
+        (status = 409, response = super::openapi::StateConflict),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn amend(
+    State(state): State<AppState>,
+    principal: Principal,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Reviewer)?;
+    let id = path_id(&id, "calibration")?;
+    let reason = check_reason(Some(&body.json::<AmendBody>()?.reason))
+        .map_err(|why| Problem::validation(crate::domain::field::Invalid::one("/reason", why)))?;
+    let c = super::ui::issue::amend(
+        &state,
+        &headers,
+        &id.to_string(),
+        reason,
+        crate::domain::audit::Actor::from(&principal),
+    )
+    .await?;
+    tracing::info!(calibration = %id, revision = c.revision, by = %principal.id, "certificate amended");
+    let location = format!("/v1/calibrations/{id}/certificate?revision={}", c.revision);
+    Ok((
+        axum::http::StatusCode::CREATED,
+        [(axum::http::header::LOCATION, location)],
+        Json(crate::store::Revision::from(&c)),
+    )
+        .into_response())
 }
 
 /// The query of `POST /v1/calibrations/{id}/supersede` (its pattern is

@@ -83,6 +83,52 @@ pub fn signed(id: Uuid, s: &Signature, from: State) -> Event {
     )
 }
 
+/// [`signed`] of an approval that issued the certificate `c` (revision 1):
+/// the change also names the revision and the SHA-256 of each document.
+pub fn signed_issuing(
+    id: Uuid,
+    s: &Signature,
+    from: State,
+    c: &crate::store::IssuedCertificate,
+) -> Event {
+    let mut e = signed(id, s, from);
+    let mut change: Map<String, Value> = serde_json::from_str(&e.change).unwrap_or_default();
+    change.insert("certificate".into(), issued(c));
+    e.change = Value::Object(change).to_string();
+    e
+}
+
+/// What the trail records of an issued revision: its number, the SHA-256
+/// of each document, why it has no DCC, and the reason of an amendment.
+fn issued(c: &crate::store::IssuedCertificate) -> Value {
+    json!({
+        "revision": c.revision,
+        "html_sha256": c.html_sha256,
+        "dcc_sha256": c.dcc_sha256,
+        "dcc_missing": c.dcc_missing,
+        "reason": c.reason,
+    })
+}
+
+/// `certificate.issue` (a revision 1 issued after its approval: a
+/// calibration approved before certificates were issued at approval) or
+/// `certificate.amend`: a revision of calibration `c`'s certificate, by
+/// whoever issued it.
+pub fn certificate(c: &crate::store::IssuedCertificate) -> Event {
+    let action = if c.revision == 1 {
+        "certificate.issue"
+    } else {
+        "certificate.amend"
+    };
+    Event::new(
+        c.issued_at,
+        c.issued_by.clone(),
+        action,
+        audit::calibration(c.calibration_id),
+        object(issued(c)),
+    )
+}
+
 /// `{kind}.put`: a definition (sensor type, standard, customer, item)
 /// created or replaced, with the whole new definition.
 pub fn put<T: Serialize>(

@@ -4,7 +4,8 @@
 //! Everything a running service needs comes across: every sensor type,
 //! standard, customer and item, every token (its hash; revoked ones stay revoked), every calibration with its
 //! result and submission byte for byte and its signatures (replayed in order,
-//! through the same checks), every nonconformity of a standard with the
+//! through the same checks) and issued certificates (every revision, byte for
+//! byte), every nonconformity of a standard with the
 //! calibrations of its window, the sensors' assigned types, and the
 //! completed idempotency keys still within their retention (so a station's
 //! retry after the move is still answered with its calibration). Sensor
@@ -54,6 +55,8 @@ pub struct Copied {
     pub calibrations: usize,
     /// Signatures on them (approvals, rejections, withdrawals).
     pub signatures: usize,
+    /// Revisions of issued certificates.
+    pub certificates: usize,
     /// Nonconformities of standards, with the calibrations of their
     /// windows.
     pub nonconformities: usize,
@@ -146,6 +149,32 @@ async fn copy_signatures(
     Ok(wanted.len() - there.len())
 }
 
+/// Copies onto the target the revisions of calibration `id`'s issued
+/// certificate it does not hold yet, as they were issued (the documents byte
+/// for byte); how many were copied.
+async fn copy_certificates(
+    from: &dyn Store,
+    to: &dyn Store,
+    id: uuid::Uuid,
+) -> Result<usize, CopyError> {
+    let wanted = from.revisions(id).await?;
+    let there = to.revisions(id).await?;
+    let conflict = || CopyError::Conflict(format!("calibration `{id}`'s certificate"));
+    if there.len() > wanted.len() || wanted[..there.len()] != there[..] {
+        return Err(conflict());
+    }
+    for r in &wanted[there.len()..] {
+        let c = from
+            .certificate(id, Some(r.revision))
+            .await?
+            .ok_or_else(conflict)?;
+        if !to.issue_certificate(c).await? {
+            return Err(conflict());
+        }
+    }
+    Ok(wanted.len() - there.len())
+}
+
 /// Copies everything from `from` (described as `source`) into `to` (which
 /// must be empty unless `into_non_empty`, or the target of an unfinished
 /// copy), as of `now`.
@@ -227,6 +256,7 @@ pub async fn copy(
                 copied.calibrations += 1;
             }
             copied.signatures += copy_signatures(from, to, id).await?;
+            copied.certificates += copy_certificates(from, to, id).await?;
         }
     }
     for standard in from.standards().await? {

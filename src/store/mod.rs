@@ -17,6 +17,7 @@ pub mod cache;
 pub mod conditional;
 pub mod copy;
 mod error;
+pub mod issued;
 pub mod postgres;
 mod records;
 pub mod sqlite;
@@ -29,6 +30,7 @@ use uuid::Uuid;
 pub use audit::AuditQuery;
 pub use conditional::{Precondition, Put};
 pub use error::{BoxError, StoreError};
+pub use issued::{IssuedCertificate, Render, Rendered, Revision};
 pub use records::*;
 
 use crate::domain::audit::{Actor, Entry};
@@ -54,6 +56,7 @@ pub trait Store:
     + Audit
     + Calibrations
     + Reviews
+    + Certificates
     + Customers
     + Sensors
     + SensorTypes
@@ -69,6 +72,7 @@ impl<T> Store for T where
         + Audit
         + Calibrations
         + Reviews
+        + Certificates
         + Customers
         + Sensors
         + SensorTypes
@@ -82,8 +86,8 @@ impl<T> Store for T where
 /// Every concern trait, for `use crate::store::prelude::*`.
 pub mod prelude {
     pub use super::{
-        Audit, Calibrations, Customers, Database, Idempotency, Reviews, SensorTypes, Sensors,
-        Sessions, Standards, Store, Tokens,
+        Audit, Calibrations, Certificates, Customers, Database, Idempotency, Reviews, SensorTypes,
+        Sensors, Sessions, Standards, Store, Tokens,
     };
 }
 
@@ -219,6 +223,17 @@ pub trait Reviews: Send + Sync + 'static {
         replacement: NewCalibration,
         act: Act,
     ) -> Result<Signed, StoreError>;
+    /// [`Reviews::sign`] of an approval that issues the certificate: in the
+    /// same transaction, when the calibration has no issued certificate yet,
+    /// `render` renders it with the signatures the approval leaves and it is
+    /// stored as revision 1, the approval's audit entry carrying the SHA-256
+    /// of each document ([`issued`]).
+    async fn approve_issuing(
+        &self,
+        id: Uuid,
+        act: Act,
+        render: Render,
+    ) -> Result<Signed, StoreError>;
     /// A calibration's signatures, in order (none for an unknown one).
     async fn signatures(&self, id: Uuid) -> Result<Vec<Signature>, StoreError>;
     /// The calibrations performed with standard `standard_id` within
@@ -249,6 +264,28 @@ pub trait Reviews: Send + Sync + 'static {
     /// calibrations as they stand now (a superseded one with the last of
     /// its replacements).
     async fn nonconformities(&self, standard_id: String) -> Result<Vec<Traced>, StoreError>;
+}
+
+/// Issued certificates ([`issued`]): frozen revisions of each approved
+/// calibration's certificate.
+#[async_trait]
+pub trait Certificates: Send + Sync + 'static {
+    /// Revision `revision` of calibration `id`'s issued certificate, else
+    /// its latest; none when it has no such revision.
+    async fn certificate(
+        &self,
+        id: Uuid,
+        revision: Option<u32>,
+    ) -> Result<Option<IssuedCertificate>, StoreError>;
+    /// Every revision of calibration `id`'s certificate, without the
+    /// documents, oldest first.
+    async fn revisions(&self, id: Uuid) -> Result<Vec<Revision>, StoreError>;
+    /// Stores `c`, when the latest revision is `c.revision − 1` (none for
+    /// revision 1), and appends `certificate.issue` (revision 1: a
+    /// calibration approved before certificates were issued at approval) or
+    /// `certificate.amend` with its digests and reason; false, writing
+    /// nothing, when another revision got there first.
+    async fn issue_certificate(&self, c: IssuedCertificate) -> Result<bool, StoreError>;
 }
 
 /// Sensors: each one's summary with its latest calibration, and its type.

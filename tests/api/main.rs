@@ -16,6 +16,7 @@ mod customers;
 mod dcc;
 mod endpoints;
 mod errors;
+mod frozen;
 mod hardening;
 mod idempotency;
 mod limits;

@@ -188,7 +188,7 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=12).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=13).collect::<Vec<_>>());
     // Version 4: tokens' changes are notified.
     let triggers = c
         .query(

@@ -19,16 +19,16 @@
 
 use std::sync::LazyLock;
 
-use axum::extract::{Path, State};
-use axum::http::{HeaderMap, HeaderValue, header};
-use axum::response::{IntoResponse, Response};
+use axum::extract::{Path, RawQuery, State};
+use axum::http::{HeaderMap, header};
+use axum::response::Response;
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD;
 use maud::{DOCTYPE, Markup, PreEscaped, html};
 use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
-use super::calibration::{StoredDoc, as_found, budget, decision, when};
+use super::calibration::{as_found, budget, decision, when};
 use super::format::{dof, factor, num, percent, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
 use super::session::Viewer;
@@ -40,7 +40,7 @@ use crate::http::{AppState, path_id};
 /// The certificate's Content-Security-Policy: its own inline stylesheet
 /// (by hash), the laboratory's logo embedded as a `data:` image, and
 /// nothing else.
-static CSP: LazyLock<String> = LazyLock::new(|| {
+pub static CSP: LazyLock<String> = LazyLock::new(|| {
     let hash = STANDARD.encode(Sha256::digest(STYLESHEET.as_bytes()));
     format!(
         "default-src 'none'; style-src 'sha256-{hash}'; img-src data:; frame-ancestors 'none'; \
@@ -72,6 +72,37 @@ pub struct Context {
     pub item: Option<crate::domain::customers::Item>,
     /// The item's customer, when recorded.
     pub customer: Option<crate::domain::customers::Customer>,
+    /// When this is an amendment: which, and why.
+    pub amendment: Option<Amendment>,
+}
+
+/// An amendment of an issued certificate: revision `number + 1` of the
+/// same certificate number.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Amendment {
+    /// 1 for the first amendment (revision 2).
+    pub number: u32,
+    /// Why it was amended.
+    pub reason: String,
+}
+
+impl Context {
+    /// The certificate's identifier: the calibration id, and for an
+    /// amendment `-A` and its number (`…-A1`).
+    pub fn identifier(&self, id: &uuid::Uuid) -> String {
+        match &self.amendment {
+            Some(a) => format!("{id}-A{}", a.number),
+            None => id.to_string(),
+        }
+    }
+
+    /// The identifier of the revision this one amends.
+    pub fn amends(&self, id: &uuid::Uuid) -> Option<String> {
+        self.amendment.as_ref().map(|a| match a.number {
+            1 => id.to_string(),
+            n => format!("{id}-A{}", n - 1),
+        })
+    }
 }
 
 /// The certificate document.
@@ -240,6 +271,12 @@ pub fn frame(f: &Frame<'_>, c: &Context, body: Markup) -> Markup {
                             }
                             h1 { "Calibration certificate" }
                             p.muted { "No. " code { (id) } }
+                            @if let Some(a) = &c.amendment {
+                                p.cert-replaces {
+                                    "Amendment " (a.number) " to certificate No. " code { (id) }
+                                    " (revision " (a.number + 1) "), which it replaces. Reason: " (a.reason)
+                                }
+                            }
                             @if let Some(s) = f.supersedes {
                                 (replaces(s))
                             }
@@ -497,37 +534,23 @@ pub async fn context(
         url: own_url(state, headers, &id),
         issued: Timestamp::now(),
         laboratory: state.web.laboratory.clone(),
+        amendment: None,
     })
 }
 
 /// The certificate of calibration `raw_id`, as a response: the Digital
 /// Calibration Certificate when the request's `Accept` prefers XML, the
-/// printable HTML otherwise.
+/// printable HTML otherwise — as issued, revision `query`'s `revision` or
+/// the latest ([`super::issue`]).
 pub async fn respond(
     state: &AppState,
     headers: &HeaderMap,
     raw_id: &str,
+    query: Option<&str>,
 ) -> Result<Response, Problem> {
-    if super::dcc::prefers_xml(headers) {
-        return super::dcc::respond(state, headers, raw_id).await;
-    }
-    let page = match super::calibration::load_stored(state, raw_id).await? {
-        StoredDoc::Axis(d) => render(&d, &context(state, headers, raw_id, &d.sensor_id).await?),
-        StoredDoc::Triad(d) => {
-            let ctx = context(state, headers, raw_id, &d.sensor_id).await?;
-            super::triad_certificate::render(&d, &ctx)
-        }
-    };
-    let mut res = page.into_string().into_response();
-    let h = res.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("text/html; charset=utf-8"),
-    );
-    if let Ok(v) = HeaderValue::from_str(&CSP) {
-        h.insert(header::CONTENT_SECURITY_POLICY, v);
-    }
-    Ok(res)
+    let revision = super::issue::revision(query)?;
+    let xml = super::dcc::prefers_xml(headers);
+    super::issue::respond(state, headers, raw_id, revision, xml).await
 }
 
 /// `GET /ui/calibrations/{id}/certificate`.
@@ -536,8 +559,10 @@ pub async fn ui_page(
     _viewer: Viewer,
     headers: HeaderMap,
     Path(id): Path<String>,
+    RawQuery(query): RawQuery,
 ) -> Result<Response, UiError> {
-    Ok(respond(&state, &headers, &id).await?)
+    let revision = super::issue::revision(query.as_deref())?;
+    Ok(super::issue::respond(&state, &headers, &id, revision, false).await?)
 }
 
 /// `GET /ui/calibrations/{id}/certificate.xml`: the Digital Calibration
@@ -547,8 +572,10 @@ pub async fn ui_dcc(
     _viewer: Viewer,
     headers: HeaderMap,
     Path(id): Path<String>,
+    RawQuery(query): RawQuery,
 ) -> Result<Response, UiError> {
-    Ok(super::dcc::respond(&state, &headers, &id).await?)
+    let revision = super::issue::revision(query.as_deref())?;
+    Ok(super::issue::respond(&state, &headers, &id, revision, true).await?)
 }
 
 #[cfg(test)]

@@ -43,11 +43,9 @@
 //! persons responsible), and only when the laboratory's name and country
 //! and the item's customer are recorded: the schema requires them.
 
-use axum::http::{HeaderMap, HeaderValue, header};
-use axum::response::{IntoResponse, Response};
+use axum::http::{HeaderMap, header};
 use maud::{Markup, PreEscaped, html};
 
-use super::calibration::StoredDoc;
 use super::certificate::{Context, PAPER};
 use super::format::value_and_uncertainty;
 use super::result::{Covered, ResultDoc};
@@ -362,10 +360,14 @@ pub fn render(d: &ResultDoc, c: &Context) -> String {
 /// results `results`.
 pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
     let approvals = approvals(&c.signatures);
-    let issued = approvals
-        .last()
-        .map(|s| s.signed_at.to_string())
-        .unwrap_or_else(|| c.issued.to_string());
+    // Issued with its approval; an amendment when it was amended.
+    let issued = match &c.amendment {
+        Some(_) => c.issued.to_string(),
+        None => approvals
+            .last()
+            .map(|s| s.signed_at.to_string())
+            .unwrap_or_else(|| c.issued.to_string()),
+    };
     let country = c.laboratory.country.as_deref();
     let lab_name = c.laboratory.name.as_deref().unwrap_or("");
     let doc = html! {
@@ -381,7 +383,7 @@ pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
                     dcc:countryCodeISO3166_1 { (country.unwrap_or("")) }
                     dcc:usedLangCodeISO639_1 { "en" }
                     dcc:mandatoryLangCodeISO639_1 { "en" }
-                    dcc:uniqueIdentifier { (d.id) }
+                    dcc:uniqueIdentifier { (c.identifier(&d.id)) }
                     dcc:identifications {
                         dcc:identification {
                             dcc:issuer { "calibrationLaboratory" }
@@ -399,7 +401,12 @@ pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
                     dcc:endPerformanceDate { (date(d.performed_at)) }
                     dcc:performanceLocation { "laboratory" }
                     dcc:issueDate { (date(&issued)) }
-                    @if let Some(s) = d.supersedes {
+                    @if let Some(amends) = c.amends(&d.id) {
+                        dcc:reportAmendedSubstituted {
+                            dcc:typeOfChange { "amended" }
+                            dcc:replacedUniqueIdentifier { (amends) }
+                        }
+                    } @else if let Some(s) = d.supersedes {
                         dcc:reportAmendedSubstituted {
                             dcc:typeOfChange { "substituted" }
                             dcc:replacedUniqueIdentifier { (s.calibration_id) }
@@ -629,6 +636,17 @@ fn statements(d: &Admin<'_>, c: &Context) -> Markup {
                     }
                 }
             }
+            @if let Some(a) = &c.amendment {
+                dcc:statement {
+                    dcc:name { (content(&format!("Amendment {}", a.number))) }
+                    dcc:declaration { (content(&format!(
+                        "This certificate (revision {}) amends and replaces {}. Reason: {}",
+                        a.number + 1,
+                        c.amends(&d.id).unwrap_or_default(),
+                        a.reason
+                    ))) }
+                }
+            }
             dcc:statement {
                 dcc:name { (content("Scope of the results")) }
                 dcc:declaration { (content("The results relate only to the item calibrated.")) }
@@ -790,37 +808,6 @@ pub fn conditions(
     }
 }
 
-/// The DCC of calibration `raw_id` as a response (`application/xml`), or
-/// the problem that prevents one.
-pub async fn respond(
-    state: &crate::http::AppState,
-    headers: &HeaderMap,
-    raw_id: &str,
-) -> Result<Response, Problem> {
-    let (id, xml) = match super::calibration::load_stored(state, raw_id).await? {
-        StoredDoc::Axis(d) => {
-            let ctx = super::certificate::context(state, headers, raw_id, &d.sensor_id).await?;
-            issuable(&ctx)?;
-            (d.id, render(&d, &ctx))
-        }
-        StoredDoc::Triad(d) => {
-            let ctx = super::certificate::context(state, headers, raw_id, &d.sensor_id).await?;
-            issuable(&ctx)?;
-            (d.id, super::triad_dcc::render(&d, &ctx))
-        }
-    };
-    let mut res = xml.into_response();
-    let h = res.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static("application/xml; charset=utf-8"),
-    );
-    if let Ok(v) = HeaderValue::from_str(&format!("inline; filename=\"dcc-{id}.xml\"")) {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    Ok(res)
-}
-
 /// Whether a request's `Accept` prefers XML (`application/xml` or
 /// `text/xml`) to HTML: by quality, ties going to HTML; without an
 /// `Accept`, HTML.
@@ -898,7 +885,10 @@ mod tests {
     fn accept_negotiation() {
         let h = |v: &str| {
             let mut m = HeaderMap::new();
-            m.insert(header::ACCEPT, HeaderValue::from_str(v).unwrap());
+            m.insert(
+                header::ACCEPT,
+                axum::http::HeaderValue::from_str(v).unwrap(),
+            );
             m
         };
         assert!(!prefers_xml(&HeaderMap::new()));

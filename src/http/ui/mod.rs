@@ -21,6 +21,7 @@ pub mod certificate;
 pub mod dcc;
 pub mod fleet;
 pub mod format;
+pub mod issue;
 pub mod plot;
 pub mod result;
 pub mod review;

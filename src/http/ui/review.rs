@@ -272,6 +272,6 @@ pub async fn sign(
         .act(signer, now)
         .map_err(Problem::from)?,
     };
-    crate::http::reviews::record(&state, id, act).await?;
+    crate::http::reviews::record(&state, &headers, id, act).await?;
     Ok(Redirect::to(&format!("/ui/calibrations/{id}#review")).into_response())
 }

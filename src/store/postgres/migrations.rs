@@ -23,6 +23,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0010_audit.sql"),
     include_str!("migrations/0011_nonconformities.sql"),
     include_str!("migrations/0012_triads.sql"),
+    include_str!("migrations/0013_certificates.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

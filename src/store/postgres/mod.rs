@@ -33,6 +33,7 @@ macro_rules! op {
 mod audit;
 mod batch;
 mod calibrations;
+mod certificates;
 pub mod connect;
 mod customers;
 mod definitions;

@@ -16,8 +16,8 @@ use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced}
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, chain_end_sql, earlier_submitters_sql,
-    made_with_sql, sensor_forget, sensor_recompute,
+    IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError,
+    chain_end_sql, earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -48,6 +48,7 @@ async fn sign(
     id: Uuid,
     act: &Act,
     replacement: Option<&Row>,
+    render: Option<Render>,
 ) -> Result<(Signed, Vec<Event>), StoreError> {
     // The standards a replacement names, locked before anything else
     // ([`super::holds`]).
@@ -125,6 +126,41 @@ async fn sign(
         held = super::holds::place(tx, r.new_calibration(), &inherited).await?;
     }
     insert_signature(tx, id, &s).await?;
+    // An approval issues the certificate, with the signatures it leaves,
+    // unless one was issued already (an approval after a hold); the
+    // calibration's row is locked, so revisions follow one another.
+    let unissued = match &render {
+        Some(_) => super::certificates::latest(tx, id).await? == 0,
+        None => false,
+    };
+    let issued = match render {
+        Some(render) if unissued => {
+            let signatures = tx
+                .query(
+                    &format!(
+                        "SELECT {SIGNATURE_COLUMNS} FROM signatures WHERE calibration_id = $1 \
+                         ORDER BY seq"
+                    ),
+                    &[&id],
+                )
+                .await
+                .map_err(map)?
+                .iter()
+                .map(rows::signature)
+                .collect::<Result<Vec<_>, _>>()?;
+            let c = IssuedCertificate::new(
+                id,
+                1,
+                s.signed_at,
+                Actor::from(&act.signer),
+                None,
+                render(&signatures, s.state),
+            );
+            super::certificates::insert(tx, &c).await?;
+            Some(c)
+        }
+        _ => None,
+    };
     // The sensor's row locked first, in a statement of its own: the
     // recompute's own snapshot, taken after the lock is held, then sees
     // every calibration committed before it (under READ COMMITTED a
@@ -146,7 +182,10 @@ async fn sign(
         None => Vec::new(),
     };
     events.extend(held);
-    events.push(crate::store::audit::signed(id, &s, state));
+    events.push(match &issued {
+        Some(c) => crate::store::audit::signed_issuing(id, &s, state, c),
+        None => crate::store::audit::signed(id, &s, state),
+    });
     Ok((Signed::Done(s, sensor_id), events))
 }
 
@@ -263,7 +302,7 @@ async fn hold(
     let mut events = vec![crate::store::audit::nonconformity(nc, made.len())];
     let mut out = Vec::with_capacity(made.len());
     for m in made {
-        let now = match sign(tx, m.calibration_id, act, None).await? {
+        let now = match sign(tx, m.calibration_id, act, None, None).await? {
             (Signed::Done(s, _), signed) => {
                 events.extend(signed);
                 s.state
@@ -320,12 +359,14 @@ fn affected(r: &tokio_postgres::Row) -> Result<Affected, StoreError> {
 }
 
 impl PostgresStore {
-    /// [`Reviews::sign`], with the replacement of a supersession.
+    /// [`Reviews::sign`], with the replacement of a supersession, or the
+    /// rendering of the certificate an approval issues.
     async fn record(
         &self,
         id: Uuid,
         act: Act,
         replacement: Option<Row>,
+        render: Option<Render>,
     ) -> Result<Signed, StoreError> {
         // A calibration's sensor never changes: read it first, to know
         // which cached entry the write concerns.
@@ -351,7 +392,7 @@ impl PostgresStore {
         let write = async move {
             op!(this, "sign", |client| {
                 let tx = client.transaction().await.map_err(map)?;
-                let (out, events) = sign(&tx, id, &act, replacement.as_ref()).await?;
+                let (out, events) = sign(&tx, id, &act, replacement.as_ref(), render).await?;
                 if matches!(out, Signed::Done(..)) {
                     super::audit::append(&tx, events).await?;
                     tx.commit().await.map_err(map)?;
@@ -369,7 +410,16 @@ impl Reviews for PostgresStore {
     /// and dropped ([`crate::store::cache::Cache::changing`]); the sensor's
     /// row being written, every other replica drops it too.
     async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError> {
-        self.record(id, act, None).await
+        self.record(id, act, None, None).await
+    }
+
+    async fn approve_issuing(
+        &self,
+        id: Uuid,
+        act: Act,
+        render: Render,
+    ) -> Result<Signed, StoreError> {
+        self.record(id, act, None, Some(render)).await
     }
 
     async fn supersede(
@@ -379,7 +429,7 @@ impl Reviews for PostgresStore {
         act: Act,
     ) -> Result<Signed, StoreError> {
         let row = Row::new(replacement)?;
-        self.record(id, act, Some(row)).await
+        self.record(id, act, Some(row), None).await
     }
 
     async fn made_with(

@@ -27,6 +27,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0013_audit.sql"),
     include_str!("migrations/0014_nonconformities.sql"),
     include_str!("migrations/0015_triads.sql"),
+    include_str!("migrations/0016_certificates.sql"),
 ];
 
 /// Brings the database to the latest schema.

@@ -12,6 +12,7 @@
 
 mod audit;
 mod calibrations;
+mod certificates;
 mod customers;
 mod definitions;
 mod errors;

@@ -7,12 +7,13 @@ use uuid::Uuid;
 
 use super::SqliteStore;
 use super::rows;
+use crate::domain::audit::Actor;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
-    MadeWith, NewCalibration, Reviews, Signed, StoreError, Stored, chain_end_sql,
-    earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
+    IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError, Stored,
+    chain_end_sql, earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -27,6 +28,7 @@ fn sign(
     id: Uuid,
     act: &Act,
     replacement: Option<NewCalibration>,
+    render: Option<Render>,
 ) -> Result<(Signed, bool), StoreError> {
     let found = rows::first(
         conn,
@@ -95,7 +97,37 @@ fn sign(
         }
     }
     insert(conn, id, &signature)?;
-    super::audit::append(conn, crate::store::audit::signed(id, &signature, state))?;
+    // An approval issues the certificate, with the signatures it leaves,
+    // unless one was issued already (an approval after a hold).
+    let issued = match render {
+        Some(render) if super::certificates::latest(conn, &id.to_string())? == 0 => {
+            let signatures = rows::all(
+                conn,
+                &format!(
+                    "SELECT {SIGNATURE_COLUMNS} FROM signatures WHERE calibration_id = ?1 \
+                     ORDER BY seq"
+                ),
+                [id.to_string()],
+                rows::signature,
+            )?;
+            let c = IssuedCertificate::new(
+                id,
+                1,
+                signature.signed_at,
+                Actor::from(&act.signer),
+                None,
+                render(&signatures, signature.state),
+            );
+            super::certificates::insert(conn, &c)?;
+            Some(c)
+        }
+        _ => None,
+    };
+    let event = match &issued {
+        Some(c) => crate::store::audit::signed_issuing(id, &signature, state, c),
+        None => crate::store::audit::signed(id, &signature, state),
+    };
+    super::audit::append(conn, event)?;
     rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
     rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
     Ok((Signed::Done(signature, sensor_id), true))
@@ -213,7 +245,7 @@ fn hold(conn: &Connection, nc: &Nonconformity, act: &Act) -> Result<Vec<Affected
     super::audit::append(conn, crate::store::audit::nonconformity(nc, made.len()))?;
     let mut out = Vec::with_capacity(made.len());
     for m in made {
-        let now = match sign(conn, m.calibration_id, act, None)?.0 {
+        let now = match sign(conn, m.calibration_id, act, None, None)?.0 {
             Signed::Done(s, _) => s.state,
             // It no longer counted, or was under review already: left.
             _ => m.state,
@@ -237,12 +269,14 @@ fn made_with(r: &rusqlite::Row<'_>) -> Result<MadeWith, StoreError> {
 }
 
 impl SqliteStore {
-    /// [`Reviews::sign`], with the replacement of a supersession.
+    /// [`Reviews::sign`], with the replacement of a supersession, or the
+    /// rendering of the certificate an approval issues.
     async fn record(
         &self,
         id: Uuid,
         act: Act,
         replacement: Option<NewCalibration>,
+        render: Option<Render>,
     ) -> Result<Signed, StoreError> {
         self.follow_the_file()?;
         // A calibration's sensor never changes: read it first, to know
@@ -268,8 +302,10 @@ impl SqliteStore {
         }
         let this = self.clone();
         let write = async move {
-            this.write("sign", move |conn| sign(conn, id, &act, replacement))
-                .await
+            this.write("sign", move |conn| {
+                sign(conn, id, &act, replacement, render)
+            })
+            .await
         };
         self.cache.changing(&sensors, write).await
     }
@@ -280,7 +316,16 @@ impl Reviews for SqliteStore {
     /// In the writer's next batch, the sensor's cached summary held back
     /// and dropped ([`crate::store::cache::Cache::changing`]).
     async fn sign(&self, id: Uuid, act: Act) -> Result<Signed, StoreError> {
-        self.record(id, act, None).await
+        self.record(id, act, None, None).await
+    }
+
+    async fn approve_issuing(
+        &self,
+        id: Uuid,
+        act: Act,
+        render: Render,
+    ) -> Result<Signed, StoreError> {
+        self.record(id, act, None, Some(render)).await
     }
 
     async fn supersede(
@@ -290,7 +335,7 @@ impl Reviews for SqliteStore {
         act: Act,
     ) -> Result<Signed, StoreError> {
         replacement.check()?;
-        self.record(id, act, Some(replacement)).await
+        self.record(id, act, Some(replacement), None).await
     }
 
     async fn made_with(

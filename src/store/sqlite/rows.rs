@@ -33,7 +33,7 @@ where
     parse(&text).map_err(|e| StoreError::corrupt(format!("column `{column}` ({text:?})"), e))
 }
 
-fn timestamp(row: &Row<'_>, column: &str) -> Result<Timestamp, StoreError> {
+pub fn timestamp(row: &Row<'_>, column: &str) -> Result<Timestamp, StoreError> {
     decoded(row, column, Timestamp::parse)
 }
 
