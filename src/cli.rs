@@ -200,11 +200,25 @@ struct SubmitArgs {
 
 #[derive(Debug, Subcommand)]
 enum AuditCommand {
-    /// Recompute the audit trail's hash chain and check every stored
-    /// calibration against the digests its entry recorded; print the head
-    /// (keep it elsewhere) and exit 0, or name the first entry that does not
-    /// hold and exit 1.
+    /// Recompute the audit trail's hash chain, and check every row the
+    /// service serves or acts on — calibrations and every served column,
+    /// signatures, issued certificates, standards, customers, items, sensor
+    /// types, tokens, nonconformities, sensors — against it; print the head
+    /// (keep it elsewhere) and the rows checked, and exit 0, or name the
+    /// first entry that does not hold, or every row that does not (edited,
+    /// inserted or deleted behind the service's back, or never audited), and
+    /// exit 1.
     Verify {
+        /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
+        #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
+        database: String,
+    },
+    /// Record in the trail, by the operator running it, every row `verify`
+    /// finds without any audit entry — rows a database held before its
+    /// trail — with the SHA-256 of its content, so that `verify` covers them
+    /// from then on; print what it adopted. Refused when the chain is broken
+    /// or any row differs from its entries: an edit is never adopted.
+    Adopt {
         /// Database: a SQLite file path (or sqlite://PATH), or postgres://… .
         #[arg(long, env = "ACCELCAL_DATABASE_URL", default_value = "accelcal.db")]
         database: String,
@@ -282,6 +296,7 @@ pub fn main() -> ExitCode {
             into_non_empty,
         } => run_async(migrate(from, to, into_non_empty)),
         Command::Audit(AuditCommand::Verify { database }) => run_async(verify_audit(database)),
+        Command::Audit(AuditCommand::Adopt { database }) => run_async(adopt_audit(database)),
         Command::Openapi => out(&openapi_document()),
     }
 }
@@ -562,6 +577,32 @@ async fn verify_audit(database: String) -> anyhow::Result<ExitCode> {
             Ok(ExitCode::FAILURE)
         }
     }
+}
+
+async fn adopt_audit(database: String) -> anyhow::Result<ExitCode> {
+    use anyhow::Context;
+    existing(&database, false)?;
+    let store = crate::store::open(&database)
+        .await
+        .with_context(|| format!("opening {database}"))?;
+    let adoption =
+        crate::store::verify::adoption(store.as_ref(), crate::domain::audit::Actor::command_line())
+            .await;
+    let out_code = match adoption {
+        Ok(events) => {
+            let objects: Vec<&str> = events.iter().map(|e| e.object.as_str()).collect();
+            let report = serde_json::json!({"adopted": objects.len(), "objects": objects});
+            let printed = serde_json::to_string_pretty(&report)?;
+            store.record(events).await?;
+            out(&printed)
+        }
+        Err(e) => {
+            eprintln!("accelcal: nothing adopted: {e}");
+            ExitCode::FAILURE
+        }
+    };
+    store.close().await;
+    Ok(out_code)
 }
 
 /// `accelcal token create`'s optional flags.

@@ -7,7 +7,7 @@ use serde_json::{Map, Value, json};
 use sha2::{Digest, Sha256};
 use uuid::Uuid;
 
-use super::{NewCalibration, StoreError};
+use super::NewCalibration;
 use crate::domain::audit::{self, Actor, Event};
 use crate::domain::review::{Signature, State};
 use crate::domain::timestamp::Timestamp;
@@ -42,9 +42,11 @@ fn sha256(bytes: &[u8]) -> String {
 }
 
 /// `calibration.submitted`: a calibration stored, by the token that
-/// submitted it, at its reception; the change names its sensor and the
-/// SHA-256 of its submission and of its result document, so that the trail
-/// also vouches for the stored bytes.
+/// submitted it, at its reception; the change names its sensor, the SHA-256
+/// of its submission and of its result document — so that the trail also
+/// vouches for the stored bytes — the SHA-256 of its served columns
+/// (`row_sha256`, [`super::verify`]), its media type, and the sensor type
+/// in force and whether it became the sensor's.
 pub fn stored(n: &NewCalibration, by: Actor) -> Event {
     Event::new(
         n.received_at,
@@ -57,6 +59,10 @@ pub fn stored(n: &NewCalibration, by: Actor) -> Event {
             "performed_at": n.performed_at.to_string(),
             "submission_sha256": sha256(&n.submission),
             "result_sha256": sha256(&n.result),
+            "row_sha256": super::verify::rows::columns_digest(n),
+            "content_type": n.content_type,
+            "sensor_type": n.sensor_type,
+            "assigns_type": n.assigns_type,
         })),
     )
 }
@@ -81,6 +87,16 @@ pub fn signed(id: Uuid, s: &Signature, from: State) -> Event {
             "superseded_by": s.superseded_by,
         })),
     )
+}
+
+/// [`signed`] of a hold placed as a calibration is stored, naming the
+/// nonconformities that hold it.
+pub fn held_on_storing(id: Uuid, s: &Signature, nonconformities: &[Uuid]) -> Event {
+    let mut e = signed(id, s, State::Submitted);
+    let mut change: Map<String, Value> = serde_json::from_str(&e.change).unwrap_or_default();
+    change.insert("nonconformities".into(), json!(nonconformities));
+    e.change = Value::Object(change).to_string();
+    e
 }
 
 /// [`signed`] of an approval that issued the certificate `c` (revision 1):
@@ -160,7 +176,9 @@ pub fn retyped(sensor_id: &str, type_id: &str, at: Timestamp, by: Actor) -> Even
     )
 }
 
-/// `token.create`: a token issued (never its secret or hash).
+/// `token.create`: a token issued — never its secret or the hash stored of
+/// it, but the SHA-256 of that hash, so that a hash swapped behind the
+/// service's back (another secret let in) is found.
 pub fn token_created(t: &crate::domain::tokens::TokenRecord, by: Actor) -> Event {
     Event::new(
         t.created_at,
@@ -172,6 +190,7 @@ pub fn token_created(t: &crate::domain::tokens::TokenRecord, by: Actor) -> Event
             "station_id": t.station_id,
             "label": t.label,
             "holder": t.holder,
+            "secret_hash_sha256": sha256(&t.secret_hash),
         })),
     )
 }
@@ -217,106 +236,13 @@ pub fn submitter(token_id: &str, found: Option<(String, Option<String>)>) -> Act
     }
 }
 
-/// What [`verify`] found in an intact trail.
-#[derive(Debug, Clone, PartialEq, Eq, Serialize)]
-pub struct Verified {
-    /// Entries checked.
-    pub entries: i64,
-    /// The last entry's sequence number (0 for an empty trail).
-    pub head_seq: i64,
-    /// The last entry's hash: what to keep elsewhere, so that a trail cut
-    /// short can be told from this one.
-    pub head_hash: String,
-    /// Calibrations whose stored submission and result were checked
-    /// against the SHA-256 their `calibration.submitted` entry recorded.
-    pub calibrations: i64,
-}
-
-/// Why [`verify`] failed: the chain broken, or a calibration's stored bytes
-/// no longer those its entry vouched for.
-#[derive(Debug, thiserror::Error)]
-pub enum VerifyError {
-    /// The database could not be read.
-    #[error(transparent)]
-    Store(#[from] StoreError),
-    /// The chain does not hold at an entry.
-    #[error(transparent)]
-    Broken(#[from] audit::Broken),
-}
-
-/// Entries read per round trip by [`verify`].
-const VERIFY_PAGE: usize = 1000;
-
-/// Recomputes the whole chain of `store`'s trail, in sequence order
-/// ([`audit::Chain`]), and checks each `calibration.submitted` entry's
-/// SHA-256 of the submission and result against the bytes stored now.
-pub async fn verify(store: &dyn super::Store) -> Result<Verified, VerifyError> {
-    let mut chain = audit::Chain::default();
-    let mut calibrations = 0;
-    loop {
-        let page = store
-            .audit(AuditQuery {
-                after: chain.head.0,
-                limit: VERIFY_PAGE,
-                ..AuditQuery::default()
-            })
-            .await?;
-        if page.is_empty() {
-            break;
-        }
-        for e in &page {
-            chain.check(e)?;
-            if e.action == "calibration.submitted" {
-                check_stored(store, e).await?;
-                calibrations += 1;
-            }
-        }
-    }
-    Ok(Verified {
-        entries: chain.head.0,
-        head_seq: chain.head.0,
-        head_hash: chain.head.1,
-        calibrations,
-    })
-}
-
-/// Checks the calibration of a `calibration.submitted` entry against the
-/// digests it recorded.
-async fn check_stored(store: &dyn super::Store, e: &audit::Entry) -> Result<(), VerifyError> {
-    let broken = |why: String| audit::Broken { seq: e.seq, why };
-    let id = e
-        .object
-        .strip_prefix("calibrations/")
-        .and_then(|id| Uuid::try_parse(id).ok())
-        .ok_or_else(|| broken(format!("its object {} is not a calibration", e.object)))?;
-    let change: Value =
-        serde_json::from_str(&e.change).map_err(|_| broken("its change is not JSON".into()))?;
-    let recorded = |field: &str| change.get(field).and_then(Value::as_str).map(str::to_owned);
-    let submission = store.submission(id).await?;
-    let result = store.calibration_result(id).await?;
-    let (Some(submission), Some(result)) = (submission, result) else {
-        return Err(broken(format!("calibration {id} is no longer stored (deleted)")).into());
-    };
-    if recorded("submission_sha256") != Some(sha256(&submission.body)) {
-        return Err(broken(format!(
-            "calibration {id}'s stored submission is not the one recorded (edited)"
-        ))
-        .into());
-    }
-    if recorded("result_sha256") != Some(sha256(&result)) {
-        return Err(broken(format!(
-            "calibration {id}'s stored result is not the one recorded (edited)"
-        ))
-        .into());
-    }
-    Ok(())
-}
+pub use super::verify::{Verified, VerifyError, verify};
 
 /// `standard.nonconformity`: a standard found nonconforming, with its
-/// window and how many calibrations it holds.
+/// window and the calibrations of it, each with its state then.
 pub fn nonconformity(
     nc: &crate::domain::nonconformity::Nonconformity,
-    calibrations: usize,
+    concerned: &[(Uuid, State)],
 ) -> Event {
     Event::new(
         nc.recorded_at,
@@ -329,7 +255,11 @@ pub fn nonconformity(
             "last_known_good_at": nc.last_known_good_at.map(|t| t.to_string()),
             "window_from": nc.window_from.to_string(),
             "reason": nc.reason,
-            "calibrations": calibrations,
+            "calibrations": concerned.len(),
+            "concerned": concerned
+                .iter()
+                .map(|(id, state)| json!({"calibration_id": id, "state_found": state.as_str()}))
+                .collect::<Vec<_>>(),
         })),
     )
 }

@@ -21,6 +21,7 @@ pub mod issued;
 pub mod postgres;
 mod records;
 pub mod sqlite;
+pub mod verify;
 
 use std::sync::Arc;
 
@@ -126,6 +127,9 @@ pub trait Database: Send + Sync + 'static {
 pub trait Audit: Send + Sync + 'static {
     /// The entries `q` selects, in sequence order.
     async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError>;
+    /// Appends `events`, in order, in one transaction (`accelcal audit
+    /// adopt`: the rows a database held before its trail).
+    async fn record(&self, events: Vec<crate::domain::audit::Event>) -> Result<(), StoreError>;
     /// Appends `service.configure` with `settings` (the settings that change
     /// decisions) unless the last such entry recorded the same; true when
     /// it appended.

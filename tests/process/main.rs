@@ -10,3 +10,4 @@ mod migrate;
 mod replicas;
 mod shutdown;
 mod sqlite_file;
+mod verify;

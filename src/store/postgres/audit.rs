@@ -128,6 +128,15 @@ pub async fn stored(
 
 #[async_trait]
 impl Audit for PostgresStore {
+    async fn record(&self, events: Vec<Event>) -> Result<(), StoreError> {
+        op!(self, "audit_record", |client| {
+            let tx = client.transaction().await.map_err(map)?;
+            append(&tx, events).await?;
+            tx.commit().await.map_err(map)?;
+            Ok(())
+        })
+    }
+
     async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError> {
         op!(self, "audit", |client| {
             let limit = i64::try_from(q.limit).unwrap_or(i64::MAX);

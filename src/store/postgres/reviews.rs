@@ -299,7 +299,8 @@ async fn hold(
     .map_err(map)?;
     let made = made_with_in(tx, &nc.standard_id, nc.window_from, nc.found_at).await?;
     insert_nonconformity(tx, nc).await?;
-    let mut events = vec![crate::store::audit::nonconformity(nc, made.len())];
+    let concerned: Vec<(Uuid, State)> = made.iter().map(|m| (m.calibration_id, m.state)).collect();
+    let mut events = vec![crate::store::audit::nonconformity(nc, &concerned)];
     let mut out = Vec::with_capacity(made.len());
     for m in made {
         let now = match sign(tx, m.calibration_id, act, None, None).await? {
@@ -481,7 +482,12 @@ impl Reviews for PostgresStore {
             for c in &t.calibrations {
                 insert_concerned(&tx, &t.nonconformity, c.calibration_id, c.state_found).await?;
             }
-            let event = crate::store::audit::nonconformity(&t.nonconformity, t.calibrations.len());
+            let concerned: Vec<(Uuid, State)> = t
+                .calibrations
+                .iter()
+                .map(|c| (c.calibration_id, c.state_found))
+                .collect();
+            let event = crate::store::audit::nonconformity(&t.nonconformity, &concerned);
             super::audit::append(&tx, vec![event]).await?;
             tx.commit().await.map_err(map)?;
             Ok(())

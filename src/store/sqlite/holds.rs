@@ -101,7 +101,11 @@ pub(super) fn place(
     }
     audit::append(
         conn,
-        crate::store::audit::signed(n.id, &signature, State::Submitted),
+        crate::store::audit::held_on_storing(
+            n.id,
+            &signature,
+            &held.iter().map(|nc| nc.id).collect::<Vec<_>>(),
+        ),
     )?;
     rows::execute(conn, &sensor_recompute("?1"), [&n.sensor_id])?;
     Ok(())

@@ -242,7 +242,8 @@ fn made_with_in(
 fn hold(conn: &Connection, nc: &Nonconformity, act: &Act) -> Result<Vec<Affected>, StoreError> {
     let made = made_with_in(conn, &nc.standard_id, nc.window_from, nc.found_at)?;
     insert_nonconformity(conn, nc)?;
-    super::audit::append(conn, crate::store::audit::nonconformity(nc, made.len()))?;
+    let concerned: Vec<(Uuid, State)> = made.iter().map(|m| (m.calibration_id, m.state)).collect();
+    super::audit::append(conn, crate::store::audit::nonconformity(nc, &concerned))?;
     let mut out = Vec::with_capacity(made.len());
     for m in made {
         let now = match sign(conn, m.calibration_id, act, None, None)?.0 {
@@ -387,7 +388,12 @@ impl Reviews for SqliteStore {
             for c in &t.calibrations {
                 insert_concerned(conn, &t.nonconformity, c.calibration_id, c.state_found)?;
             }
-            let event = crate::store::audit::nonconformity(&t.nonconformity, t.calibrations.len());
+            let concerned: Vec<(Uuid, State)> = t
+                .calibrations
+                .iter()
+                .map(|c| (c.calibration_id, c.state_found))
+                .collect();
+            let event = crate::store::audit::nonconformity(&t.nonconformity, &concerned);
             super::audit::append(conn, event)?;
             Ok(((), true))
         })
