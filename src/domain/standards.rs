@@ -414,28 +414,14 @@ pub struct UsedStandard {
     pub certificate: StandardCertificate,
     /// The due date that certificate set.
     pub due_at: Timestamp,
-    /// A stand's indexing error, arcseconds (1σ).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub angle_std_arcsec: Option<f64>,
-    /// A gravity value's g, m/s².
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gravity_m_s2: Option<f64>,
-    /// A gravity value's relative uncertainty (1σ).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub gravity_rel_std: Option<f64>,
-    /// A thermometer's uncertainty, °C (1σ).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub temperature_std_c: Option<f64>,
-    /// The degrees of freedom the certificate gives its uncertainty
-    /// (absent: infinite).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub degrees_of_freedom: Option<f64>,
+    /// What the certificate in force states: its parameters, their degrees
+    /// of freedom and its statement of traceability.
+    #[serde(flatten)]
+    pub parameters: Parameters,
     /// True when the certificate's own parameters were not recorded and the
     /// standard's were assumed ([`CertificatePeriod::parameters_assumed`]).
     #[serde(default, skip_serializing_if = "std::ops::Not::not")]
     pub parameters_assumed: bool,
-    /// Its statement of traceability.
-    pub traceability: String,
 }
 
 /// The kind a submission's `standards.<role>` must name.
@@ -470,13 +456,8 @@ impl Standard {
             serial: self.serial.clone(),
             certificate: p.certificate,
             due_at: p.due_at,
-            angle_std_arcsec: p.parameters.angle_std_arcsec,
-            gravity_m_s2: p.parameters.gravity_m_s2,
-            gravity_rel_std: p.parameters.gravity_rel_std,
-            temperature_std_c: p.parameters.temperature_std_c,
-            degrees_of_freedom: p.parameters.degrees_of_freedom,
+            parameters: p.parameters,
             parameters_assumed: p.parameters_assumed,
-            traceability: p.parameters.traceability,
         })
     }
 }
@@ -811,9 +792,9 @@ mod tests {
         assert_eq!(
             (
                 under_old.certificate.number.as_str(),
-                under_old.angle_std_arcsec,
-                under_old.degrees_of_freedom,
-                under_old.traceability.as_str(),
+                under_old.parameters.angle_std_arcsec,
+                under_old.parameters.degrees_of_freedom,
+                under_old.parameters.traceability.as_str(),
                 under_old.parameters_assumed
             ),
             ("CAL-2026-0117", Some(60.0), Some(12.0), "old chain", false)
@@ -822,8 +803,8 @@ mod tests {
         assert_eq!(
             (
                 under_new.certificate.number.as_str(),
-                under_new.angle_std_arcsec,
-                under_new.degrees_of_freedom
+                under_new.parameters.angle_std_arcsec,
+                under_new.parameters.degrees_of_freedom
             ),
             ("CAL-NEW", Some(0.5), None)
         );
@@ -850,7 +831,7 @@ mod tests {
         assert_eq!(old.parameters, s.parameters());
         let used = s.used_as("stand", at("2025-09-01T00:00:00Z")).unwrap();
         assert!(used.parameters_assumed);
-        assert_eq!(used.angle_std_arcsec, Some(0.5));
+        assert_eq!(used.parameters.angle_std_arcsec, Some(0.5));
         let v = serde_json::to_value(&s).unwrap();
         assert_eq!(v["earlier"][0]["parameters_assumed"], true);
         assert_eq!(v["earlier"][0]["traceability"], "today's chain");

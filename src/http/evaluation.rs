@@ -193,12 +193,16 @@ pub async fn resolve(
         return Err(Problem::validation(errors.into_invalid()));
     }
     // Each parameter with the degrees of freedom its certificate gives it.
-    let angle = used
-        .iter()
-        .find_map(|u| u.angle_std_arcsec.map(|a| (a, u.degrees_of_freedom)));
-    let gravity = used
-        .iter()
-        .find_map(|u| u.gravity_rel_std.map(|g| (g, u.degrees_of_freedom)));
+    let angle = used.iter().find_map(|u| {
+        u.parameters
+            .angle_std_arcsec
+            .map(|a| (a, u.parameters.degrees_of_freedom))
+    });
+    let gravity = used.iter().find_map(|u| {
+        u.parameters
+            .gravity_rel_std
+            .map(|g| (g, u.parameters.degrees_of_freedom))
+    });
     let stand = StandIn {
         id: used.first().map(|u| u.standard_id.clone()),
         angle_std_arcsec: angle.map_or(0.0, |a| a.0),

@@ -8,7 +8,9 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::StoreError;
-use crate::domain::nonconformity::{Affected, Outcome, Replacement};
+use crate::domain::nonconformity::{
+    Affected, Bearing, Nonconformity, Outcome, Replacement, bearing,
+};
 use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
@@ -77,6 +79,37 @@ pub struct StandardUse {
 }
 
 impl NewCalibration {
+    /// The nonconformities that hold this record when it is stored: those
+    /// of `found` (its standards' nonconformities) inside whose window it
+    /// was performed or whose standard is out of service for it, and those
+    /// `inherited` from the held calibration it supersedes whose standard
+    /// it still uses; each once.
+    pub fn held_by<'a>(
+        &self,
+        found: &'a [Nonconformity],
+        inherited: &'a [Nonconformity],
+    ) -> Vec<&'a Nonconformity> {
+        let mut held: Vec<&Nonconformity> = found
+            .iter()
+            .filter(|nc| {
+                self.standards.iter().any(|u| {
+                    u.standard_id == nc.standard_id
+                        && bearing(nc, u.calibrated_at, self.performed_at) != Bearing::Clear
+                })
+            })
+            .collect();
+        for nc in inherited {
+            let uses = self
+                .standards
+                .iter()
+                .any(|u| u.standard_id == nc.standard_id);
+            if uses && !held.iter().any(|h| h.id == nc.id) {
+                held.push(nc);
+            }
+        }
+        held
+    }
+
     /// Refuses a record whose fused coefficients or standard errors hold a
     /// non-finite number: whatever reaches the store, nothing NaN or infinite
     /// is ever written (every engine calls this, and the schema checks again).

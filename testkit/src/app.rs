@@ -255,6 +255,20 @@ impl TestApp {
         self.get(path, token).await.json().await.unwrap()
     }
 
+    /// The actions of the audit trail's entries on `object` (such as
+    /// `calibrations/<id>`), oldest first, as an admin reads them.
+    pub async fn trail_actions(&self, object: &str) -> Vec<String> {
+        let trail = self
+            .get_json(&format!("/v1/audit?object={object}"), ADMIN)
+            .await;
+        trail["items"]
+            .as_array()
+            .unwrap_or_else(|| panic!("no trail for {object}: {trail}"))
+            .iter()
+            .map(|e| e["action"].as_str().unwrap().to_owned())
+            .collect()
+    }
+
     /// POST JSON with a token.
     pub async fn post(&self, path: &str, token: &str, body: &Value) -> Response {
         self.client

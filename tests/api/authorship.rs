@@ -88,7 +88,6 @@ async fn the_author_may_not_approve_a_correction_of_their_measurement(
 async fn the_author_may_not_approve_a_reprocessing_of_their_measurement(
     #[values(Sqlite, Postgres)] engine: Engine,
 ) {
-    use accelcal_core::{Term, TermMap};
     let app = TestApp::spawn(engine).await;
     let (ann, ann_id) = reviewer(&app, "Ann Author").await;
     let (rita, _) = reviewer(&app, "Rita Reprocessor").await;
@@ -100,54 +99,7 @@ async fn the_author_may_not_approve_a_reprocessing_of_their_measurement(
         .json()
         .await
         .unwrap();
-    let f = |v: &Value| v.as_f64().unwrap();
-    let terms = [Term::K0, Term::Ki, Term::Kp];
-    let map = |m: &Value, bump: f64| {
-        TermMap(
-            terms
-                .iter()
-                .map(|t| {
-                    (
-                        *t,
-                        f(&m[t.name()]) + if *t == Term::Ki { bump } else { 0.0 },
-                    )
-                })
-                .collect(),
-        )
-    };
-    let store = accelcal::store::open(&app.db().url).await.unwrap();
-    let old_id = uuid::Uuid::now_v7();
-    let at = |s: &str| accelcal::domain::timestamp::Timestamp::parse(s).unwrap();
-    store
-        .insert_calibration(
-            accelcal::store::NewCalibration {
-                id: old_id,
-                sensor_id: "PAPER-2005".into(),
-                station_id: None,
-                performed_at: at("2005-08-01T00:00:00Z"),
-                received_at: at("2026-11-01T00:00:00Z"),
-                unit: "output".into(),
-                model: accelcal_core::Model::new(terms.to_vec()).unwrap(),
-                runs: 6,
-                coefficients: map(&truth["fused"]["coefficients"], 1e-9),
-                std_errors: map(&truth["fused"]["std_errors"], 0.0),
-                result: bytes::Bytes::from(truth.to_string()),
-                submission: bytes::Bytes::from(body.to_string()),
-                content_type: "application/json".into(),
-                submitted_by: ann_id,
-                sensor_type: None,
-                assigns_type: false,
-                verdict: None,
-                due_at: None,
-                expanded: None,
-                triad: None,
-                standards: Vec::new(),
-            },
-            None,
-        )
-        .await
-        .unwrap();
-    store.close().await;
+    let old_id = crate::older::store_by_an_older_method(&app, &body, &truth, &ann_id).await;
     let old = json!(old_id.to_string());
     assert_eq!(approve(&app, &ann, &old).await, StatusCode::FORBIDDEN);
     let res = app

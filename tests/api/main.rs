@@ -22,6 +22,7 @@ mod idempotency;
 mod limits;
 mod lost_updates;
 mod metrology;
+mod older;
 mod out_of_service;
 mod outage;
 mod paper;

@@ -63,11 +63,9 @@ async fn affected(app: &TestApp) -> Vec<(String, String, Value)> {
         .collect()
 }
 
-#[rstest]
-#[tokio::test]
-async fn a_nonconforming_standard_holds_late_tests_and_is_out_of_service(
-    #[values(Sqlite, Postgres)] engine: Engine,
-) {
+/// A service with the stand DH-1 on certificate CAL-1, calibrated 200
+/// days ago.
+async fn with_stand(engine: Engine) -> TestApp {
     let app = TestApp::spawn(engine).await;
     let res = app
         .put(
@@ -77,6 +75,15 @@ async fn a_nonconforming_standard_holds_late_tests_and_is_out_of_service(
         )
         .await;
     assert_eq!(res.status(), StatusCode::CREATED);
+    app
+}
+
+#[rstest]
+#[tokio::test]
+async fn a_nonconforming_standard_holds_late_tests_and_is_out_of_service(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = with_stand(engine).await;
     let station = app.held_token("station", "Sam Station", Some("ST-1")).await;
     let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
     // On time, 60 days ago: stored, then held when the nonconformity is
@@ -198,15 +205,7 @@ async fn a_nonconforming_standard_holds_late_tests_and_is_out_of_service(
     let before = before["id"].as_str().unwrap().to_owned();
     assert_eq!(state(&app, &before).await, "submitted");
     // The trail holds every hold.
-    let trail = app
-        .get_json(&format!("/v1/audit?object=calibrations/{late}"), ADMIN)
-        .await;
-    let actions: Vec<&str> = trail["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["action"].as_str().unwrap())
-        .collect();
+    let actions = app.trail_actions(&format!("calibrations/{late}")).await;
     assert_eq!(
         actions,
         [
@@ -264,15 +263,7 @@ async fn no_submission_slips_past_a_nonconformity_being_recorded(
     #[values(Sqlite, Postgres)] engine: Engine,
 ) {
     use futures_util::future::join_all;
-    let app = TestApp::spawn(engine).await;
-    let res = app
-        .put(
-            "/v1/standards/DH-1",
-            ADMIN,
-            &stand("CAL-1", &ago(200 * DAY)),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::CREATED);
+    let app = with_stand(engine).await;
     let nc = json!({"found_at": ago(DAY), "last_known_good_at": ago(100 * DAY),
         "reason": "Indexing error."});
     let bodies: Vec<Value> = (0..24)

@@ -665,7 +665,6 @@ async fn a_corrected_submission_supersedes_once(#[values(Sqlite, Postgres)] engi
 #[rstest]
 #[tokio::test]
 async fn reprocessing_confirms_or_supersedes(#[values(Sqlite, Postgres)] engine: Engine) {
-    use accelcal_core::{Term, TermMap};
     let app = TestApp::spawn(engine).await;
     let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
     let station = app.token("station", None).await;
@@ -712,60 +711,7 @@ async fn reprocessing_confirms_or_supersedes(#[values(Sqlite, Postgres)] engine:
     let mut body = paper();
     body["sensor_id"] = json!("OLD-METHOD");
     let truth = act(&app, ADMIN, "/v1/identify", body.clone(), StatusCode::OK).await;
-    let f = |v: &Value| v.as_f64().unwrap();
-    let terms = [Term::K0, Term::Ki, Term::Kp];
-    let map = |m: &Value, bump: f64| {
-        TermMap(
-            terms
-                .iter()
-                .map(|t| {
-                    (
-                        *t,
-                        f(&m[t.name()]) + if *t == Term::Ki { bump } else { 0.0 },
-                    )
-                })
-                .collect(),
-        )
-    };
-    let store = accelcal::store::open(&app.db().url).await.unwrap();
-    let old_id = uuid::Uuid::now_v7();
-    let at = accelcal::domain::timestamp::Timestamp::parse("2026-11-01T00:00:00Z").unwrap();
-    store
-        .insert_calibration(
-            accelcal::store::NewCalibration {
-                id: old_id,
-                sensor_id: "OLD-METHOD".into(),
-                station_id: None,
-                performed_at: accelcal::domain::timestamp::Timestamp::parse("2005-08-01T00:00:00Z")
-                    .unwrap(),
-                received_at: at,
-                unit: truth["unit"].as_str().unwrap().into(),
-                model: accelcal_core::Model::new(terms.to_vec()).unwrap(),
-                runs: 6,
-                coefficients: map(&truth["fused"]["coefficients"], 1e-9),
-                std_errors: map(&truth["fused"]["std_errors"], 0.0),
-                result: bytes::Bytes::from(truth.to_string()),
-                submission: bytes::Bytes::from(body.to_string()),
-                content_type: "application/json".into(),
-                submitted_by: "env-admin".into(),
-                sensor_type: None,
-                assigns_type: false,
-                verdict: None,
-                due_at: None,
-                expanded: Some(TermMap(
-                    terms
-                        .iter()
-                        .map(|t| (*t, f(&truth["uncertainty"]["terms"][t.name()]["expanded"])))
-                        .collect(),
-                )),
-                triad: None,
-                standards: Vec::new(),
-            },
-            None,
-        )
-        .await
-        .unwrap();
-    store.close().await;
+    let old_id = crate::older::store_by_an_older_method(&app, &body, &truth, "env-admin").await;
     let old = json!(old_id.to_string());
     let r = act(&app, &rita, &reprocess(&old), json!({}), StatusCode::OK).await;
     assert_eq!(r["outcome"], "superseded");

@@ -196,15 +196,7 @@ async fn a_nonconforming_standard_holds_what_it_made(#[values(Sqlite, Postgres)]
     );
 
     // All of it in the audit trail.
-    let trail = app
-        .get_json("/v1/audit?object=standards/STAND-1", ADMIN)
-        .await;
-    let actions: Vec<&str> = trail["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["action"].as_str().unwrap())
-        .collect();
+    let actions = app.trail_actions("standards/STAND-1").await;
     assert_eq!(
         actions,
         [
@@ -213,15 +205,7 @@ async fn a_nonconforming_standard_holds_what_it_made(#[values(Sqlite, Postgres)]
             "standard.nonconformity"
         ]
     );
-    let held = app
-        .get_json(&format!("/v1/audit?object=calibrations/{b}"), ADMIN)
-        .await;
-    let actions: Vec<&str> = held["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|e| e["action"].as_str().unwrap())
-        .collect();
+    let actions = app.trail_actions(&format!("calibrations/{b}")).await;
     assert_eq!(
         actions,
         [

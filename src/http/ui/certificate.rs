@@ -316,7 +316,7 @@ pub fn standards(standards: &[crate::domain::standards::UsedStandard]) -> Markup
                             td { (u.certificate.number) ", " (u.certificate.issued_by) }
                             td { (when(&u.certificate.calibrated_at.to_string())) }
                             td { (when(&u.due_at.to_string())) }
-                            td { (u.traceability) }
+                            td { (u.parameters.traceability) }
                         }
                     }
                 }
@@ -347,7 +347,7 @@ pub fn traceability(standards: &[crate::domain::standards::UsedStandard]) -> Mar
                         p { "The results are traceable to the SI through the reference standards listed above, each in calibration when the test was performed:" }
                         ul {
                             @for u in standards {
-                                li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.traceability) }
+                                li { strong { (u.standard_id) } " (certificate " (u.certificate.number) "): " (u.parameters.traceability) }
                             }
                         }
                     }
@@ -453,7 +453,7 @@ fn temperatures(d: &ResultDoc) -> String {
                         format!(
                             ", read with {} (±{} °C, 1σ)",
                             u.standard_id,
-                            u.temperature_std_c.unwrap_or(0.0)
+                            u.parameters.temperature_std_c.unwrap_or(0.0)
                         )
                     });
             if lo == hi {
@@ -471,8 +471,12 @@ fn local_gravity(d: &ResultDoc) -> String {
     match d.standards.iter().find(|u| u.role == "gravity") {
         Some(u) => format!(
             "g = {} m/s² (relative uncertainty {}, 1σ; standard {})",
-            u.gravity_m_s2.map_or("—".into(), |g| g.to_string()),
-            u.gravity_rel_std.map_or("—".into(), |r| r.to_string()),
+            u.parameters
+                .gravity_m_s2
+                .map_or("—".into(), |g| g.to_string()),
+            u.parameters
+                .gravity_rel_std
+                .map_or("—".into(), |r| r.to_string()),
             u.standard_id
         ),
         None => "not stated: the positions are in units of the local g (1 g)".into(),

@@ -631,7 +631,7 @@ fn statements(d: &Admin<'_>, c: &Context) -> Markup {
                     dcc:declaration {
                         (content("The results are traceable to the SI through the reference standards listed under measuringEquipments, each in calibration when the test was performed."))
                         @for u in d.standards {
-                            (content(&format!("{} (certificate {} of {}): {}", u.standard_id, u.certificate.number, u.certificate.issued_by, u.traceability)))
+                            (content(&format!("{} (certificate {} of {}): {}", u.standard_id, u.certificate.number, u.certificate.issued_by, u.parameters.traceability)))
                         }
                     }
                 }
@@ -689,7 +689,7 @@ pub fn equipment(standards: &[crate::domain::standards::UsedStandard]) -> Markup
                             u.certificate.issued_by,
                             u.certificate.number,
                             date(&u.due_at.to_string()),
-                            u.traceability
+                            u.parameters.traceability
                         ))) }
                         dcc:identifications {
                             dcc:identification {
@@ -729,29 +729,29 @@ fn standard_quantities(u: &crate::domain::standards::UsedStandard) -> Vec<Markup
     let mut push = |name: &str, r: Markup| {
         out.push(html! { dcc:measuringEquipmentQuantity { dcc:name { (content(name)) } (r) } });
     };
-    if let Some(a) = u.angle_std_arcsec {
+    if let Some(a) = u.parameters.angle_std_arcsec {
         push(
             "Indexing error (1σ)",
             real_standard("indexing", a, r"\arcsecond", None),
         );
     }
-    if let Some(g) = u.gravity_m_s2 {
+    if let Some(g) = u.parameters.gravity_m_s2 {
         push(
             "Local gravity",
             real_standard(
                 "g",
                 g,
                 r"\metre\second\tothe{-2}",
-                u.gravity_rel_std.map(|r| r * g),
+                u.parameters.gravity_rel_std.map(|r| r * g),
             ),
         );
-    } else if let Some(r) = u.gravity_rel_std {
+    } else if let Some(r) = u.parameters.gravity_rel_std {
         push(
             "Relative uncertainty of gravity (1σ)",
             real_standard("gravity_rel_std", r, r"\one", None),
         );
     }
-    if let Some(t) = u.temperature_std_c {
+    if let Some(t) = u.parameters.temperature_std_c {
         push(
             "Thermometer uncertainty (1σ)",
             real_standard("temperature_std", t, r"\kelvin", None),
@@ -770,8 +770,9 @@ pub fn conditions(
         .iter()
         .find(|u| u.role == "gravity")
         .and_then(|u| {
-            u.gravity_m_s2
-                .map(|g| (g, u.gravity_rel_std.map(|r| r * g)))
+            u.parameters
+                .gravity_m_s2
+                .map(|g| (g, u.parameters.gravity_rel_std.map(|r| r * g)))
         });
     html! {
         @if temps.is_some() || gravity.is_some() {
@@ -779,7 +780,7 @@ pub fn conditions(
                 @if let Some(t) = temps {
                     @let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
                     @let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                    @let thermometer = standards.iter().find(|u| u.role == "thermometer").and_then(|u| u.temperature_std_c);
+                    @let thermometer = standards.iter().find(|u| u.role == "thermometer").and_then(|u| u.parameters.temperature_std_c);
                     dcc:influenceCondition {
                         dcc:name { (content("Ambient temperature over the runs")) }
                         dcc:data {

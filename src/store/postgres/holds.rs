@@ -18,7 +18,7 @@ use uuid::Uuid;
 use super::errors::map;
 use super::rows;
 use crate::domain::audit::Event;
-use crate::domain::nonconformity::{Bearing, Nonconformity, bearing, hold_on_storing};
+use crate::domain::nonconformity::{Nonconformity, hold_on_storing};
 use crate::domain::review::State;
 use crate::store::{NONCONFORMITY_COLUMNS, NewCalibration, StoreError, sensor_recompute};
 
@@ -94,20 +94,7 @@ pub async fn place(
     }
     let ids: Vec<String> = n.standards.iter().map(|u| u.standard_id.clone()).collect();
     let found = findings(tx, &ids).await?;
-    let mut held: Vec<&Nonconformity> = found
-        .iter()
-        .filter(|nc| {
-            n.standards.iter().any(|u| {
-                u.standard_id == nc.standard_id
-                    && bearing(nc, u.calibrated_at, n.performed_at) != Bearing::Clear
-            })
-        })
-        .collect();
-    for nc in inherited {
-        if ids.contains(&nc.standard_id) && !held.iter().any(|h| h.id == nc.id) {
-            held.push(nc);
-        }
-    }
+    let held = n.held_by(&found, inherited);
     if held.is_empty() {
         return Ok(Vec::new());
     }
