@@ -35,8 +35,9 @@ print('kill $(jobs -p) 2>/dev/null; wait')
 PY
   (cd "$WORK/readme" && bash walkthrough.sh >out.txt 2>err.txt) \
     || { cat "$WORK/readme/out.txt" "$WORK/readme/err.txt" >&2; echo "walkthrough: the README's block failed" >&2; exit 1; }
-  grep -q '^HTTP/1.1 201' "$WORK/readme/out.txt" || { echo "walkthrough: no 201 status line shown" >&2; exit 1; }
-  grep -qi '^location: /v1/calibrations/' "$WORK/readme/out.txt" || { echo "walkthrough: no Location shown" >&2; exit 1; }
+  # Both submissions (Table 1 and its recalibration) show their status and Location.
+  [ "$(grep -c '^HTTP/1.1 201' "$WORK/readme/out.txt")" = 2 ] || { echo "walkthrough: not every submission's 201 status line shown" >&2; exit 1; }
+  [ "$(grep -ci '^location: /v1/calibrations/' "$WORK/readme/out.txt")" = 2 ] || { echo "walkthrough: not every submission's Location shown" >&2; exit 1; }
   ids=$(tail -n 2 "$WORK/readme/out.txt" | sort -u | wc -l)
   [ "$ids" = 1 ] || { echo "walkthrough: accelcal submit stored the CSV twice" >&2; exit 1; }
   echo "walkthrough: the README's block ran as written"

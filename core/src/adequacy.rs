@@ -79,15 +79,10 @@ pub struct PureError {
 /// The pure error of a tumble test, with the root of its pooled sum of
 /// squares (for [`lack_of_fit`]).
 fn pure_error_norm(test: &TumbleTest) -> (PureError, f64) {
-    let mut norms = Vec::with_capacity(test.runs().len());
-    let mut runs = Vec::with_capacity(test.runs().len());
-    for run in test.runs() {
-        let roots: Vec<f64> = run.readings.iter().map(Reading::deviation_norm).collect();
-        let dof = run.readings.iter().map(|r| r.dof() as usize).sum();
-        let norm = scaled_norm(roots.iter().copied());
-        norms.push(norm);
-        runs.push(Spread::of(norm, dof));
-    }
+    let (norms, runs): (Vec<f64>, Vec<Spread>) = pure_error_norms(test)
+        .into_iter()
+        .map(|(norm, dof)| (norm, Spread::of(norm, dof)))
+        .unzip();
     let dof = runs.iter().map(|r| r.dof).sum();
     let norm = scaled_norm(norms.iter().copied());
     (
@@ -97,6 +92,19 @@ fn pure_error_norm(test: &TumbleTest) -> (PureError, f64) {
         },
         norm,
     )
+}
+
+/// Each run's pure error as the root of its sum of squares and its
+/// degrees of freedom, `(‖x_ijk − x̄_ij‖, Σ_i (n_ij − 1))`, in run order.
+pub fn pure_error_norms(test: &TumbleTest) -> Vec<(f64, usize)> {
+    test.runs()
+        .iter()
+        .map(|run| {
+            let roots = run.readings.iter().map(Reading::deviation_norm);
+            let dof = run.readings.iter().map(|r| r.dof() as usize).sum();
+            (scaled_norm(roots), dof)
+        })
+        .collect()
 }
 
 /// The pure error of a tumble test.
@@ -301,8 +309,8 @@ mod tests {
 
     #[test]
     fn lack_of_fit_says_why_it_was_not_tested() {
-        let single = vec![vec![0.3], vec![1.7], vec![-0.5], vec![-1.1]];
-        let t = test_of(four(), vec![single.clone(), single]);
+        let single = |d: f64| vec![vec![0.3 + d], vec![1.7], vec![-0.5], vec![-1.1]];
+        let t = test_of(four(), vec![single(0.0), single(0.01)]);
         let (_, lof) = lack_of_fit(&t, &t.identify_runs());
         assert_eq!(
             lof,
@@ -311,13 +319,15 @@ mod tests {
             }
         );
         assert!(!lof.flagged());
-        let same = vec![
-            vec![0.3, 0.3],
-            vec![1.7, 1.7],
-            vec![-0.5, -0.5],
-            vec![-1.1, -1.1],
-        ];
-        let t = test_of(four(), vec![same.clone(), same]);
+        let same = |d: f64| {
+            vec![
+                vec![0.3 + d, 0.3 + d],
+                vec![1.7, 1.7],
+                vec![-0.5, -0.5],
+                vec![-1.1, -1.1],
+            ]
+        };
+        let t = test_of(four(), vec![same(0.0), same(0.01)]);
         let (_, lof) = lack_of_fit(&t, &t.identify_runs());
         assert_eq!(
             lof,
@@ -350,17 +360,21 @@ mod tests {
         let positions: Vec<Position> = (0..8)
             .map(|k| Position::from_angle(45.0 * f64::from(k), Mount::Pendulum, None))
             .collect();
-        // Outputs 1 + 0.5·a_i² (unmodelled), two samples ±1e-6 apart.
-        let run = |positions: &[Position]| {
+        // Outputs 1 + 0.5·a_i² (unmodelled), two samples ±1e-6 apart; the
+        // second run offset by 1e-6.
+        let run = |positions: &[Position], d: f64| {
             positions
                 .iter()
                 .map(|p| {
-                    let y = 1.0 + 0.5 * p.a.i * p.a.i;
+                    let y = 1.0 + 0.5 * p.a.i * p.a.i + d;
                     vec![y - 1e-6, y + 1e-6]
                 })
                 .collect::<Vec<_>>()
         };
-        let t = test_of(positions.clone(), vec![run(&positions), run(&positions)]);
+        let t = test_of(
+            positions.clone(),
+            vec![run(&positions, 0.0), run(&positions, 1e-6)],
+        );
         let (_, lof) = lack_of_fit(&t, &t.identify_runs());
         assert!(lof.flagged());
         let model = model_uncertainty(&t, &lof);

@@ -113,6 +113,18 @@ pub enum Error {
         /// Which quantity (`coefficient`, `standard error`, `dispersion`, …).
         quantity: &'static str,
     },
+    /// A run whose readings are those of an earlier run, element by element
+    /// and in number: most likely the same data sent twice.
+    #[error(
+        "run {run} is a copy of run {copy_of}: every reading holds the same samples, in the same \
+         number; a repeated tumble never reads identically, so send each run's own data once"
+    )]
+    CopiedRun {
+        /// The later run, from 0.
+        run: usize,
+        /// The run it repeats, from 0.
+        copy_of: usize,
+    },
     /// A single run with as many positions as terms: it fits exactly, so it
     /// has no standard errors to stand for the fused ones.
     #[error(
@@ -156,10 +168,13 @@ pub enum FusionError {
         /// Number of batches asked for.
         batches: usize,
     },
-    /// Every value in a batch is identical: its standard deviation is zero and
-    /// its inverse-variance weight infinite.
+    /// Every value in a batch is identical and the runs carry no standard
+    /// errors to floor its weight with (as many positions as terms, or runs
+    /// that fit exactly): its inverse-variance weight would be infinite.
     #[error(
-        "batch {batch} (runs {first}–{last}) has identical values, so no weight can be given to it"
+        "batch {batch} (runs {first}–{last}) has identical values and the runs give no standard \
+         errors to bound its weight (they fit their positions exactly): add positions, so that \
+         each run's own scatter is known"
     )]
     NoSpread {
         /// Batch index.
@@ -255,7 +270,14 @@ mod tests {
         };
         assert_eq!(
             nested.to_string(),
-            "coefficient `kp`: batch 1 (runs 3–5) has identical values, so no weight can be given to it"
+            "coefficient `kp`: batch 1 (runs 3–5) has identical values and the runs give no \
+             standard errors to bound its weight (they fit their positions exactly): add \
+             positions, so that each run's own scatter is known"
+        );
+        assert_eq!(
+            Error::CopiedRun { run: 4, copy_of: 1 }.to_string(),
+            "run 4 is a copy of run 1: every reading holds the same samples, in the same number; \
+             a repeated tumble never reads identically, so send each run's own data once"
         );
     }
 }

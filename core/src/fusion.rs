@@ -25,7 +25,11 @@
 //! or copied data): its weight uses `s_p` floored at that bound,
 //! `w_p = n_p / max(s_p, floor)²`, so it cannot outweigh the other batches by
 //! orders of magnitude ([`consistency_floor`], [`fuse_with_floor`]). The
-//! batch's reported `s_p` is unchanged.
+//! batch's reported `s_p` is unchanged. This includes `s_p = 0`, a batch of
+//! equal values (a quantised sensor reading the same counts every run):
+//! weighted at the floor, not refused. Only without a floor (runs without
+//! spare positions, or fitting exactly) is a batch of equal values refused,
+//! its weight being infinite.
 //!
 //! **Scale-free arithmetic.** `1/s_p²` overflows for values near 1e-155 and
 //! squares of deviations underflow to zero below 1e-162, although every
@@ -203,7 +207,7 @@ pub fn fuse_with_floor(values: &[f64], k: usize, floor: f64) -> Result<Fusion, F
         // Zero exactly when every value is the same: the deviations are
         // scaled, so distinct values never underflow to a zero spread.
         let std = sample_std(xs).unwrap_or(0.0);
-        if std == 0.0 {
+        if std == 0.0 && floor <= 0.0 {
             return Err(FusionError::NoSpread {
                 batch,
                 first: runs.start,
@@ -288,6 +292,21 @@ mod tests {
             fuse(&[1.0, f64::NAN, 3.0, 4.0], 2),
             Err(FusionError::NonFinite { run: 1 })
         );
+    }
+
+    /// Equal values with a floor: weighted at the floor, `w = n/floor²`.
+    /// Batch 0: [1, 3], mean 2, s² = 2 → w = 1; batch 1: [5, 5] at the
+    /// floor 0.5 → w = 2/0.25 = 8. x⁺ = (2 + 40)/9, Var = 1/9.
+    #[test]
+    fn identical_batch_is_weighted_at_the_floor() {
+        let f = fuse_with_floor(&[1.0, 3.0, 5.0, 5.0], 2, 0.5).unwrap();
+        assert_eq!(f.batches[1].std, 0.0, "reported as it is");
+        assert!((f.value - 42.0 / 9.0).abs() < 1e-15, "{}", f.value);
+        assert!((f.std_error - (1.0f64 / 9.0).sqrt()).abs() < 1e-15);
+        // Every batch equal: the floors weigh them alike.
+        let f = fuse_with_floor(&[2.0, 2.0, 2.0, 2.0], 2, 1e-3).unwrap();
+        assert_eq!(f.value, 2.0);
+        assert!((f.std_error - 1e-3 / 2.0).abs() < 1e-18);
     }
 
     #[test]

@@ -50,6 +50,15 @@
 //! 0.016, the square design's weakest case); the six faces with three
 //! corners give 0.11, the 26 directions of a cube's faces, edges and
 //! corners 0.47.
+//!
+//! **A fit that fails is judged by its geometry first.** Directions within
+//! a cone rarely let the iteration converge, so the spread of the fitted
+//! directions is never reached; when the ellipsoid or the iteration fails,
+//! the spread of the outputs themselves ([`output_spread`], the same
+//! measure on the outputs centred and scaled into the unit ball) decides:
+//! below [`MIN_SPREAD`] the refusal is the geometry's, otherwise it names
+//! what else to check (stillness, one triad, one unit) with the residuals'
+//! scatter at the start.
 
 use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt, TerminationReason};
 use nalgebra::{DMatrix, DVector, Matrix3, Vector3};
@@ -76,11 +85,17 @@ pub enum GravityFitError {
         /// The position, from 0.
         index: usize,
     },
-    /// The outputs do not lie about an ellipsoid.
+    /// The outputs spread over the sphere but do not lie about an
+    /// ellipsoid.
     #[error(
-        "the mean outputs do not lie about an ellipsoid: the orientations do not span the sphere"
+        "the mean outputs do not lie about an ellipsoid although the orientations spread over \
+         the sphere (spread {spread:.3e}): check that the triad was held still at each position \
+         and that every position's outputs are this triad's, in one unit"
     )]
-    NotAnEllipsoid,
+    NotAnEllipsoid {
+        /// The outputs' own spread ([`output_spread`]).
+        spread: f64,
+    },
     /// The directions do not spread over the sphere enough.
     #[error(
         "the orientations do not span the sphere: spread {spread:.3e} is below {MIN_SPREAD} \
@@ -90,11 +105,22 @@ pub enum GravityFitError {
         /// The measured spread.
         spread: f64,
     },
-    /// Levenberg–Marquardt stopped without a solution.
-    #[error("the fit did not converge: {why}")]
+    /// Levenberg–Marquardt stopped without a solution although the
+    /// orientations spread over the sphere.
+    #[error(
+        "the fit did not converge ({why}) although the orientations spread over the sphere \
+         (spread {spread:.3e}): the mean outputs lie {rms_g:.1e} g rms off the closest \
+         ellipsoid, more than a triad held still reads; check that it was held still at each \
+         position, that every position's outputs are this triad's, in one unit, and remove \
+         positions read while it moved"
+    )]
     NotConverged {
         /// What it reported.
         why: String,
+        /// The outputs' own spread ([`output_spread`]).
+        spread: f64,
+        /// The residuals' root mean square at the closed-form start, in g.
+        rms_g: f64,
     },
 }
 
@@ -289,6 +315,34 @@ pub fn spread(directions: &[[f64; 3]]) -> f64 {
     if max > 0.0 { sv.min() / max } else { 0.0 }
 }
 
+/// The spread of the mean outputs themselves, centred and scaled into the
+/// unit ball ([`normalise`]): the spread of a triad whose scale factors are
+/// alike, computable without a fit (0 when every output is the same).
+/// Only a fit that failed is judged by it: it tells orientations that do
+/// not span the sphere (a cone of 5°–30° gives 3e-4–5e-3) from outputs
+/// that do but fit no ellipsoid (random directions, noisy or not, 0.03–0.2).
+pub fn output_spread(means: &[Vector3<f64>]) -> f64 {
+    normalise(means).map_or(0.0, |(_, _, z)| {
+        let z: Vec<[f64; 3]> = z.iter().map(|v| [v[0], v[1], v[2]]).collect();
+        spread(&z)
+    })
+}
+
+/// Why a fit failed: [`GravityFitError::Spread`] when the outputs' own
+/// spread is below [`MIN_SPREAD`] (the geometry, whatever the solver
+/// said), else `otherwise` with that spread.
+fn failed(
+    means: &[Vector3<f64>],
+    otherwise: impl FnOnce(f64) -> GravityFitError,
+) -> GravityFitError {
+    let spread = output_spread(means);
+    if spread.is_nan() || spread < MIN_SPREAD {
+        GravityFitError::Spread { spread }
+    } else {
+        otherwise(spread)
+    }
+}
+
 /// The spread, when it is at least [`MIN_SPREAD`].
 fn spread_enough(spread: f64) -> Result<f64, GravityFitError> {
     if spread.is_nan() || spread < MIN_SPREAD {
@@ -306,7 +360,20 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
         return Err(GravityFitError::NotFinite { index });
     }
     let means: Vec<Vector3<f64>> = means.iter().map(|u| Vector3::from(*u)).collect();
-    let (b0, t0) = ellipsoid(&means).ok_or(GravityFitError::NotAnEllipsoid)?;
+    let (b0, t0) = ellipsoid(&means)
+        .ok_or_else(|| failed(&means, |spread| GravityFitError::NotAnEllipsoid { spread }))?;
+    let not_converged = |why: String| {
+        let sum_sq: f64 = means
+            .iter()
+            .map(|u| ((t0 * (u - b0)).norm() - 1.0).powi(2))
+            .sum();
+        let rms_g = (sum_sq / means.len() as f64).sqrt();
+        failed(&means, |spread| GravityFitError::NotConverged {
+            why,
+            spread,
+            rms_g,
+        })
+    };
     let mut start = na::SVector::<f64, 9>::zeros();
     for c in 0..3 {
         start[c] = b0[c];
@@ -322,11 +389,7 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
         TerminationReason::Converged { .. } => Stop::Converged,
         TerminationReason::Orthogonal => Stop::Orthogonal,
         TerminationReason::ResidualsZero => Stop::ResidualsZero,
-        other => {
-            return Err(GravityFitError::NotConverged {
-                why: format!("{other:?}"),
-            });
-        }
+        other => return Err(not_converged(format!("{other:?}"))),
     };
     let p: Vec<f64> = solved.p.iter().copied().collect();
     let (b, mut t) = unpack(&p);
@@ -342,11 +405,11 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
         means: &means,
         p: at_solution,
     };
-    let s = t.try_inverse().ok_or(GravityFitError::NotAnEllipsoid)?;
+    let s = t
+        .try_inverse()
+        .ok_or_else(|| not_converged("T is singular".into()))?;
     if !(b.iter().chain(t.iter()).chain(s.iter())).all(|x| x.is_finite()) {
-        return Err(GravityFitError::NotConverged {
-            why: "a parameter is not finite".into(),
-        });
+        return Err(not_converged("a parameter is not finite".into()));
     }
     let ys: Vec<Vector3<f64>> = means.iter().map(|u| t * (u - b)).collect();
     let residuals_g: Vec<f64> = ys.iter().map(|y| y.norm() - 1.0).collect();
@@ -556,7 +619,8 @@ pub(crate) mod tests {
         assert_eq!(normalise(&[Vector3::new(1.0, 2.0, 3.0); 9]), None);
         assert_eq!(
             fit(&[[1.0, 2.0, 3.0]; 9]),
-            Err(GravityFitError::NotAnEllipsoid)
+            Err(GravityFitError::Spread { spread: 0.0 }),
+            "not turned at all"
         );
     }
 
@@ -801,10 +865,71 @@ pub(crate) mod tests {
                 outputs(b, t, [a.cos(), a.sin(), 0.0])
             })
             .collect();
-        assert!(matches!(
-            fit(&flat),
-            Err(GravityFitError::NotAnEllipsoid | GravityFitError::Spread { .. })
-        ));
+        assert!(matches!(fit(&flat), Err(GravityFitError::Spread { .. })));
+    }
+
+    /// Twenty positions within a cone of 5°–30° about a random axis (the
+    /// truth triad, noise 1e-4).
+    fn cone(rng: &mut rand::rngs::StdRng) -> Vec<[f64; 3]> {
+        let (b, t) = truth();
+        let noise = Normal::new(0.0, 1e-4).unwrap();
+        let half: f64 = rng.random_range(5.0f64..30.0);
+        let axis: [f64; 3] = UnitSphere.sample(rng);
+        let a = Vector3::from(axis);
+        let p = if a[0].abs() < 0.9 {
+            Vector3::x()
+        } else {
+            Vector3::y()
+        };
+        let e1 = a.cross(&p).normalize();
+        let e2 = a.cross(&e1);
+        (0..20)
+            .map(|_| {
+                let th = rng.random_range(0.0..half).to_radians();
+                let ph = rng.random_range(0.0..std::f64::consts::TAU);
+                let g = a * th.cos() + (e1 * ph.cos() + e2 * ph.sin()) * th.sin();
+                let u = outputs(b, t, [g[0], g[1], g[2]]);
+                [0, 1, 2].map(|m| u[m] + noise.sample(rng))
+            })
+            .collect()
+    }
+
+    /// Every refusal names its cause: a cone and a plane do not span the
+    /// sphere, whatever the solver would have said (before, 9 of these 24
+    /// cones were "did not converge: LostPatience"); directions that do
+    /// span it but are read with noise of 10 %–100 % of g are never blamed on
+    /// the geometry, and say what to check instead.
+    #[test]
+    fn every_failure_names_its_cause() {
+        let mut rng = rand::rngs::StdRng::seed_from_u64(42);
+        for k in 0..24 {
+            let got = fit(&cone(&mut rng));
+            assert!(
+                matches!(got, Err(GravityFitError::Spread { spread }) if spread < MIN_SPREAD),
+                "cone {k}: {got:?}"
+            );
+        }
+        let mut failures = 0;
+        for sigma in [0.1, 0.2, 0.5, 1.0] {
+            for k in 0..6 {
+                match fit(&noisy(12, 300 + k, sigma, k)) {
+                    Ok(_) => {}
+                    Err(
+                        e @ (GravityFitError::NotConverged { .. }
+                        | GravityFitError::NotAnEllipsoid { .. }),
+                    ) => {
+                        failures += 1;
+                        assert!(e.to_string().contains("held still"), "{e}");
+                        assert!(e.to_string().contains("spread over the sphere"), "{e}");
+                    }
+                    Err(e) => panic!("noise {sigma}, set {k}: {e}"),
+                }
+            }
+        }
+        assert!(
+            failures >= 12,
+            "the noisy sets exercise the failures: {failures}"
+        );
     }
 
     #[test]

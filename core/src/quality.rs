@@ -9,13 +9,18 @@
 //!   combination, nearly singular once explicit components are rounded).
 //! * **lack_of_fit**: the model misses something the repeated samples can
 //!   see ([`crate::adequacy`]).
-//! * **noisy_run**: run `j` with `ν_j = P − p` residual degrees of freedom and
-//!   `s_j² = Σ_i r_ij² / ν_j`, against the other runs pooled,
-//!   `s²_(−j) = Σ_{l≠j} Σ_i r_il² / Σ_{l≠j} ν_l`: flagged when
-//!   `s_j² / s²_(−j)` exceeds the upper `NOISY_RUN_ALPHA / m` point of
-//!   `F(ν_j, Σ_{l≠j} ν_l)` with `m` runs — a family-wise false-alarm rate of
-//!   1 % per submission. Not tested without residual degrees of freedom, with
-//!   one run, or when the other runs fit exactly.
+//! * **noisy_run**: run `j`'s scatter `s_j²` on `ν_j` degrees of freedom
+//!   against the other runs pooled, `s²_(−j) = Σ_{l≠j} ν_l s_l² / Σ_{l≠j} ν_l`:
+//!   flagged when `F = s_j² / s²_(−j)` exceeds the upper `NOISY_RUN_ALPHA / m`
+//!   point of `F(ν_j, Σ_{l≠j} ν_l)` with `m` runs — a family-wise
+//!   false-alarm rate of 1 % per submission. The scatter is the **pure
+//!   error** when every run has replicate samples (`ν_pe,j ≥ 1` for every
+//!   `j`, [`crate::adequacy`]): the samples' own scatter, which a run's bias
+//!   shift cannot reach and which has `Σ_i (n_ij − 1)` degrees of freedom
+//!   (4 for the paper's two samples at four positions) where the residuals
+//!   have `P − p` (1 there) and almost no power. Otherwise it is the
+//!   **residuals'**, `s_j² = Σ_i r_ij² / (P − p)`. Not tested with one run,
+//!   without degrees of freedom, or when the other runs' scatter is zero.
 //! * **implausibly_consistent_batch**: a batch's deviation of a coefficient
 //!   below the floor of [`crate::fusion::consistency_floor`]; its weight
 //!   used the floor.
@@ -62,17 +67,16 @@ pub enum Warning {
         /// The root of the lack-of-fit mean square.
         lack_of_fit_std: f64,
     },
-    /// A run fits significantly worse than the others.
+    /// A run scatters significantly more than the others.
     NoisyRun {
         /// Run index (0-based).
         run: usize,
         /// `s_j² / s²_(−j)` and its test.
         #[serde(flatten)]
         test: FTest,
-        /// `s_j`.
-        residual_std: f64,
-        /// `s_(−j)`.
-        others_residual_std: f64,
+        /// Which scatter, and `s_j` and `s_(−j)`.
+        #[serde(flatten)]
+        scatter: Scatter,
     },
     /// A batch agrees better than its runs' own standard errors allow.
     ImplausiblyConsistentBatch {
@@ -95,6 +99,27 @@ pub enum Warning {
     },
 }
 
+/// The scatter a noisy-run test compared (`test` in the warning), with
+/// the run's `s_j` and the other runs' pooled `s_(−j)`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[serde(tag = "test", rename_all = "snake_case")]
+pub enum Scatter {
+    /// The pure error: the scatter of each position's repeated samples.
+    PureError {
+        /// `s_pe,j`.
+        pure_error_std: f64,
+        /// `s_pe,(−j)`.
+        others_pure_error_std: f64,
+    },
+    /// The residuals of each run's fit.
+    Residual {
+        /// `s_j`.
+        residual_std: f64,
+        /// `s_(−j)`.
+        others_residual_std: f64,
+    },
+}
+
 /// The quality of a calibration.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct Quality {
@@ -113,35 +138,54 @@ fn ill_conditioned(condition_number: f64) -> bool {
     condition_number > ILL_CONDITIONED
 }
 
-/// The noisy-run tests of the runs (see the module doc).
-fn noisy(runs: &[Identification]) -> Vec<Warning> {
-    // With one run, or none, or no residual degrees of freedom, the F test
-    // has a zero degree of freedom and is not made (see `FTest::new`).
-    let m = runs.len();
-    let dof = runs.first().map_or(0, |r| r.dof);
-    let norms: Vec<f64> = runs
+/// The noisy-run tests of `test`'s runs (see the module doc): on the
+/// pure error when every run has replicates, else on the residuals.
+fn noisy(test: &TumbleTest, runs: &[Identification]) -> Vec<Warning> {
+    let pure = adequacy::pure_error_norms(test);
+    if pure.len() > 1 && pure.iter().all(|(_, dof)| *dof >= 1) {
+        return noisy_by(&pure, |s, others| Scatter::PureError {
+            pure_error_std: s,
+            others_pure_error_std: others,
+        });
+    }
+    let residual: Vec<(f64, usize)> = runs
         .iter()
-        .map(|r| scaled_norm(r.residuals.iter().copied()))
+        .map(|r| (scaled_norm(r.residuals.iter().copied()), r.dof))
         .collect();
-    let others_dof = m.saturating_sub(1) * dof;
+    noisy_by(&residual, |s, others| Scatter::Residual {
+        residual_std: s,
+        others_residual_std: others,
+    })
+}
+
+/// Each run's test against the others pooled, from every run's root sum
+/// of squares and degrees of freedom `(‖·‖_j, ν_j)`; `scatter` names the
+/// deviations `s_j = ‖·‖_j/√ν_j` and `s_(−j)`.
+fn noisy_by(runs: &[(f64, usize)], scatter: impl Fn(f64, f64) -> Scatter) -> Vec<Warning> {
+    // With one run, or none, or no degrees of freedom, the F test has a
+    // zero degree of freedom and is not made (see `FTest::new`).
+    let m = runs.len();
     let alpha = NOISY_RUN_ALPHA / m as f64;
     let mut out = Vec::new();
-    for (run, norm) in norms.iter().enumerate() {
-        let others = scaled_norm(
-            norms
-                .iter()
+    for (run, (norm, dof)) in runs.iter().enumerate() {
+        let others = || {
+            runs.iter()
                 .enumerate()
                 .filter(|(l, _)| *l != run)
-                .map(|(_, n)| *n),
-        );
+                .map(|(_, r)| *r)
+        };
+        let others_norm = scaled_norm(others().map(|(n, _)| n));
+        let others_dof: usize = others().map(|(_, d)| d).sum();
         if let Some(test) =
-            FTest::of_roots(*norm, dof, others, others_dof, alpha).filter(FTest::flagged)
+            FTest::of_roots(*norm, *dof, others_norm, others_dof, alpha).filter(FTest::flagged)
         {
             out.push(Warning::NoisyRun {
                 run,
                 test,
-                residual_std: norm / (dof as f64).sqrt(),
-                others_residual_std: others / (others_dof as f64).sqrt(),
+                scatter: scatter(
+                    norm / (*dof as f64).sqrt(),
+                    others_norm / (others_dof as f64).sqrt(),
+                ),
             });
         }
     }
@@ -198,7 +242,7 @@ pub fn assess(test: &TumbleTest, calibration: &Calibration) -> Quality {
             lack_of_fit_std: *lack_of_fit_std,
         });
     }
-    warnings.extend(noisy(&calibration.runs));
+    warnings.extend(noisy(test, &calibration.runs));
     warnings.extend(implausibly_consistent(
         &calibration.fused.batches,
         &consistency_floors(&calibration.runs),
@@ -228,14 +272,21 @@ mod tests {
         assert!(!ill_conditioned(10.0));
     }
 
-    fn run(residuals: &[f64], dof: usize) -> Identification {
-        Identification {
-            coefficients: TermMap(vec![(Term::K0, 0.0)]),
-            std_errors: None,
-            residuals: residuals.to_vec(),
-            residual_rms: 0.0,
-            dof,
-        }
+    /// A run's residuals and their degrees of freedom.
+    fn run(residuals: &[f64], dof: usize) -> (Vec<f64>, usize) {
+        (residuals.to_vec(), dof)
+    }
+
+    /// The residual noisy-run tests of runs given by their residuals.
+    fn noisy_residuals(runs: &[(Vec<f64>, usize)]) -> Vec<Warning> {
+        let norms: Vec<(f64, usize)> = runs
+            .iter()
+            .map(|(r, dof)| (scaled_norm(r.iter().copied()), *dof))
+            .collect();
+        noisy_by(&norms, |s, others| Scatter::Residual {
+            residual_std: s,
+            others_residual_std: others,
+        })
     }
 
     /// Three runs of one degree of freedom, residual roots 1, 1 and 30:
@@ -244,14 +295,17 @@ mod tests {
     #[test]
     fn a_run_is_noisy_beyond_the_bonferroni_point() {
         let runs = [run(&[1.0], 1), run(&[-1.0], 1), run(&[30.0], 1)];
-        let w = noisy(&runs);
+        let w = noisy_residuals(&runs);
         match &w[..] {
             [
                 Warning::NoisyRun {
                     run,
                     test,
-                    residual_std,
-                    others_residual_std,
+                    scatter:
+                        Scatter::Residual {
+                            residual_std,
+                            others_residual_std,
+                        },
                 },
             ] => {
                 assert_eq!(*run, 2);
@@ -266,7 +320,7 @@ mod tests {
             other => panic!("{other:?}"),
         }
         // F = 100: p = 1 − √(100/102) ≈ 9.9e-3, not below 0.01/3.
-        assert!(noisy(&[run(&[1.0], 1), run(&[-1.0], 1), run(&[10.0], 1)]).is_empty());
+        assert!(noisy_residuals(&[run(&[1.0], 1), run(&[-1.0], 1), run(&[10.0], 1)]).is_empty());
     }
 
     /// Two runs of two degrees of freedom: roots 1 and 40 give F = 1600 on
@@ -274,14 +328,17 @@ mod tests {
     /// roots over √2.
     #[test]
     fn two_runs_suffice_and_deviations_divide_by_their_degrees_of_freedom() {
-        let w = noisy(&[run(&[1.0, 0.0], 2), run(&[0.0, 40.0], 2)]);
+        let w = noisy_residuals(&[run(&[1.0, 0.0], 2), run(&[0.0, 40.0], 2)]);
         match &w[..] {
             [
                 Warning::NoisyRun {
                     run,
                     test,
-                    residual_std,
-                    others_residual_std,
+                    scatter:
+                        Scatter::Residual {
+                            residual_std,
+                            others_residual_std,
+                        },
                 },
             ] => {
                 assert_eq!(*run, 1);
@@ -323,12 +380,89 @@ mod tests {
         assert!(implausibly_consistent(&[batch(0.0, 0.0)], &TermMap(vec![])).is_empty());
     }
 
+    /// Three runs of two samples at four positions (ν_pe = 4 each), run 2's
+    /// samples 30 times as far apart: by hand, run j's pure-error sum of
+    /// squares is Σ_i d_ij²/2 for sample differences d_ij, so with d = 0.01
+    /// (runs 0, 1) and 0.3 (run 2) F = (4·0.09/2 / 4) / (8·1e-4/2 / 8) = 900
+    /// on (4, 8); the residual test would see nothing, the runs' position
+    /// means being alike. A run without replicates falls back to the
+    /// residuals.
+    #[test]
+    fn the_pure_error_test_replaces_the_residual_test_when_every_run_has_replicates() {
+        use crate::position::{Mount, Position};
+        use crate::term::Model;
+        use crate::tumble::Run;
+        let positions: Vec<Position> = [0.0, 90.0, 180.0, 270.0]
+            .map(|d| Position::from_angle(d, Mount::Pendulum, None))
+            .to_vec();
+        let run = |d: f64, shift: f64| {
+            Run::from_samples(
+                [0.3, 1.7, -0.5, -1.1]
+                    .map(|y: f64| vec![y + shift - d / 2.0, y + shift + d / 2.0])
+                    .to_vec(),
+            )
+        };
+        let t = TumbleTest::new(
+            Model::pendulum(),
+            positions.clone(),
+            vec![run(0.01, 0.0), run(0.01, 0.1), run(0.3, 0.2)],
+        )
+        .unwrap();
+        let w = noisy(&t, &t.identify_runs());
+        match &w[..] {
+            [
+                Warning::NoisyRun {
+                    run: 2,
+                    test,
+                    scatter:
+                        Scatter::PureError {
+                            pure_error_std,
+                            others_pure_error_std,
+                        },
+                },
+            ] => {
+                assert_eq!((test.df1, test.df2), (4, 8));
+                assert!((test.f - 900.0).abs() < 1e-6, "{}", test.f);
+                assert!((pure_error_std - (0.09f64 / 2.0).sqrt()).abs() < 1e-12);
+                assert!((others_pure_error_std - (1e-4f64 / 2.0).sqrt()).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+        // Position means with y0 + y180 = y90 + y270 (residual e = 0) but
+        // for a first position off by ±0.004 (e = ±0.001) in runs 0 and 1
+        // and by 0.4 (e = 0.1) in run 2, read once a position: F = 0.01 /
+        // 1e-6 = 1e4 on (1, 2), on the residuals.
+        let means = |off: f64| [0.3 + off, 1.7, 0.1, -1.3];
+        let replicated =
+            |off: f64| Run::from_samples(means(off).map(|y| vec![y - 0.005, y + 0.005]).to_vec());
+        let once = Run::from_samples(means(0.4).map(|y| vec![y]).to_vec());
+        let t = TumbleTest::new(
+            Model::pendulum(),
+            positions,
+            vec![replicated(0.004), replicated(-0.004), once],
+        )
+        .unwrap();
+        match &noisy(&t, &t.identify_runs())[..] {
+            [
+                Warning::NoisyRun {
+                    run: 2,
+                    test,
+                    scatter: Scatter::Residual { .. },
+                },
+            ] => {
+                assert_eq!((test.df1, test.df2), (1, 2));
+                assert!((test.f - 1e4).abs() < 1e-6 * 1e4, "{}", test.f);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
     #[test]
     fn no_noisy_run_without_degrees_of_freedom_or_a_second_run() {
-        assert!(noisy(&[run(&[30.0], 1)]).is_empty());
-        assert!(noisy(&[run(&[0.0], 0), run(&[0.0], 0), run(&[0.0], 0)]).is_empty());
+        assert!(noisy_residuals(&[run(&[30.0], 1)]).is_empty());
+        assert!(noisy_residuals(&[run(&[0.0], 0), run(&[0.0], 0), run(&[0.0], 0)]).is_empty());
         // The others fit exactly: no finite ratio, no test.
-        assert!(noisy(&[run(&[0.0], 1), run(&[0.0], 1), run(&[5.0], 1)]).is_empty());
-        assert!(noisy(&[]).is_empty());
+        assert!(noisy_residuals(&[run(&[0.0], 1), run(&[0.0], 1), run(&[5.0], 1)]).is_empty());
+        assert!(noisy_residuals(&[]).is_empty());
     }
 }

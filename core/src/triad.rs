@@ -51,6 +51,18 @@ pub enum TriadError {
         /// Why.
         error: Error,
     },
+    /// A run whose samples of all three outputs are an earlier run's.
+    #[error(
+        "run {run} is a copy of run {copy_of}: every position holds the same samples of all \
+         three outputs, in the same number; a repeated tumble never reads identically, so send \
+         each run's own data once"
+    )]
+    CopiedRun {
+        /// The later run, from 0.
+        run: usize,
+        /// The run it repeats, from 0.
+        copy_of: usize,
+    },
     /// `S` has no inverse: outputs cannot be turned into specific force.
     #[error("the scale-and-misalignment matrix S is singular: outputs cannot be compensated")]
     Singular,
@@ -144,12 +156,14 @@ impl TriadTest {
                     )
                 })
                 .collect();
-            TumbleTest::new(model(second_order), seen, outputs)
+            TumbleTest::of_axis(model(second_order), seen, outputs)
                 .map_err(|error| TriadError::Axis { axis: m, error })
         };
-        Ok(TriadTest {
-            axes: [axis(0)?, axis(1)?, axis(2)?],
-        })
+        let axes = [axis(0)?, axis(1)?, axis(2)?];
+        if let Some((run, copy_of)) = crate::tumble::copied(runs) {
+            return Err(TriadError::CopiedRun { run, copy_of });
+        }
+        Ok(TriadTest { axes })
     }
 
     /// Each axis's tumble test (0 = x, 1 = y, 2 = z).

@@ -47,10 +47,26 @@ impl TumbleTest {
     /// Checks and factorises a tumble test.
     ///
     /// Refuses a test without runs, a run without one reading per position,
+    /// a run that is a copy of an earlier one ([`copied`]),
     /// a position without samples, a non-finite sample, an unusable summary
     /// ([`Reading::check`]), and an unidentifiable design (see
     /// [`Design::new`]).
     pub fn new(model: Model, positions: Vec<Position>, runs: Vec<Run>) -> Result<Self, Error> {
+        let test = Self::of_axis(model, positions, runs)?;
+        if let Some((run, copy_of)) = copied(&test.runs) {
+            return Err(Error::CopiedRun { run, copy_of });
+        }
+        Ok(test)
+    }
+
+    /// As [`TumbleTest::new`] but without the copy check: one axis of a
+    /// triad, whose runs are copies only if all three axes' are (a
+    /// quantised axis may read the same counts every run).
+    pub(crate) fn of_axis(
+        model: Model,
+        positions: Vec<Position>,
+        runs: Vec<Run>,
+    ) -> Result<Self, Error> {
         if runs.is_empty() {
             return Err(Error::NoRuns);
         }
@@ -185,6 +201,19 @@ impl TumbleTest {
     }
 }
 
+/// The first run whose readings equal an earlier run's, sample for sample
+/// and in number (`-0.0` equal to `0.0`), with that run: `(run, copy_of)`.
+/// A comparison stops at the first reading that differs, so m distinct
+/// runs cost about m²/2 comparisons of a few numbers.
+pub fn copied<T: PartialEq>(runs: &[T]) -> Option<(usize, usize)> {
+    for (j, later) in runs.iter().enumerate().skip(1) {
+        if let Some(i) = runs[..j].iter().position(|earlier| earlier == later) {
+            return Some((j, i));
+        }
+    }
+    None
+}
+
 /// Each coefficient's floor of a batch deviation (see
 /// [`fusion::consistency_floor`]) from the runs' own standard errors; no
 /// floor when a run has none (no spare positions).
@@ -232,6 +261,37 @@ mod tests {
             .iter()
             .map(|d| Position::from_angle(*d, Mount::Pendulum, None))
             .collect()
+    }
+
+    /// Only a run equal to an earlier one sample for sample is a copy:
+    /// the same samples in another order, one sample more, or a summary of
+    /// the same samples are not.
+    #[test]
+    fn a_copied_run_is_named_with_the_run_it_repeats() {
+        let mk = |runs: Vec<Run>| TumbleTest::new(Model::pendulum(), four(), runs).map(|_| ());
+        let run =
+            |first: Vec<f64>| Run::from_samples(vec![first, vec![2.0], vec![-0.5], vec![-2.0]]);
+        assert_eq!(
+            mk(vec![
+                run(vec![0.1, 0.3]),
+                run(vec![0.3, 0.1]),
+                run(vec![0.1, 0.3, 0.3]),
+                run(vec![0.3, 0.1]),
+            ]),
+            Err(Error::CopiedRun { run: 3, copy_of: 1 })
+        );
+        // −0 is 0: the same reading.
+        assert_eq!(
+            mk(vec![run(vec![0.0]), run(vec![-0.0])]),
+            Err(Error::CopiedRun { run: 1, copy_of: 0 })
+        );
+        let mut summary = run(vec![0.1, 0.3]);
+        summary.readings[0] = Reading::Summary(crate::reading::Summary {
+            mean: 0.2,
+            std: 0.1f64.hypot(0.1),
+            count: 2,
+        });
+        assert!(mk(vec![run(vec![0.1, 0.3]), summary]).is_ok());
     }
 
     #[test]

@@ -36,21 +36,48 @@ pub fn check_str(s: &str, max: usize, chars: Chars) -> Result<(), String> {
             }
         }
         Chars::Line => {
-            if s.chars().any(char::is_control) {
-                return Err("must not contain control characters".into());
+            if let Some((n, c)) = first(s, char::is_control) {
+                return Err(format!(
+                    "must not contain control characters ({} at character {n})",
+                    code_point(c)
+                ));
             }
         }
         Chars::Text => {
-            if s.chars()
-                .any(|c| c.is_control() && !matches!(c, '\t' | '\n' | '\r'))
-            {
-                return Err(
-                    "must not contain control characters other than tab and newline".into(),
-                );
+            let control = |c: char| c.is_control() && !matches!(c, '\t' | '\n' | '\r');
+            if let Some((n, c)) = first(s, control) {
+                return Err(format!(
+                    "must not contain control characters other than tab and newline ({} at \
+                     character {n})",
+                    code_point(c)
+                ));
             }
         }
     }
+    // XML 1.0 has no place for U+FFFE and U+FFFF, not even as a character
+    // reference: text that reaches a Digital Calibration Certificate must
+    // not hold them (the other characters XML refuses are controls).
+    if let Some((n, c)) = first(s, |c| matches!(c, '\u{fffe}' | '\u{ffff}')) {
+        return Err(format!(
+            "must not contain {} (character {n}): a noncharacter, which XML 1.0 and so the \
+             Digital Calibration Certificate cannot carry",
+            code_point(c)
+        ));
+    }
     Ok(())
+}
+
+/// The first character of `s` that is `bad`, with its position (from 1).
+fn first(s: &str, bad: impl Fn(char) -> bool) -> Option<(usize, char)> {
+    s.chars()
+        .enumerate()
+        .find(|(_, c)| bad(*c))
+        .map(|(i, c)| (i + 1, c))
+}
+
+/// A character as Unicode writes it (`U+FFFE`).
+fn code_point(c: char) -> String {
+    format!("U+{:04X}", u32::from(c))
 }
 
 /// Client input as an answer or a log line may repeat it: any pasted token's
@@ -84,6 +111,38 @@ mod tests {
         assert!(check_str("ééé", 2, Chars::Line).is_err());
         // The bound counts characters, not bytes, and admits exactly `max`.
         assert!(check_str("éé", 2, Chars::Line).is_ok());
+    }
+
+    #[test]
+    fn a_refusal_names_the_character_and_where_it_is() {
+        assert_eq!(
+            check_str("mA\u{7}", 64, Chars::Line).unwrap_err(),
+            "must not contain control characters (U+0007 at character 3)"
+        );
+        for class in [Chars::Line, Chars::Text] {
+            for c in ['\u{fffe}', '\u{ffff}'] {
+                let why = check_str(&format!("ab{c}"), 64, class).unwrap_err();
+                assert!(
+                    why.starts_with(&format!(
+                        "must not contain U+{:04X} (character 3)",
+                        u32::from(c)
+                    )),
+                    "{why}"
+                );
+            }
+            // Accepted text is what XML carries, kept as sent: the last
+            // character before the noncharacters, the private use area,
+            // the astral planes and a decomposed accent.
+            for ok in ["\u{fffd}", "\u{e000}", "𝔤 = 9.81", "e\u{301}"] {
+                assert_eq!(check_str(ok, 64, class), Ok(()), "{ok:?}");
+            }
+        }
+        assert!(check_str("tab\there\r\n", 64, Chars::Text).is_ok());
+        assert!(
+            check_str("\u{b}", 64, Chars::Text)
+                .unwrap_err()
+                .contains("U+000B at character 1")
+        );
     }
 
     #[test]

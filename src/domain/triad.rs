@@ -48,6 +48,19 @@ const MAX_RATE_HZ: f64 = 1e6;
 const MAX_DETECTOR_S: f64 = 3600.0;
 /// Largest detector threshold multiple.
 const MAX_THRESHOLD: f64 = 1e6;
+/// The detector's smallest settings: a still period and a shortest
+/// interval of 0.5 s, a window of 0.1 s and of at least
+/// [`MIN_WINDOW_SAMPLES`] samples, and a threshold of 2 — at a threshold near
+/// 1 the still noise's own variance crosses it half the time, and one held
+/// orientation falls apart into many short "intervals".
+pub const MIN_DETECTOR: Detector = Detector {
+    still_s: 0.5,
+    window_s: 0.1,
+    threshold: 2.0,
+    min_static_s: 0.5,
+};
+/// Fewest samples in the detector's moving window.
+pub const MIN_WINDOW_SAMPLES: f64 = 10.0;
 
 /// The body of `POST /v1/identify/triad`.
 #[derive(Debug, Clone, Deserialize, ToSchema)]
@@ -166,7 +179,8 @@ pub struct TriadRunBody {
     pub samples: Vec<Vec<[f64; 3]>>,
 }
 
-/// A continuous recording.
+/// A continuous recording. Its static intervals count against the same
+/// limit as explicit positions (360).
 #[derive(Debug, Clone, Deserialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct RecordingBody {
@@ -183,17 +197,18 @@ pub struct RecordingBody {
 #[derive(Debug, Clone, Copy, Default, Deserialize, Serialize, ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct DetectorBody {
-    /// The initial still period, s (default 3).
+    /// The initial still period, s (default 3, at least 0.5).
     #[serde(default)]
     pub still_s: Option<f64>,
-    /// The moving-variance window, s (default 1).
+    /// The moving-variance window, s (default 1, at least 0.1 s and 10
+    /// samples).
     #[serde(default)]
     pub window_s: Option<f64>,
     /// Static where the window's variance is at most this multiple of the
-    /// still period's (default 6).
+    /// still period's (default 6, at least 2).
     #[serde(default)]
     pub threshold: Option<f64>,
-    /// The shortest interval used, s (default 2).
+    /// The shortest interval used, s (default 2, at least 0.5).
     #[serde(default)]
     pub min_static_s: Option<f64>,
 }
@@ -268,8 +283,8 @@ pub enum Form {
 /// A one-line label of at most `max` characters.
 fn label(at: Loc<'_>, text: Option<String>, max: usize, errors: &mut Errors) -> Option<String> {
     let t = text?;
-    if t.is_empty() || t.chars().count() > max || t.chars().any(char::is_control) {
-        errors.add(at, format!("must be 1 to {max} characters on one line"));
+    if let Err(why) = check_str(&t, max, Chars::Line) {
+        errors.add(at, why);
     }
     Some(t)
 }
@@ -280,6 +295,43 @@ fn reading(at: Loc<'_>, u: &[f64; 3], errors: &mut Errors) {
         errors.add(
             at,
             format!("must be three finite numbers within ±{MAX_READING:e}"),
+        );
+    }
+}
+
+/// The detector's settings within [`MIN_DETECTOR`] and their largest
+/// values, its window at least [`MIN_WINDOW_SAMPLES`] samples at `rate_hz`.
+fn check_detector(d: &Detector, rate_hz: f64, at: Loc<'_>, errors: &mut Errors) {
+    let min = MIN_DETECTOR;
+    for (name, v, lo, hi) in [
+        ("still_s", d.still_s, min.still_s, MAX_DETECTOR_S),
+        ("window_s", d.window_s, min.window_s, MAX_DETECTOR_S),
+        ("threshold", d.threshold, min.threshold, MAX_THRESHOLD),
+        (
+            "min_static_s",
+            d.min_static_s,
+            min.min_static_s,
+            MAX_DETECTOR_S,
+        ),
+    ] {
+        if !(v.is_finite() && (lo..=hi).contains(&v)) {
+            errors.add(at.key(name), format!("must be a number from {lo} to {hi}"));
+        }
+    }
+    // The window's length in samples, once the window itself is in range.
+    let samples = d.window_s * rate_hz;
+    if rate_hz.is_finite()
+        && rate_hz > 0.0
+        && (min.window_s..=MAX_DETECTOR_S).contains(&d.window_s)
+        && samples < MIN_WINDOW_SAMPLES
+    {
+        errors.add(
+            at.key("window_s"),
+            format!(
+                "holds {samples} samples at {rate_hz} Hz: the moving window needs at least \
+                 {MIN_WINDOW_SAMPLES} (at least {} s)",
+                MIN_WINDOW_SAMPLES / rate_hz
+            ),
         );
     }
 }
@@ -467,19 +519,7 @@ impl TriadBody {
                     }
                 }
                 let detector = r.detector.unwrap_or_default().detector();
-                for (name, v, max) in [
-                    ("still_s", detector.still_s, MAX_DETECTOR_S),
-                    ("window_s", detector.window_s, MAX_DETECTOR_S),
-                    ("threshold", detector.threshold, MAX_THRESHOLD),
-                    ("min_static_s", detector.min_static_s, MAX_DETECTOR_S),
-                ] {
-                    if !(v.is_finite() && v > 0.0 && v <= max) {
-                        errors.add(
-                            at.key("detector").key(name),
-                            format!("must be a positive number, at most {max}"),
-                        );
-                    }
-                }
+                check_detector(&detector, r.rate_hz, at.key("detector"), &mut errors);
                 Some(Form::Recording {
                     rate_hz: r.rate_hz,
                     samples: r.samples,
@@ -1249,6 +1289,21 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
                 .map_err(|e| detect_problem(&at, &e))?;
             let report = detection_report(&found, *rate_hz, detector);
             let positions = found.positions();
+            if positions.len() > MAX_POSITIONS {
+                return Err(problem(
+                    at,
+                    format!(
+                        "{} static intervals found, at most {MAX_POSITIONS} positions: a recording \
+                         counts against the same limit as explicit positions; raise \
+                         `detector.min_static_s` (now {} s) above the pauses that are not \
+                         orientations, or `detector.threshold` (now {}) if still noise splits \
+                         held orientations",
+                        positions.len(),
+                        detector.min_static_s,
+                        detector.threshold,
+                    ),
+                ));
+            }
             if positions.len() < MIN_POSITIONS {
                 return Err(problem(
                     at,
@@ -1336,7 +1391,11 @@ fn detection_report(found: &Detection, rate_hz: f64, d: &Detector) -> DetectionR
 }
 
 fn axis_problem(e: &TriadError) -> Invalid {
-    problem(Loc::Root.key("runs"), e.to_string())
+    let runs = Loc::Root.key("runs");
+    match e {
+        TriadError::CopiedRun { run, .. } => problem(runs.index(*run), e.to_string()),
+        _ => problem(runs, e.to_string()),
+    }
 }
 
 fn fit_problem(at: Loc<'_>, e: &GravityFitError) -> Invalid {

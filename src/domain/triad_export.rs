@@ -16,6 +16,16 @@
 //! [`MAX_DROPPED`] — dropping it would misread the specific force by more
 //! than 1 % — pointing at `json` or `c`, which carry the whole matrix. Both
 //! need outputs in m/s² or g; other units are refused.
+//!
+//! **Free text carries no code.** What a station or an admin wrote (the
+//! unit, the sensor id in the source line) reaches a file only where the
+//! format quotes it: in the C header as the string literals
+//! `ACCELCAL_UNIT` and `ACCELCAL_SOURCE`, every byte outside printable
+//! ASCII and every `"`, `\` and `?` (trigraphs) written as a three-digit
+//! octal escape ([`c_string`]), never in a comment; in the parameter files
+//! in `#` comment lines, printable ASCII only, anything else as `\u{…}`
+//! ([`ascii_escaped`]), so no line break ever ends the comment; in JSON by
+//! serde's own escaping.
 
 use std::fmt::Write as _;
 
@@ -201,15 +211,60 @@ fn json(e: &Exported<'_>) -> String {
     text
 }
 
+/// The symbols the C header defines, in order (besides its include guard
+/// `ACCELCAL_TRIAD_H`); `ACCELCAL_S2` only for a second-order model.
+pub const C_SYMBOLS: [&str; 6] = [
+    "ACCELCAL_SOURCE",
+    "ACCELCAL_UNIT",
+    "ACCELCAL_B",
+    "ACCELCAL_S",
+    "ACCELCAL_T",
+    "ACCELCAL_S2",
+];
+
+/// `s` as the inside of a C string literal: printable ASCII but `"`, `\`
+/// and `?` as itself, every other byte of its UTF-8 as a three-digit octal
+/// escape (octal, unlike `\x`, stops after three digits, and `?` escaped
+/// keeps `??/` from being a trigraph).
+pub fn c_string(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for b in s.bytes() {
+        if (0x20..0x7f).contains(&b) && !matches!(b, b'"' | b'\\' | b'?') {
+            out.push(char::from(b));
+        } else {
+            let _ = write!(out, "\\{b:03o}");
+        }
+    }
+    out
+}
+
+/// `s` in printable ASCII for a comment line: `\` doubled, every other
+/// character outside printable ASCII (line breaks included) as `\u{hex}`.
+pub fn ascii_escaped(s: &str) -> String {
+    let mut out = String::with_capacity(s.len());
+    for c in s.chars() {
+        match c {
+            '\\' => out.push_str("\\\\"),
+            ' '..='~' => out.push(c),
+            _ => {
+                let _ = write!(out, "\\u{{{:x}}}", u32::from(c));
+            }
+        }
+    }
+    out
+}
+
 fn c_header(e: &Exported<'_>) -> String {
     let row = |r: &[f64; 3]| format!("{{ {:.12e}, {:.12e}, {:.12e} }}", r[0], r[1], r[2]);
     let mut out = String::new();
-    let _ = writeln!(out, "/* accelcal triad calibration: {} */", e.source);
+    let _ = writeln!(
+        out,
+        "/* accelcal triad calibration (ACCELCAL_SOURCE says which). */"
+    );
     let _ = writeln!(out, "/*");
     let _ = writeln!(
         out,
-        " * Outputs u in {} (x, y, z); specific force g in g, body frame.",
-        e.unit
+        " * Outputs u in ACCELCAL_UNIT (x, y, z); specific force g in g, body frame."
     );
     let _ = writeln!(out, " *   u = b + S g            (the model)");
     let _ = writeln!(out, " *   g = T (u - b)          (compensation, T = S^-1)");
@@ -231,6 +286,16 @@ fn c_header(e: &Exported<'_>) -> String {
     let _ = writeln!(out, " */");
     let _ = writeln!(out, "#ifndef ACCELCAL_TRIAD_H");
     let _ = writeln!(out, "#define ACCELCAL_TRIAD_H");
+    let _ = writeln!(
+        out,
+        "static const char ACCELCAL_SOURCE[] = \"{}\";",
+        c_string(&e.source)
+    );
+    let _ = writeln!(
+        out,
+        "static const char ACCELCAL_UNIT[] = \"{}\";",
+        c_string(e.unit)
+    );
     let _ = writeln!(
         out,
         "static const double ACCELCAL_B[3] = {{ {:.12e}, {:.12e}, {:.12e} }};",
@@ -294,8 +359,9 @@ fn diagonal(
     let _ = writeln!(
         out,
         "# accelcal triad calibration for {format}: {}",
-        e.source
+        ascii_escaped(&e.source)
     );
+    let _ = writeln!(out, "# outputs u in {}", ascii_escaped(e.unit));
     let _ = writeln!(
         out,
         "# a = (u - offset) * scale, in m/s2, per axis; offsets = b, scales = {STANDARD_G} * diag(T)"

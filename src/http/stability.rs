@@ -18,6 +18,7 @@ use super::problem::Problem;
 use super::query::{Params, instant};
 use super::sensors::sensor;
 use crate::domain::auth::{Principal, Role};
+use crate::domain::review::Basis;
 use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use crate::domain::timestamp::Timestamp;
 use crate::store::{CalibrationSummary, SensorSummary, TriadElement, TriadElements};
@@ -75,6 +76,10 @@ pub struct Stability {
     #[serde(skip_serializing_if = "Option::is_none")]
     #[schema(value_type = Option<std::collections::BTreeMap<String, super::openapi::TermStabilitySchema>>)]
     pub elements: Option<BTreeMap<String, TermStability>>,
+    /// Which calibrations the report covers: `not_rejected` (every
+    /// calibration not rejected, withdrawn or superseded) or
+    /// `approved_only` (`--require-approval`), as the coefficients do.
+    pub basis: Basis,
 }
 
 /// A triad's stability element by element over `series` (oldest first;
@@ -179,6 +184,7 @@ pub async fn report_of(
         coverage_factor,
         terms: stability(&points, coverage_factor),
         elements: elements(&series, coverage_factor),
+        basis: state.web.basis,
     };
     Ok(Report {
         sensor: summary,

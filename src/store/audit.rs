@@ -30,6 +30,19 @@ pub struct AuditQuery {
     pub limit: usize,
 }
 
+impl AuditQuery {
+    /// The token id `actor` names in the simple spelling the trail records
+    /// for tokens (a UUID without hyphens), whichever spelling was given
+    /// (`/v1/tokens` writes it with hyphens); anything else as it is
+    /// (`env-admin`). The filter matches a token id as given or in this
+    /// spelling.
+    pub fn actor_token(&self) -> Option<String> {
+        self.actor.as_ref().map(|a| {
+            uuid::Uuid::parse_str(a).map_or_else(|_| a.clone(), |id| id.simple().to_string())
+        })
+    }
+}
+
 fn object(change: Value) -> Map<String, Value> {
     match change {
         Value::Object(m) => m,

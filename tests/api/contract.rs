@@ -24,6 +24,36 @@ fn the_committed_contract_is_what_the_code_generates() {
     );
 }
 
+/// Every `$ref` in the contract names a component it defines (schemathesis
+/// refuses an operation whose reference does not resolve).
+#[test]
+fn every_reference_resolves() {
+    let doc: serde_json::Value = serde_norway::from_str(COMMITTED).unwrap();
+    fn refs<'a>(v: &'a serde_json::Value, out: &mut Vec<&'a str>) {
+        match v {
+            serde_json::Value::Object(m) => {
+                if let Some(serde_json::Value::String(r)) = m.get("$ref") {
+                    out.push(r);
+                }
+                m.values().for_each(|x| refs(x, out));
+            }
+            serde_json::Value::Array(a) => a.iter().for_each(|x| refs(x, out)),
+            _ => {}
+        }
+    }
+    let mut all = Vec::new();
+    refs(&doc, &mut all);
+    assert!(all.len() > 100, "{} references", all.len());
+    let unresolved: std::collections::BTreeSet<&str> = all
+        .into_iter()
+        .filter(|r| {
+            let path = r.strip_prefix('#').unwrap_or("/not-local");
+            doc.pointer(path).is_none()
+        })
+        .collect();
+    assert!(unresolved.is_empty(), "unresolved: {unresolved:?}");
+}
+
 #[rstest]
 #[tokio::test]
 async fn the_server_serves_the_committed_contract(#[values(Sqlite, Postgres)] engine: Engine) {

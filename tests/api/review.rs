@@ -457,6 +457,7 @@ async fn require_approval_serves_approved_calibrations_only(
     assert_eq!(c["as_found"]["previous_calibration_id"], a);
     let stability = app.get_json("/v1/sensors/RA-1/stability", ADMIN).await;
     assert_eq!(stability["calibrations"], 1);
+    assert_eq!(stability["basis"], "approved_only", "{stability}");
 
     // Approving B makes it the served one, and a stability point.
     approve(b.clone()).await;

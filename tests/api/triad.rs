@@ -266,7 +266,7 @@ async fn known_orientations_give_b_and_s_and_each_row_is_a_single_axis_identific
 }
 
 /// Directions spread over the sphere (a golden-angle spiral).
-fn spiral(n: usize) -> Vec<[f64; 3]> {
+pub(crate) fn spiral(n: usize) -> Vec<[f64; 3]> {
     (0..n)
         .map(|k| {
             let z = 1.0 - 2.0 * (k as f64 + 0.5) / n as f64;
@@ -461,7 +461,7 @@ async fn unknown_orientations_give_b_and_t_within_their_standard_errors() {
 
 /// A recording at 50 Hz: an initial still period, then holds at `dirs`,
 /// each `hold` seconds, joined by 1.5 s turns.
-fn recording(dirs: &[[f64; 3]], hold: f64) -> Vec<[f64; 3]> {
+pub(crate) fn recording(dirs: &[[f64; 3]], hold: f64) -> Vec<[f64; 3]> {
     let rate = 50.0;
     let mut out = Vec::new();
     let mut k = 0usize;
@@ -611,7 +611,7 @@ async fn each_refusal_names_its_field() {
         (
             json!({"recording": {"rate_hz": 50, "samples": [[0, 0, 1]], "detector": {"window_s": -1}}}),
             vec!["/recording/detector/window_s"],
-            "positive",
+            "from 0.1 to 3600",
         ),
         (
             json!({"recording": {"rate_hz": 50, "samples": vec![[0.0, 0.0, 1.0]; 100]}}),

@@ -169,3 +169,88 @@ fn every_warning_keeps_its_false_alarm_rate_on_clean_tumbles() {
         }
     }
 }
+
+/// One submission of the paper's schedule (four positions, six runs of two
+/// samples, noise 1e-5, bias shifts 1e-4) in which run 3's samples scatter
+/// `k` times as much.
+fn one_noisy(rng: &mut Normal, k: f64) -> TumbleTest {
+    let positions: Vec<Position> = [0.0, 90.0, 180.0, 270.0]
+        .iter()
+        .map(|d| Position::from_angle(*d, Mount::Pendulum, None))
+        .collect();
+    let runs = (0..6)
+        .map(|j| {
+            let shift = 1e-4 * rng.next();
+            let sigma = if j == 3 { k * 1e-5 } else { 1e-5 };
+            Run::from_samples(
+                positions
+                    .iter()
+                    .map(|p| {
+                        let u = -8.4e-4 - 1.216 * p.a.i + 6.2e-3 * p.a.p + shift;
+                        (0..2).map(|_| u + sigma * rng.next()).collect()
+                    })
+                    .collect(),
+            )
+        })
+        .collect();
+    TumbleTest::new(Model::pendulum(), positions, runs).unwrap()
+}
+
+/// `P(F(ν1, ν2) > c / k²)` with `c` the upper `α` point: the power of the
+/// test of a run whose variance is `k²` times the others'. The pure-error
+/// test has ν1 = 4 (two samples at four positions), ν2 = 20; the residual
+/// test, which it replaces, ν1 = P − p = 1, ν2 = 5.
+fn power(df1: f64, df2: f64, alpha: f64, k: f64) -> f64 {
+    use statrs::distribution::{ContinuousCDF, FisherSnedecor};
+    let f = FisherSnedecor::new(df1, df2).unwrap();
+    let c = f.inverse_cdf(1.0 - alpha);
+    f.sf(c / (k * k))
+}
+
+/// `noisy_run` finds a run with k× the others' sample scatter at the rate
+/// the F distribution gives for the pure-error test (within four binomial
+/// deviations), and names that run; the residual test it replaces would
+/// find it far less often. `-- --nocapture` prints the table in
+/// docs/method.md.
+#[test]
+fn noisy_run_has_the_power_of_the_pure_error_test() {
+    let alpha = 0.01 / 6.0;
+    let n = 400;
+    println!(
+        "| run scatter | flagged (of {n}) | pure-error test, F(4, 20) | residual test, F(1, 5) |"
+    );
+    println!("|---|---|---|---|");
+    for (k, seed) in [(3.0, 31), (10.0, 32), (30.0, 33)] {
+        let mut rng = Normal::seeded(seed);
+        let mut found = 0;
+        for _ in 0..n {
+            let test = one_noisy(&mut rng, k);
+            let q = assess(&test, &test.calibrate(2).unwrap());
+            let runs: Vec<usize> = q
+                .warnings
+                .iter()
+                .filter_map(|w| match w {
+                    Warning::NoisyRun { run, .. } => Some(*run),
+                    _ => None,
+                })
+                .collect();
+            if runs.contains(&3) {
+                found += 1;
+            }
+        }
+        let expected = power(4.0, 20.0, alpha, k);
+        let residual = power(1.0, 5.0, alpha, k);
+        println!(
+            "| ×{k} | {found} ({:.1} %) | {:.1} % | {:.1} % |",
+            100.0 * found as f64 / n as f64,
+            100.0 * expected,
+            100.0 * residual
+        );
+        let sd = (n as f64 * expected * (1.0 - expected)).sqrt();
+        assert!(
+            (found as f64 - n as f64 * expected).abs() <= 4.0 * sd + 1.0,
+            "×{k}: {found} of {n}, expected {:.1}",
+            n as f64 * expected
+        );
+    }
+}

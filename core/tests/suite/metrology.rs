@@ -5,7 +5,7 @@
 use accelcal_core::coverage::Coverage;
 use accelcal_core::decision::Verdict;
 use accelcal_core::history::{Point, as_found, stability};
-use accelcal_core::quality::{Warning, assess};
+use accelcal_core::quality::{Scatter, Warning, assess};
 use accelcal_core::temperature::sensitivity;
 use accelcal_core::uncertainty::{ARCSEC, Stand, budget, coverage_probability};
 use accelcal_core::{
@@ -627,8 +627,11 @@ fn a_run_ten_times_noisier_than_the_median_is_flagged() {
             Warning::NoisyRun {
                 run,
                 test,
-                residual_std,
-                others_residual_std,
+                scatter:
+                    Scatter::Residual {
+                        residual_std,
+                        others_residual_std,
+                    },
             } => {
                 assert!(*residual_std > 3.0 * others_residual_std);
                 assert_eq!((test.df1, test.df2), (5, 20));

@@ -75,6 +75,7 @@ impl Hints {
                 ..
             } if self.batches_given => root.key("batches").to_string(),
             CoreError::ReadingCount { run, .. } => runs.index(*run).key("readings").to_string(),
+            CoreError::CopiedRun { run, .. } => runs.index(*run).to_string(),
             CoreError::NoSamples { run, position }
             | CoreError::InvalidSummary { run, position, .. } => runs
                 .index(*run)

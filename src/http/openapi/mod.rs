@@ -67,7 +67,8 @@ impl Modify for Bearer {
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
-            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Incomplete, WrongKind, Unavailable,
+            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Incomplete, WrongKind,
+            PreconditionFailed, Unavailable,
         ),
     ),
     modifiers(&Bearer),

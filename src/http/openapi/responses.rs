@@ -111,12 +111,12 @@ pub struct ConditionalHeaders;
 
 impl IntoParams for ConditionalHeaders {
     fn into_params(_: impl Fn() -> Option<ParameterIn>) -> Vec<Parameter> {
-        let header = |name: &str, description: &str| {
+        let header = |name: &str, description: &str, schema| {
             ParameterBuilder::new()
                 .name(name)
                 .parameter_in(ParameterIn::Header)
                 .description(Some(description))
-                .schema(Some(of_type(Type::String).max_length(Some(1024))))
+                .schema(Some(schema))
                 .build()
         };
         vec![
@@ -125,10 +125,18 @@ impl IntoParams for ConditionalHeaders {
                 "Write only if the record's current entity tag is one of these (as `GET` or the \
                  last write answered it in `ETag`), or, with `*`, only if it exists: a write \
                  based on what was read never replaces what someone else wrote since (412).",
+                // `*`, or strong (or weak, never matching) entity tags
+                // of visible ASCII but `"` and `,`, separated by commas.
+                of_type(Type::String).max_length(Some(1024)).pattern(Some(
+                    r#"^(\*|(W/)?"[!#-+\--~]*"( ?, ?(W/)?"[!#-+\--~]*")*)$"#,
+                )),
             ),
+            // A write takes only `*` here (400 otherwise): entity tags in
+            // `If-None-Match` are for reads.
             header(
                 "If-None-Match",
-                "`*`: create only — 412 if the record exists.",
+                "`*`: create only — 412 if the record exists. Nothing else is taken on a write (400).",
+                of_type(Type::String).enum_values(Some(["*"])),
             ),
         ]
     }

@@ -123,43 +123,34 @@ fn runs_table(d: &ResultDoc) -> Markup {
     let none = accelcal_core::TermMap(Vec::new());
     let mean_dispersion = d.mean.dispersion.as_ref().unwrap_or(&none);
     let fused_dispersion = d.fused.dispersion.as_ref().unwrap_or(&none);
-    // One notation per column and kind: the coefficients of a term's column
-    // (runs, mean, fused) share one, its spreads (dispersions, standard
-    // error) another, each decided by every number of that kind it shows.
-    let of = |t: accelcal_core::Term, maps: &[&accelcal_core::TermMap<f64>], runs: bool| {
-        let shown = d.runs.iter().take(RUNS_SHOWN).filter(|_| runs);
-        Notation::of(
-            shown
-                .filter_map(|r| v(&r.coefficients, t))
-                .chain(maps.iter().filter_map(|m| v(m, t))),
-        )
-    };
-    let notation: Vec<(accelcal_core::Term, Notation, Notation)> = terms
+    // One notation per column: a term's coefficients (runs, mean, fused)
+    // and its spreads (dispersions, standard error) alike, decided by every
+    // number the column shows.
+    let maps = [
+        &d.mean.coefficients,
+        &d.fused.coefficients,
+        mean_dispersion,
+        &d.fused.std_errors,
+        fused_dispersion,
+    ];
+    let notation: Vec<(accelcal_core::Term, Notation)> = terms
         .iter()
         .map(|&t| {
-            (
-                t,
-                of(t, &[&d.mean.coefficients, &d.fused.coefficients], true),
-                of(
-                    t,
-                    &[mean_dispersion, &d.fused.std_errors, fused_dispersion],
-                    false,
-                ),
-            )
+            let shown = d.runs.iter().take(RUNS_SHOWN);
+            let column = shown
+                .filter_map(|r| v(&r.coefficients, t))
+                .chain(maps.iter().filter_map(|m| v(m, t)));
+            (t, Notation::of(column))
         })
         .collect();
     let col = |t: &accelcal_core::Term| {
         notation
             .iter()
-            .find(|(u, ..)| u == t)
-            .map_or(Notation::Scientific, |(_, n, _)| *n)
+            .find(|(u, _)| u == t)
+            .map_or(Notation::Scientific, |(_, n)| *n)
     };
-    let spread = |t: &accelcal_core::Term| {
-        notation
-            .iter()
-            .find(|(u, ..)| u == t)
-            .map_or(Notation::Scientific, |(.., n)| *n)
-    };
+    let spread = col;
+    let rms = Notation::of(d.runs.iter().take(RUNS_SHOWN).map(|r| r.residual_rms));
     html! {
         div.table-wrap tabindex="0" role="region" aria-label="Coefficients per run, mean and fused" {
             table #estimates .cards {
@@ -176,7 +167,7 @@ fn runs_table(d: &ResultDoc) -> Markup {
                         tr data-run=(j) {
                             th scope="row" { "Run " (j + 1) }
                             @for t in &terms { td.num data-label=(t.name()) { (v(&r.coefficients, *t).map_or("—".into(), |x| col(t).num(x))) } }
-                            td.num data-label="Residual RMS" { (unc(r.residual_rms)) }
+                            td.num data-label="Residual RMS" { (rms.unc(r.residual_rms)) }
                             td.num data-label="dof" { (r.dof) }
                             @if let Some(temps) = &d.temperatures_c { td.num data-label="°C" { (opt(temps.get(j).copied(), |x| format!("{x}"))) } }
                         }
@@ -495,11 +486,15 @@ fn warnings(d: &ResultDoc) -> Markup {
                         (self::p_value(*p_value)) ". The model misses something the same in every run; the "
                         "budget's model component carries it."
                     }
-                    WarningDoc::NoisyRun { run, f, p_value, residual_std, others_residual_std, residual_rms, median_residual_rms } => {
+                    WarningDoc::NoisyRun { run, f, p_value, residual_std, others_residual_std, pure_error_std, others_pure_error_std, residual_rms, median_residual_rms, .. } => {
                         strong { "Noisy run. " }
-                        @match (f, p_value, residual_std, others_residual_std) {
-                            (Some(f), Some(p), Some(s), Some(o)) => {
-                                "Run " (run + 1) " fits with residual deviation " (unc(*s)) " against " (unc(*o))
+                        @match (f, p_value, pure_error_std.zip(*others_pure_error_std), residual_std.zip(*others_residual_std)) {
+                            (Some(f), Some(p), Some((s, o)), _) => {
+                                "Run " (run + 1) "'s repeated samples scatter by " (unc(s)) " against " (unc(o))
+                                " in the other runs: F = " (stat(*f)) ", p = " (self::p_value(*p)) "."
+                            }
+                            (Some(f), Some(p), None, Some((s, o))) => {
+                                "Run " (run + 1) " fits with residual deviation " (unc(s)) " against " (unc(o))
                                 " for the other runs: F = " (stat(*f)) ", p = " (self::p_value(*p)) "."
                             }
                             _ => {

@@ -306,17 +306,22 @@ pub fn standards(standards: &[crate::domain::standards::UsedStandard]) -> Markup
     html! {
         @if !standards.is_empty() {
             h2 { "Reference standards" }
-            table {
-                thead { tr { th { "Role" } th { "Standard" } th { "Certificate" } th { "Calibrated" } th { "Due" } th { "Traceability" } } }
-                tbody {
-                    @for u in standards {
-                        tr {
-                            td { (u.role) }
-                            td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
-                            td { (u.certificate.number) ", " (u.certificate.issued_by) }
-                            td { (when(&u.certificate.calibrated_at.to_string())) }
-                            td { (when(&u.due_at.to_string())) }
-                            td { (u.parameters.traceability) }
+            div.table-wrap tabindex="0" role="region" aria-label="Reference standards" {
+                table #certificate-standards {
+                    thead { tr {
+                        th scope="col" { "Role" } th scope="col" { "Standard" } th scope="col" { "Certificate" }
+                        th scope="col" { "Calibrated" } th scope="col" { "Due" } th scope="col" { "Traceability" }
+                    } }
+                    tbody {
+                        @for u in standards {
+                            tr {
+                                td { (u.role) }
+                                td { (u.standard_id) ", " (u.description) @if let Some(serial) = &u.serial { " (serial " (serial) ")" } }
+                                td { (u.certificate.number) ", " (u.certificate.issued_by) }
+                                td { (when(&u.certificate.calibrated_at.to_string())) }
+                                td { (when(&u.due_at.to_string())) }
+                                td { (u.parameters.traceability) }
+                            }
                         }
                     }
                 }

@@ -39,16 +39,21 @@
 //! A triad's calibration has the same administrative data and its own
 //! measurement results ([`super::triad_dcc`]); [`document`] writes either.
 //!
+//! **Written by an XML writer** ([`super::xml`], over `quick-xml`): every
+//! text node and attribute value escaped by it, and the characters XML 1.0
+//! cannot carry refused at input (so only legacy rows could hold one; the
+//! writer replaces it with U+FFFD).
+//!
 //! A DCC is issued only for an **approved** calibration (it names the
 //! persons responsible), and only when the laboratory's name and country
 //! and the item's customer are recorded: the schema requires them.
 
 use axum::http::{HeaderMap, header};
-use maud::{Markup, PreEscaped, html};
 
 use super::certificate::{Context, PAPER};
 use super::format::value_and_uncertainty;
 use super::result::{Covered, ResultDoc};
+use super::xml::Xml;
 use crate::domain::review::{Action, Signature, State};
 use crate::http::problem::{Kind, Problem};
 
@@ -103,18 +108,10 @@ pub fn issuable(c: &Context) -> Result<(), Problem> {
     }
 }
 
-/// `text` with the characters XML 1.0 cannot carry removed (control
-/// characters other than tab, line feed and carriage return).
-fn xml_text(text: &str) -> String {
-    text.chars()
-        .filter(|c| !c.is_control() || matches!(c, '\t' | '\n' | '\r'))
-        .collect()
-}
-
 /// `dcc:content` in English: the inside of every `dcc:textType` and
 /// `dcc:richContentType` accelcal writes.
-pub fn content(text: &str) -> Markup {
-    html! { dcc:content lang="en" { (xml_text(text)) } }
+pub fn content(x: &mut Xml, text: &str) {
+    x.el_attrs("dcc:content", &[("lang", "en")], |x| x.chars(text));
 }
 
 /// The output unit in D-SI: prefixed SI units accelcal recognises, `\one`
@@ -207,18 +204,20 @@ fn date(instant: &str) -> &str {
 }
 
 /// A `dcc:location` holding one line of address, and the country if known.
-fn location(address: Option<&str>, country: Option<&str>) -> Markup {
-    html! {
-        dcc:location {
-            dcc:further { (content(address.unwrap_or("no address recorded"))) }
-            @if let Some(c) = country { dcc:countryCode { (c) } }
+fn location(x: &mut Xml, address: Option<&str>, country: Option<&str>) {
+    x.el("dcc:location", |x| {
+        x.el("dcc:further", |x| {
+            content(x, address.unwrap_or("no address recorded"))
+        });
+        if let Some(c) = country {
+            x.text("dcc:countryCode", c);
         }
-    }
+    });
 }
 
 /// One `si:real` with its expanded uncertainty when there is one (`U`
 /// with its coverage factor and probability).
-pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, Covered)>) -> Markup {
+pub fn real(x: &mut Xml, label: &str, value: f64, unit: &str, expanded: Option<(f64, Covered)>) {
     let (v, u) = match expanded {
         Some((u, _)) if u.is_finite() && u > 0.0 => {
             let (v, u) = value_and_uncertainty(value, u);
@@ -226,38 +225,38 @@ pub fn real(label: &str, value: f64, unit: &str, expanded: Option<(f64, Covered)
         }
         _ => (decimal(value), None),
     };
-    html! {
-        si:real {
-            si:label { (label) }
-            si:value { (v) }
-            si:unit { (unit) }
-            @if let (Some(u), Some((_, c))) = (u, expanded) {
-                si:measurementUncertaintyUnivariate { si:expandedMU {
-                    si:valueExpandedMU { (u) }
-                    si:coverageFactor { (coverage_factor(c.k)) }
-                    si:coverageProbability { (probability(c.p)) }
-                    si:distribution { "normal" }
-                } }
-            }
+    x.el("si:real", |x| {
+        x.text("si:label", label);
+        x.text("si:value", v);
+        x.text("si:unit", unit);
+        if let (Some(u), Some((_, c))) = (u, expanded) {
+            x.el("si:measurementUncertaintyUnivariate", |x| {
+                x.el("si:expandedMU", |x| {
+                    x.text("si:valueExpandedMU", u);
+                    x.text("si:coverageFactor", coverage_factor(c.k));
+                    x.text("si:coverageProbability", probability(c.p));
+                    x.text("si:distribution", "normal");
+                })
+            });
         }
-    }
+    });
 }
 
 /// A value with a standard uncertainty (a standard's parameter).
-fn real_standard(label: &str, value: f64, unit: &str, std: Option<f64>) -> Markup {
-    html! {
-        si:real {
-            si:label { (label) }
-            si:value { (decimal(value)) }
-            si:unit { (unit) }
-            @if let Some(s) = std.filter(|s| s.is_finite() && *s >= 0.0) {
-                si:measurementUncertaintyUnivariate { si:standardMU {
-                    si:valueStandardMU { (decimal(s)) }
-                    si:distribution { "normal" }
-                } }
-            }
+fn real_standard(x: &mut Xml, label: &str, value: f64, unit: &str, std: Option<f64>) {
+    x.el("si:real", |x| {
+        x.text("si:label", label);
+        x.text("si:value", decimal(value));
+        x.text("si:unit", unit);
+        if let Some(s) = std.filter(|s| s.is_finite() && *s >= 0.0) {
+            x.el("si:measurementUncertaintyUnivariate", |x| {
+                x.el("si:standardMU", |x| {
+                    x.text("si:valueStandardMU", decimal(s));
+                    x.text("si:distribution", "normal");
+                })
+            });
         }
-    }
+    });
 }
 
 /// The approving signatures: the persons responsible.
@@ -353,12 +352,12 @@ impl<'a> Admin<'a> {
 /// The DCC document of a single-axis calibration ([`issuable`] must have
 /// passed).
 pub fn render(d: &ResultDoc, c: &Context) -> String {
-    document(&Admin::of(d), c, &results(d))
+    document(&Admin::of(d), c, |x| results(x, d))
 }
 
-/// The DCC of the calibration `a` describes, with its measurement
-/// results `results`.
-pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
+/// The DCC of the calibration `d` describes, its measurement results
+/// written by `results`.
+pub fn document(d: &Admin<'_>, c: &Context, results: impl FnOnce(&mut Xml)) -> String {
     let approvals = approvals(&c.signatures);
     // Issued with its approval; an amendment when it was amended.
     let issued = match &c.amendment {
@@ -370,149 +369,210 @@ pub fn document(d: &Admin<'_>, c: &Context, results: &Markup) -> String {
     };
     let country = c.laboratory.country.as_deref();
     let lab_name = c.laboratory.name.as_deref().unwrap_or("");
-    let doc = html! {
-        (PreEscaped("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"))
-        dcc:digitalCalibrationCertificate "xmlns:dcc"=(DCC_NS) "xmlns:si"=(SI_NS) schemaVersion=(SCHEMA_VERSION) {
-            dcc:administrativeData {
-                dcc:dccSoftware { dcc:software {
-                    dcc:name { (content("accelcal")) }
-                    dcc:release { (env!("CARGO_PKG_VERSION")) }
-                    dcc:type { "application" }
-                } }
-                dcc:coreData {
-                    dcc:countryCodeISO3166_1 { (country.unwrap_or("")) }
-                    dcc:usedLangCodeISO639_1 { "en" }
-                    dcc:mandatoryLangCodeISO639_1 { "en" }
-                    dcc:uniqueIdentifier { (c.identifier(&d.id)) }
-                    dcc:identifications {
-                        dcc:identification {
-                            dcc:issuer { "calibrationLaboratory" }
-                            dcc:value { (c.submission_sha256) }
-                            dcc:name { (content("SHA-256 of the stored submission")) }
-                        }
-                        dcc:identification {
-                            dcc:issuer { "calibrationLaboratory" }
-                            dcc:value { (xml_text(&c.url)) }
-                            dcc:name { (content("This certificate's URL")) }
-                        }
-                    }
-                    @if let Some(r) = d.item_received_at { dcc:receiptDate { (date(r)) } }
-                    dcc:beginPerformanceDate { (date(d.performed_at)) }
-                    dcc:endPerformanceDate { (date(d.performed_at)) }
-                    dcc:performanceLocation { "laboratory" }
-                    dcc:issueDate { (date(&issued)) }
-                    @if let Some(amends) = c.amends(&d.id) {
-                        dcc:reportAmendedSubstituted {
-                            dcc:typeOfChange { "amended" }
-                            dcc:replacedUniqueIdentifier { (amends) }
-                        }
-                    } @else if let Some(s) = d.supersedes {
-                        dcc:reportAmendedSubstituted {
-                            dcc:typeOfChange { "substituted" }
-                            dcc:replacedUniqueIdentifier { (s.calibration_id) }
-                        }
-                    }
+    let root = [
+        ("xmlns:dcc", DCC_NS),
+        ("xmlns:si", SI_NS),
+        ("schemaVersion", SCHEMA_VERSION),
+    ];
+    let mut x = Xml::document();
+    x.el_attrs("dcc:digitalCalibrationCertificate", &root, |x| {
+        x.el("dcc:administrativeData", |x| {
+            x.el("dcc:dccSoftware", |x| {
+                x.el("dcc:software", |x| {
+                    x.el("dcc:name", |x| content(x, "accelcal"));
+                    x.text("dcc:release", env!("CARGO_PKG_VERSION"));
+                    x.text("dcc:type", "application");
+                })
+            });
+            x.el("dcc:coreData", |x| {
+                x.text("dcc:countryCodeISO3166_1", country.unwrap_or(""));
+                x.text("dcc:usedLangCodeISO639_1", "en");
+                x.text("dcc:mandatoryLangCodeISO639_1", "en");
+                x.text("dcc:uniqueIdentifier", c.identifier(&d.id));
+                x.el("dcc:identifications", |x| {
+                    identification(
+                        x,
+                        "calibrationLaboratory",
+                        &c.submission_sha256,
+                        "SHA-256 of the stored submission",
+                    );
+                    identification(x, "calibrationLaboratory", &c.url, "This certificate's URL");
+                });
+                if let Some(r) = d.item_received_at {
+                    x.text("dcc:receiptDate", date(r));
                 }
-                (items(d, c))
-                dcc:calibrationLaboratory {
-                    @if let Some(a) = &c.laboratory.accreditation {
-                        dcc:calibrationLaboratoryCode { (xml_text(a)) }
-                    }
-                    dcc:contact {
-                        dcc:name { (content(lab_name)) }
-                        (location(c.laboratory.address.as_deref(), country))
-                    }
+                x.text("dcc:beginPerformanceDate", date(d.performed_at));
+                x.text("dcc:endPerformanceDate", date(d.performed_at));
+                x.text("dcc:performanceLocation", "laboratory");
+                x.text("dcc:issueDate", date(&issued));
+                let replaced = match (c.amends(&d.id), d.supersedes) {
+                    (Some(amends), _) => Some(("amended", amends)),
+                    (None, Some(s)) => Some(("substituted", s.calibration_id.to_string())),
+                    (None, None) => None,
+                };
+                if let Some((change, id)) = replaced {
+                    x.el("dcc:reportAmendedSubstituted", |x| {
+                        x.text("dcc:typeOfChange", change);
+                        x.text("dcc:replacedUniqueIdentifier", id);
+                    });
                 }
-                dcc:respPersons {
-                    @for (n, s) in approvals.iter().enumerate() {
-                        dcc:respPerson {
-                            dcc:person { dcc:name { (content(s.holder.as_deref().unwrap_or(&s.token_id))) } }
-                            dcc:description { (content(&format!(
-                                "{} (token {}, signed {}){}",
-                                s.meaning,
-                                s.token_id,
-                                s.signed_at,
-                                s.comment.as_deref().map_or(String::new(), |c| format!(": {c}"))
-                            ))) }
-                            dcc:role { "reviewer" }
-                            dcc:mainSigner { (n + 1 == approvals.len()) }
-                        }
-                    }
+            });
+            items(x, d, c);
+            x.el("dcc:calibrationLaboratory", |x| {
+                if let Some(a) = &c.laboratory.accreditation {
+                    x.text("dcc:calibrationLaboratoryCode", a);
                 }
-                @if let Some(cu) = &c.customer {
-                    dcc:customer {
-                        dcc:name { (content(&cu.name)) }
-                        (location(cu.address.as_deref(), None))
-                    }
+                x.el("dcc:contact", |x| {
+                    x.el("dcc:name", |x| content(x, lab_name));
+                    location(x, c.laboratory.address.as_deref(), country);
+                });
+            });
+            x.el("dcc:respPersons", |x| {
+                for (n, s) in approvals.iter().enumerate() {
+                    x.el("dcc:respPerson", |x| {
+                        x.el("dcc:person", |x| {
+                            x.el("dcc:name", |x| {
+                                content(x, s.holder.as_deref().unwrap_or(&s.token_id))
+                            })
+                        });
+                        x.el("dcc:description", |x| {
+                            content(
+                                x,
+                                &format!(
+                                    "{} (token {}, signed {}){}",
+                                    s.meaning,
+                                    s.token_id,
+                                    s.signed_at,
+                                    s.comment
+                                        .as_deref()
+                                        .map_or(String::new(), |c| format!(": {c}"))
+                                ),
+                            )
+                        });
+                        x.text("dcc:role", "reviewer");
+                        x.text(
+                            "dcc:mainSigner",
+                            if n + 1 == approvals.len() {
+                                "true"
+                            } else {
+                                "false"
+                            },
+                        );
+                    });
                 }
-                (statements(d, c))
+            });
+            if let Some(cu) = &c.customer {
+                x.el("dcc:customer", |x| {
+                    x.el("dcc:name", |x| content(x, &cu.name));
+                    location(x, cu.address.as_deref(), None);
+                });
             }
-            dcc:measurementResults { (results) }
-        }
-    };
-    doc.into_string()
+            statements(x, d, c);
+        });
+        x.el("dcc:measurementResults", results);
+    });
+    x.finish()
+}
+
+/// One `dcc:identification`: who issued `value`, and what it is.
+fn identification(x: &mut Xml, issuer: &str, value: &str, name: &str) {
+    x.el("dcc:identification", |x| {
+        x.text("dcc:issuer", issuer);
+        x.text("dcc:value", value);
+        x.el("dcc:name", |x| content(x, name));
+    });
 }
 
 /// A single-axis calibration's `dcc:measurementResult`: the method, the
 /// standards, the influence conditions and every fused coefficient.
-fn results(d: &ResultDoc) -> Markup {
+fn results(x: &mut Xml, d: &ResultDoc) {
     let unit = dsi_unit(&d.unit);
     let statement = d
         .uncertainty
         .as_ref()
         .map(super::certificate::coverage_statement);
-    html! {
-                dcc:measurementResult {
-                    dcc:name { (content("Static model of the accelerometer")) }
-                    dcc:description {
-                        (content(&format!(
-                            "Fused coefficients of the model U = Σ k·f(a), with terms {}, the output U in {} and \
-                             the specific force a in multiples of the local g (unit one): each coefficient is in \
-                             the output's unit per unit of its regressor. Values are rounded to the second \
-                             significant digit of their expanded uncertainty.",
-                            d.model.join(", "),
-                            d.unit
-                        )))
-                    }
-                    dcc:usedMethods { dcc:usedMethod {
-                        dcc:name { (content("Tumble test in the 1 g field, least squares per run, batch-estimation fusion")) }
-                        dcc:description { (content(&format!(
+    x.el("dcc:measurementResult", |x| {
+        x.el("dcc:name", |x| content(x, "Static model of the accelerometer"));
+        x.el("dcc:description", |x| {
+            content(
+                x,
+                &format!(
+                    "Fused coefficients of the model U = Σ k·f(a), with terms {}, the output U in {} and \
+                     the specific force a in multiples of the local g (unit one): each coefficient is in \
+                     the output's unit per unit of its regressor. Values are rounded to the second \
+                     significant digit of their expanded uncertainty.",
+                    d.model.join(", "),
+                    d.unit
+                ),
+            )
+        });
+        x.el("dcc:usedMethods", |x| {
+            x.el("dcc:usedMethod", |x| {
+                x.el("dcc:name", |x| {
+                    content(
+                        x,
+                        "Tumble test in the 1 g field, least squares per run, batch-estimation fusion",
+                    )
+                });
+                x.el("dcc:description", |x| {
+                    content(
+                        x,
+                        &format!(
                             "Tumble test on a dividing head ({} mount, {} positions, {} runs), the static model identified \
                              from each run by least squares and the runs fused by batch estimation ({} batches, \
                              inverse-variance weighting of batch means). Uncertainty after the GUM: the fused standard \
                              error, the stand's indexing error, the uncertainty of gravity and, when the lack-of-fit test \
                              finds the model short of the data, the model's own standard error, combined in quadrature \
                              and expanded{}.",
-                            d.mount, d.positions.len(), d.runs.len(), d.batches,
+                            d.mount,
+                            d.positions.len(),
+                            d.runs.len(),
+                            d.batches,
                             statement.unwrap_or_default()
-                        ))) }
-                        dcc:norm { "ISO/IEC Guide 98-3 (GUM)" }
-                        dcc:reference { (PAPER) }
-                    } }
-                    (equipment(&d.standards))
-                    (conditions(d.temperatures_c.as_deref(), &d.standards))
-                    dcc:results { dcc:result {
-                        dcc:name { (content("Fused coefficients")) }
-                        dcc:data {
-                            @for (t, v) in d.fused.coefficients.iter() {
-                                @let expanded = d.uncertainty.as_ref()
-                                    .and_then(|u| u.terms.get(t).map(|b| (b.expanded, b.covered(u.coverage_factor))));
-                                dcc:quantity {
-                                    dcc:name { (content(&format!("{} — {} ({})", t.name(), term_meaning(t), super::format::term_unit(t, &d.unit)))) }
-                                    (real(t.name(), *v, &unit, expanded))
-                                    (meta_data(
-                                        expanded.map(|(_, c)| c),
-                                        &super::format::term_unit(t, &d.unit),
-                                        d.decision.as_ref().and_then(|dec| dec.terms.get(t).map(|x| Judgement {
-                                            rule: &dec.rule, verdict: &x.verdict, value: x.value, min: x.min, max: x.max,
-                                        })),
-                                    ))
-                                }
-                            }
-                        }
-                    } }
-                }
-    }
+                        ),
+                    )
+                });
+                x.text("dcc:norm", "ISO/IEC Guide 98-3 (GUM)");
+                x.text("dcc:reference", PAPER);
+            })
+        });
+        equipment(x, &d.standards);
+        conditions(x, d.temperatures_c.as_deref(), &d.standards);
+        x.el("dcc:results", |x| {
+            x.el("dcc:result", |x| {
+                x.el("dcc:name", |x| content(x, "Fused coefficients"));
+                x.el("dcc:data", |x| {
+                    for (t, v) in d.fused.coefficients.iter() {
+                        let expanded = d.uncertainty.as_ref().and_then(|u| {
+                            u.terms
+                                .get(t)
+                                .map(|b| (b.expanded, b.covered(u.coverage_factor)))
+                        });
+                        let term_unit = super::format::term_unit(t, &d.unit);
+                        let judged = d.decision.as_ref().and_then(|dec| {
+                            dec.terms.get(t).map(|j| Judgement {
+                                rule: &dec.rule,
+                                verdict: &j.verdict,
+                                value: j.value,
+                                min: j.min,
+                                max: j.max,
+                            })
+                        });
+                        x.el("dcc:quantity", |x| {
+                            x.el("dcc:name", |x| {
+                                content(
+                                    x,
+                                    &format!("{} — {} ({term_unit})", t.name(), term_meaning(t)),
+                                )
+                            });
+                            real(x, t.name(), *v, &unit, expanded);
+                            meta_data(x, expanded.map(|(_, c)| c), &term_unit, judged);
+                        });
+                    }
+                })
+            })
+        });
+    });
 }
 
 /// A judged quantity: the rule, its verdict, value and limits.
@@ -532,157 +592,210 @@ pub struct Judgement<'a> {
 /// A quantity's `dcc:measurementMetaData`: how its expanded uncertainty
 /// was formed (`u_c`, `ν_eff`, `k`, `p`) and, when judged, its limits and
 /// conformity; nothing when neither.
-pub fn meta_data(covered: Option<Covered>, unit: &str, judged: Option<Judgement<'_>>) -> Markup {
+pub fn meta_data(x: &mut Xml, covered: Option<Covered>, unit: &str, judged: Option<Judgement<'_>>) {
     if covered.is_none() && judged.is_none() {
-        return html! {};
+        return;
     }
-    html! {
-        dcc:measurementMetaData {
-            @if let Some(c) = covered {
-                dcc:metaData {
-                    dcc:name { (content("Combined standard uncertainty, effective degrees of freedom, coverage")) }
-                    dcc:declaration { (content(&format!(
-                        "u_c = {} {unit}; ν_eff = {} (Welch–Satterthwaite, GUM G.2b); k = {}; p = {}",
-                        decimal(c.combined),
-                        super::format::dof(c.effective_dof),
-                        coverage_factor(c.k),
-                        probability(c.p),
-                    ))) }
-                }
-            }
-            @if let Some(j) = judged {
-                (conformity_data(j.rule, unit, j.verdict, j.value, j.min, j.max))
-            }
+    x.el("dcc:measurementMetaData", |x| {
+        if let Some(c) = covered {
+            x.el("dcc:metaData", |x| {
+                x.el("dcc:name", |x| {
+                    content(
+                        x,
+                        "Combined standard uncertainty, effective degrees of freedom, coverage",
+                    )
+                });
+                x.el("dcc:declaration", |x| {
+                    content(
+                        x,
+                        &format!(
+                            "u_c = {} {unit}; ν_eff = {} (Welch–Satterthwaite, GUM G.2b); k = {}; p = {}",
+                            decimal(c.combined),
+                            super::format::dof(c.effective_dof),
+                            coverage_factor(c.k),
+                            probability(c.p),
+                        ),
+                    )
+                });
+            });
         }
-    }
-}
-
-/// A `dcc:metaData` of a quantity's limits and conformity.
-fn conformity_data(
-    rule: &str,
-    unit: &str,
-    verdict: &str,
-    value: f64,
-    min: Option<f64>,
-    max: Option<f64>,
-) -> Markup {
-    html! {
-        dcc:metaData {
-            dcc:name { (content("Conformity with the sensor type's limits")) }
-            dcc:declaration { (content(&format!(
-                "limits {} to {} {unit}, {rule} rule (ILAC-G8)",
-                min.map_or("−∞".into(), decimal),
-                max.map_or("+∞".into(), decimal),
-            ))) }
-            dcc:conformity { (conformity(verdict, value, min, max)) }
+        if let Some(j) = judged {
+            x.el("dcc:metaData", |x| {
+                x.el("dcc:name", |x| {
+                    content(x, "Conformity with the sensor type's limits")
+                });
+                x.el("dcc:declaration", |x| {
+                    content(
+                        x,
+                        &format!(
+                            "limits {} to {} {unit}, {} rule (ILAC-G8)",
+                            j.min.map_or("−∞".into(), decimal),
+                            j.max.map_or("+∞".into(), decimal),
+                            j.rule,
+                        ),
+                    )
+                });
+                x.text(
+                    "dcc:conformity",
+                    conformity(j.verdict, j.value, j.min, j.max),
+                );
+            });
         }
-    }
+    });
 }
 
 /// `dcc:items`: the item behind the sensor id.
-fn items(d: &Admin<'_>, c: &Context) -> Markup {
+fn items(x: &mut Xml, d: &Admin<'_>, c: &Context) {
     let item = c.item.as_ref();
-    html! {
-        dcc:items { dcc:item {
-            @let described = item.map(|i| i.describe()).filter(|_| item.is_some_and(|i| {
-                i.manufacturer.is_some() || i.model.is_some() || i.serial.is_some()
-            }));
-            dcc:name { (content(&format!("{} {}", d.item, described.unwrap_or_else(|| d.sensor_id.to_owned())))) }
-            @if let Some(cond) = d.item_condition {
-                dcc:description { (content(&format!("Condition on receipt: {cond}"))) }
+    let described = item
+        .filter(|i| i.manufacturer.is_some() || i.model.is_some() || i.serial.is_some())
+        .map(|i| i.describe());
+    x.el("dcc:items", |x| {
+        x.el("dcc:item", |x| {
+            x.el("dcc:name", |x| {
+                content(
+                    x,
+                    &format!(
+                        "{} {}",
+                        d.item,
+                        described.unwrap_or_else(|| d.sensor_id.to_owned())
+                    ),
+                )
+            });
+            if let Some(cond) = d.item_condition {
+                x.el("dcc:description", |x| {
+                    content(x, &format!("Condition on receipt: {cond}"))
+                });
             }
-            @if let Some(m) = item.and_then(|i| i.manufacturer.as_deref()) {
-                dcc:manufacturer { dcc:name { (content(m)) } }
+            if let Some(m) = item.and_then(|i| i.manufacturer.as_deref()) {
+                x.el("dcc:manufacturer", |x| x.el("dcc:name", |x| content(x, m)));
             }
-            @if let Some(m) = item.and_then(|i| i.model.as_deref()) {
-                dcc:model { (xml_text(m)) }
+            if let Some(m) = item.and_then(|i| i.model.as_deref()) {
+                x.text("dcc:model", m);
             }
-            dcc:identifications {
-                @if let Some(s) = item.and_then(|i| i.serial.as_deref()) {
-                    dcc:identification {
-                        dcc:issuer { "manufacturer" }
-                        dcc:value { (xml_text(s)) }
-                        dcc:name { (content("Serial number")) }
-                    }
+            x.el("dcc:identifications", |x| {
+                if let Some(s) = item.and_then(|i| i.serial.as_deref()) {
+                    identification(x, "manufacturer", s, "Serial number");
                 }
-                dcc:identification {
-                    dcc:issuer { "calibrationLaboratory" }
-                    dcc:value { (xml_text(d.sensor_id)) }
-                    dcc:name { (content("Sensor id")) }
-                }
+                identification(x, "calibrationLaboratory", d.sensor_id, "Sensor id");
+            });
+        })
+    });
+}
+
+/// One `dcc:statement` named `name`: its declarations, then whatever
+/// `more` writes (`dcc:traceable` goes before them, so it is written by
+/// the caller).
+fn statement(x: &mut Xml, name: &str, declarations: &[&str], more: impl FnOnce(&mut Xml)) {
+    x.el("dcc:statement", |x| {
+        x.el("dcc:name", |x| content(x, name));
+        x.el("dcc:declaration", |x| {
+            for d in declarations {
+                content(x, d);
             }
-        } }
-    }
+        });
+        more(x);
+    });
 }
 
 /// `dcc:statements`: traceability, conformity, the item-only statement, the
 /// due date when agreed.
-fn statements(d: &Admin<'_>, c: &Context) -> Markup {
+fn statements(x: &mut Xml, d: &Admin<'_>, c: &Context) {
     let due_agreed = c.customer.as_ref().is_none_or(|cu| cu.due_date_agreed);
-    html! {
-        dcc:statements {
-            dcc:statement {
-                dcc:name { (content("Metrological traceability")) }
-                @if d.standards.is_empty() {
-                    dcc:traceable { "false" }
-                    dcc:declaration { (content("No reference standard was named with this calibration: this certificate does not establish the metrological traceability of its results.")) }
-                } @else {
-                    dcc:traceable { "true" }
-                    dcc:declaration {
-                        (content("The results are traceable to the SI through the reference standards listed under measuringEquipments, each in calibration when the test was performed."))
-                        @for u in d.standards {
-                            (content(&format!("{} (certificate {} of {}): {}", u.standard_id, u.certificate.number, u.certificate.issued_by, u.parameters.traceability)))
-                        }
+    x.el("dcc:statements", |x| {
+        x.el("dcc:statement", |x| {
+            x.el("dcc:name", |x| content(x, "Metrological traceability"));
+            if d.standards.is_empty() {
+                x.text("dcc:traceable", "false");
+                x.el("dcc:declaration", |x| {
+                    content(
+                        x,
+                        "No reference standard was named with this calibration: this certificate does \
+                         not establish the metrological traceability of its results.",
+                    )
+                });
+            } else {
+                x.text("dcc:traceable", "true");
+                x.el("dcc:declaration", |x| {
+                    content(
+                        x,
+                        "The results are traceable to the SI through the reference standards listed under \
+                         measuringEquipments, each in calibration when the test was performed.",
+                    );
+                    for u in d.standards {
+                        content(
+                            x,
+                            &format!(
+                                "{} (certificate {} of {}): {}",
+                                u.standard_id,
+                                u.certificate.number,
+                                u.certificate.issued_by,
+                                u.parameters.traceability
+                            ),
+                        );
                     }
-                }
+                });
             }
-            @if let Some(a) = &c.amendment {
-                dcc:statement {
-                    dcc:name { (content(&format!("Amendment {}", a.number))) }
-                    dcc:declaration { (content(&format!(
-                        "This certificate (revision {}) amends and replaces {}. Reason: {}",
-                        a.number + 1,
-                        c.amends(&d.id).unwrap_or_default(),
-                        a.reason
-                    ))) }
-                }
-            }
-            dcc:statement {
-                dcc:name { (content("Scope of the results")) }
-                dcc:declaration { (content("The results relate only to the item calibrated.")) }
-            }
-            @if let Some(dec) = &d.judged {
-                dcc:statement {
-                    dcc:name { (content("Statement of conformity")) }
-                    dcc:declaration { (content(&format!(
-                        "Decision rule: {} acceptance after ILAC-G8:2019{}; verdict {}.",
-                        dec.rule,
-                        if dec.rule == "guarded" { " (guard band w = U)" } else { " (the value alone against the limits)" },
-                        dec.verdict
-                    ))) }
-                    dcc:conformity { (dec.worst) }
-                }
-            }
-            @if let (true, Some(due)) = (due_agreed, d.due_at) {
-                dcc:statement {
-                    dcc:name { (content("Recalibration due")) }
-                    dcc:declaration { (content("Recalibration is due by the date given, as agreed with the customer.")) }
-                    dcc:date { (date(due)) }
-                }
-            }
+        });
+        if let Some(a) = &c.amendment {
+            let why = format!(
+                "This certificate (revision {}) amends and replaces {}. Reason: {}",
+                a.number + 1,
+                c.amends(&d.id).unwrap_or_default(),
+                a.reason
+            );
+            statement(x, &format!("Amendment {}", a.number), &[&why], |_| {});
         }
-    }
+        statement(
+            x,
+            "Scope of the results",
+            &["The results relate only to the item calibrated."],
+            |_| {},
+        );
+        if let Some(dec) = &d.judged {
+            let rule = format!(
+                "Decision rule: {} acceptance after ILAC-G8:2019{}; verdict {}.",
+                dec.rule,
+                if dec.rule == "guarded" {
+                    " (guard band w = U)"
+                } else {
+                    " (the value alone against the limits)"
+                },
+                dec.verdict
+            );
+            statement(x, "Statement of conformity", &[&rule], |x| {
+                x.text("dcc:conformity", dec.worst)
+            });
+        }
+        if let (true, Some(due)) = (due_agreed, d.due_at) {
+            statement(
+                x,
+                "Recalibration due",
+                &["Recalibration is due by the date given, as agreed with the customer."],
+                |x| x.text("dcc:date", date(due)),
+            );
+        }
+    });
 }
 
 /// `dcc:measuringEquipments`: the reference standards used.
-pub fn equipment(standards: &[crate::domain::standards::UsedStandard]) -> Markup {
-    html! {
-        @if !standards.is_empty() {
-            dcc:measuringEquipments {
-                @for u in standards {
-                    dcc:measuringEquipment {
-                        dcc:name { (content(&format!("{} ({}): {}", u.standard_id, u.role, u.description))) }
-                        dcc:description { (content(&format!(
+pub fn equipment(x: &mut Xml, standards: &[crate::domain::standards::UsedStandard]) {
+    if standards.is_empty() {
+        return;
+    }
+    x.el("dcc:measuringEquipments", |x| {
+        for u in standards {
+            x.el("dcc:measuringEquipment", |x| {
+                x.el("dcc:name", |x| {
+                    content(
+                        x,
+                        &format!("{} ({}): {}", u.standard_id, u.role, u.description),
+                    )
+                });
+                x.el("dcc:description", |x| {
+                    content(
+                        x,
+                        &format!(
                             "{}; calibrated {} by {}, certificate {}; due {}. {}",
                             u.kind.as_str(),
                             date(&u.certificate.calibrated_at.to_string()),
@@ -690,81 +803,67 @@ pub fn equipment(standards: &[crate::domain::standards::UsedStandard]) -> Markup
                             u.certificate.number,
                             date(&u.due_at.to_string()),
                             u.parameters.traceability
-                        ))) }
-                        dcc:identifications {
-                            dcc:identification {
-                                dcc:issuer { "calibrationLaboratory" }
-                                dcc:value { (xml_text(&u.standard_id)) }
-                                dcc:name { (content("Standard id")) }
-                            }
-                            @if let Some(s) = &u.serial {
-                                dcc:identification {
-                                    dcc:issuer { "manufacturer" }
-                                    dcc:value { (xml_text(s)) }
-                                    dcc:name { (content("Serial number")) }
-                                }
-                            }
-                            dcc:identification {
-                                dcc:issuer { "other" }
-                                dcc:value { (xml_text(&u.certificate.number)) }
-                                dcc:name { (content(&format!("Calibration certificate of {}", u.certificate.issued_by))) }
-                            }
-                        }
-                        @let quantities = standard_quantities(u);
-                        @if !quantities.is_empty() {
-                            dcc:measuringEquipmentQuantities {
-                                @for q in quantities { (q) }
-                            }
-                        }
+                        ),
+                    )
+                });
+                x.el("dcc:identifications", |x| {
+                    identification(x, "calibrationLaboratory", &u.standard_id, "Standard id");
+                    if let Some(s) = &u.serial {
+                        identification(x, "manufacturer", s, "Serial number");
                     }
+                    identification(
+                        x,
+                        "other",
+                        &u.certificate.number,
+                        &format!("Calibration certificate of {}", u.certificate.issued_by),
+                    );
+                });
+                let quantities = standard_quantities(u);
+                if !quantities.is_empty() {
+                    x.el("dcc:measuringEquipmentQuantities", |x| {
+                        for (name, label, value, unit, std) in quantities {
+                            x.el("dcc:measuringEquipmentQuantity", |x| {
+                                x.el("dcc:name", |x| content(x, name));
+                                real_standard(x, label, value, unit, std);
+                            });
+                        }
+                    });
                 }
-            }
+            });
         }
-    }
+    });
 }
 
-/// A standard's parameters as `dcc:measuringEquipmentQuantity` elements.
-fn standard_quantities(u: &crate::domain::standards::UsedStandard) -> Vec<Markup> {
+/// A standard's parameters as its `dcc:measuringEquipmentQuantity`
+/// elements: name, label, value, D-SI unit and standard uncertainty.
+fn standard_quantities(
+    u: &crate::domain::standards::UsedStandard,
+) -> Vec<(&'static str, &'static str, f64, &'static str, Option<f64>)> {
+    let p = &u.parameters;
     let mut out = Vec::new();
-    let mut push = |name: &str, r: Markup| {
-        out.push(html! { dcc:measuringEquipmentQuantity { dcc:name { (content(name)) } (r) } });
-    };
-    if let Some(a) = u.parameters.angle_std_arcsec {
-        push(
-            "Indexing error (1σ)",
-            real_standard("indexing", a, r"\arcsecond", None),
-        );
+    if let Some(a) = p.angle_std_arcsec {
+        out.push(("Indexing error (1σ)", "indexing", a, r"\arcsecond", None));
     }
-    if let Some(g) = u.parameters.gravity_m_s2 {
-        push(
-            "Local gravity",
-            real_standard(
-                "g",
-                g,
-                r"\metre\second\tothe{-2}",
-                u.parameters.gravity_rel_std.map(|r| r * g),
-            ),
-        );
-    } else if let Some(r) = u.parameters.gravity_rel_std {
-        push(
-            "Relative uncertainty of gravity (1σ)",
-            real_standard("gravity_rel_std", r, r"\one", None),
-        );
+    if let Some(g) = p.gravity_m_s2 {
+        let std = p.gravity_rel_std.map(|r| r * g);
+        out.push(("Local gravity", "g", g, r"\metre\second\tothe{-2}", std));
+    } else if let Some(r) = p.gravity_rel_std {
+        let name = "Relative uncertainty of gravity (1σ)";
+        out.push((name, "gravity_rel_std", r, r"\one", None));
     }
-    if let Some(t) = u.parameters.temperature_std_c {
-        push(
-            "Thermometer uncertainty (1σ)",
-            real_standard("temperature_std", t, r"\kelvin", None),
-        );
+    if let Some(t) = p.temperature_std_c {
+        let name = "Thermometer uncertainty (1σ)";
+        out.push((name, "temperature_std", t, r"\kelvin", None));
     }
     out
 }
 
 /// `dcc:influenceConditions`: the run temperatures and local g.
 pub fn conditions(
+    x: &mut Xml,
     temperatures_c: Option<&[f64]>,
     standards: &[crate::domain::standards::UsedStandard],
-) -> Markup {
+) {
     let temps = temperatures_c.filter(|t| !t.is_empty());
     let gravity = standards
         .iter()
@@ -774,39 +873,58 @@ pub fn conditions(
                 .gravity_m_s2
                 .map(|g| (g, u.parameters.gravity_rel_std.map(|r| r * g)))
         });
-    html! {
-        @if temps.is_some() || gravity.is_some() {
-            dcc:influenceConditions {
-                @if let Some(t) = temps {
-                    @let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
-                    @let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-                    @let thermometer = standards.iter().find(|u| u.role == "thermometer").and_then(|u| u.parameters.temperature_std_c);
-                    dcc:influenceCondition {
-                        dcc:name { (content("Ambient temperature over the runs")) }
-                        dcc:data {
-                            dcc:quantity {
-                                dcc:name { (content("Lowest run temperature")) }
-                                (real_standard("temperature_min", lo, r"\degreecelsius", thermometer))
-                            }
-                            dcc:quantity {
-                                dcc:name { (content("Highest run temperature")) }
-                                (real_standard("temperature_max", hi, r"\degreecelsius", thermometer))
-                            }
-                        }
-                    }
-                }
-                @if let Some((g, std)) = gravity {
-                    dcc:influenceCondition {
-                        dcc:name { (content("Local gravity")) }
-                        dcc:data { dcc:quantity {
-                            dcc:name { (content("Local acceleration due to gravity")) }
-                            (real_standard("g", g, r"\metre\second\tothe{-2}", std))
-                        } }
-                    }
-                }
-            }
-        }
+    if temps.is_none() && gravity.is_none() {
+        return;
     }
+    let quantity = |x: &mut Xml, name: &str, label: &str, value: f64, unit: &str, std| {
+        x.el("dcc:quantity", |x| {
+            x.el("dcc:name", |x| content(x, name));
+            real_standard(x, label, value, unit, std);
+        });
+    };
+    x.el("dcc:influenceConditions", |x| {
+        if let Some(t) = temps {
+            let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
+            let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+            let thermometer = standards
+                .iter()
+                .find(|u| u.role == "thermometer")
+                .and_then(|u| u.parameters.temperature_std_c);
+            x.el("dcc:influenceCondition", |x| {
+                x.el("dcc:name", |x| {
+                    content(x, "Ambient temperature over the runs")
+                });
+                x.el("dcc:data", |x| {
+                    let c = r"\degreecelsius";
+                    quantity(
+                        x,
+                        "Lowest run temperature",
+                        "temperature_min",
+                        lo,
+                        c,
+                        thermometer,
+                    );
+                    quantity(
+                        x,
+                        "Highest run temperature",
+                        "temperature_max",
+                        hi,
+                        c,
+                        thermometer,
+                    );
+                });
+            });
+        }
+        if let Some((g, std)) = gravity {
+            x.el("dcc:influenceCondition", |x| {
+                x.el("dcc:name", |x| content(x, "Local gravity"));
+                x.el("dcc:data", |x| {
+                    let unit = r"\metre\second\tothe{-2}";
+                    quantity(x, "Local acceleration due to gravity", "g", g, unit, std);
+                });
+            });
+        }
+    });
 }
 
 /// Whether a request's `Accept` prefers XML (`application/xml` or
@@ -908,10 +1026,5 @@ mod tests {
         for bad in ["de", "DEU", "D", "", "D1"] {
             assert!(Laboratory::country_from(bad).is_err(), "{bad}");
         }
-    }
-
-    #[test]
-    fn text_drops_what_xml_cannot_carry() {
-        assert_eq!(xml_text("a\u{1}b\tc\n"), "ab\tc\n");
     }
 }

@@ -5,7 +5,7 @@
 use axum::extract::{RawQuery, State};
 use maud::{Markup, html};
 
-use super::format::{date, num};
+use super::format::{Notation, date};
 use super::session::Viewer;
 use super::{Html, UiError, badge, layout};
 use crate::domain::status::Status;
@@ -46,15 +46,21 @@ fn with(pairs: &[(String, String)], key: &str, value: Option<&str>) -> String {
     }
 }
 
-/// The latest fused coefficients, one line.
-pub fn coefficients(s: &SensorSummary) -> Markup {
+/// The latest fused coefficients, one line, in the column's notation `n`.
+pub fn coefficients(s: &SensorSummary, n: Notation) -> Markup {
     html! {
         span.coef {
             @for (term, v) in s.latest.coefficients.iter() {
-                span { (term.name()) " " (num(*v)) }
+                span { (term.name()) " " (n.num(*v)) } " "
             }
         }
     }
+}
+
+/// The one notation of the fleet's coefficient column: every coefficient
+/// of every sensor listed.
+pub fn coefficient_notation<'a>(sensors: impl Iterator<Item = &'a SensorSummary>) -> Notation {
+    Notation::of(sensors.flat_map(|s| s.latest.coefficients.iter().map(|(_, v)| *v)))
 }
 
 /// `GET /ui/sensors`.
@@ -97,6 +103,7 @@ pub async fn page(
         @if page.items.is_empty() {
             p.notice { @if filtered { "No sensor matches this filter." } @else { "No sensor has been calibrated yet." } }
         } @else {
+            @let notation = coefficient_notation(page.items.iter());
             div.table-wrap tabindex="0" role="region" aria-label="Sensors" {
                 table #fleet .cards {
                     caption { "Sensors in id order" @if !first_page { " (continued)" } }
@@ -119,7 +126,7 @@ pub async fn page(
                                 td data-label="Type" { (s.sensor_type.as_deref().unwrap_or("—")) }
                                 td.num data-label="Calibrations" { (s.calibration_count) }
                                 td.date data-label="Latest" { a href={"/ui/calibrations/" (s.latest.id)} { (date(&s.latest_performed_at)) } }
-                                td data-label="Coefficients" { (coefficients(s)) " " span.muted { (s.latest.unit) } }
+                                td data-label="Coefficients" { (coefficients(s, notation)) " " span.muted { (s.latest.unit) } }
                                 td data-label="Verdict" { @match s.latest_verdict {
                                     Some(v) => (badge(v.as_str(), v.as_str())),
                                     None => span.muted { "—" },

@@ -30,6 +30,7 @@ pub mod session;
 pub mod triad;
 pub mod triad_certificate;
 pub mod triad_dcc;
+pub mod xml;
 
 use axum::Router;
 use axum::http::{HeaderName, HeaderValue, StatusCode, header};

@@ -297,8 +297,9 @@ pub enum WarningDoc {
         /// The root of the lack-of-fit mean square.
         lack_of_fit_std: f64,
     },
-    /// A run fits significantly worse than the others (an F test; results
-    /// computed before it hold the RMS and the median instead).
+    /// A run scatters significantly more than the others (an F test on the
+    /// pure error or the residuals; results computed before the F tests
+    /// hold the RMS and the median instead).
     NoisyRun {
         /// Run index (0-based).
         run: usize,
@@ -308,12 +309,22 @@ pub enum WarningDoc {
         /// Its p-value.
         #[serde(default)]
         p_value: Option<f64>,
-        /// `s_j`.
+        /// `pure_error` or `residual` (results before hold the residual
+        /// test without saying so).
+        #[serde(default)]
+        test: Option<String>,
+        /// `s_j` of the residuals.
         #[serde(default)]
         residual_std: Option<f64>,
-        /// `s_(−j)`.
+        /// `s_(−j)` of the residuals.
         #[serde(default)]
         others_residual_std: Option<f64>,
+        /// `s_pe,j`.
+        #[serde(default)]
+        pure_error_std: Option<f64>,
+        /// `s_pe,(−j)`.
+        #[serde(default)]
+        others_pure_error_std: Option<f64>,
         /// Former: its residual RMS.
         #[serde(default)]
         residual_rms: Option<f64>,

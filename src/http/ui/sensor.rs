@@ -302,6 +302,46 @@ fn chart_table(r: &Report, q: &Quantity<'_>) -> Markup {
     }
 }
 
+/// One notation per column of the stability table, each decided by every
+/// row's number in it.
+struct StabilityColumns {
+    mean: Notation,
+    std: Notation,
+    min: Notation,
+    max: Notation,
+    drift: Notation,
+    se: Notation,
+    limits: Notation,
+    change: Notation,
+    change_u: Notation,
+}
+
+impl StabilityColumns {
+    fn of<'a>(rows: impl Iterator<Item = &'a TermStability> + Clone) -> Self {
+        let col = |f: fn(&TermStability) -> Option<f64>| Notation::of(rows.clone().filter_map(f));
+        StabilityColumns {
+            mean: col(|s| Some(s.mean)),
+            std: col(|s| s.std),
+            min: col(|s| Some(s.min)),
+            max: col(|s| Some(s.max)),
+            drift: col(|s| s.drift_per_year),
+            se: col(|s| s.drift_std_error),
+            limits: Notation::of(
+                rows.clone()
+                    .flat_map(|s| [s.control.lower, s.control.upper])
+                    .flatten(),
+            ),
+            change: col(|s| s.latest_change),
+            change_u: col(|s| s.latest_change_expanded),
+        }
+    }
+}
+
+/// An optional number in a column's notation.
+fn opt_in(v: Option<f64>, n: Notation, f: fn(Notation, f64) -> String) -> String {
+    v.map_or("—".into(), |v| f(n, v))
+}
+
 fn stability_table(r: &Report) -> Markup {
     // A triad's: element by element (`b_x`, `S_xy`, `T_zz`).
     let triad = r.stability.elements.is_some();
@@ -314,6 +354,7 @@ fn stability_table(r: &Report) -> Markup {
             .map(|(t, s)| (t.name().to_owned(), s))
             .collect(),
     };
+    let cols = StabilityColumns::of(rows.iter().map(|(_, s)| *s));
     html! {
         @if rows.is_empty() {
             p.muted { "No coefficient is present in every calibration of the window." }
@@ -342,19 +383,19 @@ fn stability_table(r: &Report) -> Markup {
                         @for (t, s) in &rows {
                             tr data-term=(t) {
                                 th scope="row" { (t) }
-                                td.num data-label="Mean" { (num(s.mean)) }
-                                td.num data-label="Std" { (opt(s.std, unc)) }
-                                td.num data-label="Min" { (num(s.min)) }
-                                td.num data-label="Max" { (num(s.max)) }
-                                td.num data-label="Drift / year" { (opt(s.drift_per_year, unc)) }
-                                td.num data-label="SE" { (opt(s.drift_std_error, unc)) }
+                                td.num data-label="Mean" { (cols.mean.num(s.mean)) }
+                                td.num data-label="Std" { (opt_in(s.std, cols.std, Notation::unc)) }
+                                td.num data-label="Min" { (cols.min.num(s.min)) }
+                                td.num data-label="Max" { (cols.max.num(s.max)) }
+                                td.num data-label="Drift / year" { (opt_in(s.drift_per_year, cols.drift, Notation::unc)) }
+                                td.num data-label="SE" { (opt_in(s.drift_std_error, cols.se, Notation::unc)) }
                                 td.num data-label="t" { (opt(s.drift_t, |v| format!("{v:.2}"))) }
                                 td.num data-label="Control limits" { @match (s.control.lower, s.control.upper) {
-                                    (Some(lo), Some(hi)) => { (num(lo)) " … " (num(hi)) },
+                                    (Some(lo), Some(hi)) => { (cols.limits.num(lo)) " … " (cols.limits.num(hi)) },
                                     _ => "—",
                                 } }
-                                td.num data-label="Latest change" { (opt(s.latest_change, unc)) }
-                                td.num data-label="U of change" { (opt(s.latest_change_expanded, unc)) }
+                                td.num data-label="Latest change" { (opt_in(s.latest_change, cols.change, Notation::unc)) }
+                                td.num data-label="U of change" { (opt_in(s.latest_change_expanded, cols.change_u, Notation::unc)) }
                                 td data-label="Significant" { @match s.latest_change_significant {
                                     Some(true) => (badge("fail", "yes")),
                                     Some(false) => (badge("pass", "no")),

@@ -11,7 +11,7 @@ use maud::{Markup, html};
 use serde::Deserialize;
 
 use super::calibration::{record, when};
-use super::format::{num, opt, unc};
+use super::format::{Notation, num, unc};
 use super::session::Viewer;
 use super::{Html, UiError, badge, layout, review};
 use crate::http::{AppState, path_id};
@@ -207,22 +207,47 @@ const EXPORTS: [(&str, &str); 4] = [
     ("ardupilot", "ArduPilot parameters"),
 ];
 
-/// A vector (or a matrix's rows) with standard errors beside each value.
-fn vector(name: &str, v: &[f64; 3], e: Option<&[f64; 3]>) -> Markup {
+/// A vector (or a matrix's row) `name` of columns `col·x`, `col·y`,
+/// `col·z` with standard errors beside each value, each column in its
+/// notation (`values`, `errors`), each cell labelled for narrow screens.
+fn vector(
+    name: &str,
+    col: &str,
+    v: &[f64; 3],
+    e: Option<&[f64; 3]>,
+    (values, errors): ([Notation; 3], [Notation; 3]),
+) -> Markup {
     html! {
         tr {
             th scope="row" { (name) }
             @for (k, x) in v.iter().enumerate() {
-                td.num { (num(*x)) }
-                td.num { (opt(e.map(|e| e[k]), unc)) }
+                td.num data-label={(col) "·" (AXES[k])} { (values[k].num(*x)) }
+                td.num data-label={"u of " (col) "·" (AXES[k])} { (e.map_or("—".into(), |e| errors[k].unc(e[k]))) }
             }
         }
     }
 }
 
+/// The notations of the columns of `rows` and of their errors.
+fn columns(rows: &[&[f64; 3]], errors: Option<&[&[f64; 3]]>) -> ([Notation; 3], [Notation; 3]) {
+    let of = |rows: &[&[f64; 3]], k: usize| Notation::of(rows.iter().map(|r| r[k]));
+    (
+        [0, 1, 2].map(|k| of(rows, k)),
+        [0, 1, 2].map(|k| errors.map_or(Notation::Scientific, |e| of(e, k))),
+    )
+}
+
+/// The notations of a single row's columns: each value its own.
+fn row_columns(v: &[f64; 3], e: Option<&[f64; 3]>) -> ([Notation; 3], [Notation; 3]) {
+    columns(&[v], e.map(|e| [e]).as_ref().map(|e| &e[..]))
+}
+
 fn matrix(caption: &str, name: &str, m: &[[f64; 3]; 3], e: Option<&[[f64; 3]; 3]>) -> Markup {
+    let rows: Vec<&[f64; 3]> = m.iter().collect();
+    let errors: Option<Vec<&[f64; 3]>> = e.map(|e| e.iter().collect());
+    let notation = columns(&rows, errors.as_deref());
     html! {
-        div.table-wrap tabindex="0" role="region" aria-label=(name) { table #{"triad-" (name)} .numbers {
+        div.table-wrap tabindex="0" role="region" aria-label=(name) { table #{"triad-" (name)} .numbers .cards {
             caption { (caption) }
             thead { tr {
                 th scope="col" { "row" }
@@ -230,7 +255,7 @@ fn matrix(caption: &str, name: &str, m: &[[f64; 3]; 3], e: Option<&[[f64; 3]; 3]
             } }
             tbody {
                 @for (r, axis) in AXES.iter().enumerate() {
-                    (vector(&format!("{name}_{axis}"), &m[r], e.map(|e| &e[r])))
+                    (vector(&format!("{name}_{axis}"), name, &m[r], e.map(|e| &e[r]), notation))
                 }
             }
         } }
@@ -294,12 +319,14 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                     th scope="col" { "element" } th scope="col" { "value" } th scope="col" { "U" }
                     th scope="col" { "min" } th scope="col" { "max" } th scope="col" { "verdict" }
                 } }
+                @let of = |f: fn(&ElementDecisionDoc) -> Option<f64>| Notation::of(dec.elements.values().filter_map(f));
+                @let (value, u, min, max) = (of(|e| Some(e.value)), of(|e| Some(e.expanded)), of(|e| e.min), of(|e| e.max));
                 tbody {
                     @for (name, e) in &dec.elements {
                         tr data-element=(name) {
                             th scope="row" { (name) }
-                            td.num { (num(e.value)) } td.num { (unc(e.expanded)) }
-                            td.num { (opt(e.min, num)) } td.num { (opt(e.max, num)) }
+                            td.num { (value.num(e.value)) } td.num { (u.unc(e.expanded)) }
+                            td.num { (e.min.map_or("—".into(), |x| min.num(x))) } td.num { (e.max.map_or("—".into(), |x| max.num(x))) }
                             td { (badge(&e.verdict, &e.verdict)) }
                         }
                     }
@@ -315,17 +342,17 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
             }
         }
         h2 { "Bias and matrices" }
-        div.table-wrap tabindex="0" role="region" aria-label="b" { table #triad-b .numbers {
+        div.table-wrap tabindex="0" role="region" aria-label="b" { table #triad-b .numbers .cards {
             caption { "Bias b, " (d.unit) ", with standard errors u" }
             thead { tr { th scope="col" { "vector" } @for axis in AXES { th scope="col" { "b·" (axis) } th scope="col" { "u" } } } }
-            tbody { (vector("b", &d.b, d.b_std_errors.as_ref())) }
+            tbody { (vector("b", "b", &d.b, d.b_std_errors.as_ref(), row_columns(&d.b, d.b_std_errors.as_ref()))) }
         } }
         (matrix("Scale and misalignment S (rows by axis), with standard errors u", "S", &d.s, d.s_std_errors.as_ref()))
         @if let Some(s2) = &d.s2 {
-            div.table-wrap tabindex="0" role="region" aria-label="S2" { table #triad-S2 .numbers {
+            div.table-wrap tabindex="0" role="region" aria-label="S2" { table #triad-S2 .numbers .cards {
                 caption { "Second-order terms S2 (" (d.unit) " per g², u_m += S2_m g_m²), with standard errors u" }
                 thead { tr { th scope="col" { "vector" } @for axis in AXES { th scope="col" { "S2·" (axis) } th scope="col" { "u" } } } }
-                tbody { (vector("S2", s2, d.s2_std_errors.as_ref())) }
+                tbody { (vector("S2", "S2", s2, d.s2_std_errors.as_ref(), row_columns(s2, d.s2_std_errors.as_ref()))) }
             } }
         }
         @if let (Some(bu), Some(su)) = (&d.b_expanded, &d.s_expanded) {
@@ -382,9 +409,12 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                 @if known { @for axis in AXES { th scope="col" { (axis) } } }
                 @else { th scope="col" { "g" } }
             } }
+            @let columns: Vec<Notation> = (0..d.residuals.first().map_or(0, Vec::len))
+                .map(|k| Notation::of(d.residuals.iter().filter_map(|r| r.get(k).copied())))
+                .collect();
             tbody {
                 @for (p, r) in d.residuals.iter().enumerate() {
-                    tr { th scope="row" { (p + 1) } @for x in r { td.num { (num(*x)) } } }
+                    tr { th scope="row" { (p + 1) } @for (k, x) in r.iter().enumerate() { td.num { (columns[k].num(*x)) } } }
                 }
             }
         } }

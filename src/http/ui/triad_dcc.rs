@@ -14,13 +14,12 @@
 //! has `S_xy`, `S_xz`, `S_yz` zero by its frame convention: not measured,
 //! so not listed, and the description says so.
 
-use maud::{Markup, html};
-
 use super::certificate::{Context, PAPER};
 use super::dcc::{
     Admin, Judged, Judgement, conditions, content, document, dsi_unit, meta_data, real,
 };
 use super::triad::TriadDoc;
+use super::xml::Xml;
 use crate::domain::triad::{FIXED_BY_CONVENTION, KNOWN_ORIENTATIONS};
 use crate::store::AXES;
 
@@ -60,7 +59,7 @@ pub fn render(d: &TriadDoc, c: &Context) -> String {
         }),
         due_at: d.due_at.as_deref(),
     };
-    document(&admin, c, &results(d))
+    document(&admin, c, |x| results(x, d))
 }
 
 /// One measured element.
@@ -116,7 +115,7 @@ fn elements(d: &TriadDoc) -> Vec<Element> {
 }
 
 /// The triad's `dcc:measurementResult`.
-fn results(d: &TriadDoc) -> Markup {
+fn results(x: &mut Xml, d: &TriadDoc) {
     let unit = dsi_unit(&d.unit);
     let known = d.method == KNOWN_ORIENTATIONS;
     let statement = d.statement();
@@ -168,41 +167,68 @@ fn results(d: &TriadDoc) -> Markup {
             }
         )
     };
-    html! {
-        dcc:measurementResult {
-            dcc:name { (content("Static model of the accelerometer triad")) }
-            dcc:description { (content(&description)) }
-            dcc:usedMethods { dcc:usedMethod {
-                dcc:name { (content(if known {
-                    "Tumble test in known orientations, each axis by least squares per run and batch-estimation fusion"
-                } else {
-                    "Multi-position calibration from the gravity magnitude (Levenberg–Marquardt)"
-                })) }
-                dcc:description { (content(&method)) }
-                dcc:norm { "ISO/IEC Guide 98-3 (GUM)" }
-                @if known { dcc:reference { (PAPER) } }
-            } }
-            (super::dcc::equipment(&d.standards))
-            (conditions(None, &d.standards))
-            dcc:results { dcc:result {
-                dcc:name { (content("Bias b and scale-and-misalignment matrix S")) }
-                dcc:data {
-                    @for e in elements(d) {
-                        dcc:quantity {
-                            dcc:name { (content(&format!("{} — {} ({})", e.name, meaning(e.matrix, e.m, e.k), d.unit))) }
-                            @let covered = d.covered(&e.name);
-                            (real(&e.name, e.value, &unit, e.expanded.zip(covered)))
-                            (meta_data(
-                                covered.filter(|c| c.combined.is_finite()),
-                                &d.unit,
-                                d.decision.as_ref().and_then(|dec| dec.elements.get(&e.name).map(|x| Judgement {
-                                    rule: &dec.rule, verdict: &x.verdict, value: x.value, min: x.min, max: x.max,
-                                })),
-                            ))
-                        }
-                    }
+    x.el("dcc:measurementResult", |x| {
+        x.el("dcc:name", |x| {
+            content(x, "Static model of the accelerometer triad")
+        });
+        x.el("dcc:description", |x| content(x, &description));
+        x.el("dcc:usedMethods", |x| {
+            x.el("dcc:usedMethod", |x| {
+                x.el("dcc:name", |x| {
+                    content(
+                        x,
+                        if known {
+                            "Tumble test in known orientations, each axis by least squares per run and \
+                             batch-estimation fusion"
+                        } else {
+                            "Multi-position calibration from the gravity magnitude (Levenberg–Marquardt)"
+                        },
+                    )
+                });
+                x.el("dcc:description", |x| content(x, &method));
+                x.text("dcc:norm", "ISO/IEC Guide 98-3 (GUM)");
+                if known {
+                    x.text("dcc:reference", PAPER);
                 }
-            } }
-        }
-    }
+            })
+        });
+        super::dcc::equipment(x, &d.standards);
+        conditions(x, None, &d.standards);
+        x.el("dcc:results", |x| {
+            x.el("dcc:result", |x| {
+                x.el("dcc:name", |x| {
+                    content(x, "Bias b and scale-and-misalignment matrix S")
+                });
+                x.el("dcc:data", |x| {
+                    for e in elements(d) {
+                        let covered = d.covered(&e.name);
+                        let judged = d.decision.as_ref().and_then(|dec| {
+                            dec.elements.get(&e.name).map(|j| Judgement {
+                                rule: &dec.rule,
+                                verdict: &j.verdict,
+                                value: j.value,
+                                min: j.min,
+                                max: j.max,
+                            })
+                        });
+                        x.el("dcc:quantity", |x| {
+                            x.el("dcc:name", |x| {
+                                content(
+                                    x,
+                                    &format!(
+                                        "{} — {} ({})",
+                                        e.name,
+                                        meaning(e.matrix, e.m, e.k),
+                                        d.unit
+                                    ),
+                                )
+                            });
+                            real(x, &e.name, e.value, &unit, e.expanded.zip(covered));
+                            meta_data(x, covered.filter(|c| c.combined.is_finite()), &d.unit, judged);
+                        });
+                    }
+                })
+            })
+        });
+    });
 }

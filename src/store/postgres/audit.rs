@@ -145,7 +145,7 @@ impl Audit for PostgresStore {
                     &format!(
                         "SELECT {COLUMNS} FROM audit WHERE seq > $1 \
                          AND ($2::text IS NULL OR object = $2) \
-                         AND ($3::text IS NULL OR token_id = $3 OR holder = $3) \
+                         AND ($3::text IS NULL OR token_id IN ($3, $7) OR holder = $3) \
                          AND ($4::timestamptz IS NULL OR at >= $4) \
                          AND ($5::timestamptz IS NULL OR at <= $5) \
                          ORDER BY seq LIMIT $6"
@@ -157,6 +157,7 @@ impl Audit for PostgresStore {
                         &q.from.map(|t| t.datetime()),
                         &q.to.map(|t| t.datetime()),
                         &limit,
+                        &q.actor_token(),
                     ],
                 )
                 .await

@@ -105,13 +105,14 @@ impl Audit for SqliteStore {
                 &format!(
                     "SELECT {COLUMNS} FROM audit WHERE seq > :after \
                      AND (:object IS NULL OR object = :object) \
-                     AND (:actor IS NULL OR token_id = :actor OR holder = :actor) \
+                     AND (:actor IS NULL OR token_id IN (:actor, :token) OR holder = :actor) \
                      AND (:from IS NULL OR at >= :from) AND (:to IS NULL OR at <= :to) \
                      ORDER BY seq LIMIT :limit"
                 ),
                 rusqlite::named_params! {
                     ":after": q.after,
                     ":object": q.object,
+                    ":token": q.actor_token(),
                     ":actor": q.actor,
                     ":from": q.from.map(|t| t.to_string()),
                     ":to": q.to.map(|t| t.to_string()),
