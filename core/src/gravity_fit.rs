@@ -109,18 +109,16 @@ pub enum GravityFitError {
     /// orientations spread over the sphere.
     #[error(
         "the fit did not converge ({why}) although the orientations spread over the sphere \
-         (spread {spread:.3e}): the mean outputs lie {rms_g:.1e} g rms off the closest \
-         ellipsoid, more than a triad held still reads; check that it was held still at each \
-         position, that every position's outputs are this triad's, in one unit, and remove \
-         positions read while it moved"
+         (spread {spread:.3e}): the mean outputs lie further off an ellipsoid than a triad \
+         held still reads; check that it was held still at each position, that every \
+         position's outputs are this triad's, in one unit, and remove positions read while it \
+         moved"
     )]
     NotConverged {
         /// What it reported.
         why: String,
         /// The outputs' own spread ([`output_spread`]).
         spread: f64,
-        /// The residuals' root mean square at the closed-form start, in g.
-        rms_g: f64,
     },
 }
 
@@ -335,11 +333,9 @@ fn failed(
     means: &[Vector3<f64>],
     otherwise: impl FnOnce(f64) -> GravityFitError,
 ) -> GravityFitError {
-    let spread = output_spread(means);
-    if spread.is_nan() || spread < MIN_SPREAD {
-        GravityFitError::Spread { spread }
-    } else {
-        otherwise(spread)
+    match spread_enough(output_spread(means)) {
+        Ok(spread) => otherwise(spread),
+        Err(too_little) => too_little,
     }
 }
 
@@ -363,15 +359,9 @@ pub fn fit(means: &[[f64; 3]]) -> Result<GravityFit, GravityFitError> {
     let (b0, t0) = ellipsoid(&means)
         .ok_or_else(|| failed(&means, |spread| GravityFitError::NotAnEllipsoid { spread }))?;
     let not_converged = |why: String| {
-        let sum_sq: f64 = means
-            .iter()
-            .map(|u| ((t0 * (u - b0)).norm() - 1.0).powi(2))
-            .sum();
-        let rms_g = (sum_sq / means.len() as f64).sqrt();
         failed(&means, |spread| GravityFitError::NotConverged {
             why,
             spread,
-            rms_g,
         })
     };
     let mut start = na::SVector::<f64, 9>::zeros();

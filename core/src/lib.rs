@@ -54,7 +54,9 @@ mod error;
 /// whenever a number the core computes for the same input can change (0.2.0:
 /// the design factorised by faer's SVD, and the adequacy tests; 0.3.0: each
 /// expanded uncertainty's coverage factor from its effective degrees of
-/// freedom, [`coverage`]).
+/// freedom, [`coverage`]; 0.4.0: `noisy_run` judged by the runs' pure
+/// error when every run has replicate samples, [`quality`], and a batch of
+/// equal runs weighted at the consistency floor rather than refused).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub mod adequacy;

@@ -141,8 +141,10 @@ fn ill_conditioned(condition_number: f64) -> bool {
 /// The noisy-run tests of `test`'s runs (see the module doc): on the
 /// pure error when every run has replicates, else on the residuals.
 fn noisy(test: &TumbleTest, runs: &[Identification]) -> Vec<Warning> {
+    // (One run or none: either test has no other runs to pool, and is not
+    // made.)
     let pure = adequacy::pure_error_norms(test);
-    if pure.len() > 1 && pure.iter().all(|(_, dof)| *dof >= 1) {
+    if pure.iter().all(|(_, dof)| *dof >= 1) {
         return noisy_by(&pure, |s, others| Scatter::PureError {
             pure_error_std: s,
             others_pure_error_std: others,

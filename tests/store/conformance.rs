@@ -668,6 +668,14 @@ async fn series_and_previous(s: &dyn Store) {
             .unwrap()),
         (vec![b.id, c.id], 3)
     );
+    // A page exactly full counts the window again (the same three).
+    assert_eq!(
+        ids(s
+            .series("SER".into(), None, None, 3, Basis::NotRejected)
+            .await
+            .unwrap()),
+        (vec![a.id, b.id, c.id], 3)
+    );
     assert_eq!(
         ids(s
             .series("NONE".into(), None, None, 10, Basis::NotRejected)

@@ -455,13 +455,18 @@ impl Calibrations for PostgresStore {
         basis: Basis,
     ) -> Result<Series, StoreError> {
         op!(self, "series", |client| {
-            let sql = format!(
-                "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
-             WHERE c.sensor_id = $1 AND {} \
-             AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
-             AND ($3::timestamptz IS NULL OR c.performed_at <= $3) \
-             {NEWEST_FIRST} LIMIT $4",
+            let window = format!(
+                "c.sensor_id = $1 AND {} \
+                 AND ($2::timestamptz IS NULL OR c.performed_at >= $2) \
+                 AND ($3::timestamptz IS NULL OR c.performed_at <= $3)",
                 counts(basis)
+            );
+            let sql = format!(
+                "WITH page AS MATERIALIZED (SELECT {SUMMARY_COLUMNS} FROM calibrations c \
+                 WHERE {window} {NEWEST_FIRST} LIMIT $4) \
+                 SELECT page.*, {} AS in_window FROM page \
+                 ORDER BY page.performed_at DESC, page.id DESC",
+                crate::store::records::in_window_sql("$4", &window)
             );
             let stmt = client.prepare_cached(&sql).await.map_err(map)?;
             let found = client

@@ -60,12 +60,16 @@ static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| {
 /// A sensor's latest calibrations that count on `basis` within
 /// `?2..=?3`, at most `?4`.
 fn series_sql(basis: Basis) -> String {
-    format!(
-        "SELECT {SUMMARY_COLUMNS}, count(*) OVER () AS in_window FROM calibrations c \
-         WHERE c.sensor_id = ?1 AND {} \
-         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3) \
-         {NEWEST_FIRST} LIMIT ?4",
+    let window = format!(
+        "c.sensor_id = ?1 AND {} \
+         AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3)",
         counts(basis)
+    );
+    format!(
+        "WITH page AS MATERIALIZED (SELECT {SUMMARY_COLUMNS} FROM calibrations c \
+         WHERE {window} {NEWEST_FIRST} LIMIT ?4) \
+         SELECT page.*, {} AS in_window FROM page ORDER BY page.performed_at DESC, page.id DESC",
+        crate::store::records::in_window_sql("?4", &window)
     )
 }
 
