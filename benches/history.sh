@@ -9,9 +9,11 @@
 # every one a new act), per N. Measures, never judges (BENCHMARKS.md "A
 # sensor's history").
 # Usage: benches/history.sh BIN [N ...]     (N: 40 2000 20000 100000)
+# KEEP_DB=path keeps the last database there (to profile an act on it).
 set -euo pipefail
 BIN=$(realpath "$1"); shift
 SIZES=${*:-40 2000 20000 100000}
+KEEP=${KEEP_DB:-}
 cd "$(dirname "$0")/.."
 WORK=$(mktemp -d)
 trap 'kill ${PID:-} 2>/dev/null || true; rm -rf "$WORK"' EXIT
@@ -79,4 +81,5 @@ SQL
   serve "$WORK/h.db"
   echo "| $n | $(median /v1/sensors/HOT) ms | $(median /v1/sensors/HOT/coefficients) ms | $(median '/v1/sensors/HOT/calibrations?limit=50') ms | $(median /v1/sensors/HOT/stability) ms | $(median_act submit) ms | $(median_act approve) ms |"
   stop
+  if [ -n "$KEEP" ]; then cp "$WORK/h.db" "$KEEP"; fi
 done

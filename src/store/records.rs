@@ -534,6 +534,18 @@ pub fn sensor_recompute(p: &str) -> String {
     )
 }
 
+/// Whether an act moving a calibration from `before` to `after` (storing
+/// a replacement with it or not) changes its sensor's row: only when the
+/// set of the sensor's calibrations that count on [`Basis::NotRejected`]
+/// (the row's basis) changes — the row is computed from that set and from
+/// columns a calibration never changes. An approval, a hold or its release
+/// leave the set as it was, and the row is not recomputed: the recompute
+/// reads every calibration of the sensor (BENCHMARKS.md "A sensor's
+/// history").
+pub fn changes_the_sensor(before: State, after: State, replaced: bool) -> bool {
+    replaced || before.counts(Basis::NotRejected) != after.counts(Basis::NotRejected)
+}
+
 /// Removes a sensor's row when none of its calibrations counts any more
 /// (after [`sensor_recompute`]): it is then no sensor anyone lists or
 /// serves, though its calibrations stay, each with its state.
@@ -629,7 +641,10 @@ pub fn made_with_sql(standards: &str, p: [&str; 3]) -> String {
 /// Who submitted each calibration that calibration `p` replaces (directly,
 /// or through earlier supersessions), nearest first: `submitted_by` — the
 /// last row is the measurement's author
-/// ([`crate::domain::review::Submitter::earlier`]).
+/// ([`crate::domain::review::Submitter::earlier`]). Each step by index
+/// (`signatures_by_replacement`), each submitter by primary key: a join of
+/// the steps with the calibrations let SQLite scan every calibration, an
+/// approval taking 0.3 s at 100 000 (BENCHMARKS.md "A sensor's history").
 pub fn earlier_submitters_sql(p: &str) -> String {
     format!(
         "WITH RECURSIVE back(id, depth) AS ( \
@@ -638,7 +653,8 @@ pub fn earlier_submitters_sql(p: &str) -> String {
            UNION ALL \
            SELECT s.calibration_id, back.depth + 1 FROM signatures s JOIN back \
              ON s.superseded_by = back.id WHERE s.action = 'supersede' AND back.depth < 1000) \
-         SELECT c.submitted_by FROM back JOIN calibrations c ON c.id = back.id ORDER BY back.depth"
+         SELECT (SELECT c.submitted_by FROM calibrations c WHERE c.id = back.id) AS submitted_by \
+         FROM back ORDER BY back.depth"
     )
 }
 

@@ -188,7 +188,16 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=13).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=14).collect::<Vec<_>>());
+    // Version 14: the signatures naming a replacement, indexed.
+    let index = c
+        .query(
+            "SELECT 1 FROM pg_indexes WHERE indexname = 'signatures_by_replacement'",
+            &[],
+        )
+        .await
+        .unwrap();
+    assert_eq!(index.len(), 1);
     // Version 4: tokens' changes are notified.
     let triggers = c
         .query(

@@ -31,13 +31,20 @@ use crate::store::{
     observe,
 };
 
-/// A sensor's latest calibration that counts on `basis` performed strictly
-/// before `$2` (`$2` NULL: the latest of all).
-fn previous_sql(basis: Basis) -> String {
+/// A sensor's latest calibration that counts on `basis`, performed strictly
+/// before `$2` when `before`, else the latest of all (two statements, not
+/// `$2 IS NULL OR …`, whose generic plan cannot start the index walk at
+/// `$2`).
+fn previous_sql(basis: Basis, before: bool) -> String {
     format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND {} \
-         AND ($2::timestamptz IS NULL OR c.performed_at < $2) {NEWEST_FIRST} LIMIT 1",
-        counts(basis)
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = $1 AND {} {} \
+         {NEWEST_FIRST} LIMIT 1",
+        counts(basis),
+        if before {
+            "AND c.performed_at < $2"
+        } else {
+            ""
+        }
     )
 }
 
@@ -509,7 +516,7 @@ impl Calibrations for PostgresStore {
         }
         op!(self, "previous_calibration", |client| {
             let stmt = client
-                .prepare_cached(&previous_sql(basis))
+                .prepare_cached(&previous_sql(basis, true))
                 .await
                 .map_err(map)?;
             let row = client
@@ -526,14 +533,10 @@ impl Calibrations for PostgresStore {
     ) -> Result<Option<CalibrationSummary>, StoreError> {
         op!(self, "latest_approved", |client| {
             let stmt = client
-                .prepare_cached(&previous_sql(Basis::ApprovedOnly))
+                .prepare_cached(&previous_sql(Basis::ApprovedOnly, false))
                 .await
                 .map_err(map)?;
-            let none: Option<time::OffsetDateTime> = None;
-            let row = client
-                .query_opt(&stmt, &[&sensor_id, &none])
-                .await
-                .map_err(map)?;
+            let row = client.query_opt(&stmt, &[&sensor_id]).await.map_err(map)?;
             row.as_ref().map(rows::summary).transpose()
         })
     }

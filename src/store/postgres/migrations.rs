@@ -24,6 +24,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0011_nonconformities.sql"),
     include_str!("migrations/0012_triads.sql"),
     include_str!("migrations/0013_certificates.sql"),
+    include_str!("migrations/0014_supersessions_indexed.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

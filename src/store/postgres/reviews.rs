@@ -17,7 +17,8 @@ use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError,
-    chain_end_sql, earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
+    sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -161,22 +162,24 @@ async fn sign(
         }
         _ => None,
     };
-    // The sensor's row locked first, in a statement of its own: the
-    // recompute's own snapshot, taken after the lock is held, then sees
-    // every calibration committed before it (under READ COMMITTED a
-    // statement that waited for the lock would count from its older one).
-    tx.execute(
-        "SELECT 1 FROM sensors WHERE sensor_id = $1 FOR UPDATE",
-        &[&sensor_id],
-    )
-    .await
-    .map_err(map)?;
-    tx.execute(&sensor_recompute("$1"), &[&sensor_id])
+    if changes_the_sensor(state, s.state, replacement.is_some()) {
+        // The sensor's row locked first, in a statement of its own: the
+        // recompute's own snapshot, taken after the lock is held, then sees
+        // every calibration committed before it (under READ COMMITTED a
+        // statement that waited for the lock would count from its older one).
+        tx.execute(
+            "SELECT 1 FROM sensors WHERE sensor_id = $1 FOR UPDATE",
+            &[&sensor_id],
+        )
         .await
         .map_err(map)?;
-    tx.execute(&sensor_forget("$1"), &[&sensor_id])
-        .await
-        .map_err(map)?;
+        tx.execute(&sensor_recompute("$1"), &[&sensor_id])
+            .await
+            .map_err(map)?;
+        tx.execute(&sensor_forget("$1"), &[&sensor_id])
+            .await
+            .map_err(map)?;
+    }
     let mut events = match replacement {
         Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
         None => Vec::new(),

@@ -73,13 +73,21 @@ fn series_sql(basis: Basis) -> String {
     )
 }
 
-/// A sensor's latest calibration that counts on `basis` performed strictly
-/// before `?2` (`?2` NULL: the latest of all).
-fn previous_sql(basis: Basis) -> String {
+/// A sensor's latest calibration that counts on `basis`, performed strictly
+/// before `?2` when `before`, else the latest of all. Two statements, not
+/// `?2 IS NULL OR …`: with that disjunction the index walk could not start
+/// at `?2` and read every later calibration first (a late submission into
+/// 100 000 took 17 ms, BENCHMARKS.md "A sensor's history").
+fn previous_sql(basis: Basis, before: bool) -> String {
     format!(
-        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND {} \
-         AND (?2 IS NULL OR c.performed_at < ?2) {NEWEST_FIRST} LIMIT 1",
-        counts(basis)
+        "SELECT {SUMMARY_COLUMNS} FROM calibrations c WHERE c.sensor_id = ?1 AND {} {} \
+         {NEWEST_FIRST} LIMIT 1",
+        counts(basis),
+        if before {
+            "AND c.performed_at < ?2"
+        } else {
+            ""
+        }
     )
 }
 
@@ -343,7 +351,7 @@ impl Calibrations for SqliteStore {
         self.run("previous_calibration", move |conn| {
             rows::first(
                 conn,
-                &previous_sql(basis),
+                &previous_sql(basis, true),
                 params![sensor_id, before.to_string()],
                 rows::summary,
             )
@@ -358,8 +366,8 @@ impl Calibrations for SqliteStore {
         self.run("latest_approved", move |conn| {
             rows::first(
                 conn,
-                &previous_sql(Basis::ApprovedOnly),
-                params![sensor_id, None::<String>],
+                &previous_sql(Basis::ApprovedOnly, false),
+                params![sensor_id],
                 rows::summary,
             )
         })
@@ -384,5 +392,57 @@ impl Calibrations for SqliteStore {
             )
         })
         .await
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The detail lines of `sql`'s query plan on a migrated, empty
+    /// database.
+    fn plan(sql: &str) -> Vec<String> {
+        let mut c = Connection::open_in_memory().unwrap();
+        super::super::migrations::migrate(&mut c).unwrap();
+        let mut stmt = c.prepare(&format!("EXPLAIN QUERY PLAN {sql}")).unwrap();
+        let nulls = vec![rusqlite::types::Null; stmt.parameter_count()];
+        stmt.query_map(rusqlite::params_from_iter(nulls), |r| r.get::<_, String>(3))
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap()
+    }
+
+    /// What a submission, a review and a series read of a sensor's history
+    /// goes by index, whatever the history's length: no statement scans
+    /// the calibrations or the signatures (each did once, BENCHMARKS.md
+    /// "A sensor's history").
+    #[test]
+    fn history_is_read_by_index() {
+        for basis in [Basis::NotRejected, Basis::ApprovedOnly] {
+            for sql in [
+                previous_sql(basis, true),
+                previous_sql(basis, false),
+                series_sql(basis),
+                crate::store::earlier_submitters_sql("?1"),
+            ] {
+                let plan = plan(&sql);
+                let scans: Vec<&String> = plan
+                    .iter()
+                    .filter(|l| {
+                        ["SCAN c", "SCAN s", "SCAN calibrations", "SCAN signatures"]
+                            .iter()
+                            .any(|t| l.starts_with(t))
+                    })
+                    .collect();
+                assert!(scans.is_empty(), "{sql}: {plan:?}");
+            }
+            // The previous calibration's walk starts at its bound.
+            let plan = plan(&previous_sql(basis, true));
+            assert!(
+                plan.iter()
+                    .any(|l| l.contains("(sensor_id=? AND performed_at<?)")),
+                "{plan:?}"
+            );
+        }
     }
 }

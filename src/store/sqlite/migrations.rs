@@ -28,6 +28,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0014_nonconformities.sql"),
     include_str!("migrations/0015_triads.sql"),
     include_str!("migrations/0016_certificates.sql"),
+    include_str!("migrations/0017_supersessions_indexed.sql"),
 ];
 
 /// Brings the database to the latest schema.

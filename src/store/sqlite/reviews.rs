@@ -13,7 +13,8 @@ use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError, Stored,
-    chain_end_sql, earlier_submitters_sql, made_with_sql, sensor_forget, sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
+    sensor_recompute,
 };
 
 /// The columns of [`rows::signature`].
@@ -78,6 +79,7 @@ fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), false)),
     };
+    let recompute = changes_the_sensor(state, signature.state, replacement.is_some());
     if let Some(n) = replacement {
         // A correction of a held calibration is held too, under the same
         // nonconformities, while it uses their standards.
@@ -128,8 +130,10 @@ fn sign(
         None => crate::store::audit::signed(id, &signature, state),
     };
     super::audit::append(conn, event)?;
-    rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
-    rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
+    if recompute {
+        rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
+        rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
+    }
     Ok((Signed::Done(signature, sensor_id), true))
 }
 
