@@ -19,7 +19,7 @@ use accelcal_testkit::*;
 const DCC: &str = "https://ptb.de/dcc";
 const SI: &str = "https://ptb.de/si";
 
-fn lab(c: &mut accelcal::startup::Config) {
+pub(crate) fn lab(c: &mut accelcal::startup::Config) {
     c.web.laboratory = accelcal::startup::Laboratory {
         name: Some("Inertial Test Lab".into()),
         address: Some("Bahnhofstrasse 1, 8001 Zürich".into()),
@@ -134,7 +134,7 @@ fn validate_if_asked(xml: &str) {
     );
 }
 
-async fn dcc(app: &TestApp, id: &str, token: &str) -> reqwest::Response {
+pub(crate) async fn dcc(app: &TestApp, id: &str, token: &str) -> reqwest::Response {
     app.client
         .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
         .bearer_auth(token)

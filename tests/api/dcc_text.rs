@@ -7,21 +7,12 @@
 
 use proptest::prelude::*;
 use reqwest::StatusCode;
-use reqwest::header::ACCEPT;
 use serde_json::{Value, json};
 
 use accelcal_testkit::Engine::Sqlite;
 use accelcal_testkit::*;
 
-fn lab(c: &mut accelcal::startup::Config) {
-    c.web.laboratory = accelcal::startup::Laboratory {
-        name: Some("Inertial Test Lab".into()),
-        address: Some("Bahnhofstrasse 1, 8001 Zürich".into()),
-        country: Some("CH".into()),
-        accreditation: Some("SAS SCS 0999".into()),
-        logo: None,
-    };
-}
+use super::dcc::{dcc, lab};
 
 /// A standard of `description`, `issued_by` and `traceability`.
 fn stand(description: &str, issued_by: &str, traceability: &str) -> Value {
@@ -291,17 +282,7 @@ proptest! {
                 .post(&format!("/v1/calibrations/{id}/review"), &reviewer, &json!({"decision": "approve", "comment": comment}))
                 .await;
             assert_eq!(res.status(), StatusCode::OK);
-            let xml = app
-                .client
-                .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
-                .bearer_auth(ADMIN)
-                .header(ACCEPT, "application/xml")
-                .send()
-                .await
-                .unwrap()
-                .text()
-                .await
-                .unwrap();
+            let xml = dcc(&app, id, ADMIN).await.text().await.unwrap();
             let doc = roxmltree::Document::parse(&xml).unwrap_or_else(|e| panic!("{e}: {xml}"));
             let root = doc.root_element();
             let admin = at(root, &["administrativeData"]);

@@ -9,11 +9,7 @@ use serde_json::{Value, json};
 use accelcal_testkit::Engine::Sqlite;
 use accelcal_testkit::*;
 
-use crate::triad::{recording, spiral};
-
-async fn triad(app: &TestApp, body: &Value) -> reqwest::Response {
-    app.post("/v1/identify/triad", ADMIN, body).await
-}
+use crate::triad::{recording, recording_refused, spiral, triad};
 
 /// 400 orientations held 1 s each: more positions than any tumble may
 /// have, refused with how many and what to raise; the detector's settings
@@ -23,17 +19,11 @@ async fn a_recording_counts_against_the_position_limit() {
     let app = TestApp::spawn(Sqlite).await;
     let detector = json!({"still_s": 0.5, "window_s": 0.2, "threshold": 2, "min_static_s": 0.5});
     let samples = recording(&spiral(400), 1.0);
-    let p = problem(
-        triad(
-            &app,
-            &json!({"recording": {"rate_hz": 50, "samples": samples, "detector": detector}}),
-        )
-        .await,
-        StatusCode::UNPROCESSABLE_ENTITY,
+    let detail = recording_refused(
+        &app,
+        json!({"rate_hz": 50, "samples": samples, "detector": detector}),
     )
     .await;
-    assert_eq!(pointers(&p), ["/recording"]);
-    let detail = p["errors"][0]["detail"].as_str().unwrap();
     assert!(
         detail.contains("400 static intervals found, at most 360")
             && detail.contains("detector.min_static_s")

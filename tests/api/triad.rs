@@ -62,6 +62,17 @@ pub(crate) fn faces() -> Vec<[f64; 3]> {
 }
 
 /// Six runs on the six faces, two samples a position, scattered by 2e-3.
+/// The detail of the one refusal of `recording`, at `/recording` (422).
+pub(crate) async fn recording_refused(app: &TestApp, recording: Value) -> String {
+    let p = problem(
+        triad(app, &json!({ "recording": recording })).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/recording"], "{p}");
+    p["errors"][0]["detail"].as_str().unwrap().to_owned()
+}
+
 pub(crate) fn known_body() -> Value {
     let runs: Vec<Value> = (0..6)
         .map(|j| {
@@ -82,7 +93,7 @@ pub(crate) fn known_body() -> Value {
     json!({"sensor_id": "IMU-7", "unit": "m/s2", "orientations": "six_faces", "runs": runs, "batches": 2})
 }
 
-async fn triad(app: &TestApp, body: &Value) -> reqwest::Response {
+pub(crate) async fn triad(app: &TestApp, body: &Value) -> reqwest::Response {
     app.post("/v1/identify/triad", ADMIN, body).await
 }
 
@@ -520,17 +531,11 @@ async fn a_recording_gives_its_static_intervals_and_b_and_t() {
     assert_eq!(r["detection"]["min_static_s"], 2.0);
 
     // Too few holds: the refusal says how many and what to change.
-    let p = problem(
-        triad(
-            &app,
-            &json!({"recording": {"rate_hz": 50, "samples": recording(&dirs[..7], 4.0)}}),
-        )
-        .await,
-        StatusCode::UNPROCESSABLE_ENTITY,
+    let detail = recording_refused(
+        &app,
+        json!({"rate_hz": 50, "samples": recording(&dirs[..7], 4.0)}),
     )
     .await;
-    assert_eq!(pointers(&p), ["/recording"]);
-    let detail = p["errors"][0]["detail"].as_str().unwrap();
     assert!(
         detail.contains("only 7 static intervals found")
             && detail.contains("9")

@@ -114,6 +114,12 @@ pub fn content(x: &mut Xml, text: &str) {
     x.el_attrs("dcc:content", &[("lang", "en")], |x| x.chars(text));
 }
 
+/// Element `element` (a `dcc:textType` or `dcc:richContentType`: a name,
+/// a description, a declaration) holding `text` in English.
+pub fn rich(x: &mut Xml, element: &str, text: &str) {
+    x.el(element, |x| content(x, text));
+}
+
 /// The output unit in D-SI: prefixed SI units accelcal recognises, `\one`
 /// for counts, and `|unit` (a non-D-SI unit) otherwise.
 pub fn dsi_unit(unit: &str) -> String {
@@ -206,9 +212,7 @@ fn date(instant: &str) -> &str {
 /// A `dcc:location` holding one line of address, and the country if known.
 fn location(x: &mut Xml, address: Option<&str>, country: Option<&str>) {
     x.el("dcc:location", |x| {
-        x.el("dcc:further", |x| {
-            content(x, address.unwrap_or("no address recorded"))
-        });
+        rich(x, "dcc:further", address.unwrap_or("no address recorded"));
         if let Some(c) = country {
             x.text("dcc:countryCode", c);
         }
@@ -379,7 +383,7 @@ pub fn document(d: &Admin<'_>, c: &Context, results: impl FnOnce(&mut Xml)) -> S
         x.el("dcc:administrativeData", |x| {
             x.el("dcc:dccSoftware", |x| {
                 x.el("dcc:software", |x| {
-                    x.el("dcc:name", |x| content(x, "accelcal"));
+                    rich(x, "dcc:name", "accelcal");
                     x.text("dcc:release", env!("CARGO_PKG_VERSION"));
                     x.text("dcc:type", "application");
                 })
@@ -423,7 +427,7 @@ pub fn document(d: &Admin<'_>, c: &Context, results: impl FnOnce(&mut Xml)) -> S
                     x.text("dcc:calibrationLaboratoryCode", a);
                 }
                 x.el("dcc:contact", |x| {
-                    x.el("dcc:name", |x| content(x, lab_name));
+                    rich(x, "dcc:name", lab_name);
                     location(x, c.laboratory.address.as_deref(), country);
                 });
             });
@@ -431,24 +435,21 @@ pub fn document(d: &Admin<'_>, c: &Context, results: impl FnOnce(&mut Xml)) -> S
                 for (n, s) in approvals.iter().enumerate() {
                     x.el("dcc:respPerson", |x| {
                         x.el("dcc:person", |x| {
-                            x.el("dcc:name", |x| {
-                                content(x, s.holder.as_deref().unwrap_or(&s.token_id))
-                            })
+                            rich(x, "dcc:name", s.holder.as_deref().unwrap_or(&s.token_id))
                         });
-                        x.el("dcc:description", |x| {
-                            content(
-                                x,
-                                &format!(
-                                    "{} (token {}, signed {}){}",
-                                    s.meaning,
-                                    s.token_id,
-                                    s.signed_at,
-                                    s.comment
-                                        .as_deref()
-                                        .map_or(String::new(), |c| format!(": {c}"))
-                                ),
-                            )
-                        });
+                        rich(
+                            x,
+                            "dcc:description",
+                            &format!(
+                                "{} (token {}, signed {}){}",
+                                s.meaning,
+                                s.token_id,
+                                s.signed_at,
+                                s.comment
+                                    .as_deref()
+                                    .map_or(String::new(), |c| format!(": {c}"))
+                            ),
+                        );
                         x.text("dcc:role", "reviewer");
                         x.text(
                             "dcc:mainSigner",
@@ -463,7 +464,7 @@ pub fn document(d: &Admin<'_>, c: &Context, results: impl FnOnce(&mut Xml)) -> S
             });
             if let Some(cu) = &c.customer {
                 x.el("dcc:customer", |x| {
-                    x.el("dcc:name", |x| content(x, &cu.name));
+                    rich(x, "dcc:name", &cu.name);
                     location(x, cu.address.as_deref(), None);
                 });
             }
@@ -479,7 +480,7 @@ fn identification(x: &mut Xml, issuer: &str, value: &str, name: &str) {
     x.el("dcc:identification", |x| {
         x.text("dcc:issuer", issuer);
         x.text("dcc:value", value);
-        x.el("dcc:name", |x| content(x, name));
+        rich(x, "dcc:name", name);
     });
 }
 
@@ -492,32 +493,19 @@ fn results(x: &mut Xml, d: &ResultDoc) {
         .as_ref()
         .map(super::certificate::coverage_statement);
     x.el("dcc:measurementResult", |x| {
-        x.el("dcc:name", |x| content(x, "Static model of the accelerometer"));
-        x.el("dcc:description", |x| {
-            content(
-                x,
-                &format!(
+        rich(x, "dcc:name", "Static model of the accelerometer");
+        rich(x, "dcc:description", &format!(
                     "Fused coefficients of the model U = Σ k·f(a), with terms {}, the output U in {} and \
                      the specific force a in multiples of the local g (unit one): each coefficient is in \
                      the output's unit per unit of its regressor. Values are rounded to the second \
                      significant digit of their expanded uncertainty.",
                     d.model.join(", "),
                     d.unit
-                ),
-            )
-        });
+                ));
         x.el("dcc:usedMethods", |x| {
             x.el("dcc:usedMethod", |x| {
-                x.el("dcc:name", |x| {
-                    content(
-                        x,
-                        "Tumble test in the 1 g field, least squares per run, batch-estimation fusion",
-                    )
-                });
-                x.el("dcc:description", |x| {
-                    content(
-                        x,
-                        &format!(
+                rich(x, "dcc:name", "Tumble test in the 1 g field, least squares per run, batch-estimation fusion");
+                rich(x, "dcc:description", &format!(
                             "Tumble test on a dividing head ({} mount, {} positions, {} runs), the static model identified \
                              from each run by least squares and the runs fused by batch estimation ({} batches, \
                              inverse-variance weighting of batch means). Uncertainty after the GUM: the fused standard \
@@ -529,9 +517,7 @@ fn results(x: &mut Xml, d: &ResultDoc) {
                             d.runs.len(),
                             d.batches,
                             statement.unwrap_or_default()
-                        ),
-                    )
-                });
+                        ));
                 x.text("dcc:norm", "ISO/IEC Guide 98-3 (GUM)");
                 x.text("dcc:reference", PAPER);
             })
@@ -540,7 +526,7 @@ fn results(x: &mut Xml, d: &ResultDoc) {
         conditions(x, d.temperatures_c.as_deref(), &d.standards);
         x.el("dcc:results", |x| {
             x.el("dcc:result", |x| {
-                x.el("dcc:name", |x| content(x, "Fused coefficients"));
+                rich(x, "dcc:name", "Fused coefficients");
                 x.el("dcc:data", |x| {
                     for (t, v) in d.fused.coefficients.iter() {
                         let expanded = d.uncertainty.as_ref().and_then(|u| {
@@ -550,21 +536,11 @@ fn results(x: &mut Xml, d: &ResultDoc) {
                         });
                         let term_unit = super::format::term_unit(t, &d.unit);
                         let judged = d.decision.as_ref().and_then(|dec| {
-                            dec.terms.get(t).map(|j| Judgement {
-                                rule: &dec.rule,
-                                verdict: &j.verdict,
-                                value: j.value,
-                                min: j.min,
-                                max: j.max,
-                            })
+                            let j = dec.terms.get(t)?;
+                            Some(Judgement::of(&dec.rule, (&j.verdict, j.value, j.min, j.max)))
                         });
                         x.el("dcc:quantity", |x| {
-                            x.el("dcc:name", |x| {
-                                content(
-                                    x,
-                                    &format!("{} — {} ({term_unit})", t.name(), term_meaning(t)),
-                                )
-                            });
+                            rich(x, "dcc:name", &format!("{} — {} ({term_unit})", t.name(), term_meaning(t)));
                             real(x, t.name(), *v, &unit, expanded);
                             meta_data(x, expanded.map(|(_, c)| c), &term_unit, judged);
                         });
@@ -589,6 +565,21 @@ pub struct Judgement<'a> {
     pub max: Option<f64>,
 }
 
+impl<'a> Judgement<'a> {
+    /// Under `rule`, the `(verdict, value, min, max)` of a judged
+    /// coefficient or triad element.
+    pub fn of(rule: &'a str, judged: (&'a str, f64, Option<f64>, Option<f64>)) -> Self {
+        let (verdict, value, min, max) = judged;
+        Judgement {
+            rule,
+            verdict,
+            value,
+            min,
+            max,
+        }
+    }
+}
+
 /// A quantity's `dcc:measurementMetaData`: how its expanded uncertainty
 /// was formed (`u_c`, `ν_eff`, `k`, `p`) and, when judged, its limits and
 /// conformity; nothing when neither.
@@ -599,12 +590,7 @@ pub fn meta_data(x: &mut Xml, covered: Option<Covered>, unit: &str, judged: Opti
     x.el("dcc:measurementMetaData", |x| {
         if let Some(c) = covered {
             x.el("dcc:metaData", |x| {
-                x.el("dcc:name", |x| {
-                    content(
-                        x,
-                        "Combined standard uncertainty, effective degrees of freedom, coverage",
-                    )
-                });
+                rich(x, "dcc:name", "Combined standard uncertainty, effective degrees of freedom, coverage");
                 x.el("dcc:declaration", |x| {
                     content(
                         x,
@@ -621,20 +607,13 @@ pub fn meta_data(x: &mut Xml, covered: Option<Covered>, unit: &str, judged: Opti
         }
         if let Some(j) = judged {
             x.el("dcc:metaData", |x| {
-                x.el("dcc:name", |x| {
-                    content(x, "Conformity with the sensor type's limits")
-                });
-                x.el("dcc:declaration", |x| {
-                    content(
-                        x,
-                        &format!(
+                rich(x, "dcc:name", "Conformity with the sensor type's limits");
+                rich(x, "dcc:declaration", &format!(
                             "limits {} to {} {unit}, {} rule (ILAC-G8)",
                             j.min.map_or("−∞".into(), decimal),
                             j.max.map_or("+∞".into(), decimal),
                             j.rule,
-                        ),
-                    )
-                });
+                        ));
                 x.text(
                     "dcc:conformity",
                     conformity(j.verdict, j.value, j.min, j.max),
@@ -652,23 +631,24 @@ fn items(x: &mut Xml, d: &Admin<'_>, c: &Context) {
         .map(|i| i.describe());
     x.el("dcc:items", |x| {
         x.el("dcc:item", |x| {
-            x.el("dcc:name", |x| {
-                content(
-                    x,
-                    &format!(
-                        "{} {}",
-                        d.item,
-                        described.unwrap_or_else(|| d.sensor_id.to_owned())
-                    ),
-                )
-            });
+            rich(
+                x,
+                "dcc:name",
+                &format!(
+                    "{} {}",
+                    d.item,
+                    described.unwrap_or_else(|| d.sensor_id.to_owned())
+                ),
+            );
             if let Some(cond) = d.item_condition {
-                x.el("dcc:description", |x| {
-                    content(x, &format!("Condition on receipt: {cond}"))
-                });
+                rich(
+                    x,
+                    "dcc:description",
+                    &format!("Condition on receipt: {cond}"),
+                );
             }
             if let Some(m) = item.and_then(|i| i.manufacturer.as_deref()) {
-                x.el("dcc:manufacturer", |x| x.el("dcc:name", |x| content(x, m)));
+                x.el("dcc:manufacturer", |x| rich(x, "dcc:name", m));
             }
             if let Some(m) = item.and_then(|i| i.model.as_deref()) {
                 x.text("dcc:model", m);
@@ -688,7 +668,7 @@ fn items(x: &mut Xml, d: &Admin<'_>, c: &Context) {
 /// the caller).
 fn statement(x: &mut Xml, name: &str, declarations: &[&str], more: impl FnOnce(&mut Xml)) {
     x.el("dcc:statement", |x| {
-        x.el("dcc:name", |x| content(x, name));
+        rich(x, "dcc:name", name);
         x.el("dcc:declaration", |x| {
             for d in declarations {
                 content(x, d);
@@ -704,16 +684,11 @@ fn statements(x: &mut Xml, d: &Admin<'_>, c: &Context) {
     let due_agreed = c.customer.as_ref().is_none_or(|cu| cu.due_date_agreed);
     x.el("dcc:statements", |x| {
         x.el("dcc:statement", |x| {
-            x.el("dcc:name", |x| content(x, "Metrological traceability"));
+            rich(x, "dcc:name", "Metrological traceability");
             if d.standards.is_empty() {
                 x.text("dcc:traceable", "false");
-                x.el("dcc:declaration", |x| {
-                    content(
-                        x,
-                        "No reference standard was named with this calibration: this certificate does \
-                         not establish the metrological traceability of its results.",
-                    )
-                });
+                rich(x, "dcc:declaration", "No reference standard was named with this calibration: this certificate does \
+                         not establish the metrological traceability of its results.");
             } else {
                 x.text("dcc:traceable", "true");
                 x.el("dcc:declaration", |x| {
@@ -786,12 +761,11 @@ pub fn equipment(x: &mut Xml, standards: &[crate::domain::standards::UsedStandar
     x.el("dcc:measuringEquipments", |x| {
         for u in standards {
             x.el("dcc:measuringEquipment", |x| {
-                x.el("dcc:name", |x| {
-                    content(
-                        x,
-                        &format!("{} ({}): {}", u.standard_id, u.role, u.description),
-                    )
-                });
+                rich(
+                    x,
+                    "dcc:name",
+                    &format!("{} ({}): {}", u.standard_id, u.role, u.description),
+                );
                 x.el("dcc:description", |x| {
                     content(
                         x,
@@ -823,7 +797,7 @@ pub fn equipment(x: &mut Xml, standards: &[crate::domain::standards::UsedStandar
                     x.el("dcc:measuringEquipmentQuantities", |x| {
                         for (name, label, value, unit, std) in quantities {
                             x.el("dcc:measuringEquipmentQuantity", |x| {
-                                x.el("dcc:name", |x| content(x, name));
+                                rich(x, "dcc:name", name);
                                 real_standard(x, label, value, unit, std);
                             });
                         }
@@ -878,7 +852,7 @@ pub fn conditions(
     }
     let quantity = |x: &mut Xml, name: &str, label: &str, value: f64, unit: &str, std| {
         x.el("dcc:quantity", |x| {
-            x.el("dcc:name", |x| content(x, name));
+            rich(x, "dcc:name", name);
             real_standard(x, label, value, unit, std);
         });
     };
@@ -891,9 +865,7 @@ pub fn conditions(
                 .find(|u| u.role == "thermometer")
                 .and_then(|u| u.parameters.temperature_std_c);
             x.el("dcc:influenceCondition", |x| {
-                x.el("dcc:name", |x| {
-                    content(x, "Ambient temperature over the runs")
-                });
+                rich(x, "dcc:name", "Ambient temperature over the runs");
                 x.el("dcc:data", |x| {
                     let c = r"\degreecelsius";
                     quantity(
@@ -917,7 +889,7 @@ pub fn conditions(
         }
         if let Some((g, std)) = gravity {
             x.el("dcc:influenceCondition", |x| {
-                x.el("dcc:name", |x| content(x, "Local gravity"));
+                rich(x, "dcc:name", "Local gravity");
                 x.el("dcc:data", |x| {
                     let unit = r"\metre\second\tothe{-2}";
                     quantity(x, "Local acceleration due to gravity", "g", g, unit, std);

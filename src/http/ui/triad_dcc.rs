@@ -15,9 +15,7 @@
 //! so not listed, and the description says so.
 
 use super::certificate::{Context, PAPER};
-use super::dcc::{
-    Admin, Judged, Judgement, conditions, content, document, dsi_unit, meta_data, real,
-};
+use super::dcc::{Admin, Judged, Judgement, conditions, document, dsi_unit, meta_data, real, rich};
 use super::triad::TriadDoc;
 use super::xml::Xml;
 use crate::domain::triad::{FIXED_BY_CONVENTION, KNOWN_ORIENTATIONS};
@@ -168,24 +166,17 @@ fn results(x: &mut Xml, d: &TriadDoc) {
         )
     };
     x.el("dcc:measurementResult", |x| {
-        x.el("dcc:name", |x| {
-            content(x, "Static model of the accelerometer triad")
-        });
-        x.el("dcc:description", |x| content(x, &description));
+        rich(x, "dcc:name", "Static model of the accelerometer triad");
+        rich(x, "dcc:description", &description);
         x.el("dcc:usedMethods", |x| {
             x.el("dcc:usedMethod", |x| {
-                x.el("dcc:name", |x| {
-                    content(
-                        x,
-                        if known {
+                rich(x, "dcc:name", if known {
                             "Tumble test in known orientations, each axis by least squares per run and \
                              batch-estimation fusion"
                         } else {
                             "Multi-position calibration from the gravity magnitude (Levenberg–Marquardt)"
-                        },
-                    )
-                });
-                x.el("dcc:description", |x| content(x, &method));
+                        });
+                rich(x, "dcc:description", &method);
                 x.text("dcc:norm", "ISO/IEC Guide 98-3 (GUM)");
                 if known {
                     x.text("dcc:reference", PAPER);
@@ -196,33 +187,21 @@ fn results(x: &mut Xml, d: &TriadDoc) {
         conditions(x, None, &d.standards);
         x.el("dcc:results", |x| {
             x.el("dcc:result", |x| {
-                x.el("dcc:name", |x| {
-                    content(x, "Bias b and scale-and-misalignment matrix S")
-                });
+                rich(x, "dcc:name", "Bias b and scale-and-misalignment matrix S");
                 x.el("dcc:data", |x| {
                     for e in elements(d) {
                         let covered = d.covered(&e.name);
                         let judged = d.decision.as_ref().and_then(|dec| {
-                            dec.elements.get(&e.name).map(|j| Judgement {
-                                rule: &dec.rule,
-                                verdict: &j.verdict,
-                                value: j.value,
-                                min: j.min,
-                                max: j.max,
-                            })
+                            let j = dec.elements.get(&e.name)?;
+                            Some(Judgement::of(&dec.rule, (&j.verdict, j.value, j.min, j.max)))
                         });
                         x.el("dcc:quantity", |x| {
-                            x.el("dcc:name", |x| {
-                                content(
-                                    x,
-                                    &format!(
+                            rich(x, "dcc:name", &format!(
                                         "{} — {} ({})",
                                         e.name,
                                         meaning(e.matrix, e.m, e.k),
                                         d.unit
-                                    ),
-                                )
-                            });
+                                    ));
                             real(x, &e.name, e.value, &unit, e.expanded.zip(covered));
                             meta_data(x, covered.filter(|c| c.combined.is_finite()), &d.unit, judged);
                         });
