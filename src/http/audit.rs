@@ -3,7 +3,10 @@
 //!
 //! Each entry carries its `prev` and `hash` ([`crate::domain::audit`]), so
 //! that anyone can check a page against the documented canonical form;
-//! `accelcal audit verify` checks the whole chain in the database.
+//! `accelcal audit verify` checks the whole chain in the database. On
+//! PostgreSQL the store seals pending entries before it reads
+//! (`store::postgres::seal`), so a page holds every act committed before
+//! the request.
 
 use axum::Json;
 use axum::extract::State;

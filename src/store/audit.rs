@@ -276,3 +276,14 @@ pub fn nonconformity(
         })),
     )
 }
+
+/// [`nonconformity`] of a nonconformity `put` with what it concerns (a
+/// database copied by `accelcal migrate`).
+pub fn traced(t: &crate::domain::nonconformity::Traced) -> Event {
+    let concerned: Vec<(Uuid, State)> = t
+        .calibrations
+        .iter()
+        .map(|c| (c.calibration_id, c.state_found))
+        .collect();
+    nonconformity(&t.nonconformity, &concerned)
+}

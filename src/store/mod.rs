@@ -130,6 +130,13 @@ pub trait Audit: Send + Sync + 'static {
     /// Appends `events`, in order, in one transaction (`accelcal audit
     /// adopt`: the rows a database held before its trail).
     async fn record(&self, events: Vec<crate::domain::audit::Event>) -> Result<(), StoreError>;
+    /// Entries of committed acts not yet sealed into the chain (on
+    /// PostgreSQL, where a sealer chains them shortly after each commit;
+    /// always 0 on SQLite, whose single writer chains them in the act's
+    /// transaction).
+    async fn unsealed(&self) -> Result<i64, StoreError> {
+        Ok(0)
+    }
     /// Appends `service.configure` with `settings` (the settings that change
     /// decisions) unless the last such entry recorded the same; true when
     /// it appended.

@@ -480,12 +480,27 @@ macro_rules! state_sql {
 /// it is not full, so that a series costs the same for a sensor with 40
 /// calibrations as with 100 000 until the page is full; the window counted
 /// again only then (a count, not a window function over every row's
-/// columns: 1.1 s → 47 ms for 100 000, BENCHMARKS.md "History").
-pub fn in_window_sql(limit: &str, window: &str) -> String {
+/// columns: 1.1 s → 47 ms for 100 000, BENCHMARKS.md "History") — unless
+/// the window is the sensor's whole history on [`Basis::NotRejected`]
+/// (`sensor` names the placeholder of its id), whose count its row keeps
+/// ([`SENSOR_MERGE`], [`sensor_recompute`]; `audit verify` checks it): then
+/// read there, so that the count costs the same for 10 calibrations as for
+/// 100 000 (BENCHMARKS.md "A sensor's history").
+pub fn in_window_sql(limit: &str, window: &str, sensor: Option<&str>) -> String {
+    let all = match sensor {
+        Some(p) => format!("(SELECT s.calibration_count FROM sensors s WHERE s.sensor_id = {p})"),
+        None => format!("(SELECT count(*) FROM calibrations c WHERE {window})"),
+    };
     format!(
         "CASE WHEN (SELECT count(*) FROM page) < {limit} THEN (SELECT count(*) FROM page) \
-         ELSE (SELECT count(*) FROM calibrations c WHERE {window}) END"
+         ELSE {all} END"
     )
+}
+
+/// Whether a series of `from..=to` on `basis` is the sensor's whole history
+/// as its row counts it ([`in_window_sql`]).
+pub fn whole_history(from: Option<Timestamp>, to: Option<Timestamp>, basis: Basis) -> bool {
+    from.is_none() && to.is_none() && basis == Basis::NotRejected
 }
 
 /// Whether calibration `c` counts on `basis`, in SQL: its state

@@ -1,7 +1,8 @@
 //! The audit trail on both engines: what each act appends, the chain
 //! recomputed independently of the code under test, filters and pages, the
 //! trail tampered with behind the service's back (and found by `verify`),
-//! and two PostgreSQL replicas appending at once to one chain.
+//! two PostgreSQL replicas appending at once to one chain, and acts that
+//! never wait for the chain's lock there (its sealer does).
 
 use std::collections::BTreeSet;
 
@@ -448,6 +449,7 @@ async fn postgres_replicas_append_to_one_chain() {
     }
     let v = verify(a.as_ref()).await.unwrap();
     assert_eq!(v.head_seq, 80, "40 submissions and 40 approvals");
+    assert_eq!(v.unsealed, 0);
     assert_eq!(v.calibrations, 40);
     let from_b = everything(b.as_ref()).await;
     assert_eq!(from_b.last().unwrap().hash, v.head_hash);
@@ -459,4 +461,135 @@ async fn postgres_replicas_append_to_one_chain() {
             .unwrap();
         assert!(submitted.seq < e.seq);
     }
+}
+
+/// The number of entries sealed into PostgreSQL's chain and still pending,
+/// read directly.
+async fn chained_and_pending(client: &tokio_postgres::Client) -> (i64, i64) {
+    let r = client
+        .query_one(
+            "SELECT (SELECT count(*) FROM audit), (SELECT count(*) FROM audit_pending)",
+            &[],
+        )
+        .await
+        .unwrap();
+    (r.get(0), r.get(1))
+}
+
+/// Waits (up to a minute, so that a slow machine cannot fail it) until
+/// `n` entries are chained and none pending.
+async fn sealed(client: &tokio_postgres::Client, n: i64) {
+    for _ in 0..600 {
+        if chained_and_pending(client).await == (n, 0) {
+            return;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    }
+    panic!(
+        "not sealed: (chained, pending) = {:?}",
+        chained_and_pending(client).await
+    );
+}
+
+/// An act on PostgreSQL does not wait for the chain: with the chain's lock
+/// held elsewhere (a sealer or a reader of the trail stuck), submissions,
+/// an approval, a token and a definition still complete, their entries
+/// pending; once it is let go the sealer chains them unasked, in the acts'
+/// order. Entries a replica left pending when it died are chained by
+/// another, and verify.
+#[tokio::test(flavor = "multi_thread", worker_threads = 4)]
+async fn postgres_acts_do_not_wait_for_the_chain() {
+    let db = pg::TestDb::create().await;
+    let watch = db.client().await;
+    let mut holder = db.client().await;
+    let a = PostgresStore::open(&db.url).await.unwrap();
+    let first = calibration("SEAL-1", "2026-04-01T00:00:00Z");
+    a.insert_calibration(first.clone(), None).await.unwrap();
+    sealed(&watch, 1).await;
+
+    // The lock the acts used to take, held across them.
+    let lock = holder.transaction().await.unwrap();
+    lock.batch_execute("LOCK TABLE audit IN EXCLUSIVE MODE")
+        .await
+        .unwrap();
+    let acts = async {
+        let second = calibration("SEAL-1", "2026-05-01T00:00:00Z");
+        a.insert_calibration(second.clone(), None).await.unwrap();
+        let approve = Act {
+            action: Action::Approve,
+            signer: reviewer("Rita"),
+            at: Timestamp::now(),
+            comment: None,
+            superseded_by: None,
+        };
+        assert!(matches!(
+            a.sign(first.id, approve).await.unwrap(),
+            Signed::Done(..)
+        ));
+        a.put_sensor_type(super::sensor_type("NAV", 365), admin(), Precondition::Any)
+            .await
+            .unwrap();
+        second
+    };
+    let second = tokio::time::timeout(std::time::Duration::from_secs(60), acts)
+        .await
+        .expect("the acts waited for the chain's lock");
+    assert_eq!(chained_and_pending(&watch).await, (1, 3));
+    lock.rollback().await.unwrap();
+    sealed(&watch, 4).await;
+    let actions: Vec<(String, String)> = watch
+        .query("SELECT action, object FROM audit ORDER BY seq", &[])
+        .await
+        .unwrap()
+        .iter()
+        .map(|r| (r.get(0), r.get(1)))
+        .collect();
+    let cal = |id: uuid::Uuid| format!("calibrations/{id}");
+    assert_eq!(
+        actions,
+        [
+            ("calibration.submitted".into(), cal(first.id)),
+            ("calibration.submitted".into(), cal(second.id)),
+            ("calibration.approve".into(), cal(first.id)),
+            ("sensor_type.put".into(), "sensor-types/NAV".into()),
+        ]
+    );
+
+    // A replica that dies with entries pending: another chains them.
+    let lock = holder.transaction().await.unwrap();
+    lock.batch_execute("LOCK TABLE audit IN EXCLUSIVE MODE")
+        .await
+        .unwrap();
+    let third = calibration("SEAL-2", "2026-06-01T00:00:00Z");
+    a.insert_calibration(third, None).await.unwrap();
+    // Its sealer, woken by the commit, waits for the lock: cut it off as
+    // the replica dies.
+    let me: i32 = lock
+        .query_one("SELECT pg_backend_pid()", &[])
+        .await
+        .unwrap()
+        .get(0);
+    let waiting = "SELECT pid FROM pg_stat_activity WHERE $1 = ANY(pg_blocking_pids(pid))";
+    for _ in 0..600 {
+        if !watch.query(waiting, &[&me]).await.unwrap().is_empty() {
+            break;
+        }
+        tokio::time::sleep(std::time::Duration::from_millis(100)).await;
+    }
+    drop(a);
+    watch
+        .execute(
+            &format!("SELECT pg_terminate_backend(pid) FROM ({waiting}) w"),
+            &[&me],
+        )
+        .await
+        .unwrap();
+    tokio::time::sleep(std::time::Duration::from_secs(1)).await;
+    assert_eq!(chained_and_pending(&watch).await, (4, 1));
+    lock.rollback().await.unwrap();
+    let b = PostgresStore::open(&db.url).await.unwrap();
+    sealed(&watch, 5).await;
+    let v = verify(&b).await.unwrap();
+    assert_eq!((v.head_seq, v.calibrations, v.unsealed), (5, 3, 0));
+    b.close().await;
 }

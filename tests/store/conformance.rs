@@ -762,6 +762,41 @@ async fn series_and_previous(s: &dyn Store) {
         ..page(10)
     };
     assert_eq!(ids(after_c).await, [b.id, a.id, older_id]);
+
+    // A full page counts the window: the whole history on the default
+    // basis from the sensor's row, any other window by counting — the same
+    // number both ways, and what was stored less what stopped counting.
+    use accelcal::domain::auth::Principal;
+    use accelcal::domain::review::{Act, Action};
+    let rita = Principal {
+        id: "0190aaaa000070008000000000000001".into(),
+        role: Role::Reviewer,
+        station_id: None,
+        holder: Some("Rita".into()),
+    };
+    let act = |action| Act {
+        action,
+        signer: rita.clone(),
+        at: t("2026-11-22T12:00:00Z"),
+        comment: Some("series".into()),
+        superseded_by: None,
+    };
+    done_of(s.sign(a.id, act(Action::Reject)).await.unwrap());
+    done_of(s.sign(b.id, act(Action::Approve)).await.unwrap());
+    let counted = |from, to, basis| async move {
+        s.series("SER".into(), from, to, 1, basis)
+            .await
+            .unwrap()
+            .in_window
+    };
+    let (past, future) = (
+        Some(t("2000-01-01T00:00:00Z")),
+        Some(t("2100-01-01T00:00:00Z")),
+    );
+    assert_eq!(counted(None, None, Basis::NotRejected).await, 5 - 1);
+    assert_eq!(counted(past, future, Basis::NotRejected).await, 5 - 1);
+    assert_eq!(counted(None, future, Basis::NotRejected).await, 5 - 1);
+    assert_eq!(counted(None, None, Basis::ApprovedOnly).await, 1);
 }
 
 /// Standards round-trip exactly, are listed in id order, and make a

@@ -188,7 +188,16 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=14).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=15).collect::<Vec<_>>());
+    // Version 15: pending audit entries, never changed.
+    let pending = c
+        .query(
+            "SELECT 1 FROM pg_trigger WHERE tgname = 'audit_pending_kept' AND NOT tgisinternal",
+            &[],
+        )
+        .await
+        .unwrap();
+    assert_eq!(pending.len(), 1, "version 15's table and trigger");
     // Version 14: the signatures naming a replacement, indexed.
     let index = c
         .query(

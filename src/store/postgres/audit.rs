@@ -1,8 +1,7 @@
-//! The audit trail: entries appended as the last statements of each act's
-//! transaction, under the table's `EXCLUSIVE` lock held until the commit —
-//! so replicas writing at once append one after the other, each reading the
-//! head its predecessor committed. Taken last, after every row lock of the
-//! act, the lock cannot close a cycle of waits with another act.
+//! The audit trail: each act's entries written to `audit_pending` as the
+//! last statements of the act's transaction, without a lock, and chained
+//! by the [`seal`](super::seal)er shortly after the commit; every read of
+//! the trail seals first.
 
 use async_trait::async_trait;
 use deadpool_postgres::{GenericClient, Transaction};
@@ -12,6 +11,7 @@ use time::OffsetDateTime;
 use super::PostgresStore;
 use super::errors::map;
 use super::rows;
+use super::seal;
 use crate::domain::audit::{Actor, Entry, Event};
 use crate::domain::timestamp::Timestamp;
 use crate::store::{Audit, AuditQuery, StoreError, audit};
@@ -35,45 +35,29 @@ fn entry(r: &tokio_postgres::Row) -> Result<Entry, StoreError> {
     })
 }
 
-/// Appends `events`, in order, after the last entry: the last thing the
-/// transaction `tx` does before its commit.
+/// Writes `events`, in order, as the act's pending entries: in the
+/// transaction `tx`, waiting for no other act; the sealer chains them
+/// once `tx` has committed.
 pub async fn append(tx: &Transaction<'_>, events: Vec<Event>) -> Result<(), StoreError> {
     if events.is_empty() {
         return Ok(());
     }
-    tx.batch_execute("LOCK TABLE audit IN EXCLUSIVE MODE")
-        .await
-        .map_err(map)?;
-    let last = tx
-        .query_opt("SELECT seq, hash FROM audit ORDER BY seq DESC LIMIT 1", &[])
-        .await
-        .map_err(map)?;
-    let mut head: Option<(i64, String)> = match last {
-        Some(r) => Some((rows::get(&r, "seq")?, rows::get(&r, "hash")?)),
-        None => None,
-    };
-    let mut entries = Vec::with_capacity(events.len());
-    for event in events {
-        let e = Entry::chain(head.as_ref().map(|(s, h)| (*s, h.as_str())), event);
-        head = Some((e.seq, e.hash.clone()));
-        entries.push(e);
-    }
     let insert = tx
-        .prepare_cached(&format!(
-            "INSERT INTO audit ({COLUMNS}) SELECT * FROM unnest($1::int8[], $2::timestamptz[], \
-             $3::text[], $4::text[], $5::text[], $6::text[], $7::text[], $8::text[], $9::text[], \
-             $10::text[])"
-        ))
+        .prepare_cached(
+            "INSERT INTO audit_pending (at, token_id, role, holder, action, object, change) \
+             SELECT at, token_id, role, holder, action, object, change \
+             FROM unnest($1::timestamptz[], $2::text[], $3::text[], $4::text[], $5::text[], \
+               $6::text[], $7::text[]) WITH ORDINALITY \
+             AS u(at, token_id, role, holder, action, object, change, n) ORDER BY n",
+        )
         .await
         .map_err(map)?;
-    let col = |f: fn(&Entry) -> &str| entries.iter().map(f).collect::<Vec<&str>>();
-    let seqs: Vec<i64> = entries.iter().map(|e| e.seq).collect();
-    let ats: Vec<OffsetDateTime> = entries.iter().map(|e| e.at.datetime()).collect();
-    let holders: Vec<Option<&str>> = entries.iter().map(|e| e.actor.holder.as_deref()).collect();
+    let col = |f: fn(&Event) -> &str| events.iter().map(f).collect::<Vec<&str>>();
+    let ats: Vec<OffsetDateTime> = events.iter().map(|e| e.at.datetime()).collect();
+    let holders: Vec<Option<&str>> = events.iter().map(|e| e.actor.holder.as_deref()).collect();
     tx.execute(
         &insert,
         &[
-            &seqs,
             &ats,
             &col(|e| &e.actor.token_id),
             &col(|e| &e.actor.role),
@@ -81,8 +65,6 @@ pub async fn append(tx: &Transaction<'_>, events: Vec<Event>) -> Result<(), Stor
             &col(|e| &e.action),
             &col(|e| &e.object),
             &col(|e| &e.change),
-            &col(|e| &e.prev),
-            &col(|e| &e.hash),
         ],
     )
     .await
@@ -131,7 +113,9 @@ impl Audit for PostgresStore {
     async fn record(&self, events: Vec<Event>) -> Result<(), StoreError> {
         op!(self, "audit_record", |client| {
             let tx = client.transaction().await.map_err(map)?;
-            append(&tx, events).await?;
+            seal::lock(&tx).await?;
+            let (head, _) = seal::seal_in(&tx).await?;
+            seal::chain(&tx, head, events).await?;
             tx.commit().await.map_err(map)?;
             Ok(())
         })
@@ -139,6 +123,7 @@ impl Audit for PostgresStore {
 
     async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError> {
         op!(self, "audit", |client| {
+            seal::seal(&mut client).await?;
             let limit = i64::try_from(q.limit).unwrap_or(i64::MAX);
             let found = client
                 .query(
@@ -166,12 +151,16 @@ impl Audit for PostgresStore {
         })
     }
 
+    async fn unsealed(&self) -> Result<i64, StoreError> {
+        op!(self, "audit_unsealed", |client| seal::pending(&client)
+            .await)
+    }
+
     async fn configure(&self, settings: Map<String, Value>) -> Result<bool, StoreError> {
         op!(self, "audit_configure", |client| {
             let tx = client.transaction().await.map_err(map)?;
-            tx.batch_execute("LOCK TABLE audit IN EXCLUSIVE MODE")
-                .await
-                .map_err(map)?;
+            seal::lock(&tx).await?;
+            let (head, _) = seal::seal_in(&tx).await?;
             let event = audit::configured(settings, Timestamp::now());
             let last: Option<String> = tx
                 .query_opt(
@@ -186,7 +175,7 @@ impl Audit for PostgresStore {
             if last.as_deref() == Some(event.change.as_str()) {
                 return Ok(false);
             }
-            append(&tx, vec![event]).await?;
+            seal::chain(&tx, head, vec![event]).await?;
             tx.commit().await.map_err(map)?;
             Ok(true)
         })

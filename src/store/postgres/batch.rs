@@ -160,8 +160,7 @@ pub async fn write(
     // 4. The sensors' summaries.
     let (pid, merged) = upsert_sensors(tx, &rows).await?;
 
-    // 5. Their entries in the audit trail, last (the trail's lock is taken
-    // after every row lock: super::audit).
+    // 5. Their entries for the audit trail (pending until sealed: super::seal).
     let written: Vec<&NewCalibration> = rows.iter().map(|r| r.new_calibration()).collect();
     super::audit::append(tx, super::audit::stored(tx, &written).await?).await?;
     let answers = batch

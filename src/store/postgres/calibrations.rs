@@ -360,7 +360,7 @@ impl Calibrations for PostgresStore {
                 let sensor = [row.sensor_id().to_owned()];
                 let this = self.clone();
                 let write = async move {
-                    op!(this, "insert_calibration", |client| {
+                    act!(this, "insert_calibration", |client| {
                         insert(&mut client, &row, key.as_ref())
                             .await
                             .map(|(stored, _)| stored)
@@ -473,7 +473,11 @@ impl Calibrations for PostgresStore {
                  WHERE {window} {NEWEST_FIRST} LIMIT $4) \
                  SELECT page.*, {} AS in_window FROM page \
                  ORDER BY page.performed_at DESC, page.id DESC",
-                crate::store::records::in_window_sql("$4", &window)
+                crate::store::records::in_window_sql(
+                    "$4",
+                    &window,
+                    crate::store::records::whole_history(from, to, basis).then_some("$1")
+                )
             );
             let stmt = client.prepare_cached(&sql).await.map_err(map)?;
             let found = client

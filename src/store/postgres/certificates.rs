@@ -120,7 +120,7 @@ impl Certificates for PostgresStore {
     }
 
     async fn issue_certificate(&self, c: IssuedCertificate) -> Result<bool, StoreError> {
-        op!(self, "issue_certificate", |client| {
+        act!(self, "issue_certificate", |client| {
             let tx = client.transaction().await.map_err(map)?;
             // The calibration's row locked: revisions follow one another.
             tx.execute(

@@ -32,7 +32,7 @@ impl Customers for PostgresStore {
         by: Actor,
         pre: Precondition,
     ) -> Result<Put<Customer>, StoreError> {
-        op!(self, "put_customer", |client| {
+        act!(self, "put_customer", |client| {
             let id = c.customer_id.clone();
             definitions::put(&mut client, &CUSTOMERS, &id, |_| c, &pre, by).await
         })
@@ -56,7 +56,7 @@ impl Customers for PostgresStore {
         by: Actor,
         pre: Precondition,
     ) -> Result<Put<Item>, StoreError> {
-        op!(self, "put_item", |client| {
+        act!(self, "put_item", |client| {
             let id = i.sensor_id.clone();
             definitions::put(&mut client, &ITEMS, &id, |_| i, &pre, by).await
         })

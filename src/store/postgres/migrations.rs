@@ -25,6 +25,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0012_triads.sql"),
     include_str!("migrations/0013_certificates.sql"),
     include_str!("migrations/0014_supersessions_indexed.sql"),
+    include_str!("migrations/0015_audit_sealed.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -30,6 +30,19 @@ macro_rules! op {
     }};
 }
 
+/// [`op!`] of an act: one that writes audit entries, so that, once its
+/// transaction has committed, this replica's sealer is woken to chain them
+/// ([`seal`]).
+macro_rules! act {
+    ($self:ident, $name:literal, |$c:ident| $body:expr) => {{
+        let out = op!($self, $name, |$c| $body);
+        if out.is_ok() {
+            $self.sealer.wake();
+        }
+        out
+    }};
+}
+
 mod audit;
 mod batch;
 mod calibrations;
@@ -44,6 +57,7 @@ pub mod listen;
 mod migrations;
 mod reviews;
 mod rows;
+mod seal;
 mod sensor_types;
 mod sensors;
 mod sessions;
@@ -64,6 +78,7 @@ use super::{Database, StoreError};
 pub struct PostgresStore {
     pool: Pool,
     writer: Arc<writer::Writer>,
+    sealer: Arc<seal::Sealer>,
     /// Off unless [`cached`](Self::cached).
     cache: Arc<Cache>,
 }
@@ -89,10 +104,17 @@ impl PostgresStore {
     ) -> Result<Self, StoreError> {
         let pool = connect::pool(url)?;
         migrations::migrate(&pool).await?;
-        let writer = Arc::new(writer::Writer::start(pool.clone(), queue, echoes));
+        let sealer = Arc::new(seal::Sealer::start(pool.clone()));
+        let writer = Arc::new(writer::Writer::start(
+            pool.clone(),
+            queue,
+            echoes,
+            sealer.waker(),
+        ));
         Ok(PostgresStore {
             pool,
             writer,
+            sealer,
             cache: Arc::new(Cache::off()),
         })
     }
@@ -207,6 +229,15 @@ impl Database for PostgresStore {
     }
 
     async fn close(&self) {
+        // What this replica's acts wrote, chained before it goes (another
+        // replica's sealer, or the next start, would otherwise), once its
+        // sealer has finished.
+        self.sealer.stop().await;
+        if let Ok(mut c) = self.client().await
+            && let Err(e) = seal::seal(&mut c).await
+        {
+            tracing::warn!(error = %e.chain(), "the audit trail was not sealed at shutdown");
+        }
         self.cache.close();
         self.pool.close();
     }

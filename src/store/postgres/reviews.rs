@@ -394,7 +394,7 @@ impl PostgresStore {
         }
         let this = self.clone();
         let write = async move {
-            op!(this, "sign", |client| {
+            act!(this, "sign", |client| {
                 let tx = client.transaction().await.map_err(map)?;
                 let (out, events) = sign(&tx, id, &act, replacement.as_ref(), render).await?;
                 if matches!(out, Signed::Done(..)) {
@@ -458,7 +458,7 @@ impl Reviews for PostgresStore {
         sensors.dedup();
         let this = self.clone();
         let write = async move {
-            op!(this, "hold", |client| {
+            act!(this, "hold", |client| {
                 let tx = client.transaction().await.map_err(map)?;
                 let out = hold(&tx, &nc, &act).await?;
                 tx.commit().await.map_err(map)?;
@@ -479,19 +479,13 @@ impl Reviews for PostgresStore {
     }
 
     async fn put_nonconformity(&self, t: Traced) -> Result<(), StoreError> {
-        op!(self, "put_nonconformity", |client| {
+        act!(self, "put_nonconformity", |client| {
             let tx = client.transaction().await.map_err(map)?;
             insert_nonconformity(&tx, &t.nonconformity).await?;
             for c in &t.calibrations {
                 insert_concerned(&tx, &t.nonconformity, c.calibration_id, c.state_found).await?;
             }
-            let concerned: Vec<(Uuid, State)> = t
-                .calibrations
-                .iter()
-                .map(|c| (c.calibration_id, c.state_found))
-                .collect();
-            let event = crate::store::audit::nonconformity(&t.nonconformity, &concerned);
-            super::audit::append(&tx, vec![event]).await?;
+            super::audit::append(&tx, vec![crate::store::audit::traced(&t)]).await?;
             tx.commit().await.map_err(map)?;
             Ok(())
         })

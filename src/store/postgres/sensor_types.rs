@@ -24,7 +24,7 @@ impl SensorTypes for PostgresStore {
         by: Actor,
         pre: Precondition,
     ) -> Result<Put<SensorType>, StoreError> {
-        op!(self, "put_sensor_type", |client| {
+        act!(self, "put_sensor_type", |client| {
             let id = t.type_id.clone();
             definitions::put(&mut client, &SENSOR_TYPES, &id, |_| t, &pre, by).await
         })

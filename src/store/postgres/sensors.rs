@@ -84,7 +84,7 @@ impl Sensors for PostgresStore {
         type_id: String,
         by: Actor,
     ) -> Result<bool, StoreError> {
-        let out = op!(self, "assign_sensor_type", |client| {
+        let out = act!(self, "assign_sensor_type", |client| {
             let tx = client.transaction().await.map_err(map)?;
             let n = tx
                 .execute(

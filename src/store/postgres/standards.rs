@@ -24,7 +24,7 @@ impl Standards for PostgresStore {
         by: Actor,
         pre: Precondition,
     ) -> Result<Put<Standard>, StoreError> {
-        op!(self, "put_standard", |client| {
+        act!(self, "put_standard", |client| {
             let id = s.standard_id.clone();
             definitions::put(
                 &mut client,

@@ -15,7 +15,7 @@ use crate::store::{StoreError, Tokens};
 #[async_trait]
 impl Tokens for PostgresStore {
     async fn insert_token(&self, t: TokenRecord, by: Actor) -> Result<(), StoreError> {
-        op!(self, "insert_token", |client| {
+        act!(self, "insert_token", |client| {
             let tx = client.transaction().await.map_err(map)?;
             tx.execute(
                 &format!(
@@ -64,7 +64,7 @@ impl Tokens for PostgresStore {
     async fn revoke_token(&self, id: Uuid, at: Timestamp, by: Actor) -> Result<bool, StoreError> {
         let this = self.clone();
         let revoke = async move {
-            op!(this, "revoke_token", |client| {
+            act!(this, "revoke_token", |client| {
                 let tx = client.transaction().await.map_err(map)?;
                 let n = tx
                     .execute(

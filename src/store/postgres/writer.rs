@@ -45,7 +45,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use deadpool_postgres::{Object, Pool};
-use tokio::sync::{mpsc, oneshot};
+use tokio::sync::{Notify, mpsc, oneshot};
 
 use super::batch::{self, Outcome};
 use super::calibrations::{self, Row};
@@ -103,11 +103,17 @@ impl Writer {
     /// Starts the writer task over `pool` (on the current tokio runtime),
     /// refusing writes when `capacity` are waiting. The task ends when the
     /// writer is dropped and its queue is empty. With `echoes`, each batch
-    /// records there what its commit will notify.
-    pub fn start(pool: Pool, capacity: usize, echoes: Option<Arc<Echoes>>) -> Self {
+    /// records there what its commit will notify; after each batch it wakes
+    /// `sealer` (its audit entries are pending: super::seal).
+    pub fn start(
+        pool: Pool,
+        capacity: usize,
+        echoes: Option<Arc<Echoes>>,
+        sealer: Arc<Notify>,
+    ) -> Self {
         let (queue, rx) = mpsc::channel(capacity);
         let counts = Arc::new(Counts::default());
-        tokio::spawn(drain(pool, rx, counts.clone(), echoes));
+        tokio::spawn(drain(pool, rx, counts.clone(), echoes, sealer));
         Writer {
             queue,
             capacity,
@@ -153,6 +159,7 @@ async fn drain(
     mut rx: mpsc::Receiver<Pending>,
     counts: Arc<Counts>,
     echoes: Option<Arc<Echoes>>,
+    sealer: Arc<Notify>,
 ) {
     while let Some(first) = rx.recv().await {
         let mut batch = vec![first];
@@ -164,6 +171,8 @@ async fn drain(
         }
         metrics::histogram!("accelcal_storage_write_batch_size").record(batch.len() as f64);
         commit(&pool, batch, &counts, echoes.as_deref()).await;
+        // Its `calibration.submitted` entries, chained (super::seal).
+        sealer.notify_one();
     }
 }
 

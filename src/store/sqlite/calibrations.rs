@@ -59,7 +59,7 @@ static HISTORY_IDS: LazyLock<String> = LazyLock::new(|| {
 
 /// A sensor's latest calibrations that count on `basis` within
 /// `?2..=?3`, at most `?4`.
-fn series_sql(basis: Basis) -> String {
+fn series_sql(basis: Basis, whole: bool) -> String {
     let window = format!(
         "c.sensor_id = ?1 AND {} \
          AND (?2 IS NULL OR c.performed_at >= ?2) AND (?3 IS NULL OR c.performed_at <= ?3)",
@@ -69,7 +69,7 @@ fn series_sql(basis: Basis) -> String {
         "WITH page AS MATERIALIZED (SELECT {SUMMARY_COLUMNS} FROM calibrations c \
          WHERE {window} {NEWEST_FIRST} LIMIT ?4) \
          SELECT page.*, {} AS in_window FROM page ORDER BY page.performed_at DESC, page.id DESC",
-        crate::store::records::in_window_sql("?4", &window)
+        crate::store::records::in_window_sql("?4", &window, whole.then_some("?1"))
     )
 }
 
@@ -315,7 +315,7 @@ impl Calibrations for SqliteStore {
             let mut in_window = 0usize;
             let mut items = rows::all(
                 conn,
-                &series_sql(basis),
+                &series_sql(basis, crate::store::records::whole_history(from, to, basis)),
                 params![
                     sensor_id,
                     from.map(|t| t.to_string()),
@@ -422,7 +422,8 @@ mod tests {
             for sql in [
                 previous_sql(basis, true),
                 previous_sql(basis, false),
-                series_sql(basis),
+                series_sql(basis, false),
+                series_sql(basis, true),
                 crate::store::earlier_submitters_sql("?1"),
             ] {
                 let plan = plan(&sql);

@@ -392,13 +392,7 @@ impl Reviews for SqliteStore {
             for c in &t.calibrations {
                 insert_concerned(conn, &t.nonconformity, c.calibration_id, c.state_found)?;
             }
-            let concerned: Vec<(Uuid, State)> = t
-                .calibrations
-                .iter()
-                .map(|c| (c.calibration_id, c.state_found))
-                .collect();
-            let event = crate::store::audit::nonconformity(&t.nonconformity, &concerned);
-            super::audit::append(conn, event)?;
+            super::audit::append(conn, crate::store::audit::traced(&t))?;
             Ok(((), true))
         })
         .await

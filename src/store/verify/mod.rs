@@ -57,6 +57,10 @@ pub struct Verified {
     pub calibrations: i64,
     /// The rows checked against the trail, by table.
     pub rows: std::collections::BTreeMap<&'static str, usize>,
+    /// Entries of acts committed while the check ran, not yet sealed into
+    /// the chain (PostgreSQL: [`crate::store::Audit::unsealed`]); the check
+    /// sealed everything committed before it began.
+    pub unsealed: i64,
 }
 
 /// Why [`verify`] failed.
@@ -109,6 +113,7 @@ pub async fn verify(store: &dyn Store) -> Result<Verified, VerifyError> {
     if c.findings.is_empty() {
         Ok(Verified {
             rows: c.rows,
+            unsealed: store.unsealed().await?,
             ..verified
         })
     } else {
@@ -148,6 +153,7 @@ async fn chain(store: &dyn Store) -> Result<(Verified, Expected), VerifyError> {
         head_hash: chain.head.1,
         calibrations,
         rows: Default::default(),
+        unsealed: 0,
     };
     Ok((verified, expected))
 }

@@ -1,0 +1,210 @@
+#!/usr/bin/env bash
+# Writes and reads under load, builds side by side (issue 48 item 4): wrk at
+# CONNS connections (64), LEG seconds a leg (10), ROUNDS rounds (3) in which
+# the builds alternate, on each engine of ENGINES (sqlite postgres). Per
+# build and engine one database, kept across rounds, so the hot sensor's
+# history grows from round to round. Each round, per build:
+#
+#   hot     durable POST /v1/calibrations, the paper's Table 1, every one to
+#           sensor HOT (a new performed_at each time);
+#   fleet   the same spread over 1 000 sensors (FLEET-0 … FLEET-999);
+#   coefficients, history, compensate   reads of HOT (its history as the
+#           round left it);
+#   2x-hot, 2x-fleet   (PostgreSQL) two replicas of the build on the one
+#           database, CONNS/2 connections each, at once: their sum (p99:
+#           the worse of the two).
+#
+# On PostgreSQL, pg_stat_activity is sampled every 50 ms during the write
+# legs: the share of the database's busy backends in each wait event (what
+# writers wait for). Prints Markdown for BENCHMARKS.md; every answer must be
+# a 2xx (wrk's non-2xx count is checked). Measures, never judges.
+# Usage: benches/writes.sh NAME=BIN NAME=BIN ...
+#        (e.g. a5689ea=/tmp/a5689ea head=target/release/accelcal)
+# PG_URL: a PostgreSQL server with trust auth (postgres://postgres@127.0.0.1:5432).
+set -euo pipefail
+cd "$(dirname "$0")/.."
+CONNS=${CONNS:-64}
+LEG=${LEG:-10}
+ROUNDS=${ROUNDS:-3}
+ENGINES=${ENGINES:-sqlite postgres}
+PG=${PG_URL:-postgres://postgres@127.0.0.1:5432}
+WORK=$(mktemp -d)
+PIDS=()
+cleanup() {
+  for p in "${PIDS[@]}"; do kill "$p" 2>/dev/null || true; done
+  for db in $(psql "$PG/test" -Atc "SELECT datname FROM pg_database WHERE datname LIKE 'writes_bench_%'" 2>/dev/null); do
+    psql "$PG/test" -qc "DROP DATABASE $db WITH (FORCE)" >/dev/null 2>&1 || true
+  done
+  rm -rf "$WORK"
+}
+trap cleanup EXIT
+export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
+command -v wrk >/dev/null || { echo "wrk is not installed (apt-get install wrk)" >&2; exit 1; }
+
+NAMES=(); declare -A BIN
+for arg in "$@"; do
+  name=${arg%%=*}; NAMES+=("$name"); BIN[$name]=$(realpath "${arg#*=}")
+done
+[ ${#NAMES[@]} -ge 1 ] || { sed -n 2,24p "$0" >&2; exit 2; }
+
+port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
+# serve NAME DATABASE → prints the port; the pid lands in PIDS.
+serve() {
+  local p; p=$(port)
+  "${BIN[$1]}" serve --listen 127.0.0.1:$p --database "$2" >>"$WORK/$1.log" 2>&1 &
+  PIDS+=($!); echo "$! $p"
+}
+ready() { for _ in $(seq 200); do curl -sf "localhost:$1/readyz" >/dev/null && return; sleep 0.1; done; cat "$WORK"/*.log >&2; exit 1; }
+
+# The Lua of a submission leg: SENSORS sensors named PREFIX…, performed_at
+# unique across threads and legs (OFFSET).
+python3 - "$WORK/template.json" <<'PY'
+import json, sys
+b = json.load(open("examples/paper-table1.json"))
+b["sensor_id"] = "@SENSOR@"; b["performed_at"] = "@AT@"
+open(sys.argv[1], "w").write(json.dumps(b))
+PY
+cat >"$WORK/submit.lua" <<'LUA'
+local template, sensors, prefix, offset
+local threads = {}
+local counter = 0
+function setup(thread)
+  thread:set("tid", #threads)
+  table.insert(threads, thread)
+end
+function init(args)
+  local f = io.open(os.getenv("TEMPLATE")); template = f:read("*a"); f:close()
+  sensors = tonumber(os.getenv("SENSORS")); prefix = os.getenv("PREFIX")
+  offset = tonumber(os.getenv("OFFSET")) + tid * 10000000
+  wrk.method = "POST"
+  wrk.headers["Content-Type"] = "application/json"
+  wrk.headers["Authorization"] = "Bearer " .. os.getenv("ACCELCAL_ADMIN_TOKEN")
+end
+function request()
+  counter = counter + 1
+  local n = offset + counter
+  local sensor = prefix
+  if sensors > 1 then sensor = prefix .. (n % sensors) end
+  local at = os.date("!%Y-%m-%dT%H:%M:%SZ", 946684800 + n)
+  local body = template:gsub("@SENSOR@", sensor):gsub("@AT@", at)
+  return wrk.format(nil, "/v1/calibrations", nil, body)
+end
+LUA
+cat >"$WORK/read.lua" <<'LUA'
+function init(args)
+  wrk.headers["Authorization"] = "Bearer " .. os.getenv("ACCELCAL_ADMIN_TOKEN")
+  if os.getenv("BODY") ~= "" then
+    wrk.method = "POST"; wrk.body = os.getenv("BODY")
+    wrk.headers["Content-Type"] = "application/json"
+  end
+end
+LUA
+COMPENSATE=$(python3 -c 'import json; print(json.dumps({"outputs": [-1.216 + 0.024 * k for k in range(100)]}))')
+
+# wrk_leg PORT CONNS SCRIPT PATH → "req/s p99ms" (aborts on a non-2xx).
+wrk_leg() {
+  local out threads=$(( $2 < 2 ? 1 : 2 ))
+  out=$(wrk -t$threads -c$2 -d${LEG}s --latency -s "$3" "http://127.0.0.1:$1$4")
+  if grep -q "Non-2xx\|Socket errors" <<<"$out"; then echo "$out" >&2; exit 1; fi
+  local rps p99
+  rps=$(awk '/^Requests\/sec/ {print $2}' <<<"$out")
+  p99=$(awk '$1 == "99%" { v = $2; if (v ~ /us$/) { sub(/us/, "", v); v /= 1000 } else if (v ~ /ms$/) { sub(/ms/, "", v) } else if (v ~ /s$/) { sub(/s/, "", v); v *= 1000 } print v }' <<<"$out")
+  echo "$rps $p99"
+}
+
+# Samples the wait events of database $1's busy backends into $2 until killed.
+sample_waits() {
+  while true; do
+    psql "$PG/test" -Atc "SELECT coalesce(wait_event_type || ':' || wait_event, 'CPU') FROM pg_stat_activity \
+      WHERE datname = '$1' AND state = 'active' AND pid <> pg_backend_pid()" >>"$2" 2>/dev/null || true
+    sleep 0.05
+  done
+}
+waits_summary() {
+  sort "$1" | uniq -c | sort -rn | awk -v total="$(wc -l <"$1")" 'NR <= 4 { printf "%s%s %.0f%%", (NR > 1 ? ", " : ""), $2, 100 * $1 / total }'
+}
+
+declare -A RES
+OFFSET=0
+for engine in $ENGINES; do
+  for name in "${NAMES[@]}"; do
+    if [ "$engine" = postgres ]; then
+      db=writes_bench_${name//[^a-z0-9]/_}
+      psql "$PG/test" -qc "DROP DATABASE IF EXISTS $db WITH (FORCE)" -c "CREATE DATABASE $db"
+    fi
+  done
+  for round in $(seq "$ROUNDS"); do
+    for name in "${NAMES[@]}"; do
+      if [ "$engine" = postgres ]; then database="$PG/writes_bench_${name//[^a-z0-9]/_}"; else database="$WORK/$name.db"; fi
+      read -r pid p < <(serve "$name" "$database"); ready "$p"
+      for leg in hot fleet; do
+        [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }
+        OFFSET=$((OFFSET + 1000000))
+        : >"$WORK/waits"
+        if [ "$engine" = postgres ]; then sample_waits "${database##*/}" "$WORK/waits" & SAMPLER=$!; fi
+        r=$(TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p" "$CONNS" "$WORK/submit.lua" /)
+        if [ "$engine" = postgres ]; then kill $SAMPLER; wait $SAMPLER 2>/dev/null || true; RES[$engine,$name,$leg,waits,$round]=$(waits_summary "$WORK/waits"); fi
+        RES[$engine,$name,$leg,$round]=$r
+      done
+      RES[$engine,$name,history_size,$round]=$(curl -s "localhost:$p/v1/sensors/HOT" -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" | python3 -c 'import json,sys; print(json.load(sys.stdin).get("calibration_count", "?"))')
+      RES[$engine,$name,coefficients,$round]=$(BODY= wrk_leg "$p" "$CONNS" "$WORK/read.lua" /v1/sensors/HOT/coefficients)
+      RES[$engine,$name,history,$round]=$(BODY= wrk_leg "$p" "$CONNS" "$WORK/read.lua" "/v1/sensors/HOT/calibrations?limit=20")
+      RES[$engine,$name,compensate,$round]=$(BODY=$COMPENSATE wrk_leg "$p" "$CONNS" "$WORK/read.lua" /v1/sensors/HOT/compensate)
+      if [ "$engine" = postgres ]; then
+        read -r pid2 p2 < <(serve "$name" "$database"); ready "$p2"
+        for leg in hot fleet; do
+          [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }
+          OFFSET=$((OFFSET + 1000000)); o1=$OFFSET; OFFSET=$((OFFSET + 1000000))
+          : >"$WORK/waits"; sample_waits "${database##*/}" "$WORK/waits" & SAMPLER=$!
+          (TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$o1 wrk_leg "$p" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r1") &
+          w1=$!
+          TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p2" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r2"
+          wait $w1
+          kill $SAMPLER; wait $SAMPLER 2>/dev/null || true
+          RES[$engine,$name,2x-$leg,waits,$round]=$(waits_summary "$WORK/waits")
+          RES[$engine,$name,2x-$leg,$round]=$(awk '{ s += $1; if ($2 > m) m = $2 } END { printf "%.2f %s", s, m }' "$WORK/r1" "$WORK/r2")
+        done
+        kill "$pid2"; wait "$pid2" 2>/dev/null || true
+      fi
+      kill "$pid"; wait "$pid" 2>/dev/null || true
+    done
+  done
+done
+
+fmt() { awk '{ printf "%\047d (%s)", $1, $2 }' <<<"$1"; }
+echo "wrk, $CONNS connections, ${LEG} s legs, $ROUNDS rounds alternating ${NAMES[*]}; $(nproc) cores"
+echo
+first=${NAMES[0]}
+header="| engine | leg |"; rule="|---|---|"
+for name in "${NAMES[@]}"; do header+=" $name req/s (p99 ms), rounds 1…$ROUNDS |"; rule+="---|"; done
+for name in "${NAMES[@]:1}"; do header+=" $name / $first |"; rule+="---|"; done
+echo "$header"; echo "$rule"
+for engine in $ENGINES; do
+  legs="hot fleet coefficients history compensate"; [ "$engine" = postgres ] && legs="hot 2x-hot fleet 2x-fleet coefficients history compensate"
+  for leg in $legs; do
+    line="| $engine | $leg |"
+    declare -A MEAN=()
+    for name in "${NAMES[@]}"; do
+      cells=(); sum=0
+      for round in $(seq "$ROUNDS"); do
+        v=${RES[$engine,$name,$leg,$round]}; cells+=("$(fmt "$v")"); sum=$(awk -v s="$sum" -v a="${v%% *}" 'BEGIN { print s + a }')
+      done
+      MEAN[$name]=$(awk -v s="$sum" -v n="$ROUNDS" 'BEGIN { print s / n }')
+      line+=" $(IFS=/; echo "${cells[*]}" | sed 's|/| / |g') |"
+    done
+    for name in "${NAMES[@]:1}"; do line+=" $(awk -v a="${MEAN[$name]}" -v b="${MEAN[$first]}" 'BEGIN { printf "%.2f", a / b }') |"; done
+    echo "$line"
+  done
+done
+echo
+echo "HOT's calibrations after each round:"
+for engine in $ENGINES; do for name in "${NAMES[@]}"; do
+  echo -n "- $engine $name:"; for round in $(seq "$ROUNDS"); do echo -n " ${RES[$engine,$name,history_size,$round]}"; done; echo
+done; done
+if [[ " $ENGINES " == *" postgres "* ]]; then
+  echo
+  echo "PostgreSQL's busy backends by wait event during the write legs (last round; CPU = not waiting):"
+  for name in "${NAMES[@]}"; do for leg in hot 2x-hot fleet 2x-fleet; do
+    echo "- $name $leg: ${RES[postgres,$name,$leg,waits,$ROUNDS]}"
+  done; done
+fi
