@@ -4,6 +4,9 @@
 # (default postgres://postgres@127.0.0.1:5432/test), the rows copied with
 # psql (jsonb_populate_record), then ANALYZE; dropped after each N. Prints
 # milliseconds: sensor, coefficients, history page, stability, submit, approve.
+# PLANS=FILE: also write to FILE the plan, with actual times (auto_explain,
+# EXPLAIN ANALYZE), of every statement the service runs for the timed acts
+# (needs read access to PostgreSQL's log, PG_LOG, default Debian's).
 # Usage: benches/history-postgres.sh BIN N...
 set -euo pipefail
 BIN=$(realpath "$1"); shift
@@ -36,8 +39,21 @@ INSERT INTO sensors SELECT (jsonb_populate_record(NULL::sensors, to_jsonb(s) || 
 FROM sensors s WHERE s.sensor_id = 'PAPER-2005';
 ANALYZE;
 SQL
+  if [ -n "${PLANS:-}" ]; then
+    # New sessions of this database log each statement's plan as run.
+    psql -q "$URL" -c "ALTER DATABASE $DB SET session_preload_libraries = 'auto_explain'" \
+      -c "ALTER DATABASE $DB SET auto_explain.log_min_duration = 0" \
+      -c "ALTER DATABASE $DB SET auto_explain.log_analyze = on" >/dev/null
+    kill $PID; wait $PID 2>/dev/null || true
+    "$BIN" serve --listen 127.0.0.1:$PORT --database "$URL" >"$WORK/serve.log" 2>&1 & PID=$!
+    for _ in $(seq 100); do curl -sf localhost:$PORT/readyz >/dev/null && break; sleep 0.1; done
+    LOG=${PG_LOG:-/var/log/postgresql/postgresql-15-main.log}; FROM=$(wc -c <"$LOG")
+  fi
   sub=$(for i in $(seq 15); do curl -s -o /dev/null -w '%{time_total}\n' -X POST localhost:$PORT/v1/calibrations -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" -H 'Content-Type: application/json' -H "Idempotency-Key: h-$i" --data-binary @"$WORK/hot.json"; done | sort -n | sed -n 8p | awk '{ printf "%.1f", $1 * 1000 }')
   app=$(for i in $(seq 15); do curl -s -o /dev/null -w '%{time_total}\n' -X POST "localhost:$PORT/v1/calibrations/$(printf '00000000-0000-7000-8000-%012x' $i)/review" -H "Authorization: Bearer $R" -H 'Content-Type: application/json' -d '{"decision":"approve","comment":"b"}'; done | sort -n | sed -n 8p | awk '{ printf "%.1f", $1 * 1000 }')
+  if [ -n "${PLANS:-}" ]; then
+    { echo "## N = $n"; tail -c +$((FROM + 1)) "$LOG"; } >>"$PLANS"
+  fi
   echo "| $n | $(median /v1/sensors/HOT) | $(median /v1/sensors/HOT/coefficients) | $(median '/v1/sensors/HOT/calibrations?limit=50') | $(median /v1/sensors/HOT/stability) | $sub | $app |"
   kill $PID; wait $PID 2>/dev/null || true
   psql -q $ADMIN_URL -c "DROP DATABASE $DB WITH (FORCE)" >/dev/null
