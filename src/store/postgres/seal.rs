@@ -15,9 +15,12 @@
 //! `id` order, after the head. An act's entries keep the act's order; an act
 //! that began after another committed (it read that act's result: an
 //! approval of a stored calibration, an amendment of an issued certificate)
-//! holds greater ids and is visible to a sealer whenever that one is, so it
-//! is sealed after it. Two acts that overlapped are in the order their
-//! entries were numbered.
+//! holds greater ids (the identity's sequence caches no values per
+//! session, so ids are handed out in the order inserts ask for them) and
+//! is visible to a sealer whenever that one is, so it is sealed after it.
+//! Two acts that overlapped are in the order the sealers found them
+//! committed — by id among those found at once, so one numbered first but
+//! committed after the other's seal comes after it.
 //!
 //! **When.** Each replica runs a sealer task: woken by its writer after
 //! every committed batch of submissions and by every other act, sealing at
