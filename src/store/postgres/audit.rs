@@ -123,7 +123,7 @@ impl Audit for PostgresStore {
 
     async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError> {
         op!(self, "audit", |client| {
-            seal::seal(&mut client).await?;
+            seal::seal_pending(&mut client).await?;
             let limit = i64::try_from(q.limit).unwrap_or(i64::MAX);
             let found = client
                 .query(

@@ -234,7 +234,7 @@ impl Database for PostgresStore {
         // sealer has finished.
         self.sealer.stop().await;
         if let Ok(mut c) = self.client().await
-            && let Err(e) = seal::seal(&mut c).await
+            && let Err(e) = seal::seal_pending(&mut c).await
         {
             tracing::warn!(error = %e.chain(), "the audit trail was not sealed at shutdown");
         }

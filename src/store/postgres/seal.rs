@@ -277,11 +277,19 @@ async fn run(pool: Pool, wake: Arc<Notify>, stopping: Arc<AtomicBool>) {
     }
 }
 
-/// One look: seals when anything is pending. The look walks the primary
-/// key, not the table: a queue's table is mostly dead rows between two
-/// vacuums, which a scan of the heap would read every time.
+/// One look on a pooled connection ([`seal_pending`]).
 async fn once(p: &Pool) -> Result<usize, StoreError> {
     let mut client = p.get().await.map_err(pool)?;
+    seal_pending(&mut client).await
+}
+
+/// [`seal`]s when anything committed is pending, without the lock when
+/// nothing is: a reader of the trail does not queue behind the sealers for
+/// nothing. (Entries a sealer is chaining right now are still pending to
+/// this look until its commit, so they are waited for.) The look walks the
+/// primary key, not the table: a queue's table is mostly dead rows between
+/// two vacuums, which a scan of the heap would read every time.
+pub async fn seal_pending(client: &mut deadpool_postgres::Object) -> Result<usize, StoreError> {
     let any = client
         .query_opt("SELECT id FROM audit_pending ORDER BY id LIMIT 1", &[])
         .await
@@ -289,5 +297,5 @@ async fn once(p: &Pool) -> Result<usize, StoreError> {
     if any.is_none() {
         return Ok(0);
     }
-    seal(&mut client).await
+    seal(client).await
 }
