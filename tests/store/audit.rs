@@ -418,6 +418,17 @@ async fn postgres_tampering_is_found() {
     s.close().await;
 }
 
+/// Rita's approval, now.
+fn approval() -> Act {
+    Act {
+        action: Action::Approve,
+        signer: reviewer("Rita"),
+        at: Timestamp::now(),
+        comment: None,
+        superseded_by: None,
+    }
+}
+
 /// Two replicas submitting and signing at once append to one chain, in
 /// order, without a gap or a fork.
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
@@ -431,13 +442,7 @@ async fn postgres_replicas_append_to_one_chain() {
         tasks.push(tokio::spawn(async move {
             let c = calibration(&format!("REP-{}", i % 5), "2026-04-01T00:00:00Z");
             s.insert_calibration(c.clone(), None).await.unwrap();
-            let approve = Act {
-                action: Action::Approve,
-                signer: reviewer("Rita"),
-                at: Timestamp::now(),
-                comment: None,
-                superseded_by: None,
-            };
+            let approve = approval();
             assert!(matches!(
                 s.sign(c.id, approve).await.unwrap(),
                 Signed::Done(..)
@@ -515,13 +520,7 @@ async fn postgres_acts_do_not_wait_for_the_chain() {
     let acts = async {
         let second = calibration("SEAL-1", "2026-05-01T00:00:00Z");
         a.insert_calibration(second.clone(), None).await.unwrap();
-        let approve = Act {
-            action: Action::Approve,
-            signer: reviewer("Rita"),
-            at: Timestamp::now(),
-            comment: None,
-            superseded_by: None,
-        };
+        let approve = approval();
         assert!(matches!(
             a.sign(first.id, approve).await.unwrap(),
             Signed::Done(..)

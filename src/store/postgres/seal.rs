@@ -42,8 +42,7 @@ use tokio::sync::Notify;
 
 use super::errors::{map, pool};
 use super::rows;
-use crate::domain::audit::{Actor, Entry, Event};
-use crate::domain::timestamp::Timestamp;
+use crate::domain::audit::{Entry, Event};
 use crate::store::StoreError;
 
 /// How often a sealer looks for pending entries when no one woke it (any
@@ -157,18 +156,7 @@ pub async fn seal_in(tx: &Transaction<'_>) -> Result<(Head, usize), StoreError> 
         let mut pending = Vec::with_capacity(found.len());
         for r in &found {
             let id: i64 = rows::get(r, "id")?;
-            let event = Event {
-                at: Timestamp::from_datetime(rows::get::<OffsetDateTime>(r, "at")?),
-                actor: Actor {
-                    token_id: rows::get(r, "token_id")?,
-                    role: rows::get(r, "role")?,
-                    holder: rows::get(r, "holder")?,
-                },
-                action: rows::get(r, "action")?,
-                object: rows::get(r, "object")?,
-                change: rows::get(r, "change")?,
-            };
-            pending.push((id, event));
+            pending.push((id, super::audit::event(r)?));
         }
         // `RETURNING` promises no order.
         pending.sort_by_key(|(id, _)| *id);
