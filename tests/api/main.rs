@@ -40,3 +40,4 @@ mod traceability;
 mod triad;
 mod triads;
 mod ui;
+mod unchanged;
