@@ -13,6 +13,8 @@
 //!   and roles, request bodies — checked values, no I/O;
 //! * [`store`]: storage behind one trait — SQLite, or PostgreSQL for
 //!   several replicas — with the sensor and token caches in front;
+//! * [`app`]: the laboratory's acts (submit, review, supersede,
+//!   reprocess), each over the store and the domain, with no HTTP in it;
 //! * [`http`]: the API (routes, middleware, problem documents, OpenAPI,
 //!   metrics) and the web pages;
 //! * [`startup`]: configuration, the accept loop, shutdown;
@@ -22,6 +24,7 @@
 //! `docs/developers.md` says what a new endpoint, query or stored field
 //! touches.
 
+pub mod app;
 pub mod cli;
 pub mod client;
 pub mod domain;

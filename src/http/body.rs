@@ -1,7 +1,6 @@
 //! Request bodies, already received whole by the admission layer
 //! ([`super::stack::admit`]): their media type, and typed readings.
 
-use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
 use axum::http::header;
 use serde::de::DeserializeOwned;
@@ -11,16 +10,9 @@ use super::problem::Problem;
 use crate::domain::submission::Media;
 use crate::domain::typed;
 
-/// A request body with its media type.
-#[derive(Debug)]
-pub struct Body {
-    /// Its media type.
-    pub media: Media,
-    /// Its bytes (decompressed, when it was sent gzip-encoded).
-    pub bytes: Bytes,
-    /// The `Content-Type` as sent (stored with submissions).
-    pub content_type: String,
-}
+/// A request body with its media type: the application layer's
+/// [`Upload`], read from the request (its typed readings below).
+pub use crate::app::Upload as Body;
 
 /// The media type named by a `Content-Type` value (UTF-8 only).
 fn media(content_type: &str) -> Result<Media, Problem> {
@@ -75,15 +67,6 @@ impl FromRequest<AppState> for Body {
 }
 
 impl Body {
-    /// A stored submission read again as the body it was (for reprocessing).
-    pub fn stored(content_type: String, bytes: Bytes) -> Result<Body, Problem> {
-        Ok(Body {
-            media: media(&content_type)?,
-            bytes,
-            content_type,
-        })
-    }
-
     /// The body as a JSON value of type `T` (refusing CSV with 415).
     pub fn json<T: DeserializeOwned>(&self) -> Result<T, Problem> {
         if self.media != Media::Json {

@@ -1,203 +1,17 @@
 //! `POST /v1/calibrations` and reading calibrations back.
 
-use std::sync::Arc;
-
 use axum::extract::{Path, RawQuery, State};
-use axum::http::{HeaderMap, HeaderName, HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
-use bytes::Bytes;
-use sha2::{Digest, Sha256};
 use uuid::Uuid;
 
 use super::auth::require;
 use super::body::Body;
-use super::evaluation::assess;
-use super::problem::{Kind, Problem};
+use super::problem::Problem;
+use super::stored::{created, idempotency_key};
 use super::{AppState, path_id};
+use crate::app::submit;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::submission::Media;
-use crate::domain::timestamp::Timestamp;
-use crate::store::{Claim, IdempotencyKey, NewCalibration, Store, StoreError, Stored};
-
-/// The `Idempotency-Key` request header.
-pub static IDEMPOTENCY_KEY: HeaderName = HeaderName::from_static("idempotency-key");
-
-/// The idempotency key of a request, if it sent one: 1–255 visible ASCII
-/// characters, scoped to the principal, fingerprinted with the body.
-fn idempotency_key(
-    headers: &HeaderMap,
-    principal: &Principal,
-    body: &Body,
-) -> Result<Option<IdempotencyKey>, Problem> {
-    let mut values = headers.get_all(&IDEMPOTENCY_KEY).iter();
-    let Some(value) = values.next() else {
-        return Ok(None);
-    };
-    if values.next().is_some() {
-        return Err(Problem::bad_parameter(
-            "Idempotency-Key",
-            "is sent more than once",
-        ));
-    }
-    let key = value
-        .to_str()
-        .ok()
-        .filter(|k| (1..=255).contains(&k.len()) && k.bytes().all(|b| (0x21..=0x7e).contains(&b)))
-        .ok_or_else(|| {
-            Problem::bad_parameter(
-                "Idempotency-Key",
-                "must be 1 to 255 visible ASCII characters",
-            )
-        })?;
-    let mut hash = Sha256::new();
-    hash.update(match body.media {
-        Media::Json => b"json\n".as_slice(),
-        Media::Csv => b"csv\n".as_slice(),
-    });
-    hash.update(&body.bytes);
-    Ok(Some(IdempotencyKey {
-        principal: principal.id.clone(),
-        key: key.to_owned(),
-        request_hash: hash.finalize().into(),
-        holder: Uuid::now_v7(),
-    }))
-}
-
-/// Holds a claimed idempotency key; releases it if the request ends (error,
-/// or the client went away) without storing a calibration.
-pub(super) struct KeyGuard {
-    store: Arc<dyn Store>,
-    key: Option<IdempotencyKey>,
-}
-
-impl KeyGuard {
-    pub(super) fn done(mut self) {
-        self.key = None;
-    }
-}
-
-impl Drop for KeyGuard {
-    fn drop(&mut self) {
-        if let Some(k) = self.key.take()
-            && let Ok(rt) = tokio::runtime::Handle::try_current()
-        {
-            let store = self.store.clone();
-            rt.spawn(async move {
-                if let Err(e) = store.release_key(k).await {
-                    tracing::warn!(error = %e.chain(), "could not release an idempotency key; its lease will expire");
-                }
-            });
-        }
-    }
-}
-
-/// How long a key's lease outlasts its request's deadline: time for the
-/// request's last write to land. A lease that expires anyway (a crashed
-/// replica's) is taken over; the key's completion is guarded in the store,
-/// so even then one key stores one calibration.
-const LEASE_MARGIN_SECONDS: i64 = 5;
-
-/// Claims the request's key; answers a retry or a conflict at once.
-async fn claim(
-    state: &AppState,
-    key: &IdempotencyKey,
-) -> Result<Result<KeyGuard, Response>, Problem> {
-    let now = Timestamp::now();
-    let lease =
-        now.plus_seconds(state.limits.request_timeout.as_secs() as i64 + LEASE_MARGIN_SECONDS);
-    Ok(
-        match state.store.claim_key(key.clone(), now, lease).await? {
-            Claim::Fresh => Ok(KeyGuard {
-                store: state.store.clone(),
-                key: Some(key.clone()),
-            }),
-            Claim::Done(id) => Err(replay(state, id).await?),
-            Claim::InFlight => {
-                return Err(Problem::new(
-                    Kind::InFlight,
-                    "a request with this Idempotency-Key is still being processed; retry shortly",
-                )
-                .retry_after(1));
-            }
-            Claim::Mismatch => {
-                return Err(Problem::new(
-                    Kind::IdempotencyKeyReused,
-                    "this Idempotency-Key was already used with a different request body",
-                )
-                .naming("Idempotency-Key"));
-            }
-        },
-    )
-}
-
-/// Answers a retry with the calibration its key already stored.
-async fn replay(state: &AppState, id: Uuid) -> Result<Response, Problem> {
-    let result = state.store.calibration_result(id).await?.ok_or_else(|| {
-        StoreError::corrupt("idempotency key", format!("names missing calibration {id}"))
-    })?;
-    let mut res = created(id, result);
-    res.headers_mut().insert(
-        HeaderName::from_static("idempotent-replayed"),
-        HeaderValue::from_static("true"),
-    );
-    Ok(res)
-}
-
-/// A storing request's `Idempotency-Key`, claimed: go on with the key and
-/// its guard (none without a key), or the answer already due (a retry of a
-/// stored request, or a conflict). Single-axis and triad submissions alike.
-pub(super) async fn claimed(
-    state: &AppState,
-    headers: &HeaderMap,
-    principal: &Principal,
-    body: &Body,
-) -> Result<Result<(Option<IdempotencyKey>, Option<KeyGuard>), Response>, Problem> {
-    let key = idempotency_key(headers, principal, body)?;
-    let guard = match &key {
-        None => None,
-        Some(k) => match claim(state, k).await? {
-            Ok(guard) => Some(guard),
-            Err(answered) => return Ok(Err(answered)),
-        },
-    };
-    Ok(Ok((key, guard)))
-}
-
-/// Stores `rec` (its result document `result`) under `key`, releases the
-/// key's guard once stored, and answers 201 — or, when a concurrent request
-/// with the same key stored first, replays that one.
-pub(super) async fn store(
-    state: &AppState,
-    rec: NewCalibration,
-    key: Option<IdempotencyKey>,
-    guard: Option<KeyGuard>,
-) -> Result<Response, Problem> {
-    let (id, sensor_id, verdict, result) = (
-        rec.id,
-        rec.sensor_id.clone(),
-        rec.verdict,
-        rec.result.clone(),
-    );
-    let kind = if rec.triad.is_some() {
-        "triad"
-    } else {
-        "single-axis"
-    };
-    let stored = state.store.insert_calibration(rec, key).await?;
-    if let Some(g) = guard {
-        g.done();
-    }
-    match stored {
-        Stored::New => {
-            tracing::info!(calibration_id = %id, sensor_id = %sensor_id, kind, "calibration stored");
-            if let Some(v) = verdict {
-                metrics::counter!("accelcal_verdicts_total", "verdict" => v.as_str()).increment(1);
-            }
-            Ok(created(id, result))
-        }
-        Stored::Existing(first) => replay(state, first).await,
-    }
-}
 
 /// `POST /v1/calibrations`: check, identify, fuse, store durably, answer 201;
 /// with an `Idempotency-Key`, at most once per key.
@@ -239,35 +53,10 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
-    let (key, guard) = match claimed(&state, &headers, &principal, &body).await? {
-        Ok(claimed) => claimed,
-        Err(answered) => return Ok(answered),
-    };
-    let received_at = Timestamp::now();
-    let id = Uuid::now_v7();
-    let assessed = assess(&state, &principal, body, received_at, Some(id), None).await?;
-    let Some(rec) = assessed.record else {
-        return Err(Problem::internal());
-    };
-    store(&state, rec, key, guard).await
-}
-
-/// A 201 answer for a stored calibration.
-pub(crate) fn created(id: Uuid, result: Bytes) -> Response {
-    let location = HeaderValue::from_str(&format!("/v1/calibrations/{id}"))
-        .unwrap_or(HeaderValue::from_static("/v1/calibrations"));
-    (
-        StatusCode::CREATED,
-        [
-            (header::LOCATION, location),
-            (
-                header::CONTENT_TYPE,
-                HeaderValue::from_static("application/json"),
-            ),
-        ],
-        result,
-    )
-        .into_response()
+    let key = idempotency_key(&headers, &principal, &body)?;
+    let submitted =
+        submit::submit(&state.lab, &principal, body, key, submit::Kind::SingleAxis).await?;
+    Ok(created(submitted))
 }
 
 fn unknown(id: Uuid) -> Problem {

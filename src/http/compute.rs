@@ -8,8 +8,8 @@ use axum::response::{IntoResponse, Response};
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::evaluation::assess;
 use super::problem::Problem;
+use crate::app::single_axis;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::fuse::FuseRequest;
 use crate::domain::timestamp::Timestamp;
@@ -42,7 +42,8 @@ pub async fn identify(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    let assessed = assess(&state, &principal, body, Timestamp::now(), None, None).await?;
+    let assessed =
+        single_axis::assess(&state.lab, &principal, body, Timestamp::now(), None, None).await?;
     Ok((
         [(axum::http::header::CONTENT_TYPE, "application/json")],
         assessed.result,

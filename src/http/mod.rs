@@ -15,7 +15,7 @@ pub mod compute;
 pub mod conditional;
 pub mod connection;
 pub mod customers;
-pub mod evaluation;
+pub mod firmware;
 pub mod health;
 pub mod metrics;
 pub mod openapi;
@@ -29,6 +29,7 @@ pub mod sensors;
 pub mod stability;
 pub mod stack;
 pub mod standards;
+pub mod stored;
 pub mod throttle;
 pub mod tokens;
 pub mod triad;
@@ -57,6 +58,7 @@ use utoipa_axum::routes;
 
 use self::problem::Problem;
 use self::stack::Admission;
+use crate::app::Lab;
 use crate::domain::limits::{DEFAULT_BODY_BUDGET_BYTES, DEFAULT_MAX_BODY_BYTES};
 use crate::store::Store;
 
@@ -113,6 +115,8 @@ pub struct Shared {
     pub admission: Admission,
     /// Permits for CPU-heavy work on the blocking pool.
     pub compute: Arc<Semaphore>,
+    /// The laboratory the acts work in (the same store and pool).
+    pub lab: Lab,
     /// How the web pages and certificates present themselves.
     pub web: Web,
     /// Coefficients answers rendered once per calibration.
@@ -229,10 +233,6 @@ impl Laboratory {
     }
 }
 
-/// Bodies whose evaluation runs on the async worker (see
-/// [`AppState::compute_for`]): the paper's six-run submission is 1.3 KiB.
-pub const INLINE_BYTES: usize = 8 * 1024;
-
 impl AppState {
     /// State over `store` with `limits` and the default [`Web`] settings.
     pub fn new(store: Arc<dyn Store>, admin_token_hash: Option<[u8; 32]>, limits: Limits) -> Self {
@@ -246,15 +246,22 @@ impl AppState {
         limits: Limits,
         web: Web,
     ) -> Self {
+        let compute = Arc::new(Semaphore::new(limits.compute_threads.max(1)));
         AppState(Arc::new(Shared {
-            store,
+            store: store.clone(),
             admin_token_hash,
             admission: Admission::new(
                 limits.body_budget_bytes,
                 limits.max_body_bytes,
                 limits.max_concurrent,
             ),
-            compute: Arc::new(Semaphore::new(limits.compute_threads.max(1))),
+            compute: compute.clone(),
+            lab: Lab {
+                store: store.clone(),
+                compute,
+                basis: web.basis,
+                deadline: limits.request_timeout,
+            },
             web,
             limits,
             rendered: coefficients::Rendered::default(),
@@ -263,39 +270,21 @@ impl AppState {
         }))
     }
 
-    /// Runs the work of a body of `bytes` bytes: on the async worker when
-    /// the body is at most [`INLINE_BYTES`] (a tumble test of that size is
-    /// parsed, identified, fused and assessed in tens of microseconds, less
-    /// than the hop to the blocking pool and back costs), else as
-    /// [`AppState::compute`].
+    /// Runs the work of a body of `bytes` bytes ([`Lab::compute_for`]).
     pub async fn compute_for<T: Send + 'static>(
         &self,
         bytes: usize,
         work: impl FnOnce() -> T + Send + 'static,
     ) -> Result<T, Problem> {
-        if bytes <= INLINE_BYTES {
-            return Ok(work());
-        }
-        self.compute(work).await
+        Ok(self.lab.compute_for(bytes, work).await?)
     }
 
-    /// Runs CPU-heavy work (parsing, calibrating a submission) on the
-    /// blocking pool, at most `compute_threads` at once, so that the async
-    /// workers stay free for health probes and reads.
+    /// Runs CPU-heavy work on the blocking pool ([`Lab::compute`]).
     pub async fn compute<T: Send + 'static>(
         &self,
         work: impl FnOnce() -> T + Send + 'static,
     ) -> Result<T, Problem> {
-        let _permit = self
-            .compute
-            .clone()
-            .acquire_owned()
-            .await
-            .map_err(|_| Problem::internal())?;
-        tokio::task::spawn_blocking(work).await.map_err(|e| {
-            tracing::error!(error = %e, "a computation failed");
-            Problem::internal()
-        })
+        Ok(self.lab.compute(work).await?)
     }
 }
 
@@ -497,7 +486,7 @@ mod tests {
                     .unwrap()
             }
         };
-        assert_eq!(ran_on(INLINE_BYTES).await, here);
-        assert_ne!(ran_on(INLINE_BYTES + 1).await, here);
+        assert_eq!(ran_on(crate::app::INLINE_BYTES).await, here);
+        assert_ne!(ran_on(crate::app::INLINE_BYTES + 1).await, here);
     }
 }

@@ -19,7 +19,7 @@ use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 use utoipa::ToSchema;
 
-use crate::domain::field::{FieldError, Invalid};
+use crate::domain::field::{FieldError, Invalid, Loc};
 use crate::domain::submission::Refused;
 use crate::domain::text::echo;
 use crate::domain::typed::BodyError;
@@ -422,6 +422,37 @@ impl From<StoreError> for Problem {
                 tracing::error!(error = %e.chain(), "storage fault");
                 Problem::internal()
             }
+        }
+    }
+}
+
+impl From<crate::app::Error> for Problem {
+    fn from(e: crate::app::Error) -> Self {
+        use crate::app::Error;
+        match e {
+            Error::Unreadable(why) => Problem::bad_request(why),
+            Error::Invalid(invalid) => Problem::validation(invalid),
+            Error::Forbidden { why, fields: None } => Problem::forbidden(why),
+            Error::Forbidden {
+                why,
+                fields: Some(invalid),
+            } => Problem::forbidden(why).with_errors(invalid),
+            Error::NotFound(why) => Problem::not_found(why),
+            Error::State(why) => Problem::new(Kind::StateConflict, why),
+            Error::WrongKind(why) => Problem::new(Kind::WrongKind, why.clone())
+                .with_errors(Invalid::one(Loc::Root.key("sensor_id"), why)),
+            Error::InFlight => Problem::new(
+                Kind::InFlight,
+                "a request with this Idempotency-Key is still being processed; retry shortly",
+            )
+            .retry_after(1),
+            Error::KeyReused => Problem::new(
+                Kind::IdempotencyKeyReused,
+                "this Idempotency-Key was already used with a different request body",
+            )
+            .naming("Idempotency-Key"),
+            Error::Store(e) => Problem::from(e),
+            Error::Internal => Problem::internal(),
         }
     }
 }

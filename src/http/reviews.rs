@@ -1,11 +1,9 @@
 //! Review of stored calibrations (issue 28): approve or reject, withdraw,
-//! and the signatures that record each act.
-//!
-//! Each act is checked by the domain ([`crate::domain::review::Act::check`])
-//! inside the store's transaction that records it: a refusal for the
-//! signer's role or their own work is a 403, one for the calibration's
-//! state (approving a withdrawn one, withdrawing twice) a 409 naming the
-//! state.
+//! amend, supersede, reprocess, and the signatures that record each act —
+//! each act in the application layer ([`crate::app::review`],
+//! [`crate::app::supersede`]): a refusal for the signer's role or their own
+//! work is a 403, one for the calibration's state (approving a withdrawn
+//! one, withdrawing twice) a 409 naming the state.
 
 use axum::Json;
 use axum::extract::{Path, State};
@@ -18,31 +16,18 @@ use uuid::Uuid;
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::evaluation::{Assessed, assess};
 use super::path_id;
-use super::problem::{Kind, Problem};
+use super::problem::Problem;
 use super::query::Params;
+use super::stored::created;
+use super::ui::issue::issuing;
+use crate::app::review::{self, Reviewed};
+use crate::app::supersede::{self, Reprocessed};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::review::{
-    Act, Action, Refusal, ReviewBody, Signature, State as ReviewState, Supersedes, WithdrawBody,
-    check_reason, supersession,
+    ReviewBody, Signature, State as ReviewState, WithdrawBody, check_reason,
 };
-use crate::domain::submission::Method;
 use crate::domain::timestamp::Timestamp;
-use crate::store::Signed;
-use crate::store::{CalibrationSummary, NewCalibration};
-use accelcal_core::TermMap;
-
-/// What an act came to: the calibration's new state and the signature.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct Reviewed {
-    /// The calibration.
-    calibration_id: Uuid,
-    /// Its state now.
-    state: ReviewState,
-    /// The signature just recorded.
-    signature: Signature,
-}
 
 /// A calibration's review record.
 #[derive(Debug, Serialize, ToSchema)]
@@ -56,59 +41,7 @@ pub struct Signatures {
 }
 
 fn unknown(id: Uuid) -> Problem {
-    Problem::not_found(format!("no calibration with id `{id}`"))
-}
-
-/// Records `act` on calibration `id`, answering its outcome (also for the
-/// pages' review form). An approval issues the certificate in its
-/// transaction ([`super::ui::issue`]), rendered from what is read now.
-pub(crate) async fn record(
-    state: &AppState,
-    headers: &HeaderMap,
-    id: Uuid,
-    act: Act,
-) -> Result<Reviewed, Problem> {
-    let action = act.action;
-    let signed = match action {
-        Action::Approve => match super::ui::issue::draft(state, headers, &id.to_string()).await {
-            Ok(draft) => {
-                let render = draft.issuing_at(act.at);
-                state.store.approve_issuing(id, act, render).await?
-            }
-            // No certificate can be rendered (an unknown calibration, or a
-            // stored result that does not read back): the act is judged as
-            // any other, and the certificate issued at its first request.
-            Err(p) => {
-                tracing::warn!(calibration = %id, problem = %p.detail, "an approval issues no certificate now");
-                state.store.sign(id, act).await?
-            }
-        },
-        _ => state.store.sign(id, act).await?,
-    };
-    let reviewed = outcome(signed, id)?;
-    metrics::counter!("accelcal_reviews_total", "action" => action.as_str()).increment(1);
-    tracing::info!(
-        calibration = %id, action = action.as_str(),
-        by = %reviewed.signature.token_id, "calibration signed"
-    );
-    Ok(reviewed)
-}
-
-/// The answer to what the store made of an act on calibration `id`.
-fn outcome(signed: Signed, id: Uuid) -> Result<Reviewed, Problem> {
-    match signed {
-        Signed::Done(signature, _) => Ok(Reviewed {
-            calibration_id: id,
-            state: signature.state,
-            signature,
-        }),
-        Signed::NotFound => Err(unknown(id)),
-        Signed::Refused(why) if why.is_permission() => Err(Problem::forbidden(why.to_string())),
-        Signed::Refused(why @ Refusal::Disposition) => Err(Problem::validation(
-            crate::domain::field::Invalid::one("/comment", why.to_string()),
-        )),
-        Signed::Refused(why) => Err(Problem::new(Kind::StateConflict, why.to_string())),
-    }
+    Problem::from(review::unknown(id))
 }
 
 /// `POST /v1/calibrations/{id}/review`: approve or reject.
@@ -149,7 +82,8 @@ pub async fn review(
     let act = body
         .json::<ReviewBody>()?
         .act(principal, Timestamp::now())?;
-    record(&state, &headers, id, act).await.map(Json)
+    let issuing = issuing(&state, &headers, id, &act).await;
+    Ok(Json(review::record(&state.lab, id, act, issuing).await?))
 }
 
 /// `POST /v1/calibrations/{id}/withdraw`.
@@ -178,7 +112,6 @@ pub async fn review(
 pub async fn withdraw(
     State(state): State<AppState>,
     principal: Principal,
-    headers: HeaderMap,
     Path(id): Path<String>,
     body: Body,
 ) -> Result<Json<Reviewed>, Problem> {
@@ -187,7 +120,7 @@ pub async fn withdraw(
     let act = body
         .json::<WithdrawBody>()?
         .act(principal, Timestamp::now())?;
-    record(&state, &headers, id, act).await.map(Json)
+    Ok(Json(review::record(&state.lab, id, act, None).await?))
 }
 
 /// The body of `POST /v1/calibrations/{id}/amend`.
@@ -319,148 +252,9 @@ pub async fn supersede(
     let old = path_id(&id, "calibration")?;
     let reason =
         check_reason(Some(&query.reason)).map_err(|why| Problem::bad_parameter("reason", why))?;
-    // Known before anything is computed; its state is checked where the
-    // act is recorded.
-    let Some(summary) = state.store.calibration_summary(old).await? else {
-        return Err(unknown(old));
-    };
-    let received_at = Timestamp::now();
-    let new = Uuid::now_v7();
-    let supersedes = Supersedes {
-        calibration_id: old,
-        reason: reason.clone(),
-    };
-    let assessed = evaluate(
-        &state,
-        &principal,
-        &summary,
-        body,
-        received_at,
-        new,
-        supersedes,
-    )
-    .await?;
-    let Some(record) = assessed.record else {
-        return Err(Problem::internal());
-    };
-    let act = supersession(reason, principal, received_at, new);
-    outcome(state.store.supersede(old, record, act).await?, old)?;
-    tracing::info!(calibration = %old, by = %new, "calibration superseded");
-    metrics::counter!("accelcal_reviews_total", "action" => "supersede").increment(1);
-    Ok(super::calibrations::created(new, assessed.result))
-}
-
-/// `body` computed as the calibration `new` that supersedes `old`, as
-/// `old`'s kind is computed: a triad's body for a triad, a single-axis
-/// submission otherwise.
-async fn evaluate(
-    state: &AppState,
-    principal: &Principal,
-    old: &CalibrationSummary,
-    body: Body,
-    received_at: Timestamp,
-    new: Uuid,
-    supersedes: Supersedes,
-) -> Result<Assessed, Problem> {
-    if old.triad.is_some() {
-        super::triads::assess(state, principal, body, received_at, new, Some(supersedes)).await
-    } else {
-        assess(
-            state,
-            principal,
-            body,
-            received_at,
-            Some(new),
-            Some(supersedes),
-        )
-        .await
-    }
-}
-
-/// What reprocessing came to.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, ToSchema)]
-#[serde(rename_all = "lowercase")]
-pub enum Outcome {
-    /// Every number the same: the calibration is confirmed as it is.
-    Confirmed,
-    /// Some number differs: a new calibration supersedes it.
-    Superseded,
-}
-
-/// The answer of `POST /v1/calibrations/{id}/reprocess`.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct Reprocessed {
-    /// The calibration reprocessed.
-    calibration_id: Uuid,
-    /// `confirmed` or `superseded`.
-    outcome: Outcome,
-    /// The calibration that supersedes it, when a number differs.
-    replacement_id: Option<Uuid>,
-    /// What differs (`ki coefficient`, `k0 expanded uncertainty`, …); empty
-    /// when confirmed.
-    changed: Vec<String>,
-    /// The signature recorded on it.
-    signature: Signature,
-}
-
-/// What differs between a stored calibration and its submission computed
-/// again: the model, unit, runs, and every fused coefficient, standard
-/// error and expanded uncertainty — a triad's method and every element of
-/// `b`, `S`, `T` (and `S2`) with their standard errors and expanded
-/// uncertainties — compared bit for bit.
-fn differences(old: &CalibrationSummary, new: &NewCalibration) -> Vec<String> {
-    let mut changed = Vec::new();
-    if old.model != new.model {
-        changed.push("model".to_owned());
-    }
-    if old.unit != new.unit {
-        changed.push("unit".to_owned());
-    }
-    if old.runs != new.runs {
-        changed.push("runs".to_owned());
-    }
-    let none = TermMap(Vec::new());
-    for (what, a, b) in [
-        ("coefficient", &old.coefficients, &new.coefficients),
-        ("standard error", &old.std_errors, &new.std_errors),
-        (
-            "expanded uncertainty",
-            old.expanded.as_ref().unwrap_or(&none),
-            new.expanded.as_ref().unwrap_or(&none),
-        ),
-    ] {
-        for (term, x) in b.iter() {
-            if a.get(term).is_none_or(|y| y.to_bits() != x.to_bits()) {
-                changed.push(format!("{} {what}", term.name()));
-            }
-        }
-        for (term, _) in a.iter().filter(|(t, _)| b.get(*t).is_none()) {
-            changed.push(format!("{} {what}", term.name()));
-        }
-    }
-    match (&old.triad, &new.triad) {
-        (Some(a), Some(b)) => {
-            if a.method != b.method {
-                changed.push("method".to_owned());
-            }
-            let (was, now) = (a.numbers(), b.numbers());
-            for (name, x) in &now {
-                if was
-                    .iter()
-                    .find(|(n, _)| n == name)
-                    .is_none_or(|(_, y)| y.to_bits() != x.to_bits())
-                {
-                    changed.push(name.clone());
-                }
-            }
-            for (name, _) in was.iter().filter(|(n, _)| !now.iter().any(|(m, _)| m == n)) {
-                changed.push(name.clone());
-            }
-        }
-        (None, None) => {}
-        _ => changed.push("kind".to_owned()),
-    }
-    changed
+    let upload = body;
+    let submitted = supersede::supersede(&state.lab, principal, old, reason, upload).await?;
+    Ok(created(submitted))
 }
 
 /// `POST /v1/calibrations/{id}/reprocess`.
@@ -498,77 +292,7 @@ pub async fn reprocess(
 ) -> Result<Json<Reprocessed>, Problem> {
     require(&principal, Role::Reviewer)?;
     let id = path_id(&id, "calibration")?;
-    let old = state
-        .store
-        .calibration_summary(id)
-        .await?
-        .ok_or_else(|| unknown(id))?;
-    let stored = state
-        .store
-        .submission(id)
-        .await?
-        .ok_or_else(|| unknown(id))?;
-    let body = Body::stored(stored.content_type, stored.body)?;
-    let method = Method::CURRENT;
-    let reason = format!(
-        "reprocessed with accelcal {} (core {})",
-        method.accelcal, method.core
-    );
-    let new = Uuid::now_v7();
-    let supersedes = Supersedes {
-        calibration_id: id,
-        reason: reason.clone(),
-    };
-    // As it was received: the same body at the same reception time.
-    let assessed = evaluate(
-        &state,
-        &principal,
-        &old,
-        body,
-        old.received_at,
-        new,
-        supersedes,
-    )
-    .await?;
-    let Some(record) = assessed.record else {
-        return Err(Problem::internal());
-    };
-    let changed = differences(&old, &record);
-    let now = Timestamp::now();
-    let (signed, replacement_id) = if changed.is_empty() {
-        let act = Act {
-            action: Action::Confirm,
-            signer: principal,
-            at: now,
-            comment: Some(reason),
-            superseded_by: None,
-        };
-        (state.store.sign(id, act).await?, None)
-    } else {
-        let why = format!("{reason}: {} changed", changed.join(", "));
-        let act = supersession(why, principal, now, new);
-        (state.store.supersede(id, record, act).await?, Some(new))
-    };
-    let reviewed = outcome(signed, id)?;
-    let result = if replacement_id.is_some() {
-        Outcome::Superseded
-    } else {
-        Outcome::Confirmed
-    };
-    let action = if replacement_id.is_some() {
-        "supersede"
-    } else {
-        "confirm"
-    };
-    metrics::counter!("accelcal_reviews_total", "action" => action).increment(1);
-    tracing::info!(calibration = %id, outcome = ?result, "calibration reprocessed");
-    Ok(Json(Reprocessed {
-        calibration_id: id,
-        outcome: result,
-        replacement_id,
-        changed,
-        signature: reviewed.signature,
-    }))
+    Ok(Json(supersede::reprocess(&state.lab, principal, id).await?))
 }
 
 /// `GET /v1/calibrations/{id}/signatures`.

@@ -4,7 +4,6 @@
 //! the result in the form firmware loads.
 
 use axum::extract::State;
-use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use serde::Deserialize;
 use utoipa::IntoParams;
@@ -12,14 +11,14 @@ use utoipa::IntoParams;
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
+use super::firmware::file;
 use super::problem::Problem;
 use super::query::Params;
+use crate::app::triad;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::field::Invalid;
-use crate::domain::submission::Media;
-use crate::domain::triad::{TriadBody, TriadResult, TriadSubmission, compute};
-use crate::domain::triad_csv;
-use crate::domain::triad_export::{Exported, Format, export};
+use crate::domain::triad::{TriadBody, TriadResult, compute};
+use crate::domain::triad_export::{Exported, Format};
 
 /// The query of `POST /v1/identify/triad`.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -119,7 +118,7 @@ pub async fn identify(
     // Parsed and computed on the compute pool: a recording may be megabytes.
     let result: TriadResult = state
         .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
-            let sub = read(&body)?;
+            let sub = triad::read(&body)?;
             // What only a stored triad has: refused rather than ignored.
             let stored_only = |key: &str, what: &str| {
                 Problem::validation(Invalid::one(
@@ -168,36 +167,4 @@ pub(super) fn export_format(export: Option<&str>) -> Result<Option<Format>, Prob
             })
         })
         .transpose()
-}
-
-/// A triad body read (JSON or CSV) and checked.
-pub(super) fn read(body: &Body) -> Result<TriadSubmission, Problem> {
-    let parsed = match body.media {
-        Media::Csv => {
-            let text = std::str::from_utf8(&body.bytes)
-                .map_err(|_| Problem::bad_request("the CSV body is not UTF-8"))?;
-            triad_csv::read(text)?
-        }
-        _ => body.json::<TriadBody>()?,
-    };
-    Ok(parsed.check()?)
-}
-
-/// `e` as a file in `format`, named for download; a format that cannot
-/// carry it is a 422 saying what it would drop.
-pub(super) fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {
-    let file =
-        export(e, format).map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
-    let mut res = file.into_response();
-    let h = res.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(format.media_type()),
-    );
-    if let Ok(v) =
-        HeaderValue::from_str(&format!("attachment; filename=\"{}\"", format.file_name()))
-    {
-        h.insert(header::CONTENT_DISPOSITION, v);
-    }
-    Ok(res)
 }

@@ -18,18 +18,45 @@ use axum::response::{IntoResponse, Response};
 
 use super::calibration::{StoredDoc, load_stored};
 use super::certificate::{Amendment, Context, context};
+use crate::app::review::Issuing;
 use crate::domain::audit::Actor;
-use crate::domain::review::{Signature, State};
+use crate::domain::review::{Act, Action, Signature, State};
 use crate::domain::timestamp::Timestamp;
 use crate::http::problem::{Kind, Problem};
 use crate::http::{AppState, path_id};
 use crate::store::{IssuedCertificate, Render, Rendered};
+use uuid::Uuid;
 
 /// What a certificate is rendered from, read now: the stored result and
 /// everything beside it.
 pub struct Draft {
     doc: StoredDoc,
     ctx: Context,
+}
+
+/// The certificate `act` issues on calibration `id`, when it is an
+/// approval and a certificate can be rendered now (read before the act,
+/// rendered in its transaction); none otherwise — an approval then issues
+/// its certificate at the certificate's first request.
+pub async fn issuing(
+    state: &AppState,
+    headers: &HeaderMap,
+    id: Uuid,
+    act: &Act,
+) -> Option<Issuing> {
+    if act.action != Action::Approve {
+        return None;
+    }
+    match draft(state, headers, &id.to_string()).await {
+        Ok(draft) => Some(Box::new(move |at| draft.issuing_at(at))),
+        // No certificate can be rendered (an unknown calibration, or a
+        // stored result that does not read back): the act is judged as
+        // any other.
+        Err(p) => {
+            tracing::warn!(calibration = %id, problem = %p.detail, "an approval issues no certificate now");
+            None
+        }
+    }
 }
 
 /// Reads what calibration `raw_id`'s certificate is rendered from.

@@ -15,8 +15,10 @@ use maud::{Markup, html};
 use serde::Deserialize;
 
 use super::calibration::when;
+use super::issue::issuing;
 use super::session::{Viewer, cross_site};
 use super::{UiError, badge};
+use crate::app::review;
 use crate::domain::auth::Role;
 use crate::domain::review::{
     Act, Action, Decision, MAX_COMMENT_CHARS, ReviewBody, Signature, State as ReviewState,
@@ -272,6 +274,9 @@ pub async fn sign(
         .act(signer, now)
         .map_err(Problem::from)?,
     };
-    crate::http::reviews::record(&state, &headers, id, act).await?;
+    let issuing = issuing(&state, &headers, id, &act).await;
+    review::record(&state.lab, id, act, issuing)
+        .await
+        .map_err(Problem::from)?;
     Ok(Redirect::to(&format!("/ui/calibrations/{id}#review")).into_response())
 }

@@ -435,5 +435,5 @@ pub async fn export(
     Path((raw, format)): Path<(String, String)>,
 ) -> Result<Response, UiError> {
     let id = path_id(&raw, "calibration")?;
-    Ok(crate::http::triads::exported(&state, id, &format).await?)
+    Ok(crate::http::firmware::exported(&state, id, &format).await?)
 }

@@ -1,0 +1,26 @@
+//! The application layer: the laboratory's acts — submitting, reviewing,
+//! superseding, reprocessing — each a function over the store and the
+//! domain that takes typed input and a principal and returns a typed
+//! outcome or an [`Error`], with no HTTP in it. The HTTP handlers parse,
+//! authenticate, call one act and render; the command line and background
+//! work call the same acts.
+//!
+//! What differs between kinds of calibration (single-axis, triad) is how a
+//! submission is read and assessed: [`single_axis`] and [`triad`], each
+//! answering an [`Assessed`] that the acts store alike.
+
+mod error;
+mod lab;
+pub mod review;
+pub mod single_axis;
+pub mod standards;
+pub mod subject;
+pub mod submit;
+pub mod supersede;
+pub mod triad;
+mod upload;
+
+pub use error::Error;
+pub use lab::{INLINE_BYTES, Lab};
+pub use submit::{Assessed, Submitted};
+pub use upload::Upload;

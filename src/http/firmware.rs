@@ -1,0 +1,83 @@
+//! A stored or computed triad as the file firmware loads (`json`, `c`,
+//! `px4`, `ardupilot`): what the export route, the identify route's
+//! `?export=` and the triad page's downloads answer.
+
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use uuid::Uuid;
+
+use super::AppState;
+use super::problem::{Kind, Problem};
+use crate::domain::field::Invalid;
+use crate::domain::review::Basis;
+use crate::domain::text::echo;
+use crate::domain::triad_export::{Exported, Format, export};
+
+/// `e` as a file in `format`, named for download; a format that cannot
+/// carry it is a 422 saying what it would drop.
+pub fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {
+    let file =
+        export(e, format).map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
+    let mut res = file.into_response();
+    let h = res.headers_mut();
+    h.insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static(format.media_type()),
+    );
+    if let Ok(v) =
+        HeaderValue::from_str(&format!("attachment; filename=\"{}\"", format.file_name()))
+    {
+        h.insert(header::CONTENT_DISPOSITION, v);
+    }
+    Ok(res)
+}
+
+/// Calibration `id` as a firmware file in `format` (what the export route
+/// and the page's download answer).
+pub async fn exported(state: &AppState, id: Uuid, format: &str) -> Result<Response, Problem> {
+    let format = Format::parse(format)
+        .ok_or_else(|| Problem::bad_parameter("format", "must be json, c, px4 or ardupilot"))?;
+    let c = state
+        .store
+        .calibration_summary(id)
+        .await?
+        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
+    let Some(t) = &c.triad else {
+        return Err(Problem::new(
+            Kind::WrongKind,
+            format!(
+                "calibration {id} is single-axis: its coefficients are at \
+                 GET /v1/calibrations/{id}; exports are for triads"
+            ),
+        ));
+    };
+    if !c.state.counts(Basis::NotRejected) {
+        return Err(Problem::new(
+            Kind::StateConflict,
+            format!(
+                "calibration {id} is {}: it no longer counts and is not exported; the sensor's \
+                 latest is at GET /v1/sensors/{}",
+                c.state.as_str(),
+                echo(&c.sensor_id)
+            ),
+        ));
+    }
+    let source = format!(
+        "triad {}, calibration {id} performed {} ({}), accelcal {}",
+        c.sensor_id,
+        c.performed_at,
+        c.state.as_str(),
+        env!("CARGO_PKG_VERSION")
+    );
+    file(
+        &Exported {
+            unit: &c.unit,
+            b: t.b,
+            s: t.s,
+            t: t.t,
+            s2: t.s2,
+            source,
+        },
+        format,
+    )
+}
