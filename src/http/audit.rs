@@ -10,66 +10,20 @@
 
 use axum::Json;
 use axum::extract::State;
-use serde::{Deserialize, Serialize};
-use utoipa::{IntoParams, ToSchema};
+use serde::Deserialize;
+use utoipa::IntoParams;
 
 use super::AppState;
 use super::auth::require;
 use super::page::Page;
 use super::problem::Problem;
 use super::query::{Params, instant, limit};
-use crate::domain::audit::{Actor, Entry};
+use crate::domain::audit::AuditEntry;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::timestamp::Timestamp;
 use crate::store::AuditQuery;
 
 /// Longest `object` or `actor` filter, in characters.
 const MAX_FILTER_CHARS: usize = 200;
-
-/// One entry of the audit trail.
-#[derive(Debug, Serialize, ToSchema)]
-pub struct AuditEntry {
-    /// Its place in the chain, from 1, without gaps.
-    #[schema(minimum = 1)]
-    seq: i64,
-    /// When it happened.
-    at: Timestamp,
-    /// Who did it.
-    actor: Actor,
-    /// What was done: `calibration.submitted`, `calibration.approve`,
-    /// `calibration.reject`, `calibration.withdraw`, `calibration.supersede`,
-    /// `calibration.confirm`, `token.create`, `token.revoke`,
-    /// `sensor_type.put`, `sensor.retype`, `standard.put`, `customer.put`,
-    /// `item.put` or `service.configure`.
-    action: String,
-    /// What it was done to: `calibrations/{id}`, `tokens/{id}`,
-    /// `sensor-types/{id}`, `sensors/{id}`, `standards/{id}`,
-    /// `customers/{id}`, `items/{sensor_id}` or `service`.
-    object: String,
-    /// The change, as recorded.
-    #[schema(value_type = Object)]
-    change: serde_json::Value,
-    /// The previous entry's hash (64 zeros for the first).
-    prev: String,
-    /// SHA-256 (hex) of the entry's canonical form, which names `prev`.
-    hash: String,
-}
-
-impl From<Entry> for AuditEntry {
-    fn from(e: Entry) -> AuditEntry {
-        let change = serde_json::from_str(&e.change).unwrap_or(serde_json::Value::String(e.change));
-        AuditEntry {
-            seq: e.seq,
-            at: e.at,
-            actor: e.actor,
-            action: e.action,
-            object: e.object,
-            change,
-            prev: e.prev,
-            hash: e.hash,
-        }
-    }
-}
 
 /// The query of `GET /v1/audit`.
 #[derive(Debug, Deserialize, IntoParams)]

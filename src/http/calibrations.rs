@@ -9,6 +9,8 @@ use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
 use super::stored::{created, idempotency_key};
+use super::ui::dcc::prefers_xml;
+use super::ui::issue;
 use super::{AppState, path_id};
 use crate::app::submit;
 use crate::domain::auth::{Principal, Role};
@@ -171,5 +173,7 @@ pub async fn certificate(
     RawQuery(query): RawQuery,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    super::ui::certificate::respond(&state, &headers, &id, query.as_deref()).await
+    let revision = issue::revision(query.as_deref())?;
+    let xml = prefers_xml(&headers);
+    issue::respond(&state, &headers, &id, revision, xml).await
 }

@@ -13,6 +13,44 @@ use crate::domain::review::Basis;
 use crate::domain::text::echo;
 use crate::domain::triad_export::{Exported, Format, export};
 
+/// The `json` export's document (schema only: `triad_export` writes it).
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct TriadExport {
+    /// What it describes.
+    pub source: String,
+    /// `u = b + S g`.
+    model: String,
+    /// `g = T (u - b), T = S^-1`.
+    compensation: String,
+    /// The convention in words.
+    convention: String,
+    /// The outputs' unit.
+    unit: String,
+    /// The units of `b`, `S` and `T`.
+    units: TriadExportUnits,
+    /// `b`.
+    b: [f64; 3],
+    /// `S`, by rows.
+    #[serde(rename = "S")]
+    s: [[f64; 3]; 3],
+    /// `T = S⁻¹`, by rows.
+    #[serde(rename = "T")]
+    t: [[f64; 3]; 3],
+}
+
+/// The units of the `json` export's `b`, `S` and `T`.
+#[derive(serde::Serialize, utoipa::ToSchema)]
+pub struct TriadExportUnits {
+    /// `b`'s.
+    b: String,
+    /// `S`'s.
+    #[serde(rename = "S")]
+    s: String,
+    /// `T`'s.
+    #[serde(rename = "T")]
+    t: String,
+}
+
 /// `e` as a file in `format`, named for download; a format that cannot
 /// carry it is a 422 saying what it would drop.
 pub fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {

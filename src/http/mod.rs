@@ -17,6 +17,7 @@ pub mod connection;
 pub mod customers;
 pub mod firmware;
 pub mod health;
+pub mod lookup;
 pub mod metrics;
 pub mod openapi;
 pub mod page;
@@ -310,7 +311,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(sensors::history))
         .routes(routes!(coefficients::coefficients))
         .routes(routes!(coefficients::compensate))
-        .routes(routes!(stability::report))
+        .routes(routes!(sensors::stability))
         .routes(routes!(sensor_types::list))
         .routes(routes!(sensor_types::get, sensor_types::put))
         .routes(routes!(customers::list_customers))

@@ -1,23 +1,19 @@
-//! `GET /v1/sensors/{sensor_id}/stability`: a sensor's coefficients over its
-//! history — spread, drift, control chart and the latest change (definitions
-//! in `accelcal_core::history`).
+//! A sensor's stability report (`GET /v1/sensors/{sensor_id}/stability`,
+//! and its page): its coefficients over its history — spread, drift,
+//! control chart and the latest change (definitions in
+//! `accelcal_core::history`).
 
 use accelcal_core::TermMap;
 use accelcal_core::coverage::Coverage;
 use std::collections::BTreeMap;
 
 use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, quantity, stability};
-use axum::Json;
-use axum::extract::{Path, State};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
 use super::AppState;
-use super::auth::require;
+use super::lookup::sensor;
 use super::problem::Problem;
-use super::query::{Params, instant};
-use super::sensors::sensor;
-use crate::domain::auth::{Principal, Role};
 use crate::domain::review::Basis;
 use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use crate::domain::timestamp::Timestamp;
@@ -30,10 +26,10 @@ use crate::store::{CalibrationSummary, SensorSummary, TriadElement, TriadElement
 pub struct StabilityParams {
     /// Only calibrations performed at or after this instant (RFC 3339).
     #[param(value_type = Option<String>, format = DateTime)]
-    from: Option<String>,
+    pub from: Option<String>,
     /// Only calibrations performed at or before this instant (RFC 3339).
     #[param(value_type = Option<String>, format = DateTime)]
-    to: Option<String>,
+    pub to: Option<String>,
 }
 
 /// The most calibrations a stability report (and a sensor's page) covers:
@@ -197,35 +193,4 @@ pub async fn report_of(
 /// the drift fit).
 pub fn years(t: Timestamp) -> f64 {
     t.unix_micros() as f64 / 1e6 / SECONDS_PER_YEAR
-}
-
-/// `GET /v1/sensors/{sensor_id}/stability`.
-#[utoipa::path(
-    get,
-    path = "/v1/sensors/{sensor_id}/stability",
-    tag = "sensors",
-    operation_id = "getStability",
-    summary = "Spread, drift and control chart of a sensor's fused coefficients over its history.",
-    params(super::openapi::SensorIdPath, StabilityParams),
-    responses(
-        (status = 200, description = "The report.", body = Stability),
-        (status = 400, response = super::openapi::BadRequest),
-        (status = 404, response = super::openapi::NotFound),
-        super::openapi::Always,
-    )
-)]
-pub async fn report(
-    State(state): State<AppState>,
-    principal: Principal,
-    Path(sensor_id): Path<String>,
-    Params(q): Params<StabilityParams>,
-) -> Result<Json<Stability>, Problem> {
-    require(&principal, Role::Reader)?;
-    let (from, to) = (
-        instant("from", q.from.as_deref())?,
-        instant("to", q.to.as_deref())?,
-    );
-    Ok(Json(
-        report_of(&state, &sensor_id, from, to).await?.stability,
-    ))
 }

@@ -11,7 +11,7 @@ use utoipa::IntoParams;
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::firmware::file;
+use super::firmware::{TriadExport, file};
 use super::problem::Problem;
 use super::query::Params;
 use crate::app::triad;
@@ -30,44 +30,6 @@ pub struct TriadQuery {
     /// full result.
     #[param(pattern = "^(json|c|px4|ardupilot)$")]
     pub export: Option<String>,
-}
-
-/// The `json` export's document (schema only: `triad_export` writes it).
-#[derive(serde::Serialize, utoipa::ToSchema)]
-pub struct TriadExport {
-    /// What it describes.
-    pub source: String,
-    /// `u = b + S g`.
-    model: String,
-    /// `g = T (u - b), T = S^-1`.
-    compensation: String,
-    /// The convention in words.
-    convention: String,
-    /// The outputs' unit.
-    unit: String,
-    /// The units of `b`, `S` and `T`.
-    units: TriadExportUnits,
-    /// `b`.
-    b: [f64; 3],
-    /// `S`, by rows.
-    #[serde(rename = "S")]
-    s: [[f64; 3]; 3],
-    /// `T = S⁻¹`, by rows.
-    #[serde(rename = "T")]
-    t: [[f64; 3]; 3],
-}
-
-/// The units of the `json` export's `b`, `S` and `T`.
-#[derive(serde::Serialize, utoipa::ToSchema)]
-pub struct TriadExportUnits {
-    /// `b`'s.
-    b: String,
-    /// `S`'s.
-    #[serde(rename = "S")]
-    s: String,
-    /// `T`'s.
-    #[serde(rename = "T")]
-    t: String,
 }
 
 /// A JSON answer: the result, or with `export=json` the export.

@@ -96,7 +96,7 @@ pub struct ExportQuery {
     params(super::openapi::CalibrationIdPath, ExportQuery),
     responses(
         (status = 200, description = "The file, named for download.",
-            content((super::triad::TriadExport = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
+            content((super::firmware::TriadExport = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
         (status = 404, response = super::openapi::NotFound),
         (status = 409, response = super::openapi::WrongKind),
         super::openapi::Always,

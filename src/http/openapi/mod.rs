@@ -59,7 +59,7 @@ impl Modify for Bearer {
             MountSchema, PositionInSchema, ReadingInSchema, RunInSchema, SubmissionSchema, RawBodySchema, RunResultSchema,
             MeanEstimateSchema, BatchSchema, FusedEstimateSchema, EstimatesSchema, NormalizedSchema,
             PositionOutSchema, CalibrationResultSchema, StoredCalibrationSchema, StoredResultSchema, CorrectionSchema, SensorPageSchema,
-            CalibrationPageSchema, AuditPageSchema, super::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
+            CalibrationPageSchema, AuditPageSchema, crate::domain::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
             crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,

@@ -12,81 +12,20 @@
 //! values (at least one run, at most [`RUNS_SHOWN`]); each says what it left
 //! out, and the result document (`/v1/calibrations/{id}`) has everything.
 
-use axum::extract::{Path, State};
-use axum::http::{HeaderValue, header};
+use axum::extract::{Path, RawQuery, State};
+use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use maud::{Markup, html};
 
-use super::format::{Notation, given, instant, num, opt, unc};
+use super::axis::{as_found, budget, decision};
+use super::format::{Notation, num, opt, unc};
 use super::plot::{self, Chart, Point, Series, XAxis};
 use super::result::{LackOfFitDoc, ResultDoc, WarningDoc};
-use super::session::Viewer;
+use super::stored::{StoredDoc, load_stored, record, when};
+use super::viewer::Viewer;
 use super::{Html, UiError, badge, layout, review};
-use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
-
-/// A stored result document of either kind.
-pub enum StoredDoc {
-    /// A single-axis calibration's.
-    Axis(Box<ResultDoc>),
-    /// A triad's.
-    Triad(Box<super::triad::TriadDoc>),
-}
-
-/// Reads a stored result document of either kind (404 for an unknown id).
-pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Problem> {
-    let id = path_id(raw_id, "calibration")?;
-    let bytes = state
-        .store
-        .calibration_result(id)
-        .await?
-        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
-    let read = if is_triad(&bytes) {
-        serde_json::from_slice(&bytes).map(|d| StoredDoc::Triad(Box::new(d)))
-    } else {
-        serde_json::from_slice(&bytes).map(|d| StoredDoc::Axis(Box::new(d)))
-    };
-    read.map_err(|e| {
-        tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
-        Problem::internal()
-    })
-}
-
-/// Whether a stored result is a triad's (`"kind": "triad"`): those are
-/// not single-axis result documents.
-pub fn is_triad(result: &[u8]) -> bool {
-    #[derive(serde::Deserialize)]
-    struct Kind {
-        kind: Option<String>,
-    }
-    serde_json::from_slice::<Kind>(result).is_ok_and(|k| k.kind.as_deref() == Some("triad"))
-}
-
-/// A calibration's state and signatures.
-pub async fn record(
-    state: &AppState,
-    raw_id: &str,
-) -> Result<
-    (
-        crate::domain::review::State,
-        Vec<crate::domain::review::Signature>,
-    ),
-    Problem,
-> {
-    let id = path_id(raw_id, "calibration")?;
-    let summary = state
-        .store
-        .calibration_summary(id)
-        .await?
-        .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
-    Ok((summary.state, state.store.signatures(id).await?))
-}
-
-/// A stored instant, as the pages print it.
-pub fn when(text: &str) -> String {
-    Timestamp::parse(text).map_or_else(|_| text.to_owned(), |t| instant(&t))
-}
 
 /// Runs listed in the per-run table.
 pub const RUNS_SHOWN: usize = 24;
@@ -276,121 +215,6 @@ fn residuals(d: &ResultDoc) -> Markup {
                 }
             }
             (left_out(shown.min(d.runs.len()), d.runs.len(), &d.id.to_string()))
-        }
-    }
-}
-
-/// The uncertainty budget table (also on the certificate).
-pub fn budget(d: &ResultDoc) -> Markup {
-    html! {
-        @if let Some(u) = &d.uncertainty {
-            div.table-wrap tabindex="0" role="region" aria-label="Uncertainty budget" {
-                table #budget .cards {
-                    caption {
-                        "Uncertainty budget, each term in its coefficient's unit ("
-                        @for (i, (t, _)) in u.terms.iter().enumerate() {
-                            @if i > 0 { ", " }
-                            (t.name()) " in " (super::format::term_unit(t, &d.unit))
-                        }
-                        "); expanded" (super::certificate::coverage_statement(u))
-                    }
-                    thead { tr {
-                        th scope="col" { "Term" }
-                        th scope="col" .num { "Statistical" }
-                        th scope="col" .num { "Indexing" }
-                        th scope="col" .num { "Gravity" }
-                        th scope="col" .num { "Model" }
-                        th scope="col" .num { "Combined" }
-                        th scope="col" .num { "ν" sub { "eff" } }
-                        th scope="col" .num { "k" }
-                        th scope="col" .num { "p" }
-                        th scope="col" .num { "Expanded U" }
-                    } }
-                    tbody {
-                        @for (t, b) in u.terms.iter() {
-                            @let c = b.covered(u.coverage_factor);
-                            tr data-term=(t.name()) {
-                                th scope="row" { (t.name()) }
-                                td.num data-label="Statistical" { (unc(b.statistical)) }
-                                td.num data-label="Indexing" { (unc(b.indexing)) }
-                                td.num data-label="Gravity" { (unc(b.gravity)) }
-                                td.num data-label="Model" { (unc(b.model)) }
-                                td.num data-label="Combined" { (unc(b.combined)) }
-                                td.num data-label="νeff" { (super::format::dof(c.effective_dof)) }
-                                td.num data-label="k" { (super::format::factor(c.k)) }
-                                td.num data-label="p" { (super::format::percent(c.p)) }
-                                td.num data-label="Expanded U" { (unc(b.expanded)) }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// The decision table (also on the certificate).
-pub fn decision(d: &ResultDoc) -> Markup {
-    html! {
-        @if let Some(dec) = &d.decision {
-            p { "Rule " strong { (dec.rule) } " (ILAC-G8); verdict " (badge(&dec.verdict, &dec.verdict)) }
-            div.table-wrap tabindex="0" role="region" aria-label="Decision" {
-                table #decision .cards {
-                    caption { "Each limited coefficient against its limits, in its coefficient's unit (k0 in " (d.unit) ", ki, kp, ko in " (d.unit) "/g)" }
-                    thead { tr {
-                        th scope="col" { "Term" }
-                        th scope="col" .num { "Value" }
-                        th scope="col" .num { "Min" }
-                        th scope="col" .num { "Max" }
-                        th scope="col" .num { "U" }
-                        th scope="col" { "Verdict" }
-                    } }
-                    tbody {
-                        @for (t, x) in dec.terms.iter() {
-                            tr data-term=(t.name()) {
-                                th scope="row" { (t.name()) }
-                                td.num data-label="Value" { (num(x.value)) }
-                                td.num data-label="Min" { (opt(x.min, given)) }
-                                td.num data-label="Max" { (opt(x.max, given)) }
-                                td.num data-label="U" { (unc(x.expanded)) }
-                                td data-label="Verdict" { (badge(&x.verdict, &x.verdict)) }
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// The as-found table (also on the certificate).
-pub fn as_found(d: &ResultDoc) -> Markup {
-    html! {
-        @if let Some(a) = &d.as_found {
-            p {
-                "Against the previous calibration "
-                a href={"/ui/calibrations/" (a.previous_calibration_id)} { code { (a.previous_calibration_id) } }
-                ": largest error " strong { (unc(a.max_abs_error_g)) " g" } "."
-            }
-            div.table-wrap tabindex="0" role="region" aria-label="As found" {
-                table #as-found .cards {
-                    caption { "Error of the previous coefficients at each position" }
-                    thead { tr {
-                        th scope="col" { "Position" }
-                        th scope="col" .num { "Error (" (d.unit) ")" }
-                        th scope="col" .num { "Error (g)" }
-                    } }
-                    tbody {
-                        @for (i, e) in a.positions.iter().enumerate() {
-                            tr data-position=(i) {
-                                th scope="row" { (d.positions.get(i).map_or_else(|| format!("#{}", i + 1), |p| p.name(i))) }
-                                td.num data-label={"Error (" (d.unit) ")"} { (unc(e.error_output)) }
-                                td.num data-label="Error (g)" { (unc(e.error_g)) }
-                            }
-                        }
-                    }
-                }
-            }
         }
     }
 }
@@ -671,4 +495,40 @@ pub async fn submission(
         h.insert(header::CONTENT_DISPOSITION, v);
     }
     Ok(res)
+}
+
+/// `GET /ui/calibrations/{id}/certificate`.
+pub async fn certificate(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    RawQuery(query): RawQuery,
+) -> Result<Response, UiError> {
+    let revision = super::issue::revision(query.as_deref())?;
+    Ok(super::issue::respond(&state, &headers, &id, revision, false).await?)
+}
+
+/// `GET /ui/calibrations/{id}/certificate.xml`: the Digital Calibration
+/// Certificate, for the page's link (a browser cannot choose `Accept`).
+pub async fn dcc(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    headers: HeaderMap,
+    Path(id): Path<String>,
+    RawQuery(query): RawQuery,
+) -> Result<Response, UiError> {
+    let revision = super::issue::revision(query.as_deref())?;
+    Ok(super::issue::respond(&state, &headers, &id, revision, true).await?)
+}
+
+/// `GET /ui/calibrations/{id}/export/{format}`: a stored triad's firmware
+/// file, as `GET /v1/calibrations/{id}/export?format=` answers it.
+pub async fn export(
+    State(state): State<AppState>,
+    _viewer: Viewer,
+    Path((raw, format)): Path<(String, String)>,
+) -> Result<Response, UiError> {
+    let id = path_id(&raw, "calibration")?;
+    Ok(crate::http::firmware::exported(&state, id, &format).await?)
 }

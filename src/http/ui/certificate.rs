@@ -1,6 +1,8 @@
-//! The printable calibration certificate (HTML, A4 under `@media print`):
+//! The printable calibration certificate (HTML, A4 under `@media print`) of
+//! a single-axis calibration, and what every certificate shares (its
+//! [`Context`], frame and sections): answered by
 //! `GET /v1/calibrations/{id}/certificate` with a bearer token, and
-//! `GET /ui/calibrations/{id}/certificate` from the pages.
+//! `GET /ui/calibrations/{id}/certificate` from the pages ([`super::issue`]).
 //!
 //! It states what a lab signs (ISO/IEC 17025 §7.8 where accelcal knows it):
 //! the customer and the item (manufacturer, model, serial, sensor, type), where and how it was calibrated (station, stand,
@@ -19,20 +21,19 @@
 
 use std::sync::LazyLock;
 
-use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, header};
-use axum::response::Response;
 use base64::Engine as _;
 use base64::engine::general_purpose::STANDARD;
 use maud::{DOCTYPE, Markup, PreEscaped, html};
 use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
-use super::calibration::{as_found, budget, decision, when};
+use super::axis::{as_found, budget, decision};
+use super::coverage::coverage_statement;
 use super::format::{dof, factor, num, percent, term_unit, unc, value_and_uncertainty};
 use super::result::{MethodDoc, ResultDoc};
-use super::session::Viewer;
-use super::{UiError, badge, review};
+use super::stored::when;
+use super::{badge, review};
 use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
@@ -382,53 +383,6 @@ pub fn verification(c: &Context, computed_by: Option<String>) -> Markup {
     }
 }
 
-/// The coverage probability of a coverage factor `k` for a normal
-/// distribution ([`accelcal_core::uncertainty::coverage_probability`]), as a
-/// certificate states it ("coverage probability ≈ 95.4 %"): for results
-/// computed before each coefficient stated its own.
-pub fn probability(k: f64) -> String {
-    let p = accelcal_core::uncertainty::coverage_probability(k) * 100.0;
-    format!("coverage probability ≈ {p:.1} % (normal distribution)")
-}
-
-/// How the expanded uncertainties were formed, as the method's sentence
-/// ends ("… combined in quadrature and expanded" + this): for a stated
-/// probability, each coefficient's k from Student's t at its effective
-/// degrees of freedom; for a fixed k, each one's probability from them;
-/// for a result computed before either, k and the normal probability.
-pub fn coverage_statement(u: &super::result::UncertaintyDoc) -> String {
-    let per_term = u.terms.iter().all(|(_, b)| b.coverage_factor.is_some());
-    stated(u.coverage_probability, u.coverage_factor, per_term)
-}
-
-/// [`coverage_statement`] of a document that states `probability` or
-/// `factor`, for each coefficient (`per_term`) or, before that, once.
-pub fn stated(stated_p: Option<f64>, fixed: Option<f64>, per_term: bool) -> String {
-    let dof = "its effective degrees of freedom ν_eff (Welch–Satterthwaite, GUM G.2b, \
-               truncated; the Type B components of the standards on the degrees of freedom \
-               their certificates state, infinite otherwise)";
-    match (stated_p, fixed, per_term) {
-        (Some(p), _, true) => format!(
-            " for a coverage probability of {}: each coefficient's coverage factor k is \
-             Student's t for it at {dof}",
-            percent(p)
-        ),
-        (None, Some(k), true) => format!(
-            " with the coverage factor k = {} the sensor type fixes: each coefficient's \
-             coverage probability p follows from Student's t at {dof}",
-            factor(k)
-        ),
-        (_, k, _) => {
-            let k = k.unwrap_or(2.0);
-            format!(
-                " with coverage factor k = {}, {}",
-                factor(k),
-                probability(k)
-            )
-        }
-    }
-}
-
 /// Who issues the certificate: the laboratory's name, address and
 /// accreditation as configured, or that none is.
 pub fn laboratory(lab: &crate::http::Laboratory) -> Markup {
@@ -527,7 +481,7 @@ pub async fn context(
         .submission(id)
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
-    let (state_now, signatures) = super::calibration::record(state, raw_id).await?;
+    let (state_now, signatures) = super::stored::record(state, raw_id).await?;
     let item = state.store.item(sensor_id.to_owned()).await?;
     let customer = match item.as_ref().and_then(|i| i.customer.clone()) {
         Some(id) => state.store.customer(id).await?,
@@ -545,46 +499,6 @@ pub async fn context(
         laboratory: state.web.laboratory.clone(),
         amendment: None,
     })
-}
-
-/// The certificate of calibration `raw_id`, as a response: the Digital
-/// Calibration Certificate when the request's `Accept` prefers XML, the
-/// printable HTML otherwise — as issued, revision `query`'s `revision` or
-/// the latest ([`super::issue`]).
-pub async fn respond(
-    state: &AppState,
-    headers: &HeaderMap,
-    raw_id: &str,
-    query: Option<&str>,
-) -> Result<Response, Problem> {
-    let revision = super::issue::revision(query)?;
-    let xml = super::dcc::prefers_xml(headers);
-    super::issue::respond(state, headers, raw_id, revision, xml).await
-}
-
-/// `GET /ui/calibrations/{id}/certificate`.
-pub async fn ui_page(
-    State(state): State<AppState>,
-    _viewer: Viewer,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-    RawQuery(query): RawQuery,
-) -> Result<Response, UiError> {
-    let revision = super::issue::revision(query.as_deref())?;
-    Ok(super::issue::respond(&state, &headers, &id, revision, false).await?)
-}
-
-/// `GET /ui/calibrations/{id}/certificate.xml`: the Digital Calibration
-/// Certificate, for the page's link (a browser cannot choose `Accept`).
-pub async fn ui_dcc(
-    State(state): State<AppState>,
-    _viewer: Viewer,
-    headers: HeaderMap,
-    Path(id): Path<String>,
-    RawQuery(query): RawQuery,
-) -> Result<Response, UiError> {
-    let revision = super::issue::revision(query.as_deref())?;
-    Ok(super::issue::respond(&state, &headers, &id, revision, true).await?)
 }
 
 #[cfg(test)]

@@ -491,7 +491,7 @@ fn results(x: &mut Xml, d: &ResultDoc) {
     let statement = d
         .uncertainty
         .as_ref()
-        .map(super::certificate::coverage_statement);
+        .map(super::coverage::coverage_statement);
     x.el("dcc:measurementResult", |x| {
         rich(x, "dcc:name", "Static model of the accelerometer");
         rich(x, "dcc:description", &format!(

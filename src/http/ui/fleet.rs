@@ -6,13 +6,13 @@ use axum::extract::{RawQuery, State};
 use maud::{Markup, html};
 
 use super::format::{Notation, date};
-use super::session::Viewer;
+use super::viewer::Viewer;
 use super::{Html, UiError, badge, layout};
 use crate::domain::status::Status;
 use crate::http::AppState;
+use crate::http::lookup::SensorListQuery;
 use crate::http::page::Page;
 use crate::http::problem::Problem;
-use crate::http::sensors::SensorListQuery;
 use crate::store::SensorSummary;
 
 /// The query with empty fields dropped (an empty select or search box means

@@ -16,8 +16,8 @@
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 
-use super::calibration::{StoredDoc, load_stored};
 use super::certificate::{Amendment, Context, context};
+use super::stored::{StoredDoc, load_stored};
 use crate::app::review::Issuing;
 use crate::domain::audit::Actor;
 use crate::domain::review::{Act, Action, Signature, State};
@@ -240,7 +240,7 @@ pub async fn respond(
         };
         return Ok(document(dcc, true, Some((&c.calibration_id, c.revision))));
     }
-    let (now, signatures) = super::calibration::record(state, raw_id).await?;
+    let (now, signatures) = super::stored::record(state, raw_id).await?;
     let html = served_html(&c, now, &signatures);
     Ok(document(html, false, Some((&c.calibration_id, c.revision))))
 }
@@ -296,7 +296,7 @@ pub async fn amend(
 ) -> Result<IssuedCertificate, Problem> {
     let id = path_id(raw_id, "calibration")?;
     let Some(latest) = issued(state, headers, raw_id, None).await? else {
-        let (now, _) = super::calibration::record(state, raw_id).await?;
+        let (now, _) = super::stored::record(state, raw_id).await?;
         return Err(Problem::new(
             Kind::StateConflict,
             format!(

@@ -16,8 +16,10 @@
 //! the same numbers beside it.
 
 pub mod assets;
+pub mod axis;
 pub mod calibration;
 pub mod certificate;
+pub mod coverage;
 pub mod dcc;
 pub mod fleet;
 pub mod format;
@@ -27,9 +29,13 @@ pub mod result;
 pub mod review;
 pub mod sensor;
 pub mod session;
+pub mod sign;
+pub mod stored;
 pub mod triad;
 pub mod triad_certificate;
 pub mod triad_dcc;
+pub mod triad_result;
+pub mod viewer;
 pub mod xml;
 
 use axum::Router;
@@ -40,7 +46,7 @@ use maud::{DOCTYPE, Markup, html};
 
 use super::AppState;
 use super::problem::Problem;
-use session::Viewer;
+use viewer::Viewer;
 
 /// The Content-Security-Policy of every page: this origin's stylesheet, and
 /// nothing else — no script, no frame, forms posting only here.
@@ -60,13 +66,16 @@ pub fn router() -> Router<AppState> {
             "/calibrations/{id}/submission",
             get(calibration::submission),
         )
-        .route("/calibrations/{id}/certificate", get(certificate::ui_page))
         .route(
-            "/calibrations/{id}/certificate.xml",
-            get(certificate::ui_dcc),
+            "/calibrations/{id}/certificate",
+            get(calibration::certificate),
         )
-        .route("/calibrations/{id}/review", post(review::sign))
-        .route("/calibrations/{id}/export/{format}", get(triad::export))
+        .route("/calibrations/{id}/certificate.xml", get(calibration::dcc))
+        .route("/calibrations/{id}/review", post(sign::sign))
+        .route(
+            "/calibrations/{id}/export/{format}",
+            get(calibration::export),
+        )
         .route("/assets/{file}", get(assets::serve))
         .fallback(not_found)
 }

@@ -17,7 +17,7 @@ use uuid::Uuid;
 
 use super::format::{Notation, date, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Rule, Segment, Series, XAxis};
-use super::session::Viewer;
+use super::viewer::Viewer;
 use super::{Html, UiError, badge, layout};
 use crate::domain::timestamp::Timestamp;
 use crate::http::AppState;

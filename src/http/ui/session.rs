@@ -1,4 +1,5 @@
-//! Signing in to the pages with a token, sessions, and CSRF.
+//! Signing in to the pages with a token, sessions, and CSRF (who is
+//! reading a page is [`super::viewer`]).
 //!
 //! * `GET /ui/login` shows the form and sets a short-lived sign-in cookie
 //!   whose random value the form repeats in a hidden field (double submit):
@@ -17,8 +18,7 @@
 //!
 //! Form posts announced by the browser as cross-site are refused outright.
 
-use axum::extract::{Extension, FromRequestParts, OriginalUri, RawQuery, State};
-use axum::http::request::Parts;
+use axum::extract::{Extension, RawQuery, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Redirect, Response};
 use axum_extra::extract::cookie::{Cookie, CookieJar, SameSite};
@@ -26,73 +26,18 @@ use bytes::Bytes;
 use maud::html;
 use serde::Deserialize;
 
+use super::viewer::{HOME, SESSION_COOKIE, Viewer, cross_site};
 use super::{Html, UiError, layout};
-use crate::domain::auth::{self, Principal};
 use crate::domain::session::{self, same_secret};
 use crate::domain::timestamp::Timestamp;
 use crate::http::AppState;
-use crate::http::auth::{ClientAddr, authenticate, still_valid};
+use crate::http::auth::{ClientAddr, authenticate};
 use crate::http::problem::Problem;
 
-/// The session cookie.
-pub const SESSION_COOKIE: &str = "accelcal_session";
 /// The sign-in form's double-submit cookie.
 pub const LOGIN_COOKIE: &str = "accelcal_login";
 /// How long a sign-in form stays usable, in seconds.
 const LOGIN_FORM_SECONDS: i64 = 3600;
-/// Where to go after signing in when nowhere (or nowhere safe) was asked.
-const HOME: &str = "/ui/sensors";
-
-/// The signed-in principal of a page request.
-#[derive(Debug, Clone)]
-pub struct Viewer {
-    /// Who.
-    pub principal: Principal,
-    /// The session's CSRF token, for its forms.
-    pub csrf: String,
-    id_hash: [u8; 32],
-}
-
-impl FromRequestParts<AppState> for Viewer {
-    type Rejection = UiError;
-
-    async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, UiError> {
-        // Inside `/ui` the router sees the path without its prefix; the
-        // original URI is the page to come back to.
-        let uri = parts
-            .extensions
-            .get::<OriginalUri>()
-            .map_or(&parts.uri, |o| &o.0);
-        let next = uri
-            .path_and_query()
-            .map_or(HOME.to_owned(), |p| p.as_str().to_owned());
-        let sign_in = |reason| UiError::SignIn {
-            next: next.clone(),
-            reason,
-        };
-        let jar = CookieJar::from_headers(&parts.headers);
-        let Some(cookie) = jar.get(SESSION_COOKIE) else {
-            return Err(sign_in(None));
-        };
-        let id_hash = auth::hash(cookie.value());
-        let Some(s) = state.store.session(id_hash).await? else {
-            return Err(sign_in(Some("expired")));
-        };
-        if s.expires_at <= Timestamp::now() {
-            state.store.delete_session(id_hash).await?;
-            return Err(sign_in(Some("expired")));
-        }
-        let Some(principal) = still_valid(state, &s.principal, &s.credential_hash).await? else {
-            state.store.delete_session(id_hash).await?;
-            return Err(sign_in(Some("ended")));
-        };
-        Ok(Viewer {
-            principal,
-            csrf: s.csrf,
-            id_hash,
-        })
-    }
-}
 
 /// Whether cookies must be `Secure`: the public URL is https, or a proxy in
 /// front says the request came over TLS (`X-Forwarded-Proto: https`).
@@ -227,14 +172,6 @@ struct LoginForm {
     csrf: String,
     #[serde(default)]
     next: Option<String>,
-}
-
-/// Refuses a form post the browser says came from another site.
-pub(super) fn cross_site(headers: &HeaderMap) -> bool {
-    headers
-        .get("sec-fetch-site")
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.eq_ignore_ascii_case("cross-site"))
 }
 
 /// `POST /ui/login`.

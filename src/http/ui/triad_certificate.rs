@@ -12,13 +12,13 @@
 use maud::{Markup, html};
 
 use super::badge;
-use super::calibration::when;
 use super::certificate::{
     Context, Frame, PAPER, customer_and_item, frame, standards, traceability, verification,
 };
 use super::format::{dof, factor, num, percent, unc, value_and_uncertainty};
 use super::result::Covered;
-use super::triad::TriadDoc;
+use super::stored::when;
+use super::triad_result::TriadDoc;
 use crate::store::AXES;
 
 /// One row of the results: element, value, standard error, `u_c`,

@@ -16,7 +16,7 @@
 
 use super::certificate::{Context, PAPER};
 use super::dcc::{Admin, Judged, Judgement, conditions, document, dsi_unit, meta_data, real, rich};
-use super::triad::TriadDoc;
+use super::triad_result::TriadDoc;
 use super::xml::Xml;
 use crate::domain::triad::{FIXED_BY_CONVENTION, KNOWN_ORIENTATIONS};
 use crate::store::AXES;
