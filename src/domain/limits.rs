@@ -82,3 +82,20 @@ pub const MAX_ECHO_CHARS: usize = 64;
 pub const DEFAULT_PAGE: usize = 50;
 /// Largest page size of lists.
 pub const MAX_PAGE: usize = 500;
+
+/// Longest comment or reason, in characters.
+pub const MAX_COMMENT_CHARS: usize = 2000;
+/// The most degrees of freedom a certificate may state (beyond, leave them
+/// out: infinite).
+pub const MAX_DEGREES_OF_FREEDOM: f64 = 1_000_000.0;
+/// Smallest coverage probability accepted.
+pub const MIN_COVERAGE_PROBABILITY: f64 = 0.5;
+/// Largest coverage probability accepted.
+pub const MAX_COVERAGE_PROBABILITY: f64 = 0.9999;
+/// Smallest coverage factor accepted: below 1 an "expanded" uncertainty
+/// would be smaller than the standard one.
+pub const MIN_COVERAGE_FACTOR: f64 = 1.0;
+/// Largest coverage factor accepted.
+pub const MAX_COVERAGE_FACTOR: f64 = 10.0;
+/// Longest calibration interval accepted, in days (ten years).
+pub const MAX_INTERVAL_DAYS: u32 = 3650;

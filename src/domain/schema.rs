@@ -19,7 +19,7 @@ use super::limits::{
     MAX_GRAVITY_COMPONENT, MAX_GRAVITY_REL_STD, MAX_HOLDER_CHARS, MAX_ID_CHARS, MAX_LABEL_CHARS,
     MAX_NOTES_CHARS, MAX_OUTPUTS, MAX_READING, MAX_RUNS, MAX_TEMPERATURE_STD_C, MAX_UNIT_CHARS,
 };
-use super::sensor_types::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR};
+use super::limits::{MAX_COVERAGE_FACTOR, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR};
 
 /// Implements `ToSchema` for a marker type from a schema expression; the
 /// schema's name is the type's without a `Schema` suffix.
@@ -248,12 +248,12 @@ pub const SAID: &str = r"^[^\u0000-\u0008\u000B\u000C\u000E-\u001F\u007F-\u009F]
 
 /// A review's comment, or null.
 pub fn nullable_comment() -> RefOr<Schema> {
-    nullable(said(crate::domain::review::MAX_COMMENT_CHARS).into())
+    nullable(said(super::limits::MAX_COMMENT_CHARS).into())
 }
 
 /// A withdrawal's or supersession's reason.
 pub fn reason() -> ObjectBuilder {
-    said(crate::domain::review::MAX_COMMENT_CHARS)
+    said(super::limits::MAX_COMMENT_CHARS)
 }
 
 marker_schema!(
@@ -315,15 +315,15 @@ pub fn degrees_of_freedom() -> ObjectBuilder {
     ObjectBuilder::new()
         .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
         .minimum(Some(1.0))
-        .maximum(Some(super::standards::MAX_DEGREES_OF_FREEDOM))
+        .maximum(Some(super::limits::MAX_DEGREES_OF_FREEDOM))
 }
 
 /// `coverage_probability`, optional.
 pub fn coverage_probability() -> ObjectBuilder {
     ObjectBuilder::new()
         .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
-        .minimum(Some(super::sensor_types::MIN_COVERAGE_PROBABILITY))
-        .maximum(Some(super::sensor_types::MAX_COVERAGE_PROBABILITY))
+        .minimum(Some(super::limits::MIN_COVERAGE_PROBABILITY))
+        .maximum(Some(super::limits::MAX_COVERAGE_PROBABILITY))
 }
 
 /// `interval_days`, optional.

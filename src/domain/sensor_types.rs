@@ -5,6 +5,10 @@
 //! coverage factor (the probability then follows) — and its calibration
 //! interval.
 
+pub use super::limits::{
+    MAX_COVERAGE_FACTOR, MAX_COVERAGE_PROBABILITY, MAX_INTERVAL_DAYS, MIN_COVERAGE_FACTOR,
+    MIN_COVERAGE_PROBABILITY,
+};
 use accelcal_core::TermMap;
 use accelcal_core::coverage::{Coverage, DEFAULT_PROBABILITY};
 use accelcal_core::decision::{Limit, Rule};
@@ -20,19 +24,8 @@ use super::timestamp::Timestamp;
 /// normal distribution), for comparisons that carry no degrees of freedom
 /// (a stability report's latest change).
 pub const DEFAULT_COVERAGE_FACTOR: f64 = 2.0;
-/// Smallest coverage probability accepted.
-pub const MIN_COVERAGE_PROBABILITY: f64 = 0.5;
-/// Largest coverage probability accepted.
-pub const MAX_COVERAGE_PROBABILITY: f64 = 0.9999;
 /// Calibration interval when a type gives none, in days.
 pub const DEFAULT_INTERVAL_DAYS: u32 = 365;
-/// Smallest coverage factor accepted: below 1 an "expanded" uncertainty
-/// would be smaller than the standard one.
-pub const MIN_COVERAGE_FACTOR: f64 = 1.0;
-/// Largest coverage factor accepted.
-pub const MAX_COVERAGE_FACTOR: f64 = 10.0;
-/// Longest calibration interval accepted, in days (ten years).
-pub const MAX_INTERVAL_DAYS: u32 = 3650;
 
 /// The body of `PUT /v1/sensor-types/{type_id}`.
 #[derive(Debug, Clone, Deserialize, ToSchema)]

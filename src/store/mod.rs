@@ -20,7 +20,9 @@ mod error;
 pub mod issued;
 pub mod postgres;
 mod records;
+pub(crate) mod sql;
 pub mod sqlite;
+mod triad_elements;
 pub mod verify;
 
 use std::sync::Arc;
@@ -33,6 +35,8 @@ pub use conditional::{Precondition, Put};
 pub use error::{BoxError, StoreError};
 pub use issued::{IssuedCertificate, Render, Rendered, Revision};
 pub use records::*;
+pub use sql::*;
+pub use triad_elements::*;
 
 use crate::domain::audit::{Actor, Entry};
 use crate::domain::customers::{Customer, Item};

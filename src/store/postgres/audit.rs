@@ -18,24 +18,8 @@ use crate::store::{Audit, AuditQuery, StoreError, audit};
 
 const COLUMNS: &str = "seq, at, token_id, role, holder, action, object, change, prev, hash";
 
-/// What a row of `audit` or `audit_pending` records of its act: when, by
-/// whom, what, to what, the change.
-pub(super) fn event(r: &tokio_postgres::Row) -> Result<Event, StoreError> {
-    Ok(Event {
-        at: Timestamp::from_datetime(rows::get::<OffsetDateTime>(r, "at")?),
-        actor: Actor {
-            token_id: rows::get(r, "token_id")?,
-            role: rows::get(r, "role")?,
-            holder: rows::get(r, "holder")?,
-        },
-        action: rows::get(r, "action")?,
-        object: rows::get(r, "object")?,
-        change: rows::get(r, "change")?,
-    })
-}
-
 fn entry(r: &tokio_postgres::Row) -> Result<Entry, StoreError> {
-    let e = event(r)?;
+    let e = rows::event(r)?;
     Ok(Entry {
         seq: rows::get(r, "seq")?,
         at: e.at,

@@ -473,10 +473,10 @@ impl Calibrations for PostgresStore {
                  WHERE {window} {NEWEST_FIRST} LIMIT $4) \
                  SELECT page.*, {} AS in_window FROM page \
                  ORDER BY page.performed_at DESC, page.id DESC",
-                crate::store::records::in_window_sql(
+                crate::store::sql::in_window_sql(
                     "$4",
                     &window,
-                    crate::store::records::whole_history(from, to, basis).then_some("$1")
+                    crate::store::sql::whole_history(from, to, basis).then_some("$1")
                 )
             );
             let stmt = client.prepare_cached(&sql).await.map_err(map)?;

@@ -54,7 +54,7 @@ pub async fn findings(
         .await
         .map_err(map)?
         .iter()
-        .map(super::reviews::nonconformity)
+        .map(rows::nonconformity)
         .collect()
 }
 
@@ -75,7 +75,7 @@ pub async fn holding(tx: &Transaction<'_>, id: Uuid) -> Result<Vec<Nonconformity
     .await
     .map_err(map)?
     .iter()
-    .map(super::reviews::nonconformity)
+    .map(rows::nonconformity)
     .collect()
 }
 
@@ -109,7 +109,7 @@ pub async fn place(
     )?;
     let seq = u32::try_from(last + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let signature = hold_on_storing(&held, seq, n.received_at);
-    super::reviews::insert_signature(tx, n.id, &signature).await?;
+    super::signatures::insert(tx, n.id, &signature).await?;
     for nc in &held {
         tx.execute(
             "INSERT INTO nonconformity_calibrations (nonconformity_id, calibration_id, \

@@ -61,6 +61,7 @@ mod seal;
 mod sensor_types;
 mod sensors;
 mod sessions;
+mod signatures;
 mod standards;
 mod tokens;
 pub mod writer;

@@ -11,6 +11,8 @@ use super::PostgresStore;
 use super::calibrations::{Row, Written, write};
 use super::errors::map;
 use super::rows;
+use super::rows::nonconformity;
+use super::signatures::SIGNATURE_COLUMNS;
 use crate::domain::audit::{Actor, Event};
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
@@ -20,10 +22,6 @@ use crate::store::{
     chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
     sensor_recompute,
 };
-
-/// The columns of [`rows::signature`].
-const SIGNATURE_COLUMNS: &str =
-    "seq, action, state, meaning, token_id, role, holder, signed_at, comment, superseded_by";
 
 /// The holder of the token `token_id` (a submission's `submitted_by`), if
 /// it is a stored token that names one.
@@ -126,7 +124,7 @@ async fn sign(
         };
         held = super::holds::place(tx, r.new_calibration(), &inherited).await?;
     }
-    insert_signature(tx, id, &s).await?;
+    super::signatures::insert(tx, id, &s).await?;
     // An approval issues the certificate, with the signatures it leaves,
     // unless one was issued already (an approval after a hold); the
     // calibration's row is locked, so revisions follow one another.
@@ -190,37 +188,6 @@ async fn sign(
         None => crate::store::audit::signed(id, &s, state),
     });
     Ok((Signed::Done(s, sensor_id), events))
-}
-
-/// Appends signature `s` to calibration `id`'s.
-pub async fn insert_signature(
-    tx: &Transaction<'_>,
-    id: Uuid,
-    s: &Signature,
-) -> Result<(), StoreError> {
-    let seq = i32::try_from(s.seq).map_err(|e| StoreError::corrupt("signatures", e))?;
-    tx.execute(
-        &format!(
-            "INSERT INTO signatures (calibration_id, {SIGNATURE_COLUMNS}) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10, $11)"
-        ),
-        &[
-            &id,
-            &seq,
-            &s.action.as_str(),
-            &s.state.as_str(),
-            &s.meaning,
-            &s.token_id,
-            &s.role.as_str(),
-            &s.holder,
-            &s.signed_at.datetime(),
-            &s.comment,
-            &s.superseded_by,
-        ],
-    )
-    .await
-    .map_err(map)?;
-    Ok(())
 }
 
 /// Inserts the record of a nonconformity.
@@ -331,29 +298,6 @@ fn made_with(r: &tokio_postgres::Row) -> Result<MadeWith, StoreError> {
             "performed_at",
         )?),
         state: rows::state(r)?,
-    })
-}
-
-pub fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
-    let at = |column: &str| -> Result<Timestamp, StoreError> {
-        Ok(Timestamp::from_datetime(rows::get::<time::OffsetDateTime>(
-            r, column,
-        )?))
-    };
-    Ok(Nonconformity {
-        id: rows::get(r, "id")?,
-        standard_id: rows::get(r, "standard_id")?,
-        found_at: at("found_at")?,
-        last_known_good_at: rows::get::<Option<time::OffsetDateTime>>(r, "last_known_good_at")?
-            .map(Timestamp::from_datetime),
-        window_from: at("window_from")?,
-        reason: rows::get(r, "reason")?,
-        recorded_at: at("recorded_at")?,
-        recorded_by: Actor {
-            token_id: rows::get(r, "token_id")?,
-            role: rows::get(r, "role")?,
-            holder: rows::get(r, "holder")?,
-        },
     })
 }
 

@@ -6,7 +6,9 @@ use tokio_postgres::Row;
 use tokio_postgres::types::FromSql;
 
 use super::errors::decode;
+use crate::domain::audit::{Actor, Event};
 use crate::domain::auth::Role;
+use crate::domain::nonconformity::Nonconformity;
 use crate::domain::review::{Action, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
@@ -211,5 +213,45 @@ pub fn signature(row: &Row) -> Result<Signature, StoreError> {
         signed_at: timestamp(row, "signed_at")?,
         comment: get(row, "comment")?,
         superseded_by: get(row, "superseded_by")?,
+    })
+}
+
+/// A nonconformity of a standard, from its row.
+pub fn nonconformity(r: &tokio_postgres::Row) -> Result<Nonconformity, StoreError> {
+    let at = |column: &str| -> Result<Timestamp, StoreError> {
+        Ok(Timestamp::from_datetime(get::<time::OffsetDateTime>(
+            r, column,
+        )?))
+    };
+    Ok(Nonconformity {
+        id: get(r, "id")?,
+        standard_id: get(r, "standard_id")?,
+        found_at: at("found_at")?,
+        last_known_good_at: get::<Option<time::OffsetDateTime>>(r, "last_known_good_at")?
+            .map(Timestamp::from_datetime),
+        window_from: at("window_from")?,
+        reason: get(r, "reason")?,
+        recorded_at: at("recorded_at")?,
+        recorded_by: Actor {
+            token_id: get(r, "token_id")?,
+            role: get(r, "role")?,
+            holder: get(r, "holder")?,
+        },
+    })
+}
+
+/// What a row of `audit` or `audit_pending` records of its act: when, by
+/// whom, what, to what, the change.
+pub fn event(r: &tokio_postgres::Row) -> Result<Event, StoreError> {
+    Ok(Event {
+        at: Timestamp::from_datetime(get::<time::OffsetDateTime>(r, "at")?),
+        actor: Actor {
+            token_id: get(r, "token_id")?,
+            role: get(r, "role")?,
+            holder: get(r, "holder")?,
+        },
+        action: get(r, "action")?,
+        object: get(r, "object")?,
+        change: get(r, "change")?,
     })
 }

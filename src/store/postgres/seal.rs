@@ -5,7 +5,7 @@
 //! head and append, and held it to its commit: every writing transaction
 //! of every replica waited for the one before it to commit and flush, so a
 //! fleet wrote one commit at a time. Now an act only inserts its entries
-//! into `audit_pending` ([`super::audit::append`]), which waits for no one,
+//! into `audit_pending` (`super::audit::append`), which waits for no one,
 //! and the chain is advanced here, by one sealer at a time (the lock is
 //! still `audit`'s, taken by sealers only), in one transaction that
 //! deletes the pending entries it read and inserts them chained — so an
@@ -156,7 +156,7 @@ pub async fn seal_in(tx: &Transaction<'_>) -> Result<(Head, usize), StoreError> 
         let mut pending = Vec::with_capacity(found.len());
         for r in &found {
             let id: i64 = rows::get(r, "id")?;
-            pending.push((id, super::audit::event(r)?));
+            pending.push((id, rows::event(r)?));
         }
         // `RETURNING` promises no order.
         pending.sort_by_key(|(id, _)| *id);

@@ -69,7 +69,7 @@ fn series_sql(basis: Basis, whole: bool) -> String {
         "WITH page AS MATERIALIZED (SELECT {SUMMARY_COLUMNS} FROM calibrations c \
          WHERE {window} {NEWEST_FIRST} LIMIT ?4) \
          SELECT page.*, {} AS in_window FROM page ORDER BY page.performed_at DESC, page.id DESC",
-        crate::store::records::in_window_sql("?4", &window, whole.then_some("?1"))
+        crate::store::sql::in_window_sql("?4", &window, whole.then_some("?1"))
     )
 }
 
@@ -315,7 +315,7 @@ impl Calibrations for SqliteStore {
             let mut in_window = 0usize;
             let mut items = rows::all(
                 conn,
-                &series_sql(basis, crate::store::records::whole_history(from, to, basis)),
+                &series_sql(basis, crate::store::sql::whole_history(from, to, basis)),
                 params![
                     sensor_id,
                     from.map(|t| t.to_string()),

@@ -28,7 +28,7 @@ pub(super) fn findings(
              WHERE standard_id IN (SELECT value FROM json_each(?1)) ORDER BY found_at, id"
         ),
         [ids],
-        super::reviews::nonconformity,
+        rows::nonconformity,
     )
 }
 
@@ -46,7 +46,7 @@ pub(super) fn holding(conn: &Connection, id: &str) -> Result<Vec<Nonconformity>,
              ON h.nonconformity_id = n.id WHERE h.calibration_id = ?1 ORDER BY n.found_at, n.id"
         ),
         [id],
-        super::reviews::nonconformity,
+        rows::nonconformity,
     )
 }
 
@@ -77,7 +77,7 @@ pub(super) fn place(
     .unwrap_or(0);
     let seq = u32::try_from(seq + 1).map_err(|e| StoreError::corrupt("signatures", e))?;
     let signature = hold_on_storing(&held, seq, n.received_at);
-    super::reviews::insert(conn, n.id, &signature)?;
+    super::signatures::insert(conn, n.id, &signature)?;
     for nc in &held {
         rows::execute(
             conn,

@@ -26,6 +26,7 @@ mod rows;
 mod sensor_types;
 mod sensors;
 mod sessions;
+mod signatures;
 mod standards;
 mod tokens;
 pub mod writer;

@@ -7,6 +7,8 @@ use uuid::Uuid;
 
 use super::SqliteStore;
 use super::rows;
+use super::rows::nonconformity;
+use super::signatures::{SIGNATURE_COLUMNS, insert};
 use crate::domain::audit::Actor;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
@@ -16,10 +18,6 @@ use crate::store::{
     chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
     sensor_recompute,
 };
-
-/// The columns of [`rows::signature`].
-const SIGNATURE_COLUMNS: &str =
-    "seq, action, state, meaning, token_id, role, holder, signed_at, comment, superseded_by";
 
 /// Records `act` on calibration `id` inside the writer's transaction —
 /// after storing `replacement`, the calibration that supersedes it, when
@@ -153,31 +151,6 @@ fn holder_of(conn: &Connection, token_id: &str) -> Result<Option<String>, StoreE
         .flatten(),
         Err(_) => None,
     })
-}
-
-/// Appends a signature.
-pub(super) fn insert(conn: &Connection, id: Uuid, s: &Signature) -> Result<(), StoreError> {
-    rows::execute(
-        conn,
-        &format!(
-            "INSERT INTO signatures (calibration_id, {SIGNATURE_COLUMNS}) \
-             VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11)"
-        ),
-        params![
-            id.to_string(),
-            s.seq,
-            s.action.as_str(),
-            s.state.as_str(),
-            s.meaning,
-            s.token_id,
-            s.role.as_str(),
-            s.holder,
-            s.signed_at.to_string(),
-            s.comment,
-            s.superseded_by.map(|u| u.to_string())
-        ],
-    )?;
-    Ok(())
 }
 
 /// Inserts the record of a nonconformity.
@@ -451,34 +424,6 @@ impl Reviews for SqliteStore {
         })
         .await
     }
-}
-
-pub(super) fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
-    use super::errors::map;
-    let at = |column: &str| -> Result<Timestamp, StoreError> {
-        let text: String = r.get(column).map_err(map)?;
-        Timestamp::parse(&text).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
-    };
-    let good: Option<String> = r.get("last_known_good_at").map_err(map)?;
-    Ok(Nonconformity {
-        id: rows::uuid(r, "id")?,
-        standard_id: r.get("standard_id").map_err(map)?,
-        found_at: at("found_at")?,
-        last_known_good_at: good
-            .map(|t| {
-                Timestamp::parse(&t)
-                    .map_err(|e| StoreError::corrupt("column `last_known_good_at`", e))
-            })
-            .transpose()?,
-        window_from: at("window_from")?,
-        reason: r.get("reason").map_err(map)?,
-        recorded_at: at("recorded_at")?,
-        recorded_by: crate::domain::audit::Actor {
-            token_id: r.get("token_id").map_err(map)?,
-            role: r.get("role").map_err(map)?,
-            holder: r.get("holder").map_err(map)?,
-        },
-    })
 }
 
 /// `a` with the last of its replacements, when it was superseded.

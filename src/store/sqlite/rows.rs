@@ -8,7 +8,9 @@ use uuid::Uuid;
 use super::errors::map;
 use accelcal_core::decision::Verdict;
 
+use crate::domain::audit::Actor;
 use crate::domain::auth::Role;
+use crate::domain::nonconformity::Nonconformity;
 use crate::domain::review::{Action, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
@@ -279,6 +281,35 @@ pub fn signature(row: &Row<'_>) -> Result<Signature, StoreError> {
             .map(|t| Uuid::try_parse(&t))
             .transpose()
             .map_err(|e| StoreError::corrupt("column `superseded_by`", e))?,
+    })
+}
+
+/// A nonconformity of a standard, from its row.
+pub fn nonconformity(r: &rusqlite::Row<'_>) -> Result<Nonconformity, StoreError> {
+    use super::errors::map;
+    let at = |column: &str| -> Result<Timestamp, StoreError> {
+        let text: String = r.get(column).map_err(map)?;
+        Timestamp::parse(&text).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
+    };
+    let good: Option<String> = r.get("last_known_good_at").map_err(map)?;
+    Ok(Nonconformity {
+        id: uuid(r, "id")?,
+        standard_id: r.get("standard_id").map_err(map)?,
+        found_at: at("found_at")?,
+        last_known_good_at: good
+            .map(|t| {
+                Timestamp::parse(&t)
+                    .map_err(|e| StoreError::corrupt("column `last_known_good_at`", e))
+            })
+            .transpose()?,
+        window_from: at("window_from")?,
+        reason: r.get("reason").map_err(map)?,
+        recorded_at: at("recorded_at")?,
+        recorded_by: Actor {
+            token_id: r.get("token_id").map_err(map)?,
+            role: r.get("role").map_err(map)?,
+            holder: r.get("holder").map_err(map)?,
+        },
     })
 }
 
