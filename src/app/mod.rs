@@ -7,9 +7,11 @@
 //!
 //! What differs between kinds of calibration (single-axis, triad) is how a
 //! submission is read and assessed: [`single_axis`] and [`triad`], each
-//! answering an [`Assessed`] that the acts store alike.
+//! answering an [`Assessed`] that the acts store alike, chosen in one place
+//! ([`Kind`]).
 
 mod error;
+pub mod kind;
 mod lab;
 pub mod review;
 pub mod single_axis;
@@ -21,6 +23,7 @@ pub mod triad;
 mod upload;
 
 pub use error::Error;
+pub use kind::Kind;
 pub use lab::{INLINE_BYTES, Lab};
 pub use submit::{Assessed, Submitted};
 pub use upload::Upload;

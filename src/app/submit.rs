@@ -1,5 +1,4 @@
-//! Submitting a calibration: assessed by its kind ([`super::single_axis`],
-//! [`super::triad`]) and stored durably — at most once per idempotency key:
+//! Submitting a calibration: assessed by its kind ([`Kind`]) and stored durably — at most once per idempotency key:
 //! a retry of a stored submission is answered with what it stored, and a
 //! key in use by a request still running, or used with another input, is
 //! refused.
@@ -9,7 +8,7 @@ use std::sync::Arc;
 use bytes::Bytes;
 use uuid::Uuid;
 
-use super::{Error, Lab, Upload, single_axis, triad};
+use super::{Error, Kind, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::timestamp::Timestamp;
 use crate::store::{Claim, IdempotencyKey, NewCalibration, Store, StoreError, Stored};
@@ -34,15 +33,6 @@ pub struct Submitted {
     /// Whether it was stored before, by an earlier request with the same
     /// idempotency key (or one that raced this one).
     pub replayed: bool,
-}
-
-/// The kinds of calibration a station submits.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kind {
-    /// One pendulous accelerometer's static model, from tumble tests.
-    SingleAxis,
-    /// A triad's u = b + S g.
-    Triad,
 }
 
 /// Holds a claimed idempotency key; releases it if the act ends (an error,
@@ -164,12 +154,9 @@ pub async fn submit(
         },
     };
     let (id, received_at) = (Uuid::now_v7(), Timestamp::now());
-    let assessed = match kind {
-        Kind::SingleAxis => {
-            single_axis::assess(lab, principal, upload, received_at, Some(id), None).await?
-        }
-        Kind::Triad => triad::assess(lab, principal, upload, received_at, id, None).await?,
-    };
+    let assessed = kind
+        .assess(lab, principal, upload, received_at, id, None)
+        .await?;
     let Some(rec) = assessed.record else {
         return Err(Error::Internal);
     };

@@ -10,39 +10,12 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::review::{outcome, unknown};
-use super::{Assessed, Error, Lab, Submitted, Upload, single_axis, triad};
+use super::{Error, Kind, Lab, Submitted, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::review::{Act, Action, Signature, Supersedes, supersession};
 use crate::domain::submission::Method;
 use crate::domain::timestamp::Timestamp;
 use crate::store::{CalibrationSummary, NewCalibration};
-
-/// `upload` computed as the calibration `new` that supersedes `old`, as
-/// `old`'s kind is computed: a triad's body for a triad, a single-axis
-/// submission otherwise.
-async fn assess(
-    lab: &Lab,
-    principal: &Principal,
-    old: &CalibrationSummary,
-    upload: Upload,
-    received_at: Timestamp,
-    new: Uuid,
-    supersedes: Supersedes,
-) -> Result<Assessed, Error> {
-    if old.triad.is_some() {
-        triad::assess(lab, principal, upload, received_at, new, Some(supersedes)).await
-    } else {
-        single_axis::assess(
-            lab,
-            principal,
-            upload,
-            received_at,
-            Some(new),
-            Some(supersedes),
-        )
-        .await
-    }
-}
 
 /// Supersedes calibration `old` by `upload`, a corrected submission, for
 /// `reason` (already checked): the calibration must exist before anything
@@ -64,16 +37,10 @@ pub async fn supersede(
         calibration_id: old,
         reason: reason.clone(),
     };
-    let assessed = assess(
-        lab,
-        &principal,
-        &summary,
-        upload,
-        received_at,
-        new,
-        supersedes,
-    )
-    .await?;
+    // Computed as the calibration it supersedes is, whatever the body.
+    let assessed = Kind::of(&summary)
+        .assess(lab, &principal, upload, received_at, new, Some(supersedes))
+        .await?;
     let Some(record) = assessed.record else {
         return Err(Error::Internal);
     };
@@ -200,16 +167,16 @@ pub async fn reprocess(lab: &Lab, principal: Principal, id: Uuid) -> Result<Repr
         reason: reason.clone(),
     };
     // As it was received: the same body at the same reception time.
-    let assessed = assess(
-        lab,
-        &principal,
-        &old,
-        upload,
-        old.received_at,
-        new,
-        supersedes,
-    )
-    .await?;
+    let assessed = Kind::of(&old)
+        .assess(
+            lab,
+            &principal,
+            upload,
+            old.received_at,
+            new,
+            Some(supersedes),
+        )
+        .await?;
     let Some(record) = assessed.record else {
         return Err(Error::Internal);
     };

@@ -12,7 +12,7 @@ use super::stored::{created, idempotency_key};
 use super::ui::dcc::prefers_xml;
 use super::ui::issue;
 use super::{AppState, path_id};
-use crate::app::submit;
+use crate::app::{Kind, submit};
 use crate::domain::auth::{Principal, Role};
 
 /// `POST /v1/calibrations`: check, identify, fuse, store durably, answer 201;
@@ -56,8 +56,7 @@ pub async fn submit(
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
     let key = idempotency_key(&headers, &principal, &body)?;
-    let submitted =
-        submit::submit(&state.lab, &principal, body, key, submit::Kind::SingleAxis).await?;
+    let submitted = submit::submit(&state.lab, &principal, body, key, Kind::SingleAxis).await?;
     Ok(created(submitted))
 }
 

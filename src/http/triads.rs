@@ -16,7 +16,7 @@ use super::problem::Problem;
 use super::query::Params;
 use super::stored::{created, idempotency_key};
 use super::{AppState, path_id};
-use crate::app::submit;
+use crate::app::{Kind, submit};
 use crate::domain::auth::{Principal, Role};
 
 /// `POST /v1/calibrations/triad`: check, compute, store durably, answer 201;
@@ -64,7 +64,7 @@ pub async fn submit(
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
     let key = idempotency_key(&headers, &principal, &body)?;
-    let submitted = submit::submit(&state.lab, &principal, body, key, submit::Kind::Triad).await?;
+    let submitted = submit::submit(&state.lab, &principal, body, key, Kind::Triad).await?;
     Ok(created(submitted))
 }
 
