@@ -1,5 +1,7 @@
-//! The application layer: the laboratory's acts — submitting, reviewing,
-//! superseding, reprocessing — each a function over the store and the
+//! The application layer: the laboratory's acts — submitting, reviewing
+//! (approving, rejecting, withdrawing, disposing of a hold), superseding,
+//! reprocessing, holding for a standard's nonconformity, recording a sensor
+//! type, standard, customer or item — each a function over the store and the
 //! domain that takes typed input and a principal and returns a typed
 //! outcome or an [`Error`], with no HTTP in it. The HTTP handlers parse,
 //! authenticate, call one act and render; the command line and background
@@ -10,7 +12,9 @@
 //! answering an [`Assessed`] that the acts store alike, chosen in one place
 //! ([`Kind`]).
 
+pub mod definitions;
 mod error;
+pub mod hold;
 pub mod kind;
 mod lab;
 pub mod review;

@@ -14,10 +14,9 @@ use super::auth::require;
 use super::body::Body;
 use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
-use crate::domain::audit::Actor;
+use crate::app::definitions;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::customers::{Customer, CustomerBody, Item, ItemBody};
-use crate::domain::field::Invalid;
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::text::{Chars, check_str, echo};
 use crate::domain::timestamp::Timestamp;
@@ -69,12 +68,10 @@ pub async fn put_customer(
     let c = body
         .json::<CustomerBody>()?
         .check(customer_id, Timestamp::now())?;
-    let put = state
-        .store
-        .put_customer(c.clone(), Actor::from(&principal), pre)
-        .await?;
-    tracing::info!(customer = %c.customer_id, created = put.created(), by = %principal.id, "customer written");
-    written(put, "customer")
+    written(
+        definitions::customer(&state.lab, &principal, c, pre).await?,
+        "customer",
+    )
 }
 
 /// A list of customers.
@@ -174,24 +171,10 @@ pub async fn put_item(
     let item = body
         .json::<ItemBody>()?
         .check(sensor_id, Timestamp::now())?;
-    if let Some(c) = &item.customer
-        && state.store.customer(c.clone()).await?.is_none()
-    {
-        return Err(Problem::validation(Invalid::one(
-            "/customer",
-            format!(
-                "no customer `{}`; an admin records it first (PUT /v1/customers/{})",
-                echo(c),
-                echo(c)
-            ),
-        )));
-    }
-    let put = state
-        .store
-        .put_item(item.clone(), Actor::from(&principal), pre)
-        .await?;
-    tracing::info!(sensor = %item.sensor_id, created = put.created(), by = %principal.id, "item written");
-    written(put, "item")
+    written(
+        definitions::item(&state.lab, &principal, item, pre).await?,
+        "item",
+    )
 }
 
 /// `GET /v1/sensors/{sensor_id}/item`.

@@ -12,7 +12,7 @@ use super::auth::require;
 use super::body::Body;
 use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
-use crate::domain::audit::Actor;
+use crate::app::definitions;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::sensor_types::{SensorType, SensorTypeBody};
@@ -61,12 +61,10 @@ pub async fn put(
     let t = body
         .json::<SensorTypeBody>()?
         .check(type_id, Timestamp::now())?;
-    let put = state
-        .store
-        .put_sensor_type(t.clone(), Actor::from(&principal), pre)
-        .await?;
-    tracing::info!(sensor_type = %t.type_id, created = put.created(), by = %principal.id, "sensor type written");
-    written(put, "sensor type")
+    written(
+        definitions::sensor_type(&state.lab, &principal, t, pre).await?,
+        "sensor type",
+    )
 }
 
 /// A list of sensor types.

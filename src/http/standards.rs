@@ -13,19 +13,14 @@ use super::auth::require;
 use super::body::Body;
 use super::conditional::{precondition, tagged, written};
 use super::problem::Problem;
-use crate::domain::audit::Actor;
+use crate::app::{definitions, hold};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::nonconformity::{NonconformityBody, Traced};
-use crate::domain::review::{Act, Action};
 use crate::domain::standards::{Standard, StandardBody};
-use crate::domain::text::{Chars, check_str, echo};
+use crate::domain::text::{Chars, check_str};
 use crate::domain::timestamp::Timestamp;
 use crate::store::conditional::etag;
-
-fn unknown_standard(standard_id: &str) -> Problem {
-    Problem::not_found(format!("no standard `{}`", echo(standard_id)))
-}
 
 /// `PUT /v1/standards/{standard_id}` (admin): creates (201) or replaces
 /// (200) a standard — a recalibration of it is a replacement with the new
@@ -68,15 +63,10 @@ pub async fn put(
     let s = body
         .json::<StandardBody>()?
         .check(standard_id, Timestamp::now())?;
-    let id = s.standard_id.clone();
-    // The certificate it replaces joins its earlier ones in the store's
-    // transaction, so that two writes at once never lose one.
-    let put = state
-        .store
-        .put_standard(s, Actor::from(&principal), pre)
-        .await?;
-    tracing::info!(standard = %id, created = put.created(), by = %principal.id, "standard written");
-    written(put, "standard")
+    written(
+        definitions::standard(&state.lab, &principal, s, pre).await?,
+        "standard",
+    )
 }
 
 /// A list of reference standards.
@@ -128,15 +118,8 @@ pub async fn get(
     Path(standard_id): Path<String>,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    if check_str(&standard_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
-        return Err(unknown_standard(&standard_id));
-    }
-    state
-        .store
-        .standard(standard_id.clone())
-        .await?
-        .map(|s| tagged(StatusCode::OK, &etag(&s), s))
-        .ok_or_else(|| unknown_standard(&standard_id))
+    let s = hold::known(&state.lab, &standard_id).await?;
+    Ok(tagged(StatusCode::OK, &etag(&s), s))
 }
 
 /// A standard's nonconformities and the calibrations each concerns.
@@ -146,18 +129,6 @@ pub struct AffectedList {
     standard_id: String,
     /// Its nonconformities, oldest `found_at` first.
     nonconformities: Vec<Traced>,
-}
-
-/// The standard `standard_id`, or 404.
-async fn known(state: &AppState, standard_id: &str) -> Result<Standard, Problem> {
-    if check_str(standard_id, MAX_ID_CHARS, Chars::Identifier).is_err() {
-        return Err(unknown_standard(standard_id));
-    }
-    state
-        .store
-        .standard(standard_id.to_owned())
-        .await?
-        .ok_or_else(|| unknown_standard(standard_id))
 }
 
 /// `POST /v1/standards/{standard_id}/nonconformity` (admin): the standard
@@ -190,41 +161,10 @@ pub async fn nonconformity(
     body: Body,
 ) -> Result<(StatusCode, Json<Traced>), Problem> {
     require(&principal, Role::Admin)?;
-    let standard = known(&state, &standard_id).await?;
-    let now = Timestamp::now();
-    let nc = body.json::<NonconformityBody>()?.check(
-        uuid::Uuid::now_v7(),
-        &standard,
-        now,
-        Actor::from(&principal),
-    )?;
-    let hold = Act {
-        action: Action::Hold,
-        signer: principal.clone(),
-        at: now,
-        comment: Some(format!(
-            "standard {standard_id} found nonconforming {}: {}",
-            nc.found_at, nc.reason
-        )),
-        superseded_by: None,
-    };
-    let calibrations = state.store.hold(nc.clone(), hold).await?;
-    let held = calibrations
-        .iter()
-        .filter(|c| c.outcome == crate::domain::nonconformity::Outcome::UnderReview)
-        .count();
-    metrics::counter!("accelcal_reviews_total", "action" => "hold").increment(held as u64);
-    tracing::warn!(
-        standard = %standard_id, nonconformity = %nc.id, held,
-        by = %principal.id, "standard found nonconforming"
-    );
-    Ok((
-        StatusCode::CREATED,
-        Json(Traced {
-            nonconformity: nc,
-            calibrations,
-        }),
-    ))
+    let standard = hold::known(&state.lab, &standard_id).await?;
+    let found = body.json::<NonconformityBody>()?;
+    let traced = hold::nonconformity(&state.lab, &principal, &standard, found).await?;
+    Ok((StatusCode::CREATED, Json(traced)))
 }
 
 /// `GET /v1/standards/{standard_id}/affected`: every nonconformity of the
@@ -250,7 +190,7 @@ pub async fn affected(
     Path(standard_id): Path<String>,
 ) -> Result<Json<AffectedList>, Problem> {
     require(&principal, Role::Reader)?;
-    known(&state, &standard_id).await?;
+    hold::known(&state.lab, &standard_id).await?;
     let nonconformities = state.store.nonconformities(standard_id.clone()).await?;
     Ok(Json(AffectedList {
         standard_id,
