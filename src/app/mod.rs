@@ -1,4 +1,5 @@
-//! The application layer: the laboratory's acts — submitting, reviewing
+//! The application layer: the laboratory's acts — identifying (a kind's
+//! assessment without an id: nothing stored), submitting, reviewing
 //! (approving, rejecting, withdrawing, disposing of a hold), superseding,
 //! reprocessing, holding for a standard's nonconformity, recording a sensor
 //! type, standard, customer or item — each a function over the store and the

@@ -154,6 +154,31 @@ pub fn read(upload: &Upload) -> Result<TriadSubmission, Error> {
     Ok(parsed.check()?)
 }
 
+/// A triad computed from `upload` and answered, not stored (`POST
+/// /v1/identify/triad`): read and computed on the compute pool (a recording
+/// may be megabytes); what only a stored triad has — standards resolved
+/// from the registry, a sensor type that judges it — is refused rather
+/// than ignored.
+pub async fn identify(lab: &Lab, upload: Upload) -> Result<TriadResult, Error> {
+    lab.compute_for(upload.bytes.len(), move || -> Result<TriadResult, Error> {
+        let sub = read(&upload)?;
+        let stored_only = |key: &str, what: &str| {
+            Error::invalid(
+                Loc::Root.key(key),
+                format!("{what} only when the triad is stored: POST /v1/calibrations/triad"),
+            )
+        };
+        if !sub.standards.is_empty() {
+            return Err(stored_only("standards", "reference standards are resolved"));
+        }
+        if sub.sensor_type.is_some() {
+            return Err(stored_only("sensor_type", "a sensor type judges a triad"));
+        }
+        Ok(compute(sub)?)
+    })
+    .await?
+}
+
 /// A triad body computed as it is stored under `id` — checked, with the
 /// sensor type in force and its decision, the registered standards and as
 /// found against the previous triad — and its result document rendered

@@ -16,8 +16,7 @@ use super::problem::Problem;
 use super::query::Params;
 use crate::app::triad;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::field::Invalid;
-use crate::domain::triad::{TriadBody, TriadResult, compute};
+use crate::domain::triad::{TriadBody, TriadResult};
 use crate::domain::triad_export::{Exported, Format};
 
 /// The query of `POST /v1/identify/triad`.
@@ -77,26 +76,7 @@ pub async fn identify(
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     let format = export_format(q.export.as_deref())?;
-    // Parsed and computed on the compute pool: a recording may be megabytes.
-    let result: TriadResult = state
-        .compute_for(body.bytes.len(), move || -> Result<TriadResult, Problem> {
-            let sub = triad::read(&body)?;
-            // What only a stored triad has: refused rather than ignored.
-            let stored_only = |key: &str, what: &str| {
-                Problem::validation(Invalid::one(
-                    crate::domain::field::Loc::Root.key(key),
-                    format!("{what} only when the triad is stored: POST /v1/calibrations/triad"),
-                ))
-            };
-            if !sub.standards.is_empty() {
-                return Err(stored_only("standards", "reference standards are resolved"));
-            }
-            if sub.sensor_type.is_some() {
-                return Err(stored_only("sensor_type", "a sensor type judges a triad"));
-            }
-            Ok(compute(sub)?)
-        })
-        .await??;
+    let result = triad::identify(&state.lab, body).await?;
     let Some(format) = format else {
         return Ok(axum::Json(result).into_response());
     };
