@@ -21,7 +21,7 @@ use crate::domain::metrology::assess_calibration;
 use crate::domain::review::Basis;
 use crate::domain::submission::{Media, ResultView, evaluate};
 use crate::domain::timestamp::Timestamp;
-use crate::domain::tokens::{TokenRequest, issue};
+use crate::domain::tokens::TokenRequest;
 use crate::startup::{
     Application, Config, Laboratory, Limits, Problem, Web, openapi_document, shutdown_signal,
 };
@@ -534,9 +534,9 @@ async fn create_token(
     }
     .check()
     .map_err(|invalid| anyhow::anyhow!("{}", flags(&invalid)))?;
-    let store = crate::store::open(&database).await?;
-    let (record, created) = issue(request, Timestamp::now())?;
-    store.insert_token(record, Actor::command_line()).await?;
-    store.close().await;
+    let lab = crate::app::Lab::offline(crate::store::open(&database).await?);
+    let created = crate::app::tokens::create(&lab, Actor::command_line(), request).await;
+    lab.store.close().await;
+    let created = created?;
     Ok(out(&serde_json::to_string_pretty(&created)?))
 }

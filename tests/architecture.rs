@@ -7,8 +7,9 @@
 //! Checked here: the graph has no circle; the layers point one way (core ←
 //! domain ← store ← app ← http ← startup ← cli); no handler module (one
 //! whose functions the routers route) names another; no file outside the
-//! tests is over 600 lines; and `docs/developers.md`'s map lists every
-//! module there is and none that is not.
+//! tests is over 600 lines; every module opens with a `//!` saying what it
+//! owns; and `docs/developers.md`'s map lists every module there is and
+//! none that is not.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -349,6 +350,22 @@ fn no_file_is_too_long_to_read() {
         })
         .collect();
     assert!(long.is_empty(), "files over {MAX_LINES} lines: {long:#?}");
+}
+
+#[test]
+fn every_module_says_what_it_owns() {
+    let silent: Vec<String> = modules()
+        .values()
+        .filter(|p| {
+            let text = std::fs::read_to_string(p).unwrap();
+            !text.trim_start().starts_with("//!")
+        })
+        .map(|p| p.display().to_string())
+        .collect();
+    assert!(
+        silent.is_empty(),
+        "modules without a `//!` doc: {silent:#?}"
+    );
 }
 
 #[test]

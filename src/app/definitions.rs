@@ -1,15 +1,17 @@
 //! Recording what the laboratory defines — a sensor type, a reference
-//! standard (its certificate joining the earlier ones), a customer, an item
-//! — each checked by the domain before, written with its audit entry in one
-//! transaction, and conditional on the record as the writer last read it.
+//! standard (its certificate joining the earlier ones), a customer, an
+//! item, and which type a sensor is — each checked by the domain before,
+//! written with its audit entry in one transaction, and (the records but a
+//! sensor's type) conditional on the record as the writer last read it.
 
 use super::{Error, Lab};
 use crate::domain::audit::Actor;
 use crate::domain::auth::Principal;
 use crate::domain::customers::{Customer, Item};
+use crate::domain::limits::MAX_ID_CHARS;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::standards::Standard;
-use crate::domain::text::echo;
+use crate::domain::text::{Chars, check_str, echo};
 use crate::store::{Precondition, Put};
 
 /// Records sensor type `t` for `principal`, if `pre` holds.
@@ -89,4 +91,35 @@ pub async fn item(
         .await?;
     tracing::info!(sensor = %id, created = put.created(), by = %principal.id, "item written");
     Ok(put)
+}
+
+/// Gives sensor `sensor_id` the type `type_id`, by `principal`: the type
+/// must be recorded (`/sensor_type` otherwise). Whether the sensor was
+/// found.
+pub async fn retype(
+    lab: &Lab,
+    principal: &Principal,
+    sensor_id: &str,
+    type_id: String,
+) -> Result<bool, Error> {
+    if check_str(&type_id, MAX_ID_CHARS, Chars::Identifier).is_err()
+        || lab.store.sensor_type(type_id.clone()).await?.is_none()
+    {
+        return Err(Error::invalid(
+            "/sensor_type",
+            format!("no sensor type `{}`", echo(&type_id)),
+        ));
+    }
+    let found = lab
+        .store
+        .assign_sensor_type(
+            sensor_id.to_owned(),
+            type_id.clone(),
+            Actor::from(principal),
+        )
+        .await?;
+    if found {
+        tracing::info!(sensor_id = %sensor_id, sensor_type = %type_id, by = %principal.id, "sensor type assigned");
+    }
+    Ok(found)
 }

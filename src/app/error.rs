@@ -10,14 +10,17 @@ use crate::domain::typed::BodyError;
 use crate::store::StoreError;
 
 /// Why an act was not done.
-#[derive(Debug)]
+#[derive(Debug, thiserror::Error)]
 pub enum Error {
     /// The input cannot be read as its media type (not JSON, not UTF-8).
+    #[error("{0}")]
     Unreadable(String),
     /// The input was read, but fields are wrong: each named.
+    #[error("{0}")]
     Invalid(Invalid),
     /// The principal may not do this; with the fields at fault when what
     /// it may not do is set a field.
+    #[error("{why}")]
     Forbidden {
         /// Why not.
         why: String,
@@ -25,20 +28,27 @@ pub enum Error {
         fields: Option<Invalid>,
     },
     /// No such record.
+    #[error("{0}")]
     NotFound(String),
     /// The calibration's state does not allow the act.
+    #[error("{0}")]
     State(String),
     /// Single-axis and triad calibrations do not mix: a sensor's
     /// calibrations are all of one kind (the submission's `sensor_id` is at
     /// fault).
+    #[error("{0}")]
     WrongKind(String),
     /// A request with the same idempotency key is still being processed.
+    #[error("a request with the same idempotency key is still being processed")]
     InFlight,
     /// The idempotency key was used before with a different input.
+    #[error("the idempotency key was used before with a different input")]
     KeyReused,
     /// The store failed (unavailable, overloaded, or a fault).
+    #[error(transparent)]
     Store(StoreError),
     /// A fault of accelcal's own, logged where it happened.
+    #[error("a fault of accelcal's own (see the log)")]
     Internal,
 }
 

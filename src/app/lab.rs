@@ -30,6 +30,18 @@ pub struct Lab {
 }
 
 impl Lab {
+    /// The laboratory of a command run beside (or instead of) the service,
+    /// over `store`: one compute permit, the default basis, a minute's
+    /// deadline.
+    pub fn offline(store: Arc<dyn Store>) -> Lab {
+        Lab {
+            store,
+            compute: Arc::new(Semaphore::new(1)),
+            basis: Basis::default(),
+            deadline: Duration::from_secs(60),
+        }
+    }
+
     /// Runs the work of an input of `bytes` bytes: on the async worker when
     /// it is at most [`INLINE_BYTES`] (a tumble test of that size is parsed,
     /// identified, fused and assessed in tens of microseconds, less than the

@@ -2,11 +2,11 @@
 //! assessment without an id: nothing stored), submitting, reviewing
 //! (approving, rejecting, withdrawing, disposing of a hold), superseding,
 //! reprocessing, holding for a standard's nonconformity, recording a sensor
-//! type, standard, customer or item — each a function over the store and the
-//! domain that takes typed input and a principal and returns a typed
-//! outcome or an [`Error`], with no HTTP in it. The HTTP handlers parse,
-//! authenticate, call one act and render; the command line and background
-//! work call the same acts.
+//! type, standard, customer or item, issuing and revoking tokens — each a
+//! function over the store and the domain that takes typed input and a
+//! principal and returns a typed outcome or an [`Error`], with no HTTP in
+//! it. The HTTP handlers parse, authenticate, call one act and render; the
+//! command line and background work call the same acts.
 //!
 //! What differs between kinds of calibration (single-axis, triad) is how a
 //! submission is read and assessed: [`single_axis`] and [`triad`], each
@@ -24,6 +24,7 @@ pub mod standards;
 pub mod subject;
 pub mod submit;
 pub mod supersede;
+pub mod tokens;
 pub mod triad;
 mod upload;
 

@@ -19,10 +19,8 @@ use super::problem::{Kind, Problem};
 use super::query::{Params, instant, limit};
 use super::rendered::APPLICATION_JSON;
 use super::stability::{Stability, StabilityParams, report_of};
-use crate::domain::audit::Actor;
+use crate::app::definitions;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::limits::MAX_ID_CHARS;
-use crate::domain::text::{Chars, check_str, echo};
 use crate::store::{HistoryQuery, SensorSummary};
 
 /// `GET /v1/sensors`: sensors in id order, keyset-paginated.
@@ -269,23 +267,9 @@ pub async fn update(
     require(&principal, Role::Admin)?;
     let update: SensorUpdate = body.json()?;
     sensor(&state, &sensor_id).await?;
-    let type_id = update.sensor_type;
-    if check_str(&type_id, MAX_ID_CHARS, Chars::Identifier).is_err()
-        || state.store.sensor_type(type_id.clone()).await?.is_none()
-    {
-        return Err(Problem::validation(crate::domain::field::Invalid::one(
-            "/sensor_type",
-            format!("no sensor type `{}`", echo(&type_id)),
-        )));
-    }
-    if !state
-        .store
-        .assign_sensor_type(sensor_id.clone(), type_id.clone(), Actor::from(&principal))
-        .await?
-    {
+    if !definitions::retype(&state.lab, &principal, &sensor_id, update.sensor_type).await? {
         return Err(unknown_sensor(&sensor_id));
     }
-    tracing::info!(sensor_id = %sensor_id, sensor_type = %type_id, by = %principal.id, "sensor type assigned");
     Ok(Json(sensor(&state, &sensor_id).await?))
 }
 

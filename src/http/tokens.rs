@@ -10,10 +10,10 @@ use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
 use super::{AppState, path_id};
+use crate::app::tokens;
 use crate::domain::audit::Actor;
 use crate::domain::auth::{Principal, Role};
-use crate::domain::timestamp::Timestamp;
-use crate::domain::tokens::{CreatedToken, TokenRequest, TokenView, issue};
+use crate::domain::tokens::{CreatedToken, TokenRequest, TokenView};
 
 /// `POST /v1/tokens`.
 #[utoipa::path(
@@ -39,15 +39,7 @@ pub async fn create(
 ) -> Result<(StatusCode, Json<CreatedToken>), Problem> {
     require(&principal, Role::Admin)?;
     let request = body.json::<TokenRequest>()?.check()?;
-    let (record, created) = issue(request, Timestamp::now()).map_err(|e| {
-        tracing::error!(error = %e, "no randomness for a token");
-        Problem::internal()
-    })?;
-    state
-        .store
-        .insert_token(record, Actor::from(&principal))
-        .await?;
-    tracing::info!(token_id = %created.id, role = %created.role, by = %principal.id, "token created");
+    let created = tokens::create(&state.lab, Actor::from(&principal), request).await?;
     Ok((StatusCode::CREATED, Json(created)))
 }
 
@@ -109,16 +101,6 @@ pub async fn revoke(
 ) -> Result<StatusCode, Problem> {
     require(&principal, Role::Admin)?;
     let id = path_id(&id, "token")?;
-    if state
-        .store
-        .revoke_token(id, Timestamp::now(), Actor::from(&principal))
-        .await?
-    {
-        tracing::info!(token_id = %id, by = %principal.id, "token revoked");
-        Ok(StatusCode::NO_CONTENT)
-    } else {
-        Err(Problem::not_found(format!(
-            "no active token with id `{id}`"
-        )))
-    }
+    tokens::revoke(&state.lab, &principal, id).await?;
+    Ok(StatusCode::NO_CONTENT)
 }
