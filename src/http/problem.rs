@@ -459,27 +459,19 @@ impl From<crate::app::Error> for Problem {
 
 impl From<Invalid> for Problem {
     fn from(invalid: Invalid) -> Self {
-        Problem::validation(invalid)
+        Problem::from(crate::app::Error::from(invalid))
     }
 }
 
 impl From<BodyError> for Problem {
     fn from(e: BodyError) -> Self {
-        match e {
-            BodyError::Syntax(m) => {
-                Problem::bad_request(format!("the body is not valid JSON: {m}"))
-            }
-            BodyError::Invalid(i) => Problem::validation(i),
-        }
+        Problem::from(crate::app::Error::from(e))
     }
 }
 
 impl From<Refused> for Problem {
     fn from(e: Refused) -> Self {
-        match e {
-            Refused::Unreadable(u) => Problem::bad_request(u.to_string()),
-            Refused::Invalid(i) => Problem::validation(i),
-        }
+        Problem::from(crate::app::Error::from(e))
     }
 }
 

@@ -163,14 +163,9 @@ impl Day<'_> {
     }
 }
 
+/// The DCC tests' laboratory, with a public URL for the certificates' own.
 fn lab(c: &mut accelcal::startup::Config) {
-    c.web.laboratory = accelcal::startup::Laboratory {
-        name: Some("Inertial Test Lab".into()),
-        address: Some("Bahnhofstrasse 1, 8001 Zürich".into()),
-        country: Some("CH".into()),
-        accreditation: Some("SAS SCS 0999".into()),
-        logo: None,
-    };
+    crate::dcc::lab(c);
     c.web.public_url = Some("https://calibration.example".into());
 }
 

@@ -505,8 +505,7 @@ pub async fn certificate(
     Path(id): Path<String>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, UiError> {
-    let revision = super::issue::revision(query.as_deref())?;
-    Ok(super::issue::respond(&state, &headers, &id, revision, false).await?)
+    certificate_of(&state, &headers, &id, query, false).await
 }
 
 /// `GET /ui/calibrations/{id}/certificate.xml`: the Digital Calibration
@@ -518,8 +517,20 @@ pub async fn dcc(
     Path(id): Path<String>,
     RawQuery(query): RawQuery,
 ) -> Result<Response, UiError> {
+    certificate_of(&state, &headers, &id, query, true).await
+}
+
+/// Calibration `id`'s certificate at the `?revision=` of `query`, as
+/// issued: the DCC when `xml`, the printable HTML otherwise.
+async fn certificate_of(
+    state: &AppState,
+    headers: &HeaderMap,
+    id: &str,
+    query: Option<String>,
+    xml: bool,
+) -> Result<Response, UiError> {
     let revision = super::issue::revision(query.as_deref())?;
-    Ok(super::issue::respond(&state, &headers, &id, revision, true).await?)
+    Ok(super::issue::respond(state, headers, id, revision, xml).await?)
 }
 
 /// `GET /ui/calibrations/{id}/export/{format}`: a stored triad's firmware
