@@ -1,7 +1,8 @@
 //! Every answer and document, pinned (issue 44 item 4): one laboratory's
 //! day — standards, a sensor type, a customer and an item; the paper
 //! identified, submitted, reviewed, certified, recalibrated, superseded and
-//! withdrawn; a triad stored, exported, compensated and certified; a
+//! withdrawn; a triad stored, exported, compensated and certified; a triad
+//! found from the gravity magnitude judged and certified; a
 //! standard's nonconformity; the pages; a few refusals — each answer's
 //! status, media type and body compared with the snapshot the build before
 //! the application layer answered, byte for byte after the only things that
@@ -20,7 +21,8 @@ use serde_json::{Value, json};
 use accelcal_testkit::Engine::{self, Postgres, Sqlite};
 use accelcal_testkit::*;
 
-use crate::triad::known_body;
+use crate::triad::{gravity_positions, known_body};
+use crate::triads::guarded_type;
 use crate::ui::sign_in;
 
 /// Replaces what differs between runs, consistently across one run.
@@ -432,6 +434,59 @@ async fn every_answer_and_document_is_as_before(#[values(Sqlite, Postgres)] engi
         &format!("/ui/calibrations/{t}/certificate"),
     )
     .await;
+
+    // A triad found from the gravity magnitude, judged: its certificate
+    // lists S_xy, S_xz and S_yz as fixed by the frame convention.
+    guarded_type(
+        &app,
+        "IMU-G",
+        "g",
+        &json!({"k0": {"min": -0.05, "max": 0.05}, "ki": {"min": 0.97, "max": 1.03},
+                "kp": {"min": -0.02, "max": 0.02}}),
+    )
+    .await;
+    put(
+        &app,
+        "/v1/sensors/IMU-G/item",
+        json!({"manufacturer": "Honeywell", "model": "QA-3000", "serial": "SN-IMU-G",
+               "customer": "ACME"}),
+    )
+    .await;
+    let gravity = json!({"sensor_id": "IMU-G", "unit": "g", "sensor_type": "IMU-G",
+        "performed_at": "2026-06-03T08:00:00Z", "stand": {"gravity_rel_std": 2e-5},
+        "static_positions": gravity_positions(20, 0x5eed_1234_abcd_0001)});
+    let g = day
+        .post(
+            "gravity_submit",
+            "/v1/calibrations/triad",
+            &station,
+            &gravity,
+        )
+        .await;
+    let g = g["id"].as_str().unwrap().to_owned();
+    day.post(
+        "gravity_review",
+        &format!("/v1/calibrations/{g}/review"),
+        &rita,
+        &json!({"decision": "approve"}),
+    )
+    .await;
+    day.get(
+        "gravity_certificate_html",
+        &format!("/v1/calibrations/{g}/certificate"),
+    )
+    .await;
+    day.call(
+        "gravity_certificate_dcc",
+        Method::GET,
+        &format!("/v1/calibrations/{g}/certificate"),
+        ADMIN,
+        None,
+        Some("application/xml"),
+    )
+    .await;
+    day.page("page_gravity", &format!("/ui/calibrations/{g}"))
+        .await;
 
     // A standard found faulty: the tests it bears on are held.
     day.post(
