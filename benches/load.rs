@@ -26,7 +26,13 @@
 //! * `compensate`: `POST /v1/sensors/{id}/compensate` with 100 outputs;
 //! * `history`: `GET /v1/sensors/{id}/calibrations?limit=20`;
 //! * `page`: `GET /ui/sensors/{id}`, the sensor's page, in a session
-//!   opened by signing in with the token.
+//!   opened by signing in with the token;
+//! * `calibration`: `GET /ui/calibrations/{id}`, the latest calibration's
+//!   page, in that session;
+//! * `certificate`: `GET /v1/calibrations/{id}/certificate`, the latest
+//!   calibration's printed certificate, a draft (not approved), so rendered
+//!   on every request;
+//! * `stability`: `GET /v1/sensors/{id}/stability` over the 20 stored.
 //!
 //! Prints req/s, p50, p99 and p99.9 latency, the ratio of accelcal's req/s
 //! to the bare stack's, both servers' peak RSS during the leg and their CPU
@@ -61,7 +67,24 @@ fn token() -> &'static str {
 static SESSION: Mutex<Option<&'static str>> = Mutex::new(None);
 
 /// The routes measured.
-const ROUTES: [&str; 5] = ["submit", "coefficients", "compensate", "history", "page"];
+const ROUTES: [&str; 8] = [
+    "submit",
+    "coefficients",
+    "compensate",
+    "history",
+    "page",
+    "calibration",
+    "certificate",
+    "stability",
+];
+
+/// The latest stored calibration of [`SENSOR`] (the `calibration` and
+/// `certificate` routes' subject), once stored.
+static LATEST: Mutex<Option<&'static str>> = Mutex::new(None);
+
+fn latest() -> &'static str {
+    LATEST.lock().unwrap().expect("stored")
+}
 
 /// Connection counts.
 const CONNECTIONS: [usize; 3] = [1, 16, 64];
@@ -191,12 +214,26 @@ async fn leg(base: &str, route: &'static str, connections: usize, seconds: u64, 
                                 .header("cookie", SESSION.lock().unwrap().expect("signed in")),
                             200,
                         ),
+                        "calibration" => (
+                            client
+                                .get(format!("{base}/ui/calibrations/{}", latest()))
+                                .header("cookie", SESSION.lock().unwrap().expect("signed in")),
+                            200,
+                        ),
+                        "certificate" => (
+                            client.get(format!("{base}/v1/calibrations/{}/certificate", latest())),
+                            200,
+                        ),
+                        "stability" => (
+                            client.get(format!("{base}/v1/sensors/{SENSOR}/stability")),
+                            200,
+                        ),
                         _ => (
                             client.get(format!("{base}/v1/sensors/{SENSOR}/calibrations?limit=20")),
                             200,
                         ),
                     };
-                    let req = if route == "page" {
+                    let req = if route == "page" || route == "calibration" {
                         req
                     } else {
                         req.bearer_auth(token())
@@ -252,6 +289,9 @@ async fn serve_bare(bodies: Value) {
         text("history"),
         text("page"),
     );
+    let (calibration, certificate, stability) =
+        (text("calibration"), text("certificate"), text("stability"));
+    let html = || [(header::CONTENT_TYPE, "text/html; charset=utf-8")];
     let json = || [(header::CONTENT_TYPE, "application/json")];
     let app = axum::Router::new()
         .route(
@@ -272,9 +312,19 @@ async fn serve_bare(bodies: Value) {
         )
         .route(
             "/ui/sensors/{id}",
-            get(
-                move || async move { ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], page) },
-            ),
+            get(move || async move { (html(), page) }),
+        )
+        .route(
+            "/ui/calibrations/{id}",
+            get(move || async move { (html(), calibration) }),
+        )
+        .route(
+            "/v1/calibrations/{id}/certificate",
+            get(move || async move { (html(), certificate) }),
+        )
+        .route(
+            "/v1/sensors/{id}/stability",
+            get(move || async move { (json(), stability) }),
         );
     let listener = tokio::net::TcpListener::bind("127.0.0.1:0").await.unwrap();
     println!("http://{}", listener.local_addr().unwrap());
@@ -384,9 +434,25 @@ fn run(engine: &str, rt: &tokio::runtime::Runtime, seconds: u64) {
             page.contains(SENSOR),
             "the sensor's page, not the sign-in form"
         );
+        let id = serde_json::from_str::<Value>(&submit).unwrap()["id"]
+            .as_str()
+            .unwrap()
+            .to_owned();
+        let calibration = client
+            .get(format!("{base}/ui/calibrations/{id}"))
+            .header("cookie", &session)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(calibration.status(), 200);
+        let calibration = calibration.text().await.unwrap();
+        let certificate = get(format!("{base}/v1/calibrations/{id}/certificate")).await;
+        let stability = get(format!("{base}/v1/sensors/{SENSOR}/stability")).await;
+        *LATEST.lock().unwrap() = Some(Box::leak(id.into_boxed_str()));
         *SESSION.lock().unwrap() = Some(Box::leak(session.into_boxed_str()));
         json!({"submit": submit, "coefficients": coefficients, "compensate": compensate,
-               "history": history, "page": page})
+               "history": history, "page": page, "calibration": calibration,
+               "certificate": certificate, "stability": stability})
     });
     let (mut bare, bare_base) = start_bare(&bodies);
     let bare_pid = bare.id();

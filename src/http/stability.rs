@@ -7,7 +7,7 @@ use accelcal_core::TermMap;
 use accelcal_core::coverage::Coverage;
 use std::collections::BTreeMap;
 
-use accelcal_core::history::{Point, SECONDS_PER_YEAR, TermStability, quantity, stability};
+use accelcal_core::history::{SECONDS_PER_YEAR, TermStability, quantity};
 use serde::{Deserialize, Serialize};
 use utoipa::{IntoParams, ToSchema};
 
@@ -17,7 +17,7 @@ use super::problem::Problem;
 use crate::domain::review::Basis;
 use crate::domain::sensor_types::DEFAULT_COVERAGE_FACTOR;
 use crate::domain::timestamp::Timestamp;
-use crate::store::{CalibrationSummary, SensorSummary, TriadElement, TriadElements};
+use crate::store::{CalibrationSummary, Named, SensorSummary};
 
 /// The query of the stability report.
 #[derive(Debug, Deserialize, IntoParams)]
@@ -78,31 +78,30 @@ pub struct Stability {
     pub basis: Basis,
 }
 
-/// A triad's stability element by element over `series` (oldest first;
-/// none unless every calibration is a triad's).
-fn elements(series: &[CalibrationSummary], k: f64) -> Option<BTreeMap<String, TermStability>> {
-    let triads: Vec<&TriadElements> = series
-        .iter()
-        .map(|c| c.triad.as_ref())
-        .collect::<Option<_>>()?;
-    if triads.is_empty() {
-        return None;
-    }
+/// The stability of every quantity all of `series` (oldest first) have,
+/// by name, in the order the first lists them — a single axis's terms and
+/// a triad's elements alike (a triad calibrated once with `S2` and once
+/// without is reported over `b`, `S` and `T`).
+fn by_name(series: &[CalibrationSummary], k: f64) -> Vec<(String, TermStability)> {
+    let per: Vec<Vec<Named>> = series.iter().map(CalibrationSummary::quantities).collect();
+    let Some(first) = per.first() else {
+        return Vec::new();
+    };
     let ids: Vec<String> = series.iter().map(|c| c.id.to_string()).collect();
     let ids: Vec<&str> = ids.iter().map(String::as_str).collect();
     let t: Vec<f64> = series.iter().map(|c| years(c.performed_at)).collect();
-    let per: Vec<Vec<TriadElement>> = triads.iter().map(|e| e.elements()).collect();
-    Some(
-        per[0]
-            .iter()
-            .enumerate()
-            .map(|(i, first)| {
-                let x: Vec<f64> = per.iter().map(|p| p[i].value).collect();
-                let se: Vec<Option<f64>> = per.iter().map(|p| p[i].std_error).collect();
-                (first.name.clone(), quantity(&ids, &t, &x, &se, k))
-            })
-            .collect(),
-    )
+    first
+        .iter()
+        .filter_map(|q| {
+            let each: Vec<&Named> = per
+                .iter()
+                .map(|p| p.iter().find(|n| n.name == q.name))
+                .collect::<Option<_>>()?;
+            let x: Vec<f64> = each.iter().map(|n| n.value).collect();
+            let se: Vec<Option<f64>> = each.iter().map(|n| n.std_error).collect();
+            Some((q.name.clone(), quantity(&ids, &t, &x, &se, k)))
+        })
+        .collect()
 }
 
 /// A sensor, its calibrations in a window (oldest first) and their stability.
@@ -160,15 +159,17 @@ pub async fn report_of(
         .filter(|c| Some(&c.unit) == unit.as_ref())
         .collect();
     let other_units = in_window - series.len();
-    let points: Vec<Point> = series
-        .iter()
-        .map(|c| Point {
-            id: c.id.to_string(),
-            t_years: years(c.performed_at),
-            values: c.coefficients.clone(),
-            std_errors: c.std_errors.clone(),
-        })
-        .collect();
+    let named = by_name(&series, coverage_factor);
+    let triad = !series.is_empty() && series.iter().all(|c| c.triad.is_some());
+    let (terms, elements) = if triad {
+        (TermMap(Vec::new()), Some(named.into_iter().collect()))
+    } else {
+        let terms = named
+            .into_iter()
+            .filter_map(|(name, s)| Some((name.parse().ok()?, s)))
+            .collect();
+        (TermMap(terms), None)
+    };
     let stability = Stability {
         sensor_id: sensor_id.to_owned(),
         calibrations: series.len(),
@@ -178,8 +179,8 @@ pub async fn report_of(
         first_performed_at: series.first().map(|c| c.performed_at),
         last_performed_at: series.last().map(|c| c.performed_at),
         coverage_factor,
-        terms: stability(&points, coverage_factor),
-        elements: elements(&series, coverage_factor),
+        terms,
+        elements,
         basis: state.web.basis,
     };
     Ok(Report {

@@ -222,6 +222,46 @@ pub struct CalibrationSummary {
     pub state: State,
 }
 
+/// One named quantity of a stored calibration, of any kind: a single
+/// axis's fused coefficient (`k0`), a triad's element (`S_xy`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Named {
+    /// Its name.
+    pub name: String,
+    /// Its value.
+    pub value: f64,
+    /// Its standard error, when stated.
+    pub std_error: Option<f64>,
+}
+
+impl CalibrationSummary {
+    /// Its quantities by name, in the order its kind lists them: a single
+    /// axis's fused coefficients (a standard error not stored read as 0, as
+    /// the history always has), a triad's `b`, `S`, `T` (and `S2`).
+    pub fn quantities(&self) -> Vec<Named> {
+        match &self.triad {
+            Some(t) => t
+                .elements()
+                .into_iter()
+                .map(|e| Named {
+                    name: e.name,
+                    value: e.value,
+                    std_error: e.std_error,
+                })
+                .collect(),
+            None => self
+                .coefficients
+                .iter()
+                .map(|(t, v)| Named {
+                    name: t.name().to_owned(),
+                    value: *v,
+                    std_error: Some(self.std_errors.get(t).copied().unwrap_or(0.0)),
+                })
+                .collect(),
+        }
+    }
+}
+
 #[cfg(test)]
 impl CalibrationSummary {
     /// A minimal summary for tests: sensor `sensor`, model `k0 + ki`, one

@@ -1282,6 +1282,14 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
         page.contains("This calibration supersedes") && page.contains(&a_id),
         "{page}"
     );
+    // A triad's page is the one calibration page: a reviewer sees its
+    // audit trail too, as for a single axis.
+    let trail = &page[page.find(r#"<table id="audit">"#).expect("a trail")..];
+    let rows: Vec<&str> = trail
+        .match_indices(r#"<tr data-action=""#)
+        .map(|(i, m)| trail[i + m.len()..].split('"').next().unwrap())
+        .collect();
+    assert_eq!(rows, ["calibration.submitted"], "{trail}");
     let certificate = app
         .get(&format!("/v1/calibrations/{b_id}/certificate"), ADMIN)
         .await
@@ -1426,4 +1434,40 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
             .contains("S_yx_std_error"),
         "{r}"
     );
+}
+
+/// A triad calibrated once with second-order terms and once without:
+/// its stability covers the elements both calibrations have (b, S, T), not
+/// S2 — written once over named quantities, as a single axis's terms are.
+#[tokio::test]
+async fn stability_covers_the_elements_every_calibration_has() {
+    let app = TestApp::spawn(Sqlite).await;
+    let (mut curved, _) = curved_body();
+    curved["performed_at"] = json!("2026-01-01T00:00:00Z");
+    let first = store(&app, ADMIN, &curved).await;
+    let mut plain = curved.clone();
+    plain["second_order"] = json!(false);
+    plain["performed_at"] = json!("2026-06-01T00:00:00Z");
+    let second = store(&app, ADMIN, &plain).await;
+    assert!(second.get("S2").is_none_or(Value::is_null), "{second}");
+    let res = app.get("/v1/sensors/IMU-9/stability", ADMIN).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let s: Value = res.json().await.unwrap();
+    let elements = s["elements"].as_object().unwrap();
+    assert_eq!(s["calibrations"], 2);
+    assert!(
+        !elements.keys().any(|k| k.starts_with("S2")),
+        "{elements:?}"
+    );
+    assert_eq!(elements.len(), 3 + 9 + 9, "b, S and T");
+    // The figures are the stored values': b_x's mean and latest change.
+    let (x0, x1) = (f(&first["b"][0]), f(&second["b"][0]));
+    assert!((f(&elements["b_x"]["mean"]) - (x0 + x1) / 2.0).abs() < 1e-12);
+    assert!((f(&elements["b_x"]["latest_change"]) - (x1 - x0)).abs() < 1e-12);
+    // The sensor's page, which charts them, is drawn too.
+    let (session, _) = super::ui::sign_in(&app, ADMIN).await;
+    let page = super::ui::page(&app, "/ui/sensors/IMU-9", &session).await;
+    assert_eq!(page.status(), StatusCode::OK);
+    let page = page.text().await.unwrap();
+    assert!(page.contains("id=\"chart-b_x\"") && page.contains("id=\"chart-S2_x\""));
 }

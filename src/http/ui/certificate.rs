@@ -28,10 +28,8 @@ use maud::{DOCTYPE, Markup, PreEscaped, html};
 use sha2::{Digest, Sha256};
 
 use super::assets::STYLESHEET;
-use super::axis::{as_found, budget, decision};
-use super::coverage::coverage_statement;
-use super::format::{dof, factor, num, percent, term_unit, unc, value_and_uncertainty};
-use super::result::{MethodDoc, ResultDoc};
+use super::document::{Column, Document, Quantity};
+use super::format::{dof, factor, num, percent, unc, value_and_uncertainty};
 use super::stored::when;
 use super::{badge, review};
 use crate::domain::timestamp::Timestamp;
@@ -106,63 +104,28 @@ impl Context {
     }
 }
 
-/// The certificate document.
-pub fn render(d: &ResultDoc, c: &Context) -> Markup {
-    let statement = d.uncertainty.as_ref().map(coverage_statement);
+/// The printed certificate of a calibration of any kind: the frame, the
+/// item and the calibration, the kind's method, its quantities (each
+/// rounded to its expanded uncertainty, GUM 7.2.6, with `u_c`, `ν_eff`,
+/// `k`, `p` and its unit), the kind's sections beside them, the
+/// traceability and what makes it verifiable.
+pub fn render(doc: &Document<'_>, c: &Context) -> Markup {
+    let p = &doc.printed;
     let body = html! {
                     h2 { "Item and calibration" }
                     dl.facts {
                         (customer_and_item(c))
-                        div { dt { "Sensor" } dd { strong { (d.sensor_id) } } }
-                        div { dt { "Sensor type" } dd { (d.sensor_type.as_deref().unwrap_or("none")) } }
-                        div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
-                        div { dt { "Place of calibration" } dd { (c.laboratory.address.as_deref().unwrap_or("the laboratory's (no address configured)")) } }
-                        div { dt { "Stand" } dd { @match &d.stand {
-                            Some(s) => { (s.id.as_deref().unwrap_or("unnamed")) ": indexing " (s.angle_std_arcsec) "″ (1σ), gravity " (s.gravity_rel_std) " (relative, 1σ)" },
-                            None => "not declared (no stand contribution)",
-                        } } }
-                        div { dt { "Item received" } dd { (d.item_received_at.as_deref().map_or("not recorded".into(), when)) } }
-                        div { dt { "Condition on receipt" } dd { (d.item_condition.as_deref().unwrap_or("not recorded")) } }
-                        div { dt { "Performed" } dd { (when(&d.performed_at)) } }
-                        div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
-                        div { dt { "Due" } dd {
-                            @if c.customer.as_ref().is_none_or(|cu| cu.due_date_agreed) {
-                                (d.due_at.as_deref().map_or("—".into(), when))
-                            } @else {
-                                "not stated (no due date was agreed with the customer)"
-                            }
-                        } }
-                        div { dt { "Output unit" } dd { (d.unit) } }
+                        (p.facts)
                     }
-                    h2 { "Environmental conditions" }
-                    dl.facts {
-                        div { dt { "Temperature" } dd { (temperatures(d)) } }
-                        div { dt { "Local gravity" } dd { (local_gravity(d)) } }
-                    }
-                    (standards(&d.standards))
+                    (p.before_method)
                     h2 { "Method" }
-                    p {
-                        "Tumble test in the 1 g field on a dividing head (" (d.mount) " mount, "
-                        (d.positions.len()) " positions, " (d.runs.len()) " runs). The static model "
-                        code { "U = Σ k·f(a)" } " with terms " strong { (d.model.join(", ")) }
-                        " is identified from each run by least squares; the runs are fused by batch "
-                        "estimation (" (d.batches) " batches, inverse-variance weighting of batch means), after "
-                        (PAPER) ". Uncertainty after the GUM: the fused standard error, the stand's indexing "
-                        "error, the uncertainty of gravity and, when the lack-of-fit test finds the model short of the data, "
-                        "the model's own standard error, combined in quadrature and expanded"
-                        @if let Some(s) = &statement { (s) } "."
-                    }
+                    p { (p.method) }
                     h2 { "Results" }
-                    div.table-wrap tabindex="0" role="region" aria-label="Fused coefficients" {
+                    div.table-wrap tabindex="0" role="region" aria-label=(p.label) {
                         table #certificate-results {
-                            caption {
-                                "Fused coefficients, each rounded to its expanded uncertainty's second significant digit, "
-                                "with its combined standard uncertainty u"
-                                sub { "c" } ", effective degrees of freedom ν"
-                                sub { "eff" } ", coverage factor k and coverage probability p"
-                            }
+                            caption { (p.caption) }
                             thead { tr {
-                                th scope="col" { "Term" }
+                                th scope="col" { @match p.column { Column::Term => "Term", Column::Element => "Element" } }
                                 th scope="col" .num { "Value" }
                                 th scope="col" .num { "Standard error" }
                                 th scope="col" .num { "u" sub { "c" } }
@@ -173,50 +136,65 @@ pub fn render(d: &ResultDoc, c: &Context) -> Markup {
                                 th scope="col" { "Unit" }
                             } }
                             tbody {
-                                @for (t, v) in d.fused.coefficients.iter() {
-                                    @let covered = d.uncertainty.as_ref().and_then(|u| u.covered(t));
-                                    @let expanded = d.uncertainty.as_ref().and_then(|u| u.terms.get(t)).map(|b| b.expanded);
-                                    @let (value, u) = match expanded {
-                                        Some(u) => { let (v, u) = value_and_uncertainty(*v, u); (v, Some(u)) }
-                                        None => (num(*v), None),
-                                    };
-                                    tr data-term=(t.name()) {
-                                        th scope="row" { (t.name()) }
-                                        td.num { (value) }
-                                        td.num { (d.fused.std_errors.get(t).map_or("—".into(), |x| unc(*x))) }
-                                        td.num { (covered.map_or("—".into(), |c| unc(c.combined))) }
-                                        td.num { (covered.map_or("—".into(), |c| dof(c.effective_dof))) }
-                                        td.num { (covered.map_or("—".into(), |c| factor(c.k))) }
-                                        td.num { (covered.map_or("—".into(), |c| percent(c.p))) }
-                                        td.num { (u.unwrap_or_else(|| "—".into())) }
-                                        td { (term_unit(t, &d.unit)) }
+                                @for q in &doc.quantities {
+                                    @match p.column {
+                                        Column::Term => { tr data-term=(q.name) { (cells(q)) } },
+                                        Column::Element => { tr data-element=(q.name) { (cells(q)) } },
                                     }
                                 }
                             }
                         }
                     }
-                    (budget(d))
-                    @if d.decision.is_some() {
+                    (p.after_results)
+                    @if let Some(m) = &p.conformity {
                         h2 { "Conformity" }
-                        (decision(d))
+                        (m)
                     }
-                    @if d.as_found.is_some() {
+                    @if let Some(m) = &p.as_found {
                         h2 { "As found" }
-                        (as_found(d))
+                        (m)
                     }
-                    (traceability(&d.standards))
-                    (verification(c, Some(MethodDoc::describe(d.method.as_ref()))))
+                    (p.before_traceability)
+                    (traceability(doc.admin.standards))
+                    (verification(c, p.computed_by.clone()))
     };
     frame(
         &Frame {
-            id: &d.id,
-            running: &d.sensor_id,
-            supersedes: d.supersedes.as_ref(),
-            verdict: d.decision.as_ref().map(|dec| dec.verdict.as_str()),
+            id: &doc.admin.id,
+            running: &doc.running,
+            supersedes: doc.admin.supersedes,
+            verdict: doc.admin.judged.as_ref().map(|j| j.verdict),
         },
         c,
         body,
     )
+}
+
+/// One quantity's cells in the results: name, value, standard error,
+/// `u_c`, `ν_eff`, `k`, `p`, `U`, unit — the value rounded to `U` where
+/// one is stated; a fixed quantity as zero, with why.
+fn cells(q: &Quantity) -> Markup {
+    let (value, expanded) = match q.expanded {
+        Some(u) => value_and_uncertainty(q.value, u),
+        None => (num(q.value), "—".into()),
+    };
+    let stated = q.covered.filter(|_| q.expanded.is_some());
+    html! {
+        th scope="row" { (q.name) }
+        @if let Some(why) = q.fixed {
+            td.num { "0" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" } td.num { "—" }
+            td { (why) }
+        } @else {
+            td.num { (value) }
+            td.num { (q.std_error.map_or("—".into(), unc)) }
+            td.num { (q.combined().map_or("—".into(), unc)) }
+            td.num { (q.covered.map_or("—".into(), |c| dof(c.effective_dof))) }
+            td.num { (stated.map_or("—".into(), |c| factor(c.k))) }
+            td.num { (stated.map_or("—".into(), |c| percent(c.p))) }
+            td.num { (expanded) }
+            td { (q.unit) }
+        }
+    }
 }
 
 /// What every certificate says of its own scope (ISO/IEC 17025
@@ -395,50 +373,6 @@ pub fn laboratory(lab: &crate::http::Laboratory) -> Markup {
             @if let Some(address) = &lab.address { p { (address) } }
             @if let Some(accreditation) = &lab.accreditation { p { "Accredited: " (accreditation) } }
         }
-    }
-}
-
-/// The runs' temperatures as a range, or why there is none.
-fn temperatures(d: &ResultDoc) -> String {
-    match d.temperatures_c.as_deref() {
-        Some(t) if !t.is_empty() => {
-            let lo = t.iter().copied().fold(f64::INFINITY, f64::min);
-            let hi = t.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let thermometer =
-                d.standards
-                    .iter()
-                    .find(|u| u.role == "thermometer")
-                    .map_or(String::new(), |u| {
-                        format!(
-                            ", read with {} (±{} °C, 1σ)",
-                            u.standard_id,
-                            u.parameters.temperature_std_c.unwrap_or(0.0)
-                        )
-                    });
-            if lo == hi {
-                format!("{lo} °C in every run{thermometer}")
-            } else {
-                format!("{lo} to {hi} °C over the runs{thermometer}")
-            }
-        }
-        _ => "not recorded with the submission".into(),
-    }
-}
-
-/// The local gravity value used, or what the model assumes.
-fn local_gravity(d: &ResultDoc) -> String {
-    match d.standards.iter().find(|u| u.role == "gravity") {
-        Some(u) => format!(
-            "g = {} m/s² (relative uncertainty {}, 1σ; standard {})",
-            u.parameters
-                .gravity_m_s2
-                .map_or("—".into(), |g| g.to_string()),
-            u.parameters
-                .gravity_rel_std
-                .map_or("—".into(), |r| r.to_string()),
-            u.standard_id
-        ),
-        None => "not stated: the positions are in units of the local g (1 g)".into(),
     }
 }
 

@@ -36,8 +36,10 @@
 //! and otherwise as a non-D-SI unit, `|` followed by the submission's text
 //! (`|LSB`), which D-SI readers treat as such.
 //!
-//! A triad's calibration has the same administrative data and its own
-//! measurement results ([`super::triad_dcc`]); [`document`] writes either.
+//! Written once for every kind of calibration over its [`Document`]
+//! ([`super::document`]): the administrative data, and the measurement
+//! result's quantities; a kind supplies its texts and quantities
+//! ([`super::kinds`]).
 //!
 //! **Written by an XML writer** ([`super::xml`], over `quick-xml`): every
 //! text node and attribute value escaped by it, and the characters XML 1.0
@@ -50,9 +52,10 @@
 
 use axum::http::{HeaderMap, header};
 
-use super::certificate::{Context, PAPER};
+use super::certificate::Context;
+use super::document::{Admin, Document, conformity};
 use super::format::value_and_uncertainty;
-use super::result::{Covered, ResultDoc};
+use super::result::Covered;
 use super::xml::Xml;
 use crate::domain::review::{Action, Signature, State};
 use crate::http::problem::{Kind, Problem};
@@ -61,7 +64,7 @@ mod admin;
 mod equipment;
 mod quantities;
 
-pub use admin::*;
+use admin::*;
 pub use equipment::*;
 pub use quantities::*;
 
@@ -116,10 +119,9 @@ pub fn issuable(c: &Context) -> Result<(), Problem> {
     }
 }
 
-/// The DCC document of a single-axis calibration ([`issuable`] must have
-/// passed).
-pub fn render(d: &ResultDoc, c: &Context) -> String {
-    document(&Admin::of(d), c, |x| results(x, d))
+/// The DCC of a calibration of any kind ([`issuable`] must have passed).
+pub fn render(doc: &Document<'_>, c: &Context) -> String {
+    document(&doc.admin, c, |x| results(x, doc))
 }
 
 /// The DCC of the calibration `d` describes, its measurement results
@@ -247,65 +249,51 @@ fn identification(x: &mut Xml, issuer: &str, value: &str, name: &str) {
     });
 }
 
-/// A single-axis calibration's `dcc:measurementResult`: the method, the
-/// standards, the influence conditions and every fused coefficient.
-fn results(x: &mut Xml, d: &ResultDoc) {
-    let unit = dsi_unit(&d.unit);
-    let statement = d
-        .uncertainty
-        .as_ref()
-        .map(super::coverage::coverage_statement);
+/// A calibration's `dcc:measurementResult`: the kind's model and method,
+/// the standards, the influence conditions and every measured quantity as
+/// `si:real` in the output's unit, with how its uncertainty was formed and,
+/// when judged, its conformity (a fixed quantity is not measured, so not
+/// listed).
+fn results(x: &mut Xml, doc: &Document<'_>) {
+    let t = &doc.dcc;
+    let unit = dsi_unit(&t.unit);
+    let rule = doc.admin.judged.as_ref().map(|j| j.rule);
     x.el("dcc:measurementResult", |x| {
-        rich(x, "dcc:name", "Static model of the accelerometer");
-        rich(x, "dcc:description", &format!(
-                    "Fused coefficients of the model U = Σ k·f(a), with terms {}, the output U in {} and \
-                     the specific force a in multiples of the local g (unit one): each coefficient is in \
-                     the output's unit per unit of its regressor. Values are rounded to the second \
-                     significant digit of their expanded uncertainty.",
-                    d.model.join(", "),
-                    d.unit
-                ));
+        rich(x, "dcc:name", t.name);
+        rich(x, "dcc:description", &t.description);
         x.el("dcc:usedMethods", |x| {
             x.el("dcc:usedMethod", |x| {
-                rich(x, "dcc:name", "Tumble test in the 1 g field, least squares per run, batch-estimation fusion");
-                rich(x, "dcc:description", &format!(
-                            "Tumble test on a dividing head ({} mount, {} positions, {} runs), the static model identified \
-                             from each run by least squares and the runs fused by batch estimation ({} batches, \
-                             inverse-variance weighting of batch means). Uncertainty after the GUM: the fused standard \
-                             error, the stand's indexing error, the uncertainty of gravity and, when the lack-of-fit test \
-                             finds the model short of the data, the model's own standard error, combined in quadrature \
-                             and expanded{}.",
-                            d.mount,
-                            d.positions.len(),
-                            d.runs.len(),
-                            d.batches,
-                            statement.unwrap_or_default()
-                        ));
+                rich(x, "dcc:name", t.method_name);
+                rich(x, "dcc:description", &t.method);
                 x.text("dcc:norm", "ISO/IEC Guide 98-3 (GUM)");
-                x.text("dcc:reference", PAPER);
+                if let Some(r) = t.reference {
+                    x.text("dcc:reference", r);
+                }
             })
         });
-        equipment(x, &d.standards);
-        conditions(x, d.temperatures_c.as_deref(), &d.standards);
+        equipment(x, doc.admin.standards);
+        conditions(x, t.temperatures.as_deref(), doc.admin.standards);
         x.el("dcc:results", |x| {
             x.el("dcc:result", |x| {
-                rich(x, "dcc:name", "Fused coefficients");
+                rich(x, "dcc:name", t.results_name);
                 x.el("dcc:data", |x| {
-                    for (t, v) in d.fused.coefficients.iter() {
-                        let expanded = d.uncertainty.as_ref().and_then(|u| {
-                            u.terms
-                                .get(t)
-                                .map(|b| (b.expanded, b.covered(u.coverage_factor)))
-                        });
-                        let term_unit = super::format::term_unit(t, &d.unit);
-                        let judged = d.decision.as_ref().and_then(|dec| {
-                            let j = dec.terms.get(t)?;
-                            Some(Judgement::of(&dec.rule, (&j.verdict, j.value, j.min, j.max)))
+                    for q in doc.quantities.iter().filter(|q| q.fixed.is_none()) {
+                        let judged = q.limited.as_ref().zip(rule).map(|(l, rule)| {
+                            Judgement::of(rule, (&l.verdict, l.value, l.min, l.max))
                         });
                         x.el("dcc:quantity", |x| {
-                            rich(x, "dcc:name", &format!("{} — {} ({term_unit})", t.name(), term_meaning(t)));
-                            real(x, t.name(), *v, &unit, expanded);
-                            meta_data(x, expanded.map(|(_, c)| c), &term_unit, judged);
+                            rich(
+                                x,
+                                "dcc:name",
+                                &format!("{} — {} ({})", q.name, q.meaning, q.dcc_unit),
+                            );
+                            real(x, &q.name, q.value, &unit, q.expanded.zip(q.covered));
+                            meta_data(
+                                x,
+                                q.covered.filter(|c| c.combined.is_finite()),
+                                &q.dcc_unit,
+                                judged,
+                            );
                         });
                     }
                 })

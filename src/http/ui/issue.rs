@@ -73,16 +73,9 @@ pub async fn draft(state: &AppState, headers: &HeaderMap, raw_id: &str) -> Resul
 impl Draft {
     /// Its HTML and DCC (or why none: the records lack what it needs).
     fn render(&self) -> Rendered {
-        let (html, dcc) = match &self.doc {
-            StoredDoc::Axis(d) => (
-                super::certificate::render(d, &self.ctx).into_string(),
-                super::dcc::issuable(&self.ctx).map(|()| super::dcc::render(d, &self.ctx)),
-            ),
-            StoredDoc::Triad(d) => (
-                super::triad_certificate::render(d, &self.ctx).into_string(),
-                super::dcc::issuable(&self.ctx).map(|()| super::triad_dcc::render(d, &self.ctx)),
-            ),
-        };
+        let doc = super::kinds::document(&self.doc, &self.ctx);
+        let html = super::certificate::render(&doc, &self.ctx).into_string();
+        let dcc = super::dcc::issuable(&self.ctx).map(|()| super::dcc::render(&doc, &self.ctx));
         Rendered {
             html,
             dcc: dcc.map_err(|p| p.detail),

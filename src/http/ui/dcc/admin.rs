@@ -3,57 +3,6 @@
 
 use super::*;
 
-/// What the DCC's administrative data reads of a calibration, of either
-/// kind.
-pub struct Admin<'a> {
-    /// The calibration.
-    pub id: uuid::Uuid,
-    /// The item's sensor id.
-    pub sensor_id: &'a str,
-    /// What the item is called (`Accelerometer`, `Accelerometer triad`).
-    pub item: &'static str,
-    /// When performed (RFC 3339).
-    pub performed_at: &'a str,
-    /// When the item was received, if stated.
-    pub item_received_at: Option<&'a str>,
-    /// Its condition on receipt, if stated.
-    pub item_condition: Option<&'a str>,
-    /// The calibration it supersedes.
-    pub supersedes: Option<&'a crate::domain::review::Supersedes>,
-    /// The reference standards, as used.
-    pub standards: &'a [crate::domain::standards::UsedStandard],
-    /// The decision, when judged.
-    pub judged: Option<Judged<'a>>,
-    /// The due date, when judged.
-    pub due_at: Option<&'a str>,
-}
-
-impl<'a> Admin<'a> {
-    /// A single-axis calibration's.
-    pub(super) fn of(d: &'a ResultDoc) -> Self {
-        Admin {
-            id: d.id,
-            sensor_id: &d.sensor_id,
-            item: "Accelerometer",
-            performed_at: &d.performed_at,
-            item_received_at: d.item_received_at.as_deref(),
-            item_condition: d.item_condition.as_deref(),
-            supersedes: d.supersedes.as_ref(),
-            standards: &d.standards,
-            judged: d.decision.as_ref().map(|dec| {
-                Judged::of(
-                    &dec.rule,
-                    &dec.verdict,
-                    dec.terms
-                        .iter()
-                        .map(|(_, x)| (x.verdict.as_str(), x.value, x.min, x.max)),
-                )
-            }),
-            due_at: d.due_at.as_deref(),
-        }
-    }
-}
-
 /// `dcc:items`: the item behind the sensor id.
 pub(super) fn items(x: &mut Xml, d: &Admin<'_>, c: &Context) {
     let item = c.item.as_ref();

@@ -71,40 +71,6 @@ pub(super) fn coverage_factor(k: f64) -> String {
     format!("{}", k.max(1.0))
 }
 
-/// What each term is, for its `dcc:name`.
-pub(super) fn term_meaning(t: accelcal_core::Term) -> &'static str {
-    use accelcal_core::Term;
-    match t {
-        Term::K0 => "bias",
-        Term::Ki => "scale factor K1 (input axis)",
-        Term::Kp => "pendulous-axis sensitivity (misalignment)",
-        Term::Ko => "output-axis sensitivity",
-        Term::Kio => "cross-coupling, input × output axis",
-        Term::Kop => "cross-coupling, output × pendulous axis",
-        Term::Kpi => "cross-coupling, pendulous × input axis",
-        Term::Kii => "second-order non-linearity K2",
-        Term::Kpp => "pendulous-axis square",
-        Term::Koo => "output-axis square",
-        Term::Kiii => "third-order non-linearity K3",
-    }
-}
-
-/// The DCC conformity of a decision's verdict: `conditional` splits by
-/// whether the value itself lies within the limits.
-pub(super) fn conformity(
-    verdict: &str,
-    value: f64,
-    min: Option<f64>,
-    max: Option<f64>,
-) -> &'static str {
-    match verdict {
-        "pass" => "pass",
-        "fail" => "fail",
-        _ if min.is_none_or(|m| value >= m) && max.is_none_or(|m| value <= m) => "conditionalPass",
-        _ => "conditionalFail",
-    }
-}
-
 /// The date part of an RFC 3339 instant (`2026-11-22`).
 pub(super) fn date(instant: &str) -> &str {
     instant.get(..10).unwrap_or(instant)
@@ -170,37 +136,6 @@ pub(super) fn approvals(signatures: &[Signature]) -> Vec<&Signature> {
         .iter()
         .filter(|s| s.action == Action::Approve)
         .collect()
-}
-
-/// The statement of conformity of a judged calibration.
-pub struct Judged<'a> {
-    /// `simple` or `guarded`.
-    pub rule: &'a str,
-    /// The worst verdict.
-    pub verdict: &'a str,
-    /// The worst DCC conformity of the limited terms or elements.
-    pub worst: &'static str,
-}
-
-impl<'a> Judged<'a> {
-    /// The statement of a decision whose limited quantities give
-    /// `(verdict, value, min, max)`.
-    pub fn of(
-        rule: &'a str,
-        verdict: &'a str,
-        each: impl Iterator<Item = (&'a str, f64, Option<f64>, Option<f64>)>,
-    ) -> Self {
-        const ORDER: [&str; 4] = ["pass", "conditionalPass", "conditionalFail", "fail"];
-        let worst = each
-            .map(|(v, x, min, max)| conformity(v, x, min, max))
-            .max_by_key(|c| ORDER.iter().position(|x| x == c))
-            .unwrap_or("pass");
-        Judged {
-            rule,
-            verdict,
-            worst,
-        }
-    }
 }
 
 /// A judged quantity: the rule, its verdict, value and limits.

@@ -1,19 +1,18 @@
-//! `GET /ui/calibrations/{id}` for a triad's calibration (issue 30): `b`,
-//! `S` and `T` with their standard errors, the scale factors and
-//! non-orthogonality, the fit (unknown orientations) and the residuals per
-//! position, the firmware files to download
-//! (`GET /ui/calibrations/{id}/export/{format}`), and the review as for any
-//! calibration. What it reads is the stored result document
-//! ([`super::triad_result::TriadDoc`]).
+//! A triad's calibration on its page (issue 30): `b`, `S` and `T` with
+//! their standard errors, the expanded uncertainties and how each was
+//! formed, the scale factors and non-orthogonality, the fit (unknown
+//! orientations) and the residuals per position, the decision element by
+//! element, and the firmware files to download
+//! (`GET /ui/calibrations/{id}/export/{format}`).
 
-use super::triad_result::{ElementDecisionDoc, TriadDoc};
 use maud::{Markup, html};
 
-use super::format::{Notation, num, unc};
-use super::stored::{record, when};
-use super::viewer::Viewer;
-use super::{Html, UiError, badge, layout, review};
-use crate::http::AppState;
+use crate::domain::triad::KNOWN_ORIENTATIONS;
+use crate::http::ui::badge;
+use crate::http::ui::document::Page;
+use crate::http::ui::format::{Notation, num, unc};
+use crate::http::ui::stored::when;
+use crate::http::ui::triad_result::{ElementDecisionDoc, TriadDoc};
 use crate::store::AXES;
 
 /// The firmware files offered, with their labels.
@@ -79,32 +78,20 @@ fn matrix(caption: &str, name: &str, m: &[[f64; 3]; 3], e: Option<&[[f64; 3]; 3]
     }
 }
 
-/// The page of triad `d`.
-pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html, UiError> {
-    let id = d.id.to_string();
-    let (review_state, signatures) = record(state, &id).await?;
-    let known = d.method == "known_orientations";
-    let content = html! {
-        p.muted {
-            a href="/ui/sensors" { "Fleet" } " / "
-            a href={"/ui/sensors/" (d.sensor_id)} { (d.sensor_id) } " / triad calibration"
-        }
-        h1 { "Triad calibration of " (d.sensor_id) " " (review::state_badge(review_state)) }
-        @if let Some(n) = review::notice(review_state, &signatures) {
-            p.notice.error role="status" { (n) }
-        }
-        @if let Some(s) = &d.supersedes {
-            p.notice role="note" {
-                "This calibration supersedes "
-                a href={"/ui/calibrations/" (s.calibration_id)} { code { (s.calibration_id) } }
-                ": " (s.reason)
-            }
-        }
-        p.lead { "Performed " (when(&d.performed_at)) }
-        dl.facts {
-            div { dt { "Calibration id" } dd { code { (d.id) } } }
-            div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
-            div { dt { "Received" } dd { (when(&d.received_at)) } }
+/// Triad `d` as its page shows it.
+pub fn page(d: &TriadDoc) -> Page<'_> {
+    let known = d.method == KNOWN_ORIENTATIONS;
+    Page {
+        id: d.id,
+        sensor_id: &d.sensor_id,
+        title: "Triad calibration",
+        noun: "triad calibration",
+        verdict: None,
+        supersedes: d.supersedes.as_ref(),
+        performed_at: &d.performed_at,
+        station_id: d.station_id.as_deref(),
+        received_at: &d.received_at,
+        facts: html! {
             div { dt { "Model" } dd { (d.model) @if d.s2.is_none() { "; compensation g = T (u − b), T = S⁻¹" } @else { "; compensation by Newton's iteration from T (u − b)" } } }
             div { dt { "Method" } dd {
                 @if known { "known orientations: each axis identified and fused by the single-axis method" }
@@ -117,17 +104,15 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                     " of " (u.certificate.issued_by) ", due " (when(&u.due_at.to_string()))
                 } }
             }
-        }
-        p.no-print {
+        },
+        downloads: Some(html! {
             "Download: "
             @for (k, (format, label)) in EXPORTS.iter().enumerate() {
                 @if k > 0 { " · " }
                 a href={"/ui/calibrations/" (d.id) "/export/" (format)} { (label) }
             }
-            " · " a href={"/ui/calibrations/" (d.id) "/certificate"} { "Certificate" }
-            " · " a #dcc-link href={"/ui/calibrations/" (d.id) "/certificate.xml"} type="application/xml" { "Digital Calibration Certificate (XML)" }
-            " · " a href={"/ui/calibrations/" (d.id) "/submission"} { "Submission as stored" }
-        }
+        }),
+        sections: html! {
         @if let Some(dec) = &d.decision {
             h2 { "Decision " (badge(&dec.verdict, &dec.verdict)) }
             div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #triad-decision .numbers {
@@ -187,9 +172,9 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                             tr data-element=(name) {
                                 th scope="row" { (name) }
                                 td.num { (unc(c.combined)) }
-                                td.num { (super::format::dof(Some(c.effective_dof))) }
-                                td.num { (super::format::factor(c.coverage_factor)) }
-                                td.num { (super::format::percent(c.coverage_probability)) }
+                                td.num { (crate::http::ui::format::dof(Some(c.effective_dof))) }
+                                td.num { (crate::http::ui::format::factor(c.coverage_factor)) }
+                                td.num { (crate::http::ui::format::percent(c.coverage_probability)) }
                             }
                         }
                     }
@@ -235,11 +220,6 @@ pub async fn page(state: &AppState, viewer: &Viewer, d: TriadDoc) -> Result<Html
                 }
             }
         } }
-        (review::section(&id, review_state, &signatures, viewer))
-    };
-    Ok(Html::ok(layout(
-        &format!("Triad calibration of {}", d.sensor_id),
-        Some(viewer),
-        content,
-    )))
+        },
+    }
 }
