@@ -20,7 +20,8 @@
 //! 5. the metrology a lab signs: the uncertainty budget of each fused
 //!    coefficient ([`uncertainty`]), conformity decisions against limits
 //!    ([`decision`]), as found and stability over a sensor's history
-//!    ([`history`]), temperature sensitivity ([`temperature`]), the model's
+//!    ([`history`]), temperature sensitivity ([`temperature`]) and
+//!    coefficients over temperature ([`thermal`]), the model's
 //!    adequacy — pure error, lack of fit, unmodelled terms ([`adequacy`]) —
 //!    coverage factors from effective degrees of freedom ([`coverage`]) —
 //!    and quality flags with their F tests ([`quality`], [`ftest`]);
@@ -77,6 +78,7 @@ pub mod reading;
 pub mod static_intervals;
 pub mod temperature;
 pub mod term;
+pub mod thermal;
 pub mod triad;
 pub mod tumble;
 pub mod uncertainty;

@@ -10,6 +10,8 @@
 //! * [`synthetic`]: noiseless tumbles of known truth, every identifiable term;
 //! * [`properties`]: invariants under random inputs (proptest);
 //! * [`extremes`]: scale-free numerics at the edges of `f64`;
+//! * [`thermal`]: coefficients over temperature against numpy and scipy,
+//!   and the degree selection's false-alarm rate;
 //! * [`metrology`]: the uncertainty budget, decisions, as found, stability,
 //!   temperature and quality flags against independent computations.
 
@@ -20,3 +22,4 @@ mod metrology;
 mod paper;
 mod properties;
 mod synthetic;
+mod thermal;
