@@ -74,8 +74,13 @@ pub const MAX_DEGREE: usize = 3;
 pub const TOLERANCE_K: f64 = 0.5;
 /// The default smallest span of set points, K.
 pub const MIN_SPAN_K: f64 = 10.0;
-/// The default largest condition number of the (column-scaled) design.
-pub const MAX_CONDITION: f64 = 1e4;
+/// The default largest condition number of the (column-scaled) design. A
+/// design of condition number κ can amplify the set points' relative errors
+/// up to κ-fold in the polynomial's coefficients; 100 admits every spread a
+/// chamber schedule uses (five set points evenly over 80 K: 2.8 at degree
+/// 2, 5.8 at degree 3) and refuses a cubic through a cluster (four set
+/// points within 2 K and a fifth 13 K away: 303).
+pub const MAX_CONDITION: f64 = 100.0;
 /// The level of the forward selection's F tests.
 pub const ALPHA: f64 = 0.01;
 
@@ -159,7 +164,7 @@ pub enum ThermalError {
     },
     /// The design is ill-conditioned at that degree.
     #[error(
-        "the set points' temperatures make a degree-{degree} design with condition number {condition:.3e}, past the limit {limit:.0e}"
+        "the set points' temperatures make a degree-{degree} design with condition number {condition:.0}, past the limit {limit}"
     )]
     IllConditioned {
         /// The degree.
@@ -172,6 +177,11 @@ pub enum ThermalError {
     /// A degree above [`MAX_DEGREE`] was asked for.
     #[error("degree {0} asked for: at most {MAX_DEGREE}")]
     DegreeTooHigh(usize),
+    /// The fit's numbers are not finite (weights at the edges of `f64`).
+    #[error(
+        "the set points' estimates and standard errors are too far apart in scale to weight (the fit overflows)"
+    )]
+    NotFinite,
     /// A point's value or uncertainty is not usable as a weight.
     #[error(
         "the set point at {temperature_c} °C has no positive, finite standard uncertainty, so it cannot be weighted"
@@ -183,7 +193,7 @@ pub enum ThermalError {
 }
 
 /// How the degree is chosen when none is asked for (module doc).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// Down from the highest degree the set points allow (the default).
@@ -253,6 +263,12 @@ fn weighted(points: &[Point], reference_c: f64, degree: usize) -> (Vec<f64>, DMa
         (points[s].temperature_c - reference_c).powi(d as i32) / points[s].std_uncertainty
     });
     let b = DVector::from_fn(n, |s, _| points[s].value / points[s].std_uncertainty);
+    if !(a.iter().all(|x| x.is_finite()) && b.iter().all(|x| x.is_finite())) {
+        // Overflowed weights: no factorisation of infinities (the caller
+        // refuses the non-finite fit).
+        let nan = DMatrix::from_element(degree + 1, degree + 1, f64::NAN);
+        return (vec![f64::NAN; degree + 1], nan, f64::NAN);
+    }
     let svd = a.clone().svd(true, true);
     let (u, v_t) = (
         svd.u.as_ref().expect("computed"),
@@ -368,7 +384,15 @@ pub fn fit(points: &[Point], options: &Options) -> Result<Polynomial, ThermalErr
     let covariance: Vec<Vec<f64>> = (0..=degree)
         .map(|i| (0..=degree).map(|j| cov[(i, j)] * inflation).collect())
         .collect();
-    let std_uncertainties = (0..=degree).map(|d| covariance[d][d].sqrt()).collect();
+    let std_uncertainties: Vec<f64> = (0..=degree).map(|d| covariance[d][d].sqrt()).collect();
+    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
+    if !(chi2.is_finite()
+        && finite(&coefficients)
+        && finite(&std_uncertainties)
+        && covariance.iter().all(|row| finite(row)))
+    {
+        return Err(ThermalError::NotFinite);
+    }
     let lo = temperatures.iter().copied().fold(f64::INFINITY, f64::min);
     let hi = temperatures
         .iter()

@@ -1,7 +1,8 @@
 //! The application layer: the laboratory's acts — identifying (a kind's
 //! assessment without an id: nothing stored), submitting, reviewing
 //! (approving, rejecting, withdrawing, disposing of a hold), superseding,
-//! reprocessing, holding for a standard's nonconformity, recording a sensor
+//! reprocessing, identifying coefficients over temperature ([`thermal`]),
+//! holding for a standard's nonconformity, recording a sensor
 //! type, standard, customer or item, issuing and revoking tokens — each a
 //! function over the store and the domain that takes typed input and a
 //! principal and returns a typed outcome or an [`Error`], with no HTTP in
@@ -24,6 +25,7 @@ pub mod standards;
 pub mod subject;
 pub mod submit;
 pub mod supersede;
+pub mod thermal;
 pub mod tokens;
 pub mod triad;
 mod upload;

@@ -25,6 +25,7 @@ pub mod standards;
 pub mod status;
 pub mod submission;
 pub mod text;
+pub mod thermal;
 pub mod timestamp;
 pub mod tokens;
 pub mod triad;

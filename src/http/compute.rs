@@ -1,4 +1,5 @@
-//! Computations that store nothing: `POST /v1/identify` and `POST /v1/fuse`.
+//! Computations that store nothing: `POST /v1/identify`, `POST
+//! /v1/identify/thermal` and `POST /v1/fuse`.
 
 use accelcal_core::Estimates;
 use axum::Json;
@@ -9,9 +10,11 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
-use crate::app::single_axis;
+use super::query::Params;
+use crate::app::{single_axis, thermal};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::fuse::FuseRequest;
+use crate::domain::thermal::{ThermalModel, ThermalParams};
 use crate::domain::timestamp::Timestamp;
 
 /// `POST /v1/identify`: a submission computed and returned, not stored.
@@ -49,6 +52,51 @@ pub async fn identify(
         assessed.result,
     )
         .into_response())
+}
+
+/// `POST /v1/identify/thermal`: a single axis's coefficients over
+/// temperature, from a submission whose runs were made at several
+/// temperatures (each run's `temperature_c`), computed and returned, not
+/// stored.
+#[utoipa::path(
+    post,
+    path = "/v1/identify/thermal",
+    tag = "compute",
+    operation_id = "identify_thermal",
+    summary = "Coefficients over temperature from runs at several temperatures, not stored.",
+    description = "The runs are grouped into set points (runs within `tolerance_k` of a set \
+        point's coolest run), each set point identified and fused as a calibration is, and \
+        every coefficient's polynomial c(T) = Σ a_d (T − T_ref)^d fitted by weighted least \
+        squares on the set points' fused estimates (weights 1/se², covariance inflated by \
+        max(1, χ²/ν)), its degree chosen by backward elimination at 1 % unless `degree` is \
+        given. Too few set points, too small a span or an ill-conditioned design are refused \
+        with what to add.",
+    params(crate::domain::thermal::ThermalParams),
+    request_body(content(
+        (super::openapi::SubmissionSchema = "application/json"),
+        (String = "text/csv"),
+    )),
+    responses(
+        (status = 200, description = "The set points and each coefficient's polynomial.", body = super::openapi::ThermalModelSchema),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn identify_thermal(
+    State(state): State<AppState>,
+    principal: Principal,
+    Params(params): Params<ThermalParams>,
+    body: Body,
+) -> Result<Json<ThermalModel>, Problem> {
+    require(&principal, Role::Reader)?;
+    let (tolerance_k, options) = params
+        .checked()
+        .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
+    Ok(Json(
+        thermal::identify(&state.lab, &principal, body, tolerance_k, options).await?,
+    ))
 }
 
 /// `POST /v1/fuse`: mean and batch-estimation fusion of given per-run values

@@ -322,6 +322,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(standards::nonconformity))
         .routes(routes!(standards::affected))
         .routes(routes!(compute::identify))
+        .routes(routes!(compute::identify_thermal))
         .routes(routes!(compute::fuse))
         .routes(routes!(triad::identify))
         .routes(routes!(triads::submit))

@@ -35,6 +35,7 @@ mod round_three;
 mod standard_periods;
 mod standards;
 mod storage;
+mod thermal;
 mod trace;
 mod traceability;
 mod triad;

@@ -175,3 +175,16 @@ fn too_few_set_points_too_small_a_span_or_a_bad_design_are_refused() {
         })
     );
 }
+
+#[test]
+fn weights_at_the_edge_of_f64_are_refused_not_served_as_infinities() {
+    let mut points = planted(&[1.0], &CHAMBER, 1e-5);
+    points[0].std_uncertainty = 1e-300;
+    // Tiny but finite: the covariance underflows to zero, still finite.
+    assert!(fit(&points, &Options::default()).is_ok());
+    points[0].value = 1e300; // value / u overflows
+    assert_eq!(
+        fit(&points, &Options::default()),
+        Err(ThermalError::NotFinite)
+    );
+}

@@ -10,6 +10,7 @@
 
 mod responses;
 mod schemas;
+mod thermal;
 
 use std::sync::LazyLock;
 
@@ -19,6 +20,7 @@ use utoipa::{Modify, OpenApi};
 
 pub use self::responses::*;
 pub use self::schemas::*;
+pub use self::thermal::*;
 use crate::domain::schema::{
     CoefficientMap, GravitySchema, Identifier, ModelSchema, NullableCoefficientMap, TermSchema,
 };
@@ -62,6 +64,7 @@ impl Modify for Bearer {
             CalibrationPageSchema, AuditPageSchema, crate::domain::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
+            PolynomialSchema, ThermalModelSchema,
             crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,
             crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,
         ),

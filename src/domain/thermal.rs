@@ -1,0 +1,285 @@
+//! A single axis's coefficients over temperature (issue 45), from one
+//! submission whose runs were made at several temperatures: the runs
+//! grouped into set points ([`accelcal_core::thermal::set_points`]), each
+//! set point identified and fused exactly as a calibration is, and every
+//! coefficient's polynomial fitted to the set points' fused estimates
+//! weighted by their standard errors ([`accelcal_core::thermal::fit`]).
+//! A refusal names what to add: how many set points, and where.
+
+use accelcal_core::thermal::{
+    self, MAX_CONDITION, MIN_SPAN_K, Options, Point, Polynomial, Selection, TOLERANCE_K,
+    ThermalError,
+};
+use accelcal_core::{Run, TermMap, TumbleTest};
+use serde::{Deserialize, Serialize};
+
+use super::field::Invalid;
+use super::submission::Submission;
+
+/// How the temperature model is fitted (the query of
+/// `POST /v1/identify/thermal`; each has its documented default).
+#[derive(Clone, Copy, Debug, Default, Deserialize, utoipa::IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct ThermalParams {
+    /// Runs within this many kelvin of a set point's coolest run form the
+    /// set point (default 0.5).
+    pub tolerance_k: Option<f64>,
+    /// The reference temperature `T_ref`, °C (default: the set points'
+    /// mean, rounded to 0.1 K).
+    pub reference_c: Option<f64>,
+    /// The polynomial's degree, 0 to 3, for every coefficient (default:
+    /// chosen per coefficient by `selection`).
+    pub degree: Option<usize>,
+    /// How the degree is chosen: `backward` (default) or `forward`.
+    #[param(value_type = Option<String>)]
+    pub selection: Option<Selection>,
+    /// The smallest span of set points, K (default 10).
+    pub min_span_k: Option<f64>,
+    /// The largest condition number of the column-scaled design
+    /// (default 100).
+    pub max_condition: Option<f64>,
+}
+
+/// A parameter out of range: its name and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BadParameter {
+    /// The parameter.
+    pub name: &'static str,
+    /// Why.
+    pub detail: String,
+}
+
+impl ThermalParams {
+    /// The tolerance and the fit's options, checked.
+    pub fn checked(&self) -> Result<(f64, Options), BadParameter> {
+        let bad = |name, detail: &str| BadParameter {
+            name,
+            detail: detail.to_owned(),
+        };
+        let tolerance = self.tolerance_k.unwrap_or(TOLERANCE_K);
+        if !(tolerance.is_finite() && (0.0..=50.0).contains(&tolerance)) {
+            return Err(bad("tolerance_k", "must be from 0 to 50 K"));
+        }
+        if let Some(r) = self.reference_c
+            && !super::limits::TEMPERATURE_C.contains(&r)
+        {
+            return Err(bad(
+                "reference_c",
+                &format!(
+                    "must be a temperature from {} to {} °C",
+                    super::limits::TEMPERATURE_C.start(),
+                    super::limits::TEMPERATURE_C.end()
+                ),
+            ));
+        }
+        if let Some(d) = self.degree
+            && d > thermal::MAX_DEGREE
+        {
+            return Err(bad("degree", "must be from 0 to 3"));
+        }
+        let min_span_k = self.min_span_k.unwrap_or(MIN_SPAN_K);
+        if !(min_span_k.is_finite() && (0.0..=500.0).contains(&min_span_k)) {
+            return Err(bad("min_span_k", "must be from 0 to 500 K"));
+        }
+        let max_condition = self.max_condition.unwrap_or(MAX_CONDITION);
+        if !(max_condition.is_finite() && max_condition >= 1.0) {
+            return Err(bad(
+                "max_condition",
+                "must be a finite number of at least 1",
+            ));
+        }
+        Ok((
+            tolerance,
+            Options {
+                reference_c: self.reference_c,
+                degree: self.degree,
+                selection: self.selection.unwrap_or_default(),
+                min_span_k,
+                max_condition,
+            },
+        ))
+    }
+}
+
+/// One set point, identified and fused.
+#[derive(Clone, Debug, Serialize)]
+pub struct SetPointResult {
+    /// The mean of its runs' temperatures, °C.
+    pub temperature_c: f64,
+    /// Its runs (indices into the submission's).
+    pub runs: Vec<usize>,
+    /// The fusion batches used: the submission's, fewer when the set
+    /// point has fewer than two runs a batch.
+    pub batches: usize,
+    /// Its fused coefficients.
+    pub coefficients: TermMap<f64>,
+    /// Their standard errors: each polynomial's weights are `1 / se²`.
+    pub std_errors: TermMap<f64>,
+}
+
+/// A single axis's temperature model.
+#[derive(Clone, Debug, Serialize)]
+pub struct ThermalModel {
+    /// The sensor.
+    pub sensor_id: String,
+    /// The outputs' unit.
+    pub unit: String,
+    /// The tolerance the runs were grouped with, K.
+    pub tolerance_k: f64,
+    /// How each degree was chosen (`backward`, `forward`), or `fixed`.
+    pub selection: String,
+    /// The set points, coolest first.
+    pub set_points: Vec<SetPointResult>,
+    /// Each coefficient's polynomial `c(T) = Σ a_d (T − T_ref)^d`, its
+    /// `a_d` in the coefficient's unit per K^d.
+    pub coefficients: TermMap<Polynomial>,
+}
+
+/// The temperature model of `submission` (module doc).
+pub fn model(
+    submission: &Submission,
+    tolerance_k: f64,
+    options: &Options,
+) -> Result<ThermalModel, Invalid> {
+    let Some(temperatures) = submission.temperatures_c.as_deref() else {
+        return Err(Invalid::one(
+            "/runs/0/temperature_c",
+            "is missing: a temperature model needs every run's temperature",
+        ));
+    };
+    let groups = thermal::set_points(temperatures, tolerance_k);
+    let at: Vec<f64> = groups.iter().map(|g| g.temperature_c).collect();
+    let reference = options
+        .reference_c
+        .unwrap_or_else(|| thermal::reference(&at));
+    thermal::check(&at, reference, options.degree, options).map_err(|e| refusal(&e, &at))?;
+    let test = &submission.test;
+    let mut set_points = Vec::with_capacity(groups.len());
+    for g in groups {
+        let runs: Vec<Run> = g.runs.iter().map(|&j| test.runs()[j].clone()).collect();
+        let batches = submission.batches.min((runs.len() / 2).max(1));
+        let at_set_point = TumbleTest::new(test.model().clone(), test.positions().to_vec(), runs)
+            .and_then(|t| t.calibrate(batches))
+            .map_err(|e| {
+                Invalid::one(
+                    format!("/runs/{}", g.runs[0]),
+                    format!(
+                        "the set point at {} °C (runs {}) cannot be identified on its own: {e}",
+                        round(g.temperature_c),
+                        list(&g.runs)
+                    ),
+                )
+            })?;
+        set_points.push(SetPointResult {
+            temperature_c: g.temperature_c,
+            runs: g.runs,
+            batches,
+            coefficients: at_set_point.fused.coefficients.clone(),
+            std_errors: at_set_point.fused.std_errors.clone(),
+        });
+    }
+    let options = Options {
+        reference_c: Some(reference),
+        ..*options
+    };
+    let coefficients = test
+        .model()
+        .terms()
+        .iter()
+        .map(|&term| {
+            let points: Vec<Point> = set_points
+                .iter()
+                .map(|s| Point {
+                    temperature_c: s.temperature_c,
+                    value: s.coefficients.get(term).copied().unwrap_or(f64::NAN),
+                    std_uncertainty: s.std_errors.get(term).copied().unwrap_or(0.0),
+                })
+                .collect();
+            thermal::fit(&points, &options)
+                .map(|p| (term, p))
+                .map_err(|e| match e {
+                    ThermalError::Unweighted { temperature_c } => Invalid::one(
+                        "/runs",
+                        format!(
+                            "the set point at {} °C gives `{term}` no positive standard error, so \
+                             it cannot be weighted: give it more runs, or runs that differ",
+                            round(temperature_c)
+                        ),
+                    ),
+                    e => refusal(&e, &at),
+                })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    Ok(ThermalModel {
+        sensor_id: submission.sensor_id.clone(),
+        unit: submission.unit.clone(),
+        tolerance_k,
+        selection: match (options.degree, options.selection) {
+            (Some(_), _) => "fixed".to_owned(),
+            (None, Selection::Backward) => "backward".to_owned(),
+            (None, Selection::Forward) => "forward".to_owned(),
+        },
+        set_points,
+        coefficients: TermMap(coefficients),
+    })
+}
+
+/// A temperature to 0.01 K, as the refusals print it.
+fn round(t: f64) -> f64 {
+    (t * 100.0).round() / 100.0
+}
+
+/// `3, 5, 7`.
+fn list(runs: &[usize]) -> String {
+    runs.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// The widest gap between set points `at` (sorted): its middle.
+fn widest_gap(at: &[f64]) -> Option<f64> {
+    at.windows(2)
+        .max_by(|a, b| (a[1] - a[0]).total_cmp(&(b[1] - b[0])))
+        .map(|w| round((w[0] + w[1]) / 2.0))
+}
+
+/// A refusal of the set points `at`, saying what to add.
+fn refusal(e: &ThermalError, at: &[f64]) -> Invalid {
+    let shown = at
+        .iter()
+        .map(|t| format!("{} °C", round(*t)))
+        .collect::<Vec<_>>()
+        .join(", ");
+    let detail = match e {
+        ThermalError::TooFewSetPoints {
+            distinct, needed, ..
+        } => format!(
+            "{distinct} temperature set point(s) ({shown}): {e}; add {} more, spread over the \
+             range the sensor is used in{}",
+            needed - distinct,
+            widest_gap(at).map_or(String::new(), |m| format!(", e.g. at {m} °C"))
+        ),
+        ThermalError::SpanTooSmall { min_span_k, .. } => {
+            let (lo, hi) = (at[0], at[at.len() - 1]);
+            format!(
+                "the set points ({shown}) span {} K, less than the {min_span_k} K a temperature \
+                 model needs (min_span_k): add a set point at or below {} °C or at or above {} °C",
+                round(hi - lo),
+                round(hi - min_span_k),
+                round(lo + min_span_k)
+            )
+        }
+        ThermalError::IllConditioned { .. } => format!(
+            "{e} (max_condition): the set points ({shown}) crowd together; add set points in \
+             the gaps{}, or ask for a lower degree",
+            widest_gap(at).map_or(String::new(), |m| format!(", e.g. at {m} °C"))
+        ),
+        e => e.to_string(),
+    };
+    Invalid::one("/runs", detail)
+}
+
+#[cfg(test)]
+mod tests;

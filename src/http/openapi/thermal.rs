@@ -1,0 +1,64 @@
+//! Schemas of a single axis's temperature model (`POST
+//! /v1/identify/thermal`), whose polynomial is a type of the pure core.
+
+use utoipa::openapi::RefOr;
+use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Schema, Type};
+use utoipa::{PartialSchema, ToSchema};
+
+use super::schemas::reference;
+use crate::domain::schema::{marker_schema, of_type};
+
+fn numbers() -> ArrayBuilder {
+    ArrayBuilder::new().items(of_type(Type::Number))
+}
+
+marker_schema!(
+    /// One coefficient's polynomial over temperature,
+    /// `c(T) = Σ a_d (T − T_ref)^d`.
+    PolynomialSchema => ObjectBuilder::new()
+        .property("reference_c", of_type(Type::Number))
+        .property("degree", of_type(Type::Integer).minimum(Some(0.0)).maximum(Some(3.0)))
+        .property("coefficients", numbers())
+        .property("std_uncertainties", numbers())
+        .property("covariance", ArrayBuilder::new().items(numbers()))
+        .property("chi2", of_type(Type::Number).minimum(Some(0.0)))
+        .property("dof", of_type(Type::Integer).minimum(Some(1.0)))
+        .property("inflation", of_type(Type::Number).minimum(Some(1.0)))
+        .property("range_c", numbers().min_items(Some(2)).max_items(Some(2)))
+        .property("selection", ArrayBuilder::new().items(ObjectBuilder::new()
+            .property("f", of_type(Type::Number))
+            .property("df1", of_type(Type::Integer))
+            .property("df2", of_type(Type::Integer))
+            .property("p_value", of_type(Type::Number))
+            .property("alpha", of_type(Type::Number))
+            .required("f").required("df1").required("df2").required("p_value").required("alpha")))
+        .required("reference_c").required("degree").required("coefficients")
+        .required("std_uncertainties").required("covariance").required("chi2").required("dof")
+        .required("inflation").required("range_c").required("selection")
+        .build()
+        .into()
+);
+
+marker_schema!(
+    /// A single axis's temperature model: its set points, each identified
+    /// and fused, and each coefficient's polynomial.
+    ThermalModelSchema => ObjectBuilder::new()
+        .property("sensor_id", of_type(Type::String))
+        .property("unit", of_type(Type::String))
+        .property("tolerance_k", of_type(Type::Number).minimum(Some(0.0)))
+        .property("selection", of_type(Type::String).enum_values(Some(["backward", "forward", "fixed"])))
+        .property("set_points", ArrayBuilder::new().items(ObjectBuilder::new()
+            .property("temperature_c", of_type(Type::Number))
+            .property("runs", ArrayBuilder::new().items(of_type(Type::Integer).minimum(Some(0.0))))
+            .property("batches", of_type(Type::Integer).minimum(Some(1.0)))
+            .property("coefficients", reference("CoefficientMap"))
+            .property("std_errors", reference("CoefficientMap"))
+            .required("temperature_c").required("runs").required("batches")
+            .required("coefficients").required("std_errors")))
+        .property("coefficients", ObjectBuilder::new()
+            .additional_properties(Some(reference("Polynomial"))))
+        .required("sensor_id").required("unit").required("tolerance_k").required("selection")
+        .required("set_points").required("coefficients")
+        .build()
+        .into()
+);
