@@ -92,10 +92,17 @@ fn by_name(series: &[CalibrationSummary], k: f64) -> Vec<(String, TermStability)
     let t: Vec<f64> = series.iter().map(|c| years(c.performed_at)).collect();
     first
         .iter()
-        .filter_map(|q| {
+        .enumerate()
+        .filter_map(|(i, q)| {
+            // At the same place in every calibration of one model; found by
+            // name where the models differ.
             let each: Vec<&Named> = per
                 .iter()
-                .map(|p| p.iter().find(|n| n.name == q.name))
+                .map(|p| {
+                    p.get(i)
+                        .filter(|n| n.name == q.name)
+                        .or_else(|| p.iter().find(|n| n.name == q.name))
+                })
                 .collect::<Option<_>>()?;
             let x: Vec<f64> = each.iter().map(|n| n.value).collect();
             let se: Vec<Option<f64>> = each.iter().map(|n| n.std_error).collect();

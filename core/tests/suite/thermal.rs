@@ -153,7 +153,7 @@ fn every_case_agrees_with_numpy() {
 /// makes one, 1 % (20 expected, outside 5…40 about as rarely). Neither ever
 /// loses the line, 100 u over the range.
 #[test]
-fn a_true_line_gains_a_degree_as_often_as_its_tests_levels_say() {
+fn false_alarms_of_the_degree_selection_on_a_true_line() {
     let mut rng = StdRng::seed_from_u64(45);
     let chamber = [-20.0, 0.0, 20.0, 40.0, 60.0];
     let u = [4e-5, 3e-5, 2e-5, 3e-5, 5e-5];
