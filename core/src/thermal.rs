@@ -263,9 +263,10 @@ fn weighted(points: &[Point], reference_c: f64, degree: usize) -> (Vec<f64>, DMa
         (points[s].temperature_c - reference_c).powi(d as i32) / points[s].std_uncertainty
     });
     let b = DVector::from_fn(n, |s, _| points[s].value / points[s].std_uncertainty);
-    if !(a.iter().all(|x| x.is_finite()) && b.iter().all(|x| x.is_finite())) {
+    if !a.iter().all(|x| x.is_finite()) {
         // Overflowed weights: no factorisation of infinities (the caller
-        // refuses the non-finite fit).
+        // refuses the non-finite fit; a non-finite `b` alone reaches it
+        // through the solution).
         let nan = DMatrix::from_element(degree + 1, degree + 1, f64::NAN);
         return (vec![f64::NAN; degree + 1], nan, f64::NAN);
     }
@@ -294,13 +295,15 @@ pub fn condition(temperatures_c: &[f64], reference_c: f64, degree: usize) -> f64
     });
     for mut column in x.column_iter_mut() {
         let norm = column.norm();
-        if norm > 0.0 {
-            column /= norm;
+        if norm == 0.0 {
+            // Every temperature at the reference: a zero column, singular.
+            return f64::INFINITY;
         }
+        column /= norm;
     }
     let s = x.singular_values();
-    let (hi, lo) = (s.max(), s.min());
-    if lo > 0.0 { hi / lo } else { f64::INFINITY }
+    // A zero singular value gives +∞.
+    s.max() / s.min()
 }
 
 /// Checks the set points' temperatures for a polynomial of `degree`
@@ -385,12 +388,11 @@ pub fn fit(points: &[Point], options: &Options) -> Result<Polynomial, ThermalErr
         .map(|i| (0..=degree).map(|j| cov[(i, j)] * inflation).collect())
         .collect();
     let std_uncertainties: Vec<f64> = (0..=degree).map(|d| covariance[d][d].sqrt()).collect();
-    let finite = |v: &[f64]| v.iter().all(|x| x.is_finite());
-    if !(chi2.is_finite()
-        && finite(&coefficients)
-        && finite(&std_uncertainties)
-        && covariance.iter().all(|row| finite(row)))
-    {
+    let mut numbers = std::iter::once(chi2)
+        .chain(coefficients.iter().copied())
+        .chain(std_uncertainties.iter().copied())
+        .chain(covariance.iter().flatten().copied());
+    if !numbers.all(f64::is_finite) {
         return Err(ThermalError::NotFinite);
     }
     let lo = temperatures.iter().copied().fold(f64::INFINITY, f64::min);
@@ -413,8 +415,10 @@ pub fn fit(points: &[Point], options: &Options) -> Result<Polynomial, ThermalErr
 }
 
 /// The partial F test of degree `big` against `big − 1`, given their `χ²`
-/// and the residual degrees of freedom `df2` of the larger; `None` when the
-/// larger fits exactly (then it is kept when the smaller does not).
+/// and the residual degrees of freedom `df2` of the larger; `None` when F
+/// is infinite — the larger fits exactly where the smaller does not — so
+/// the larger degree is significant beyond any level. (An undefined F, both
+/// fits exact or a `χ²` overflowed, reads as 0: not significant.)
 fn partial(small: f64, big: f64, df2: usize) -> Option<FTest> {
     FTest::new(((small - big) / (big / df2 as f64)).max(0.0), 1, df2, ALPHA)
 }
@@ -427,31 +431,30 @@ fn backward(
     options: &Options,
 ) -> (usize, Vec<FTest>) {
     let n = points.len();
-    let mut d = MAX_DEGREE.min(n.saturating_sub(2));
-    while d > 0 && conditioned(temperatures, reference_c, d, options).is_err() {
-        d -= 1;
-    }
+    // The highest degree the set points allow whose design is within the
+    // condition limit.
+    let top = (1..=MAX_DEGREE.min(n.saturating_sub(2)))
+        .rev()
+        .find(|&d| conditioned(temperatures, reference_c, d, options).is_ok())
+        .unwrap_or(0);
     let mut tests = Vec::new();
-    let mut big = weighted(points, reference_c, d).2;
-    while d > 0 {
+    for d in (1..=top).rev() {
+        let big = weighted(points, reference_c, d).2;
         let small = weighted(points, reference_c, d - 1).2;
-        match partial(small, big, n - d - 1) {
-            Some(test) => {
-                tests.push(test);
-                if test.flagged() {
-                    break;
-                }
-            }
-            None if big == 0.0 && small > 0.0 => break,
-            None => {}
+        let Some(test) = partial(small, big, n - d - 1) else {
+            return (d, tests); // infinitely significant: kept
+        };
+        tests.push(test);
+        if test.flagged() {
+            return (d, tests);
         }
-        d -= 1;
-        big = small;
     }
-    (d, tests)
+    (0, tests)
 }
 
-/// Forward selection (module doc): the degree and its tests.
+/// Forward selection (module doc): the degree and its tests. Degree
+/// `D + 1` is tried while `D + 1 ≤ N − 2`, so that its test has a degree of
+/// freedom, and while its design is within the condition limit.
 fn forward(
     points: &[Point],
     temperatures: &[f64],
@@ -459,28 +462,24 @@ fn forward(
     options: &Options,
 ) -> (usize, Vec<FTest>) {
     let n = points.len();
-    let mut d = 0;
     let mut tests = Vec::new();
     let mut small = weighted(points, reference_c, 0).2;
-    while d < MAX_DEGREE
-        && d + 2 <= n
-        && conditioned(temperatures, reference_c, d + 1, options).is_ok()
-    {
-        let big = weighted(points, reference_c, d + 1).2;
-        match partial(small, big, n - d - 2) {
-            Some(test) => {
-                tests.push(test);
-                if !test.flagged() {
-                    break;
-                }
-            }
-            None if big == 0.0 && small > 0.0 => {}
-            None => break,
+    let mut degree = 0;
+    for next in 1..=MAX_DEGREE.min(n.saturating_sub(2)) {
+        if conditioned(temperatures, reference_c, next, options).is_err() {
+            break;
         }
-        d += 1;
+        let big = weighted(points, reference_c, next).2;
+        if let Some(test) = partial(small, big, n - next - 1) {
+            tests.push(test);
+            if !test.flagged() {
+                break;
+            }
+        }
+        degree = next;
         small = big;
     }
-    (d, tests)
+    (degree, tests)
 }
 
 impl Polynomial {

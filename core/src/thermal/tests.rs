@@ -182,9 +182,72 @@ fn weights_at_the_edge_of_f64_are_refused_not_served_as_infinities() {
     points[0].std_uncertainty = 1e-300;
     // Tiny but finite: the covariance underflows to zero, still finite.
     assert!(fit(&points, &Options::default()).is_ok());
-    points[0].value = 1e300; // value / u overflows
+    // At degree 3, (T − T_ref)³ / u overflows: refused, not factorised.
+    let cubic = Options {
+        degree: Some(3),
+        ..Options::default()
+    };
+    assert_eq!(fit(&points, &cubic), Err(ThermalError::NotFinite));
+    points[0].value = 1e300; // value / u overflows too
     assert_eq!(
         fit(&points, &Options::default()),
         Err(ThermalError::NotFinite)
+    );
+    // Only value / u overflows: the solution is not finite.
+    let mut points = planted(&[1.0], &CHAMBER, 1e-5);
+    points[0].value = 1e300;
+    points[0].std_uncertainty = 1e-10;
+    assert_eq!(fit(&points, &cubic), Err(ThermalError::NotFinite));
+}
+
+#[test]
+fn a_span_of_exactly_the_minimum_is_enough_and_a_singular_design_is_infinitely_ill_conditioned() {
+    let points = planted(&[1.0], &[20.0, 25.0, 30.0], 1e-5);
+    assert_eq!(
+        fit(&points, &Options::default()).unwrap().range_c,
+        [20.0, 30.0]
+    );
+    assert_eq!(condition(&[20.0, 20.0, 20.0], 20.0, 1), f64::INFINITY);
+    assert!(
+        (condition(&CHAMBER, 20.0, 1) - 1.0).abs() < 1e-12,
+        "orthogonal columns"
+    );
+}
+
+#[test]
+fn a_top_degree_past_the_condition_limit_is_not_where_the_elimination_starts() {
+    // Four set points within 2 K and a fifth 13 K away: the cubic's design
+    // is past 100, the quadratic's not; a planted quadratic, exactly.
+    let t = [20.0, 20.6, 21.2, 21.8, 35.0];
+    let mut points = planted(&[0.5, 1e-3, 2e-4], &t, 1e-6);
+    for (p, e) in points.iter_mut().zip([1.0, -1.0, 0.5, -0.5, 0.2]) {
+        p.value += e * 1e-7;
+    }
+    let reference_c = reference(&t);
+    assert!(condition(&t, reference_c, 3) > 100.0 && condition(&t, reference_c, 2) < 100.0);
+    let p = fit(&points, &Options::default()).unwrap();
+    assert_eq!(p.degree, 2);
+    assert_eq!(p.selection.len(), 1, "from degree 2: one test, significant");
+    assert_eq!(p.selection[0].df2, 2, "N − D − 1 at D = 2");
+    // A limit exactly at the design's condition number admits it.
+    let at_limit = Options {
+        degree: Some(2),
+        max_condition: condition(&t, reference_c, 2),
+        ..Options::default()
+    };
+    assert_eq!(fit(&points, &at_limit).unwrap().degree, 2);
+    // Forward selection on four set points tries degree 2 at most (N − 2).
+    let four = planted(&[0.5, 1e-3, 2e-4, 3e-6], &CHAMBER[..4], 1e-6);
+    let up = fit(
+        &four,
+        &Options {
+            selection: Selection::Forward,
+            ..Options::default()
+        },
+    )
+    .unwrap();
+    assert!(
+        up.degree <= 2 && up.selection.iter().all(|t| t.df2 >= 1),
+        "{up:?}"
     );
 }
