@@ -24,21 +24,45 @@ use super::submission::Submission;
 pub struct ThermalParams {
     /// Runs within this many kelvin of a set point's coolest run form the
     /// set point (default 0.5).
+    #[param(minimum = 0.0, maximum = 50.0)]
     pub tolerance_k: Option<f64>,
     /// The reference temperature `T_ref`, °C (default: the set points'
     /// mean, rounded to 0.1 K).
+    #[param(minimum = -100.0, maximum = 200.0)]
     pub reference_c: Option<f64>,
     /// The polynomial's degree, 0 to 3, for every coefficient (default:
     /// chosen per coefficient by `selection`).
+    #[param(minimum = 0, maximum = 3)]
     pub degree: Option<usize>,
     /// How the degree is chosen: `backward` (default) or `forward`.
-    #[param(value_type = Option<String>)]
-    pub selection: Option<Selection>,
+    #[param(inline)]
+    pub selection: Option<SelectionParam>,
     /// The smallest span of set points, K (default 10).
+    #[param(minimum = 0.0, maximum = 500.0)]
     pub min_span_k: Option<f64>,
     /// The largest condition number of the column-scaled design
     /// (default 100).
+    #[param(minimum = 1.0)]
     pub max_condition: Option<f64>,
+}
+
+/// How the degree is chosen when none is asked for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
+#[serde(rename_all = "snake_case")]
+pub enum SelectionParam {
+    /// Down from the highest degree the set points allow (the default).
+    Backward,
+    /// Up from degree 0 (the rule).
+    Forward,
+}
+
+impl From<SelectionParam> for Selection {
+    fn from(s: SelectionParam) -> Self {
+        match s {
+            SelectionParam::Backward => Selection::Backward,
+            SelectionParam::Forward => Selection::Forward,
+        }
+    }
 }
 
 /// A parameter out of range: its name and why.
@@ -94,7 +118,7 @@ impl ThermalParams {
             Options {
                 reference_c: self.reference_c,
                 degree: self.degree,
-                selection: self.selection.unwrap_or_default(),
+                selection: self.selection.map_or(Selection::Backward, Selection::from),
                 min_span_k,
                 max_condition,
             },

@@ -62,7 +62,7 @@ pub async fn identify(
     post,
     path = "/v1/identify/thermal",
     tag = "compute",
-    operation_id = "identify_thermal",
+    operation_id = "identifyThermal",
     summary = "Coefficients over temperature from runs at several temperatures, not stored.",
     description = "The runs are grouped into set points (runs within `tolerance_k` of a set \
         point's coolest run), each set point identified and fused as a calibration is, and \
