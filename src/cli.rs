@@ -11,6 +11,7 @@ use std::time::Duration;
 use clap::{Args, Parser, Subcommand};
 
 mod database;
+mod dcc;
 use database::{adopt_audit, existing, migrate, verify_audit};
 
 use crate::domain::audit::Actor;
@@ -39,7 +40,7 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Run the HTTP service (SQLite by default; PostgreSQL for several replicas).
-    Serve(ServeArgs),
+    Serve(Box<ServeArgs>),
     /// Compute a submission file offline and print the result JSON.
     ///
     /// FILE is a JSON or CSV submission (see README), told apart by its
@@ -64,6 +65,10 @@ enum Command {
     /// The audit trail (README, "Records and audit").
     #[command(subcommand)]
     Audit(AuditCommand),
+    /// Digital Calibration Certificates (README, "Digital Calibration
+    /// Certificates").
+    #[command(subcommand)]
+    Dcc(DccCommand),
     /// Print the OpenAPI document (the committed openapi.yaml is this output).
     Openapi,
     /// Copy every calibration, sensor type, token and live idempotency key
@@ -154,6 +159,16 @@ struct ServeArgs {
     /// 256 KiB, read at start.
     #[arg(long, env = "ACCELCAL_LAB_LOGO")]
     lab_logo: Option<std::path::PathBuf>,
+    /// The laboratory's DCC signing key: PEM PKCS#8, RSA of at least 2048
+    /// bits or ECDSA P-256, readable by the service's user only (mode
+    /// 600). With --dcc-signing-cert, every DCC issued is signed; without,
+    /// DCCs are issued unsigned and say so.
+    #[arg(long, env = "ACCELCAL_DCC_SIGNING_KEY", requires = "dcc_signing_cert")]
+    dcc_signing_key: Option<PathBuf>,
+    /// The certificate of --dcc-signing-key: PEM X.509, then its chain if
+    /// any; valid now.
+    #[arg(long, env = "ACCELCAL_DCC_SIGNING_CERT", requires = "dcc_signing_key")]
+    dcc_signing_cert: Option<PathBuf>,
     /// Serve only approved calibrations: coefficients, compensation,
     /// as-found and stability use approved calibrations only (by default
     /// every calibration not rejected or withdrawn).
@@ -229,6 +244,25 @@ enum AuditCommand {
 }
 
 #[derive(Debug, Subcommand)]
+enum DccCommand {
+    /// Check a DCC's XML Signature as a receiver would: the structure (one
+    /// signature, the root's last child, over the whole document), the
+    /// signature value and both digests, the signed signing time and
+    /// certificate; print who signed it and when, and exit 0, or say why
+    /// not and exit 1 (2: the file cannot be read or is not a DCC).
+    Verify {
+        /// The DCC file.
+        file: PathBuf,
+        /// Trust only this certificate (PEM; repeat for several, e.g. the
+        /// laboratory's current and previous). Without it, the certificate
+        /// the file embeds is used: integrity and the signer's name, not
+        /// whether to trust the signer.
+        #[arg(long)]
+        cert: Vec<PathBuf>,
+    },
+}
+
+#[derive(Debug, Subcommand)]
 enum TokenCommand {
     /// Create a token and print it (once) as JSON.
     Create {
@@ -264,7 +298,7 @@ pub fn main() -> ExitCode {
         Command::Serve(args) => {
             // Held until the server has stopped: dropping it writes what is queued.
             let _logs = telemetry::init(args.log_format);
-            run_async(serve(args))
+            run_async(serve(*args))
         }
         Command::Submit(args) => {
             let _logs = telemetry::init(LogFormat::Text);
@@ -300,6 +334,7 @@ pub fn main() -> ExitCode {
         } => run_async(migrate(from, to, into_non_empty)),
         Command::Audit(AuditCommand::Verify { database }) => run_async(verify_audit(database)),
         Command::Audit(AuditCommand::Adopt { database }) => run_async(adopt_audit(database)),
+        Command::Dcc(DccCommand::Verify { file, cert }) => dcc::verify_file(&file, &cert),
         Command::Openapi => out(&openapi_document()),
     }
 }
@@ -382,6 +417,17 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
                 Basis::ApprovedOnly
             } else {
                 Basis::NotRejected
+            },
+            dcc_signer: match (&a.dcc_signing_key, &a.dcc_signing_cert) {
+                (Some(key), Some(cert)) => {
+                    Some(std::sync::Arc::new(crate::startup::dcc_signer(key, cert)?))
+                }
+                _ => {
+                    tracing::info!(
+                        "DCCs are issued unsigned (no --dcc-signing-key and --dcc-signing-cert)"
+                    );
+                    None
+                }
             },
         },
         metrics_listen: a.metrics_listen.filter(|m| !m.is_empty()),

@@ -95,6 +95,53 @@ pub fn strong_admin_token(token: &str) -> anyhow::Result<[u8; 32]> {
     Ok(auth::hash(token))
 }
 
+/// The laboratory's DCC signer from `key` and `cert` (issue 46), checked
+/// at start: the key readable by the service's user only, PEM PKCS#8, RSA
+/// of at least 2048 bits or ECDSA P-256, the certificate's, the certificate
+/// valid now. A refusal names the file at fault and why; the key is never
+/// logged.
+pub fn dcc_signer(
+    key: &std::path::Path,
+    cert: &std::path::Path,
+) -> anyhow::Result<crate::domain::dcc_signature::Signer> {
+    use std::os::unix::fs::PermissionsExt as _;
+    let named = |flag: &str, path: &std::path::Path, e: &dyn std::fmt::Display| {
+        anyhow::anyhow!("{flag} {}: {e}", path.display())
+    };
+    let mode = std::fs::metadata(key)
+        .map_err(|e| named("--dcc-signing-key", key, &e))?
+        .permissions()
+        .mode();
+    if mode & 0o077 != 0 {
+        return Err(named(
+            "--dcc-signing-key",
+            key,
+            &format!(
+                "may be read by others than its owner (mode {:o}); a signing key is kept \
+                 like the database: `chmod 600 {}`",
+                mode & 0o777,
+                key.display()
+            ),
+        ));
+    }
+    let key_pem = std::fs::read(key).map_err(|e| named("--dcc-signing-key", key, &e))?;
+    let cert_pem = std::fs::read(cert).map_err(|e| named("--dcc-signing-cert", cert, &e))?;
+    let signer =
+        crate::domain::dcc_signature::Signer::from_pem(&key_pem, &cert_pem, Timestamp::now())
+            .map_err(|e| match e.is_certificate() {
+                true => named("--dcc-signing-cert", cert, &e),
+                false => named("--dcc-signing-key", key, &e),
+            })?;
+    let c = signer.certificate();
+    tracing::info!(
+        subject = %c.subject,
+        certificate_sha256 = %c.sha256,
+        not_after = %c.not_after,
+        "Digital Calibration Certificates are signed"
+    );
+    Ok(signer)
+}
+
 /// A bound, ready-to-run server.
 pub struct Application {
     listener: TcpListener,
@@ -139,6 +186,15 @@ impl Application {
                 "public_url": config.web.public_url,
             }),
         );
+        // Who signs the DCCs (by certificate; never the key), so that the
+        // trail shows when the key was rotated or signing switched off.
+        if let Some(signer) = &config.web.dcc_signer {
+            let c = signer.certificate();
+            settings.insert(
+                "dcc_signing_certificate".into(),
+                serde_json::json!({"subject": c.subject, "sha256": c.sha256, "not_after": c.not_after}),
+            );
+        }
         if store.configure(settings).await? {
             tracing::info!(basis = ?config.web.basis, "configuration recorded in the audit trail");
         }

@@ -12,6 +12,7 @@ pub mod audit;
 pub mod auth;
 pub mod compensate;
 pub mod customers;
+pub mod dcc_signature;
 pub mod field;
 pub mod fuse;
 pub mod limits;

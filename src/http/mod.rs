@@ -15,6 +15,7 @@ pub mod compute;
 pub mod conditional;
 pub mod connection;
 pub mod customers;
+pub mod dcc;
 pub mod firmware;
 pub mod health;
 pub mod lookup;
@@ -150,6 +151,10 @@ pub struct Web {
     /// Which calibrations coefficients, compensation, as-found and
     /// stability use: approved ones only with `--require-approval`.
     pub basis: crate::domain::review::Basis,
+    /// The laboratory's DCC signing key and certificate
+    /// (`--dcc-signing-key`, `--dcc-signing-cert`): every DCC issued while
+    /// one is configured is signed; none, and DCCs are issued unsigned.
+    pub dcc_signer: Option<Arc<crate::domain::dcc_signature::Signer>>,
 }
 
 impl Default for Web {
@@ -159,6 +164,7 @@ impl Default for Web {
             session_ttl: Duration::from_secs(8 * 3600),
             laboratory: Laboratory::default(),
             basis: crate::domain::review::Basis::default(),
+            dcc_signer: None,
         }
     }
 }
@@ -300,6 +306,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(calibrations::get))
         .routes(routes!(calibrations::certificate))
         .routes(routes!(calibrations::submission))
+        .routes(routes!(dcc::verify))
         .routes(routes!(reviews::review))
         .routes(routes!(reviews::withdraw))
         .routes(routes!(reviews::amend))

@@ -32,6 +32,7 @@ mod restart;
 mod review;
 mod round_four;
 mod round_three;
+mod signed;
 mod standard_periods;
 mod standards;
 mod storage;

@@ -56,7 +56,8 @@ impl Normaliser {
             )
             .unwrap(),
             clock: Regex::new(r"(\d{4}-\d{2}-\d{2}) \d{2}:\d{2}(:\d{2})?").unwrap(),
-            digest: Regex::new(r#"("(?:html|dcc)_sha256":)"[0-9a-f]{64}""#).unwrap(),
+            digest: Regex::new(r#"("(?:html|dcc)_sha256":"|id="dcc-sha256">)[0-9a-f]{64}"#)
+                .unwrap(),
             session: Regex::new(r#"(name="csrf" value=")[^"]*(")"#).unwrap(),
             short: Regex::new(r"<code>[0-9a-f]{8}(?:-[0-9a-f]{4}…)?</code>").unwrap(),
             today,
@@ -86,7 +87,7 @@ impl Normaliser {
         });
         // A document's digest covers its ids and instants; the document is
         // compared itself.
-        let text = self.digest.replace_all(&text, "$1\"<sha256>\"");
+        let text = self.digest.replace_all(&text, "$1<sha256>");
         // A page's session (its form token), and ids shown cut short (a
         // token's first eight hex digits, a calibration's first twelve).
         let text = self.session.replace_all(&text, "$1<session>$2");

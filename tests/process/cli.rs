@@ -367,3 +367,107 @@ fn the_format_comes_from_the_content() {
         "read as JSON, it is not JSON"
     );
 }
+
+/// Issue 46 item 1: a DCC signing key or certificate that may not sign
+/// refuses the start, naming the file at fault and why.
+#[test]
+fn a_signing_key_that_may_not_sign_refuses_the_start_naming_the_file() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let fixture = |name: &str| {
+        let to = dir.path().join(name);
+        std::fs::copy(format!("tests/data/signing/{name}"), &to).unwrap();
+        std::fs::set_permissions(&to, std::fs::Permissions::from_mode(0o600)).unwrap();
+        to
+    };
+    let (lab_key, lab_pem) = (fixture("lab.key"), fixture("lab.pem"));
+    let (weak_key, weak_pem) = (fixture("weak.key"), fixture("weak.pem"));
+    let (p384_key, p384_pem) = (fixture("p384.key"), fixture("p384.pem"));
+    let pkcs1 = fixture("lab.pkcs1.key");
+    let rotated_pem = fixture("rotated.pem");
+    let open = dir.path().join("open.key");
+    std::fs::copy(&lab_key, &open).unwrap();
+    std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o644)).unwrap();
+    let missing = dir.path().join("missing.pem");
+    let cases = [
+        (
+            &weak_key,
+            &weak_pem,
+            "--dcc-signing-key",
+            weak_key.clone(),
+            "RSA key of 1024 bits",
+        ),
+        (
+            &lab_key,
+            &rotated_pem,
+            "--dcc-signing-key",
+            lab_key.clone(),
+            "is not the key of the signing certificate",
+        ),
+        (
+            &p384_key,
+            &p384_pem,
+            "--dcc-signing-key",
+            p384_key.clone(),
+            "ECDSA (1.3.132.0.34)",
+        ),
+        (
+            &pkcs1,
+            &lab_pem,
+            "--dcc-signing-key",
+            pkcs1.clone(),
+            "openssl pkcs8 -topk8",
+        ),
+        (
+            &open,
+            &lab_pem,
+            "--dcc-signing-key",
+            open.clone(),
+            "mode 644",
+        ),
+        (
+            &lab_key,
+            &missing,
+            "--dcc-signing-cert",
+            missing.clone(),
+            "No such file",
+        ),
+        (
+            &lab_key,
+            &lab_key,
+            "--dcc-signing-cert",
+            lab_key.clone(),
+            "X.509 certificate",
+        ),
+    ];
+    for (key, cert, flag, file, why) in cases {
+        let out = accelcal()
+            .args(["serve", "--listen", "127.0.0.1:0", "--database"])
+            .arg(dir.path().join("signing.db"))
+            .arg("--dcc-signing-key")
+            .arg(key)
+            .arg("--dcc-signing-cert")
+            .arg(cert)
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{why}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains(&format!("{flag} {}", file.display())),
+            "{why}: {err}"
+        );
+        assert!(err.contains(why), "{why}: {err}");
+        assert!(
+            !err.contains("PRIVATE KEY-----\nMII"),
+            "the key must never be printed: {err}"
+        );
+    }
+    // One flag without the other: the command line refuses it.
+    let out = accelcal()
+        .args(["serve", "--listen", "127.0.0.1:0", "--dcc-signing-key"])
+        .arg(&lab_key)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--dcc-signing-cert"));
+}

@@ -73,6 +73,20 @@ pub struct Context {
     pub customer: Option<crate::domain::customers::Customer>,
     /// When this is an amendment: which, and why.
     pub amendment: Option<Amendment>,
+    /// The DCC issued with it, when one is: what the printed certificate
+    /// says of it.
+    pub dcc: Option<DccFile>,
+}
+
+/// What the printed certificate says of the DCC issued with it: the file's
+/// SHA-256 (hex), so that a reader of the PDF can match it to the XML, and
+/// who signed it (none: issued unsigned).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DccFile {
+    /// SHA-256 of the DCC's bytes, hex.
+    pub sha256: String,
+    /// The signing certificate's subject and SHA-256, when signed.
+    pub signed_by: Option<(String, String)>,
 }
 
 /// An amendment of an issued certificate: revision `number + 1` of the
@@ -351,6 +365,18 @@ pub fn verification(c: &Context, computed_by: Option<String>) -> Markup {
                         div { dt { "Rendered by" } dd { "accelcal " (env!("CARGO_PKG_VERSION")) } }
                         div { dt { "Issued" } dd { (super::format::instant(&c.issued)) } }
                         div { dt { "This certificate" } dd.sha { (c.url) } }
+                        @if let Some(f) = &c.dcc {
+                            div { dt { "Digital Calibration Certificate (XML) SHA-256" } dd.sha #dcc-sha256 { (f.sha256) } }
+                            div { dt { "DCC signature" } dd #dcc-signature {
+                                @match &f.signed_by {
+                                    Some((subject, fingerprint)) => {
+                                        "Signed (XML Signature, XAdES) by " (subject) "; signing certificate SHA-256 "
+                                        span.sha { (fingerprint) }
+                                    },
+                                    None => { "Unsigned: the laboratory issued this DCC without a digital signature; only its SHA-256 above identifies it" },
+                                }
+                            } }
+                        }
                     }
                     h2 { "Review and signatures" }
                     @if c.signatures.is_empty() {
@@ -432,6 +458,7 @@ pub async fn context(
         issued: Timestamp::now(),
         laboratory: state.web.laboratory.clone(),
         amendment: None,
+        dcc: None,
     })
 }
 

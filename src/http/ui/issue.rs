@@ -16,10 +16,13 @@
 use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 
-use super::certificate::{Amendment, Context, context};
+use sha2::{Digest, Sha256};
+
+use super::certificate::{Amendment, Context, DccFile, context};
 use super::stored::{StoredDoc, load_stored};
 use crate::app::review::Issuing;
 use crate::domain::audit::Actor;
+use crate::domain::dcc_signature::Signer;
 use crate::domain::review::{Act, Action, Signature, State};
 use crate::domain::timestamp::Timestamp;
 use crate::http::problem::{Kind, Problem};
@@ -32,6 +35,7 @@ use uuid::Uuid;
 pub struct Draft {
     doc: StoredDoc,
     ctx: Context,
+    signer: Option<std::sync::Arc<Signer>>,
 }
 
 /// The certificate `act` issues on calibration `id`, when it is an
@@ -67,19 +71,40 @@ pub async fn draft(state: &AppState, headers: &HeaderMap, raw_id: &str) -> Resul
         StoredDoc::Triad(d) => d.sensor_id.clone(),
     };
     let ctx = context(state, headers, raw_id, &sensor).await?;
-    Ok(Draft { doc, ctx })
+    Ok(Draft {
+        doc,
+        ctx,
+        signer: state.web.dcc_signer.clone(),
+    })
 }
 
 impl Draft {
-    /// Its HTML and DCC (or why none: the records lack what it needs).
-    fn render(&self) -> Rendered {
+    /// Its DCC, signed at its issue time when a signer is configured (or
+    /// why none: the records lack what it needs, or signing failed), then
+    /// its HTML, which names the DCC's SHA-256 and signer.
+    fn render(mut self) -> Rendered {
+        // The document is built once more for the DCC only when one is
+        // issued (a draft builds it once).
+        let dcc = super::dcc::issuable(&self.ctx)
+            .map(|()| super::dcc::render(&super::kinds::document(&self.doc, &self.ctx), &self.ctx))
+            .map_err(|p| p.detail);
+        let dcc = match (&self.signer, dcc) {
+            (Some(signer), Ok(xml)) => signer.sign(&xml, self.ctx.issued).map_err(|e| {
+                tracing::error!(error = %e, "a DCC could not be signed: issued without one");
+                format!("the DCC could not be signed ({e}); amend the certificate to issue it")
+            }),
+            (_, dcc) => dcc,
+        };
+        self.ctx.dcc = dcc.as_ref().ok().map(|xml| DccFile {
+            sha256: hex::encode(Sha256::digest(xml.as_bytes())),
+            signed_by: self.signer.as_ref().map(|s| {
+                let c = s.certificate();
+                (c.subject.clone(), c.sha256.clone())
+            }),
+        });
         let doc = super::kinds::document(&self.doc, &self.ctx);
         let html = super::certificate::render(&doc, &self.ctx).into_string();
-        let dcc = super::dcc::issuable(&self.ctx).map(|()| super::dcc::render(&doc, &self.ctx));
-        Rendered {
-            html,
-            dcc: dcc.map_err(|p| p.detail),
-        }
+        Rendered { html, dcc }
     }
 
     /// The renderer an approval at `at` issues with: the signatures and
@@ -103,7 +128,8 @@ impl Draft {
             number: revision - 1,
             reason,
         });
-        IssuedCertificate::new(self.id(), revision, at, by, reason, self.render())
+        let id = self.id();
+        IssuedCertificate::new(id, revision, at, by, reason, self.render())
     }
 
     fn id(&self) -> uuid::Uuid {
