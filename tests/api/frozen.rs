@@ -33,7 +33,12 @@ fn sha(bytes: &[u8]) -> String {
 
 /// The certificate (HTML or DCC) of `id`, at `query`: status, revision
 /// header, body.
-async fn fetch(app: &TestApp, id: &str, query: &str, xml: bool) -> (StatusCode, String, String) {
+pub(crate) async fn fetch(
+    app: &TestApp,
+    id: &str,
+    query: &str,
+    xml: bool,
+) -> (StatusCode, String, String) {
     let mut req = app
         .client
         .get(app.url(&format!("/v1/calibrations/{id}/certificate{query}")))

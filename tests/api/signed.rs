@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use reqwest::StatusCode;
-use reqwest::header::{ACCEPT, CONTENT_TYPE};
+use reqwest::header::CONTENT_TYPE;
 use rstest::rstest;
 use serde_json::{Value, json};
 use sha2::{Digest, Sha256};
@@ -28,16 +28,10 @@ fn signing(c: &mut accelcal::startup::Config) {
     c.web.dcc_signer = Some(Arc::new(signer.unwrap()));
 }
 
+/// Status and body of a certificate request (`super::frozen::fetch`).
 async fn fetch(app: &TestApp, id: &str, query: &str, xml: bool) -> (StatusCode, String) {
-    let mut req = app
-        .client
-        .get(app.url(&format!("/v1/calibrations/{id}/certificate{query}")))
-        .bearer_auth(ADMIN);
-    if xml {
-        req = req.header(ACCEPT, "application/xml");
-    }
-    let res = req.send().await.unwrap();
-    (res.status(), res.text().await.unwrap())
+    let (status, _, body) = super::frozen::fetch(app, id, query, xml).await;
+    (status, body)
 }
 
 /// An approved calibration of sensor `SIG-1`, with its customer and item.
