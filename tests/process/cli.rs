@@ -385,6 +385,7 @@ fn a_signing_key_that_may_not_sign_refuses_the_start_naming_the_file() {
     let (p384_key, p384_pem) = (fixture("p384.key"), fixture("p384.pem"));
     let pkcs1 = fixture("lab.pkcs1.key");
     let rotated_pem = fixture("rotated.pem");
+    let (expired_key, expired_pem) = (fixture("expired.key"), fixture("expired.pem"));
     let open = dir.path().join("open.key");
     std::fs::copy(&lab_key, &open).unwrap();
     std::fs::set_permissions(&open, std::fs::Permissions::from_mode(0o644)).unwrap();

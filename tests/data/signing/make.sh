@@ -24,4 +24,12 @@ leaf p384 "-algorithm EC -pkeyopt ec_paramgen_curve:P-384" "/C=CH/O=Inertial Tes
 openssl req -x509 -newkey rsa:1024 -nodes -keyout weak.key -out weak.pem -days $days \
   -subj "/O=accelcal tests/CN=weak" 2>/dev/null
 openssl rsa -in lab.key -traditional -out lab.pkcs1.key 2>/dev/null
-rm -f ca.srl
+# An expired certificate (2020 to 2021) for its own key, from the test CA.
+openssl genpkey -algorithm RSA -pkeyopt rsa_keygen_bits:2048 -out expired.key 2>/dev/null
+openssl req -new -key expired.key -subj "/C=CH/O=Inertial Test Lab/CN=DCC signing 2020" -out expired.csr
+ca=$(mktemp -d); touch "$ca/index.txt"; echo 01 > "$ca/serial"
+printf '[ca]\ndefault_ca = t\n[t]\ndatabase = %s/index.txt\nserial = %s/serial\nnew_certs_dir = %s\ndefault_md = sha256\npolicy = p\n[p]\ncommonName = supplied\n' \
+  "$ca" "$ca" "$ca" > "$ca/ca.cnf"
+openssl ca -batch -config "$ca/ca.cnf" -cert ca.pem -keyfile ca.key -in expired.csr -out expired.pem \
+  -startdate 20200101000000Z -enddate 20210101000000Z -notext 2>/dev/null
+rm -rf "$ca" expired.csr ca.srl
