@@ -427,6 +427,13 @@ fn a_signing_key_that_may_not_sign_refuses_the_start_naming_the_file() {
             "mode 644",
         ),
         (
+            &expired_key,
+            &expired_pem,
+            "--dcc-signing-cert",
+            expired_pem.clone(),
+            "expired on 2021-01-01",
+        ),
+        (
             &lab_key,
             &missing,
             "--dcc-signing-cert",
