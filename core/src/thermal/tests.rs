@@ -251,3 +251,25 @@ fn a_top_degree_past_the_condition_limit_is_not_where_the_elimination_starts() {
         "{up:?}"
     );
 }
+
+#[test]
+fn an_overflowed_weight_gives_a_fit_of_the_asked_shape_all_nan() {
+    // A standard uncertainty so small that 1/u overflows: the design holds
+    // infinities, and the fit is NaN throughout, with the shape of the
+    // degree asked for (what `fit` then refuses as not finite).
+    let points: Vec<Point> = [10.0, 20.0, 30.0, 40.0]
+        .iter()
+        .map(|&t| Point {
+            temperature_c: t,
+            value: 1.0,
+            std_uncertainty: 1e-320,
+        })
+        .collect();
+    for degree in [0, 2] {
+        let (a, cov, chi2) = weighted(&points, 25.0, degree);
+        assert_eq!(a.len(), degree + 1);
+        assert_eq!(cov.shape(), (degree + 1, degree + 1));
+        assert!(a.iter().chain(cov.iter()).all(|x| x.is_nan()));
+        assert!(chi2.is_nan());
+    }
+}
