@@ -418,7 +418,7 @@ pub fn verify(xml: &str, trust: &Trust<'_>) -> Result<Verification, NotADcc> {
         signer: found
             .certificate
             .as_deref()
-            .and_then(Certificate::from_der_bytes)
+            .and_then(from_der)
             .and_then(|c| read(&c).ok())
             .map(|r| r.facts),
         signing_time: found.signing_time.clone(),
@@ -489,7 +489,7 @@ pub fn verify(xml: &str, trust: &Trust<'_>) -> Result<Verification, NotADcc> {
         .or_else(|| found.certificate.clone());
     let Some(signer) = signer_der
         .as_deref()
-        .and_then(Certificate::from_der_bytes)
+        .and_then(from_der)
         .and_then(|c| read(&c).ok())
     else {
         return refuse(
@@ -527,14 +527,8 @@ pub fn verify(xml: &str, trust: &Trust<'_>) -> Result<Verification, NotADcc> {
     Ok(v)
 }
 
-/// Decoding DER without naming the trait at each call.
-trait FromDer: Sized {
-    fn from_der_bytes(der: &[u8]) -> Option<Self>;
-}
-
-impl FromDer for Certificate {
-    fn from_der_bytes(der: &[u8]) -> Option<Self> {
-        use x509_cert::der::Decode as _;
-        Certificate::from_der(der).ok()
-    }
+/// The certificate `der` encodes, if it reads.
+fn from_der(der: &[u8]) -> Option<Certificate> {
+    use x509_cert::der::Decode as _;
+    Certificate::from_der(der).ok()
 }
