@@ -25,6 +25,9 @@
 //!   keeps the design identifiable and leaves `P − p − 1 ≥ 1`: on the
 //!   run-averaged values, `F_t = (RSS − RSS_t) / (RSS_t / (P − p − 1))` on
 //!   `(1, P − p − 1)`, flagged beyond the upper [`UNMODELLED_ALPHA`] point.
+//!   `RSS_t` comes from the model's design widened by the term's column
+//!   ([`Design::widened`](crate::identify::Design::widened)), not from a
+//!   second factorisation.
 //!
 //! Sums of squares are squares of scaled norms ([`scaled_norm`]) and the
 //! statistics are formed as ratios of norms, so they do not depend on the
@@ -36,11 +39,12 @@ use serde::Serialize;
 use crate::Term;
 use crate::ftest::FTest;
 use crate::fusion::scaled_norm;
-use crate::identify::{Design, Identification};
+use crate::identify::Identification;
 use crate::position::Gravity;
 use crate::reading::Reading;
 use crate::term::{Model, TermMap};
 use crate::tumble::TumbleTest;
+use nalgebra::DVector;
 
 /// Level of the lack-of-fit test (the upper 0.1 % point).
 pub const LACK_OF_FIT_ALPHA: f64 = 0.001;
@@ -206,18 +210,24 @@ pub fn unmodelled_terms(test: &TumbleTest) -> Vec<(Term, FTest)> {
     let positions = design.positions();
     // P − p − 1; without a spare degree of freedom no F test is made.
     let df2 = positions.saturating_sub(model.len() + 1);
+    if df2 == 0 {
+        return Vec::new();
+    }
     let gravity: Vec<Gravity> = test.positions().iter().map(|p| p.a).collect();
-    let averaged = test.averaged_values();
-    let rss_root = |d: &Design| scaled_norm(d.solve(&averaged).residuals.into_iter());
-    let base = rss_root(design);
+    let residuals = DVector::from_vec(design.solve(&test.averaged_values()).residuals);
+    let base = scaled_norm(residuals.iter().copied());
     Term::ALL
         .into_iter()
         .filter(|t| model.index_of(*t).is_none())
         .filter_map(|t| {
             let mut terms = model.terms().to_vec();
             terms.push(t);
-            let wider = Design::new(&Model::new(terms).ok()?, &gravity).ok()?;
-            let ratio = base / rss_root(&wider);
+            Model::new(terms).ok()?;
+            let column: Vec<f64> = gravity.iter().map(|a| t.regressor(a)).collect();
+            let z = design.widened(&column)?;
+            // The widened fit's residual: r − ẑ·(ẑᵀ·r).
+            let wider = &residuals - &z * z.dot(&residuals);
+            let ratio = base / scaled_norm(wider.iter().copied());
             // (RSS − RSS_t) / (RSS_t / ν2) = ((‖r‖/‖r_t‖)² − 1)·ν2, ≥ 0 up to rounding.
             let f = ((ratio * ratio - 1.0) * df2 as f64).max(0.0);
             Some((t, FTest::new(f, 1, df2, UNMODELLED_ALPHA)?))

@@ -96,8 +96,9 @@ impl Design {
         let Factors { u, sigma, v } =
             svd(&padded).ok_or_else(|| rank_deficient(model, m, 0, model.terms().to_vec()))?;
         let sigma_max = sigma.max();
-        let zero = |s: f64| s <= RANK_TOLERANCE * sigma_max || sigma_max == 0.0;
-        let null: Vec<usize> = (0..sigma.len()).filter(|&k| zero(sigma[k])).collect();
+        let null: Vec<usize> = (0..sigma.len())
+            .filter(|&k| counts_as_zero(sigma[k], sigma_max))
+            .collect();
         if !null.is_empty() || m < p {
             let terms = model
                 .terms()
@@ -175,6 +176,39 @@ impl Design {
         )
     }
 
+    /// The design widened by one column `x` (one value per position,
+    /// finite), solved from this design's factors instead of a
+    /// factorisation anew. It is refused (`None`) exactly as [`Design::new`]
+    /// would refuse it: a singular value of `[A x]` at or below
+    /// [`RANK_TOLERANCE`] of the largest (so also fewer positions than
+    /// columns). Otherwise the answer is `ẑ = z / ‖z‖`, `z = (I − U·Uᵀ)·x`
+    /// the part of `x` outside `A`'s columns: since `[A x]` spans what
+    /// `[U ẑ]` spans, with orthonormal columns, the widened fit of any `y`
+    /// leaves the residual `r − ẑ·(ẑᵀ·r)`, `r` this design's residual of
+    /// `y`. Only the singular values of `[A x]` are computed, not its
+    /// factors.
+    ///
+    /// # Panics
+    /// If `x.len()` differs from the number of positions.
+    pub fn widened(&self, x: &[f64]) -> Option<DVector<f64>> {
+        let (m, p) = self.matrix.shape();
+        assert_eq!(x.len(), m, "one value per position");
+        let wide = faer::Mat::from_fn(m.max(p + 1), p + 1, |r, j| match (r < m, j < p) {
+            (false, _) => 0.0,
+            (true, true) => self.matrix[(r, j)],
+            (true, false) => x[r],
+        });
+        let sigma = wide.singular_values().ok()?;
+        let max = sigma.iter().copied().fold(0.0, f64::max);
+        if sigma.iter().any(|s| counts_as_zero(*s, max)) {
+            return None;
+        }
+        let x = DVector::from_column_slice(x);
+        let z = &x - &self.u * self.u.tr_mul(&x);
+        let norm = z.norm();
+        Some(z.unscale(norm))
+    }
+
     /// Solves the least-squares problem for position values `y` (one per row).
     ///
     /// # Panics
@@ -217,6 +251,12 @@ impl Design {
             dof,
         }
     }
+}
+
+/// Whether singular value `s` of a matrix whose largest is `max` counts as
+/// zero ([`RANK_TOLERANCE`]; every one does when `max` is zero).
+fn counts_as_zero(s: f64, max: f64) -> bool {
+    s <= RANK_TOLERANCE * max || max == 0.0
 }
 
 /// The factors of a thin SVD `A = U·Σ·Vᵀ`.
@@ -289,6 +329,69 @@ mod tests {
         // σ̂² = 4e²/1; var(k0) = σ̂²/4, var(ki) = var(kp) = σ̂²/2.
         assert!((se.get(K0).unwrap() - e.abs()).abs() < 1e-15);
         assert!((se.get(Ki).unwrap() - (2.0 * e * e).sqrt()).abs() < 1e-15);
+    }
+
+    /// Widening by a term's column refuses exactly what a design built with
+    /// the term refuses, and otherwise leaves the residual of that design's
+    /// own factorisation, on tumbles where some terms alias and others not.
+    #[test]
+    fn a_widened_design_is_the_design_with_its_column() {
+        let y: Vec<f64> = (0..12).map(|k| (0.37 * f64::from(k)).sin() + 0.1).collect();
+        let (mut both, mut neither) = (0, 0);
+        for positions in [
+            tumble(Mount::Pendulum, 4),
+            tumble(Mount::Pendulum, 8),
+            tumble(Mount::Pendulum, 12),
+            sphere(12),
+        ] {
+            let base = Design::new(&Model::pendulum(), &positions).unwrap();
+            let y = &y[..positions.len()];
+            let r = DVector::from_vec(base.solve(y).residuals);
+            for t in crate::Term::ALL {
+                if base.model().index_of(t).is_some() {
+                    continue;
+                }
+                let mut terms = base.model().terms().to_vec();
+                terms.push(t);
+                let rebuilt = Design::new(&Model::new(terms).unwrap(), &positions);
+                let column: Vec<f64> = positions.iter().map(|a| t.regressor(a)).collect();
+                let widened = base.widened(&column);
+                let n = positions.len();
+                match (&rebuilt, &widened) {
+                    (Ok(d), Some(z)) => {
+                        let want = d.solve(y).residuals;
+                        let got = &r - z * z.dot(&r);
+                        for (g, w) in got.iter().zip(&want) {
+                            assert!((g - w).abs() < 1e-12, "{n} positions, {t}: {g} vs {w}");
+                        }
+                        both += 1;
+                    }
+                    (Err(_), None) => neither += 1,
+                    _ => panic!("{n} positions, {t}: {rebuilt:?} vs {widened:?}"),
+                }
+            }
+        }
+        assert!(both > 0 && neither > 0, "{both} widened, {neither} refused");
+        // At the edge: the bias column plus δ·w, w = a_i² − a_p² (cos 2θ,
+        // orthogonal to 1, a_i and a_p over eight positions). [A x] then has
+        // σ_max ≈ 4 and σ_min ≈ 0.7·δ: refused at δ = 1e-10 (σ_min / σ_max
+        // under RANK_TOLERANCE), kept at δ = 1e-8.
+        let eight = tumble(Mount::Pendulum, 8);
+        let base = Design::new(&Model::pendulum(), &eight).unwrap();
+        let near_bias = |delta: f64| -> Vec<f64> {
+            eight
+                .iter()
+                .map(|a| 1.0 + delta * (Kii.regressor(a) - Kpp.regressor(a)))
+                .collect()
+        };
+        assert!(base.widened(&near_bias(1e-10)).is_none());
+        assert!(base.widened(&near_bias(1e-8)).is_some());
+        // A column beyond as many as the positions allow is refused.
+        let four = tumble(Mount::Pendulum, 4);
+        let full = Design::new(&Model::new(vec![K0, Ki, Kp, Kii]).unwrap(), &four).unwrap();
+        assert!(full.widened(&[1.0, 2.0, 3.0, 5.0]).is_none());
+        let base = Design::new(&Model::pendulum(), &four).unwrap();
+        assert!(base.widened(&[1.0, 2.0, 3.0, 5.0]).is_some());
     }
 
     /// Unit vectors spread over the sphere, exciting every regressor of eq. 2.
