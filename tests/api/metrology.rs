@@ -325,6 +325,17 @@ async fn a_later_calibration_is_found_against_the_previous_one(
         .submit(ADMIN, &submission("AF-1", "2025-06-01T00:00:00Z", 4))
         .await;
     assert_eq!(older["as_found"], Value::Null);
+    // One performed between the first and the second is found against the
+    // first: the sensor's latest (the second) is not "before" it.
+    let between = app
+        .submit(ADMIN, &submission("AF-1", "2026-03-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(between["as_found"]["previous_calibration_id"], first["id"]);
+    // And one after them all, against the latest, whichever was stored last.
+    let last = app
+        .submit(ADMIN, &submission("AF-1", "2026-09-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(last["as_found"]["previous_calibration_id"], second["id"]);
 }
 
 /// Stability over four calibrations, against statistics computed here from
