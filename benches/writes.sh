@@ -6,7 +6,8 @@
 # history grows from round to round. Each round, per build:
 #
 #   hot     durable POST /v1/calibrations, the paper's Table 1, every one to
-#           sensor HOT (a new performed_at each time);
+#           sensor HOT (a new performed_at each time, growing with the
+#           order of the requests, as a station's do);
 #   fleet   the same spread over 1 000 sensors (FLEET-0 … FLEET-999);
 #   coefficients, history, compensate   reads of HOT (its history as the
 #           round left it);
@@ -65,7 +66,7 @@ b["sensor_id"] = "@SENSOR@"; b["performed_at"] = "@AT@"
 open(sys.argv[1], "w").write(json.dumps(b))
 PY
 cat >"$WORK/submit.lua" <<'LUA'
-local template, sensors, prefix, offset
+local template, sensors, prefix, offset, stride, slot
 local threads = {}
 local counter = 0
 function setup(thread)
@@ -75,14 +76,18 @@ end
 function init(args)
   local f = io.open(os.getenv("TEMPLATE")); template = f:read("*a"); f:close()
   sensors = tonumber(os.getenv("SENSORS")); prefix = os.getenv("PREFIX")
-  offset = tonumber(os.getenv("OFFSET")) + tid * 10000000
+  -- performed_at grows with the order of the requests across wrk's
+  -- threads (and both replicas' clients: STRIDE threads in all, this
+  -- client's first FIRST), as a station's tests follow each other.
+  offset = tonumber(os.getenv("OFFSET")); stride = tonumber(os.getenv("STRIDE"))
+  slot = tonumber(os.getenv("FIRST")) + tid
   wrk.method = "POST"
   wrk.headers["Content-Type"] = "application/json"
   wrk.headers["Authorization"] = "Bearer " .. os.getenv("ACCELCAL_ADMIN_TOKEN")
 end
 function request()
   counter = counter + 1
-  local n = offset + counter
+  local n = offset + counter * stride + slot
   local sensor = prefix
   if sensors > 1 then sensor = prefix .. (n % sensors) end
   local at = os.date("!%Y-%m-%dT%H:%M:%SZ", 946684800 + n)
@@ -104,7 +109,7 @@ COMPENSATE=$(python3 -c 'import json; print(json.dumps({"outputs": [-1.216 + 0.0
 # wrk_leg PORT CONNS SCRIPT PATH → "req/s p99ms" (aborts on a non-2xx).
 wrk_leg() {
   local out threads=$(( $2 < 2 ? 1 : 2 ))
-  out=$(wrk -t$threads -c$2 -d${LEG}s --latency -s "$3" "http://127.0.0.1:$1$4")
+  out=$(STRIDE=${STRIDE:-$threads} FIRST=${FIRST:-0} wrk -t$threads -c$2 -d${LEG}s --latency -s "$3" "http://127.0.0.1:$1$4")
   if grep -q "Non-2xx\|Socket errors" <<<"$out"; then echo "$out" >&2; exit 1; fi
   local rps p99
   rps=$(awk '/^Requests\/sec/ {print $2}' <<<"$out")
@@ -154,11 +159,11 @@ for engine in $ENGINES; do
         read -r pid2 p2 < <(serve "$name" "$database"); ready "$p2"
         for leg in hot fleet; do
           [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }
-          OFFSET=$((OFFSET + 1000000)); o1=$OFFSET; OFFSET=$((OFFSET + 1000000))
+          OFFSET=$((OFFSET + 1000000))
           : >"$WORK/waits"; sample_waits "${database##*/}" "$WORK/waits" & SAMPLER=$!
-          (TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$o1 wrk_leg "$p" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r1") &
+          (STRIDE=4 FIRST=0 TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r1") &
           w1=$!
-          TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p2" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r2"
+          STRIDE=4 FIRST=2 TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p2" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r2"
           wait $w1
           kill $SAMPLER; wait $SAMPLER 2>/dev/null || true
           RES[$engine,$name,2x-$leg,waits,$round]=$(waits_summary "$WORK/waits")
