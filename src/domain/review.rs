@@ -182,6 +182,16 @@ pub enum State {
 }
 
 impl State {
+    /// Every state, in declaration order.
+    pub const ALL: [State; 6] = [
+        State::Submitted,
+        State::Approved,
+        State::Rejected,
+        State::Withdrawn,
+        State::Superseded,
+        State::UnderReview,
+    ];
+
     /// The wire and stored name.
     pub fn as_str(self) -> &'static str {
         match self {
@@ -196,16 +206,7 @@ impl State {
 
     /// Parses a stored name.
     pub fn parse(s: &str) -> Option<State> {
-        [
-            State::Submitted,
-            State::Approved,
-            State::Rejected,
-            State::Withdrawn,
-            State::Superseded,
-            State::UnderReview,
-        ]
-        .into_iter()
-        .find(|x| x.as_str() == s)
+        State::ALL.into_iter().find(|x| x.as_str() == s)
     }
 
     /// Whether a calibration in this state is used on `basis`.
