@@ -66,7 +66,7 @@ pub async fn assess(
             },
         )
         .await??;
-    let sensor_type = in_force(
+    let subject = in_force(
         lab,
         principal,
         &evaluated.submission.sensor_id,
@@ -77,19 +77,15 @@ pub async fn assess(
     .await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
     resolve_standards(lab, &mut evaluated, performed_at).await?;
-    let previous = lab
-        .store
-        .previous_calibration(
-            evaluated.submission.sensor_id.clone(),
-            performed_at,
-            lab.basis,
-        )
+    let previous = subject
+        .previous(lab, &evaluated.submission.sensor_id, performed_at)
         .await?
         .map(|c| Previous {
             id: c.id,
             unit: c.unit,
             coefficients: c.coefficients,
         });
+    let sensor_type = subject.sensor_type;
     let submitted_by = principal.id.clone();
     lab.compute_for(size, move || -> Result<Assessed, Error> {
         let e = &evaluated;

@@ -8,6 +8,7 @@ use crate::domain::field::{Invalid, Loc};
 use crate::domain::sensor_types::SensorType;
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
+use crate::store::{CalibrationSummary, SensorSummary};
 
 /// The refusal of a `triad` (or single-axis) submission for a sensor whose
 /// calibrations are of the other kind (`is_triad`).
@@ -29,8 +30,44 @@ pub fn wrong_kind(sensor_id: &str, is_triad: bool, triad: bool) -> Result<(), Er
     }))
 }
 
-/// The sensor type in force: the one the submission names (which must
-/// exist), else the sensor's — for a sensor whose calibrations are of the
+/// What the records hold of a submission's sensor, read once: its summary
+/// (`None` for a sensor with no calibration that counts) and the sensor
+/// type in force ([`in_force`]).
+pub struct Subject {
+    /// The sensor's summary, as read before the submission was assessed.
+    pub sensor: Option<SensorSummary>,
+    /// The sensor type the submission is judged by.
+    pub sensor_type: Option<SensorType>,
+}
+
+impl Subject {
+    /// The sensor's latest calibration that counts on the lab's basis and
+    /// was performed strictly before `performed_at`: what as-found is
+    /// judged against. From the summary already read when it can tell
+    /// ([`SensorSummary::previous_before`]); none for a sensor with no
+    /// summary (no calibration of it counts, on either basis); else asked
+    /// of the records.
+    pub async fn previous(
+        &self,
+        lab: &Lab,
+        sensor_id: &str,
+        performed_at: Timestamp,
+    ) -> Result<Option<CalibrationSummary>, Error> {
+        let Some(sensor) = &self.sensor else {
+            return Ok(None);
+        };
+        if let Some(latest) = sensor.previous_before(performed_at, lab.basis) {
+            return Ok(Some(latest.clone()));
+        }
+        Ok(lab
+            .store
+            .previous_calibration(sensor_id.to_owned(), performed_at, lab.basis)
+            .await?)
+    }
+}
+
+/// The sensor's summary and the sensor type in force: the one the
+/// submission names (which must exist), else the sensor's — for a sensor whose calibrations are of the
 /// submission's kind (`triad`, [`wrong_kind`]). Only an admin may re-type a
 /// sensor through a submission: a station may name the sensor's current
 /// type, or any type while the sensor has none (forbidden otherwise), since
@@ -42,20 +79,24 @@ pub async fn in_force(
     named: Option<&String>,
     triad: bool,
     now: Timestamp,
-) -> Result<Option<SensorType>, Error> {
+) -> Result<Subject, Error> {
     let sensor = lab.store.sensor(sensor_id.to_owned(), now).await?;
     if let Some(sensor) = &sensor {
         wrong_kind(sensor_id, sensor.latest.triad.is_some(), triad)?;
     }
-    let current = sensor.and_then(|sensor| sensor.sensor_type);
+    let current = sensor.as_ref().and_then(|s| s.sensor_type.as_ref());
     let Some(named) = named else {
-        return match current {
-            Some(t) => Ok(lab.store.sensor_type(t).await?),
-            None => Ok(None),
+        let sensor_type = match current {
+            Some(t) => lab.store.sensor_type(t.clone()).await?,
+            None => None,
         };
+        return Ok(Subject {
+            sensor,
+            sensor_type,
+        });
     };
     if let Some(current) = &current
-        && current != named
+        && *current != named
         && principal.role < Role::Admin
     {
         let why = format!(
@@ -73,7 +114,10 @@ pub async fn in_force(
         });
     }
     match lab.store.sensor_type(named.clone()).await? {
-        Some(t) => Ok(Some(t)),
+        Some(t) => Ok(Subject {
+            sensor,
+            sensor_type: Some(t),
+        }),
         None => Err(Error::invalid(
             Loc::Root.key("sensor_type"),
             format!(

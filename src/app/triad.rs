@@ -208,7 +208,7 @@ pub async fn assess(
         Some(t) => performed_when(t, received_at)
             .map_err(|why| Error::invalid(root.key("performed_at"), why))?,
     };
-    let sensor_type = in_force(
+    let subject = in_force(
         lab,
         principal,
         &sensor_id,
@@ -217,6 +217,7 @@ pub async fn assess(
         received_at,
     )
     .await?;
+    let sensor_type = subject.sensor_type.clone();
     if let Some(t) = &sensor_type
         && let Some(unit) = t.unit.as_ref().filter(|u| **u != sub.unit)
     {
@@ -251,10 +252,7 @@ pub async fn assess(
         _ => 1,
     };
     let judged_by = sensor_type.clone();
-    let previous = lab
-        .store
-        .previous_calibration(sensor_id.clone(), performed_at, lab.basis)
-        .await?;
+    let previous = subject.previous(lab, &sensor_id, performed_at).await?;
     let result = lab
         .compute_for(size, move || -> Result<TriadResult, Error> {
             let mut sub = sub;

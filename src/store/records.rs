@@ -12,7 +12,7 @@ use super::triad_elements::TriadElements;
 use crate::domain::nonconformity::{
     Affected, Bearing, Nonconformity, Outcome, Replacement, bearing,
 };
-use crate::domain::review::{Refusal, Signature, State};
+use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 
@@ -421,6 +421,20 @@ impl SensorRow {
             status: Status::Unknown,
             latest,
         })
+    }
+}
+
+impl SensorSummary {
+    /// The sensor's latest calibration that counts on `basis` and was
+    /// performed strictly before `before`, when this summary can tell:
+    /// its `latest` is the greatest of the calibrations that count on
+    /// [`Basis::NotRejected`] by `(performed_at, id)`, so when it was
+    /// performed before `before` nothing later exists to be "before" and
+    /// it is the answer — the common case of a submission, which comes
+    /// after its sensor's latest. `None` means: ask the records (a
+    /// back-dated submission, or the approved-only basis).
+    pub fn previous_before(&self, before: Timestamp, basis: Basis) -> Option<&CalibrationSummary> {
+        (basis == Basis::NotRejected && self.latest.performed_at < before).then_some(&self.latest)
     }
 }
 

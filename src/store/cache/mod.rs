@@ -60,6 +60,7 @@ use std::sync::Mutex;
 use uuid::Uuid;
 
 use super::{CalibrationSummary, SensorRow, SensorSummary, StoreError, Stored};
+use crate::domain::review::Basis;
 use crate::domain::status::Status;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
@@ -154,20 +155,16 @@ impl Cache {
     }
 
     /// The latest calibration performed strictly before `before`, when the
-    /// cache can tell: the sensor is cached and its latest calibration (the
-    /// greatest by `(performed_at, id)`) was performed before `before`, so
-    /// nothing later exists to be "before" — the common case of a
-    /// submission, which follows its sensor's summary read and comes after
-    /// its latest. `None` means: ask the database.
+    /// cache can tell: the sensor is cached and its summary answers
+    /// ([`crate::store::SensorSummary::previous_before`]). `None` means: ask
+    /// the database.
     pub fn previous_calibration(
         &self,
         sensor_id: &str,
         before: Timestamp,
     ) -> Option<CalibrationSummary> {
-        self.sensors
-            .get(sensor_id)
-            .filter(|hit| hit.latest.performed_at < before)
-            .map(|hit| hit.latest.clone())
+        let hit = self.sensors.get(sensor_id)?;
+        hit.previous_before(before, Basis::NotRejected).cloned()
     }
 
     /// Runs `write`, which stores `c` and answers the sensor's row as it

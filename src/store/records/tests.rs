@@ -181,3 +181,21 @@ fn a_triads_numbers_are_named_and_must_be_finite() {
     let err = record(bad).check().unwrap_err().to_string();
     assert!(err.contains("`b_y_std_error` is inf"), "{err}");
 }
+
+/// The summary answers "the latest before" only when its latest
+/// calibration (2026-01-01) was performed strictly before the bound, and
+/// only on the basis its latest is kept on; otherwise the records must be
+/// asked (`None`).
+#[test]
+fn a_summary_tells_the_previous_only_when_its_latest_is_earlier() {
+    let s = SensorSummary::for_test("S");
+    let later = ts("2026-01-01T00:00:01Z");
+    assert_eq!(
+        s.previous_before(later, Basis::NotRejected),
+        Some(&s.latest)
+    );
+    assert_eq!(s.previous_before(later, Basis::ApprovedOnly), None);
+    for not_after in ["2026-01-01T00:00:00Z", "2025-12-31T23:59:59Z"] {
+        assert_eq!(s.previous_before(ts(not_after), Basis::NotRejected), None);
+    }
+}
