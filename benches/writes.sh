@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Writes and reads under load, builds side by side (issue 48 item 4): wrk at
 # CONNS connections (64), LEG seconds a leg (10), ROUNDS rounds (3) in which
-# the builds alternate, on each engine of ENGINES (sqlite postgres). Per
-# build and engine one database, kept across rounds, so the hot sensor's
+# the builds alternate (in an order that rotates), on each engine of ENGINES
+# (sqlite postgres). Per build and engine one database, kept across rounds, so the hot sensor's
 # history grows from round to round. Each round, per build:
 #
 #   hot     durable POST /v1/calibrations, the paper's Table 1, every one to
@@ -139,7 +139,11 @@ for engine in $ENGINES; do
     fi
   done
   for round in $(seq "$ROUNDS"); do
-    for name in "${NAMES[@]}"; do
+    # The builds' order rotates from round to round: the last of a round
+    # runs after the others' write legs, which a run on two shared cores
+    # feels.
+    shift_by=$(( (round - 1) % ${#NAMES[@]} ))
+    for name in "${NAMES[@]:shift_by}" "${NAMES[@]:0:shift_by}"; do
       if [ "$engine" = postgres ]; then database="$PG/writes_bench_${name//[^a-z0-9]/_}"; else database="$WORK/$name.db"; fi
       read -r pid p < <(serve "$name" "$database"); ready "$p"
       for leg in hot fleet; do

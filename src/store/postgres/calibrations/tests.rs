@@ -1,0 +1,87 @@
+//! Tests of [`super`] on a real PostgreSQL.
+
+use super::*;
+use accelcal_testkit::pg::TestDb;
+use tokio_postgres::SimpleQueryMessage;
+
+/// Rows of `calibrations` for `sensor` (an SQL expression of `g`),
+/// `g` in `1..=n`, performed one second apart from `start`.
+fn rows(n: usize, sensor: &str, start: &str) -> String {
+    format!(
+        "INSERT INTO calibrations (id, sensor_id, performed_at, received_at, unit, model, \
+         runs, coefficients, std_errors, result, submission, content_type, submitted_by) \
+         SELECT gen_random_uuid(), {sensor}, {start} + g * interval '1 s', now(), 'mA', \
+         '[\"k0\"]', 4, '{{\"k0\": 1}}', '{{\"k0\": 1}}', repeat('x', 2000), '\\x00', \
+         'application/json', 't' FROM generate_series(1, {n}) g;"
+    )
+}
+
+/// The node under the plan's `Limit`, from `EXPLAIN (FORMAT JSON)`.
+fn under_limit(explained: &str) -> serde_json::Value {
+    let plan: serde_json::Value = serde_json::from_str(explained).unwrap();
+    let top = &plan[0]["Plan"];
+    assert_eq!(top["Node Type"], "Limit", "{plan:#}");
+    top["Plans"][0].clone()
+}
+
+/// A sensor's latest calibration that counts, before a time or of all,
+/// is found by walking its index backward from the bound — even by a
+/// generic plan made on statistics taken while the table was small
+/// (1 000 sensors of 5 calibrations), once one sensor has 13 400. With
+/// the state condition written `IN (…)`, PostgreSQL 15 chose a bitmap
+/// scan of the sensor's whole history and a sort here (25–33 ms a read,
+/// and 138–158 ms under load: [`counts`]).
+#[tokio::test]
+async fn previous_walks_the_index_on_stale_statistics() {
+    let db = TestDb::create().await;
+    PostgresStore::open(&db.url).await.unwrap();
+    let c = db.client().await;
+    c.batch_execute(&format!(
+        "ALTER TABLE calibrations SET (autovacuum_enabled = false); {} \
+         ANALYZE calibrations; ANALYZE signatures; {} \
+         SET plan_cache_mode = force_generic_plan;",
+        rows(5_000, "'F' || (g % 1000)", "now() - interval '1 day'"),
+        rows(13_400, "'HOT'", "now()"),
+    ))
+    .await
+    .unwrap();
+    for (i, basis) in [Basis::NotRejected, Basis::ApprovedOnly]
+        .into_iter()
+        .enumerate()
+    {
+        for before in [true, false] {
+            let name = format!("p{i}{}", u8::from(before));
+            c.batch_execute(&format!(
+                "PREPARE {name} AS {}",
+                previous_sql(basis, before)
+            ))
+            .await
+            .unwrap();
+            let args = if before {
+                "'HOT', now() + interval '1 day'"
+            } else {
+                "'HOT'"
+            };
+            let explained = c
+                .simple_query(&format!("EXPLAIN (FORMAT JSON) EXECUTE {name}({args})"))
+                .await
+                .unwrap()
+                .into_iter()
+                .find_map(|m| match m {
+                    SimpleQueryMessage::Row(r) => r.get(0).map(str::to_owned),
+                    _ => None,
+                })
+                .unwrap();
+            let scan = under_limit(&explained);
+            assert_eq!(
+                scan["Node Type"], "Index Scan",
+                "{basis:?} {before}: {scan:#}"
+            );
+            assert_eq!(scan["Scan Direction"], "Backward", "{scan:#}");
+            assert_eq!(
+                scan["Index Name"], "calibrations_by_sensor_time",
+                "{scan:#}"
+            );
+        }
+    }
+}
