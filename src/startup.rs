@@ -285,6 +285,7 @@ impl Application {
             tokio::spawn(serve_metrics(listener, handle))
         });
         let store = state.store.clone();
+        let events = state.events.clone();
         let router = http::router(state);
         let graceful = GracefulShutdown::new();
         let connections = Arc::new(Semaphore::new(config.max_connections));
@@ -331,6 +332,9 @@ impl Application {
         }
         drop(listener);
         tracing::info!("shutting down: no new connections; finishing in-flight requests");
+        // Event streams never finish by themselves: ended now, their
+        // clients resume elsewhere with their last id.
+        events.close();
         if tokio::time::timeout(config.shutdown_grace, graceful.shutdown())
             .await
             .is_err()

@@ -16,6 +16,7 @@
 
 pub mod definitions;
 mod error;
+pub mod events;
 pub mod hold;
 pub mod kind;
 mod lab;

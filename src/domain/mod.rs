@@ -13,6 +13,7 @@ pub mod auth;
 pub mod compensate;
 pub mod customers;
 pub mod dcc_signature;
+pub mod events;
 pub mod field;
 pub mod fuse;
 pub mod limits;

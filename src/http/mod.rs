@@ -16,6 +16,7 @@ pub mod conditional;
 pub mod connection;
 pub mod customers;
 pub mod dcc;
+pub mod events;
 pub mod firmware;
 pub mod health;
 pub mod lookup;
@@ -128,6 +129,8 @@ pub struct Shared {
     pub summaries: rendered::ById<(uuid::Uuid, crate::domain::review::State)>,
     /// Failed authentications per client address.
     pub throttle: throttle::Throttle,
+    /// The live events of `GET /v1/events`.
+    pub events: Arc<crate::app::events::Feed>,
 }
 
 impl std::ops::Deref for AppState {
@@ -155,6 +158,12 @@ pub struct Web {
     /// (`--dcc-signing-key`, `--dcc-signing-cert`): every DCC issued while
     /// one is configured is signed; none, and DCCs are issued unsigned.
     pub dcc_signer: Option<Arc<crate::domain::dcc_signature::Signer>>,
+    /// How often `GET /v1/events` sends a heartbeat comment while nothing
+    /// happens (`--events-heartbeat`).
+    pub events_heartbeat: Duration,
+    /// How often a replica looks for new events in the audit trail while
+    /// someone listens (`--events-poll-ms`).
+    pub events_poll: Duration,
 }
 
 impl Default for Web {
@@ -165,6 +174,8 @@ impl Default for Web {
             laboratory: Laboratory::default(),
             basis: crate::domain::review::Basis::default(),
             dcc_signer: None,
+            events_heartbeat: Duration::from_secs(15),
+            events_poll: crate::app::events::POLL,
         }
     }
 }
@@ -254,6 +265,10 @@ impl AppState {
         web: Web,
     ) -> Self {
         let compute = Arc::new(Semaphore::new(limits.compute_threads.max(1)));
+        let events = Arc::new(crate::app::events::Feed::new(
+            store.clone(),
+            web.events_poll,
+        ));
         AppState(Arc::new(Shared {
             store: store.clone(),
             admin_token_hash,
@@ -274,6 +289,7 @@ impl AppState {
             rendered: coefficients::Rendered::default(),
             summaries: rendered::ById::new(sensors::SUMMARIES),
             throttle: throttle::Throttle::new(limits.auth_failure_burst),
+            events,
         }))
     }
 
@@ -338,6 +354,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(tokens::revoke))
         .routes(routes!(backup::backup))
         .routes(routes!(audit::list))
+        .routes(routes!(events::stream))
 }
 
 /// The probes and the document itself (no admission, no token).

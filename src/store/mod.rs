@@ -131,6 +131,15 @@ pub trait Database: Send + Sync + 'static {
 pub trait Audit: Send + Sync + 'static {
     /// The entries `q` selects, in sequence order.
     async fn audit(&self, q: AuditQuery) -> Result<Vec<Entry>, StoreError>;
+    /// The sealed entries after `after`, in sequence order, at most
+    /// `limit` — without sealing first (what the live events read, often:
+    /// on PostgreSQL an entry is sealed within moments of its act's commit,
+    /// [`crate::store::postgres`]'s sealer). Sealed entries only ever
+    /// follow the head, so a reader that resumes after the last it read
+    /// misses none.
+    async fn sealed_after(&self, after: i64, limit: usize) -> Result<Vec<Entry>, StoreError>;
+    /// The last sealed entry's sequence number (0 for an empty trail).
+    async fn audit_head(&self) -> Result<i64, StoreError>;
     /// Appends `events`, in order, in one transaction (`accelcal audit
     /// adopt`: the rows a database held before its trail).
     async fn record(&self, events: Vec<crate::domain::audit::Event>) -> Result<(), StoreError>;

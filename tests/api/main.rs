@@ -17,6 +17,7 @@ mod dcc;
 mod dcc_text;
 mod endpoints;
 mod errors;
+mod events;
 mod exports;
 mod frozen;
 mod hardening;

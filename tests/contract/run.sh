@@ -6,6 +6,10 @@
 # The seed is fixed for reproducible CI (SCHEMATHESIS_SEED=… to explore);
 # one worker, because CPython 3.11's ast module is not thread-safe and
 # hypothesis uses it while generating (a tool crash, not a finding).
+# GET /v1/events is left out: its answer is a stream that does not end,
+# which schemathesis would wait for; tests/api/events.rs reads it with a
+# real client against the running server and checks each event against
+# the contract's LiveEvent.
 set -euo pipefail
 BIN=$(realpath "${1:-$(dirname "$0")/../../target/debug/accelcal}")
 cd "$(dirname "$0")/../.."
@@ -25,7 +29,8 @@ for _ in $(seq 50); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && bre
 
 "$ST" --config-file tests/contract/schemathesis.toml run openapi.yaml \
   --url http://127.0.0.1:$PORT --mode all --phases examples,coverage,fuzzing,stateful \
-  --max-examples "$EXAMPLES" --no-color --workers 1 --seed "${SCHEMATHESIS_SEED:-20261122}"
+  --max-examples "$EXAMPLES" --no-color --workers 1 --seed "${SCHEMATHESIS_SEED:-20261122}" \
+  --exclude-operation-id streamEvents
 
 # Whatever schemathesis thought, the server itself must never have answered 5xx.
 if grep -q '"status":5[0-9][0-9]' "$WORK/server.log"; then

@@ -54,7 +54,7 @@ impl Modify for Bearer {
     ),
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
-    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "audit"), (name = "operations"), (name = "health")),
+    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "audit"), (name = "events"), (name = "operations"), (name = "health")),
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,

@@ -148,6 +148,30 @@ impl Audit for PostgresStore {
         })
     }
 
+    async fn sealed_after(&self, after: i64, limit: usize) -> Result<Vec<Entry>, StoreError> {
+        op!(self, "audit_sealed_after", |client| {
+            let stmt = client
+                .prepare_cached(&format!(
+                    "SELECT {COLUMNS} FROM audit WHERE seq > $1 ORDER BY seq LIMIT $2"
+                ))
+                .await
+                .map_err(map)?;
+            let limit = i64::try_from(limit).unwrap_or(i64::MAX);
+            let found = client.query(&stmt, &[&after, &limit]).await.map_err(map)?;
+            found.iter().map(entry).collect()
+        })
+    }
+
+    async fn audit_head(&self) -> Result<i64, StoreError> {
+        op!(self, "audit_head", |client| {
+            let row = client
+                .query_one("SELECT coalesce(max(seq), 0)::int8 AS head FROM audit", &[])
+                .await
+                .map_err(map)?;
+            rows::get(&row, "head")
+        })
+    }
+
     async fn unsealed(&self) -> Result<i64, StoreError> {
         op!(self, "audit_unsealed", |client| seal::pending(&client)
             .await)

@@ -124,6 +124,28 @@ impl Audit for SqliteStore {
         .await
     }
 
+    async fn sealed_after(&self, after: i64, limit: usize) -> Result<Vec<Entry>, StoreError> {
+        self.follow_the_file()?;
+        self.run("audit_sealed_after", move |conn| {
+            rows::all(
+                conn,
+                &format!("SELECT {COLUMNS} FROM audit WHERE seq > ?1 ORDER BY seq LIMIT ?2"),
+                params![after, i64::try_from(limit).unwrap_or(i64::MAX)],
+                entry,
+            )
+        })
+        .await
+    }
+
+    async fn audit_head(&self) -> Result<i64, StoreError> {
+        self.follow_the_file()?;
+        self.run("audit_head", move |conn| {
+            conn.query_row("SELECT coalesce(max(seq), 0) FROM audit", [], |r| r.get(0))
+                .map_err(map)
+        })
+        .await
+    }
+
     async fn configure(&self, settings: Map<String, Value>) -> Result<bool, StoreError> {
         self.follow_the_file()?;
         self.write("audit_configure", move |conn| {

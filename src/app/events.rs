@@ -1,0 +1,221 @@
+//! The live events' feed (issue 47 item 2): one poller per replica reads
+//! the audit trail's newly sealed entries and hands each event
+//! ([`LiveEvent`]) to every subscriber on this replica; a subscriber that
+//! resumes reads what it missed from the trail itself.
+//!
+//! **Order and gaps.** Events are the trail's entries, sealed in one total
+//! order shared by every replica of a database (`seq`); the poller reads
+//! after the last it handed on, so every replica's subscribers see every
+//! replica's events, in `seq` order. A subscriber first subscribes, then
+//! takes its cursor — the id it resumes after, or the trail's head — and
+//! reads the trail after it until it is caught up; from then on it takes
+//! the poller's events after its cursor. The poller's start is awaited
+//! before anyone subscribes, so an event the poller did not hand to a
+//! subscriber was sealed before its subscription, at or below its cursor,
+//! or read by its catch-up.
+//!
+//! **Slow subscribers.** The poller never waits for a subscriber: each has
+//! a buffer of [`BUFFER`] events (a broadcast channel), and one that falls
+//! further behind is disconnected ([`Next::Lagged`]) — it reconnects with
+//! its last id and catches up from the trail. An act never waits for an
+//! event: events are read after the acts' commits.
+
+use std::sync::Arc;
+use std::sync::atomic::{AtomicI64, Ordering};
+use std::time::Duration;
+
+use tokio::sync::{OnceCell, broadcast, watch};
+
+use crate::domain::events::{Filter, LiveEvent};
+use crate::store::{Store, StoreError};
+
+/// Events a subscriber may fall behind the poller before it is
+/// disconnected.
+pub const BUFFER: usize = 1024;
+
+/// Entries read from the trail at once.
+pub const PAGE: usize = 500;
+
+/// How often the poller looks for newly sealed entries, by default.
+pub const POLL: Duration = Duration::from_millis(200);
+
+/// The feed of a replica: the trail's events, handed on as they are sealed.
+pub struct Feed {
+    store: Arc<dyn Store>,
+    poll: Duration,
+    tx: broadcast::Sender<Arc<LiveEvent>>,
+    /// The last `seq` the poller has handed on.
+    head: Arc<AtomicI64>,
+    started: OnceCell<()>,
+    closed: watch::Sender<bool>,
+}
+
+/// What a subscriber's next wait came to.
+pub enum Next {
+    /// An event after its cursor.
+    Event(Arc<LiveEvent>),
+    /// It fell more than [`BUFFER`] events behind: disconnect it.
+    Lagged,
+    /// The service is shutting down.
+    Closed,
+}
+
+/// A subscription: the poller's events, from the moment it was taken.
+pub struct Subscription {
+    rx: broadcast::Receiver<Arc<LiveEvent>>,
+    closed: watch::Receiver<bool>,
+}
+
+impl Subscription {
+    /// The next event the poller hands on, or why there is none.
+    pub async fn next(&mut self) -> Next {
+        if *self.closed.borrow() {
+            return Next::Closed;
+        }
+        tokio::select! {
+            got = self.rx.recv() => match got {
+                Ok(e) => Next::Event(e),
+                Err(broadcast::error::RecvError::Lagged(_)) => Next::Lagged,
+                Err(broadcast::error::RecvError::Closed) => Next::Closed,
+            },
+            _ = self.closed.changed() => Next::Closed,
+        }
+    }
+}
+
+impl Feed {
+    /// A feed over `store` that looks for new entries every `poll` once
+    /// someone subscribes.
+    pub fn new(store: Arc<dyn Store>, poll: Duration) -> Feed {
+        Feed {
+            store,
+            poll,
+            tx: broadcast::channel(BUFFER).0,
+            head: Arc::new(AtomicI64::new(0)),
+            started: OnceCell::new(),
+            closed: watch::channel(false).0,
+        }
+    }
+
+    /// Subscribes, starting the poller first if it is not running: from
+    /// the trail's head as it is now.
+    pub async fn subscribe(&self) -> Result<Subscription, StoreError> {
+        self.started
+            .get_or_try_init(|| async {
+                self.head
+                    .store(self.store.audit_head().await?, Ordering::SeqCst);
+                tokio::spawn(poller(
+                    self.store.clone(),
+                    self.poll,
+                    self.tx.clone(),
+                    self.head.clone(),
+                    self.closed.subscribe(),
+                ));
+                Ok::<(), StoreError>(())
+            })
+            .await?;
+        Ok(Subscription {
+            rx: self.tx.subscribe(),
+            closed: self.closed.subscribe(),
+        })
+    }
+
+    /// The trail's head: the last event's id (0 before any).
+    pub async fn head(&self) -> Result<i64, StoreError> {
+        self.store.audit_head().await
+    }
+
+    /// The events after `after` that `filter` admits, read from the trail,
+    /// at most [`PAGE`] entries' worth, and the last `seq` read (`after`
+    /// when there was none: caught up).
+    pub async fn since(
+        &self,
+        after: i64,
+        filter: &Filter,
+    ) -> Result<(Vec<LiveEvent>, i64), StoreError> {
+        let entries = self.store.sealed_after(after, PAGE).await?;
+        let last = entries.last().map_or(after, |e| e.seq);
+        let events = events(self.store.as_ref(), &entries).await?;
+        Ok((
+            events.into_iter().filter(|e| filter.admits(e)).collect(),
+            last,
+        ))
+    }
+
+    /// Ends every subscription and the poller (the service is stopping).
+    pub fn close(&self) {
+        self.closed.send_replace(true);
+    }
+
+    /// Subscribers on this replica now.
+    pub fn subscribers(&self) -> usize {
+        self.tx.receiver_count()
+    }
+}
+
+/// The events of `entries`, each with its sensor: the one the entry names,
+/// else its calibration's.
+async fn events(
+    store: &dyn Store,
+    entries: &[crate::domain::audit::Entry],
+) -> Result<Vec<LiveEvent>, StoreError> {
+    let mut out = Vec::with_capacity(entries.len());
+    for e in entries {
+        let Some(mut event) = LiveEvent::from_entry(e) else {
+            continue;
+        };
+        if let Some(id) = event.needs_sensor() {
+            event.sensor_id = store.calibration_summary(id).await?.map(|c| c.sensor_id);
+        }
+        out.push(event);
+    }
+    Ok(out)
+}
+
+/// Hands on every entry sealed after `head`, every `poll`, until closed.
+async fn poller(
+    store: Arc<dyn Store>,
+    poll: Duration,
+    tx: broadcast::Sender<Arc<LiveEvent>>,
+    head: Arc<AtomicI64>,
+    mut closed: watch::Receiver<bool>,
+) {
+    let mut tick = tokio::time::interval(poll);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    loop {
+        tokio::select! {
+            _ = tick.tick() => {}
+            _ = closed.changed() => return,
+        }
+        loop {
+            let after = head.load(Ordering::SeqCst);
+            let entries = match store.sealed_after(after, PAGE).await {
+                Ok(entries) => entries,
+                Err(e) => {
+                    tracing::warn!(error = %e, "live events: the trail could not be read");
+                    break;
+                }
+            };
+            let Some(last) = entries.last().map(|e| e.seq) else {
+                break;
+            };
+            match events(store.as_ref(), &entries).await {
+                Ok(found) => {
+                    head.store(last, Ordering::SeqCst);
+                    metrics::counter!("accelcal_events_total").increment(found.len() as u64);
+                    for e in found {
+                        // No subscriber is no error.
+                        let _ = tx.send(Arc::new(e));
+                    }
+                }
+                Err(e) => {
+                    tracing::warn!(error = %e, "live events: a calibration could not be read");
+                    break;
+                }
+            }
+            if entries.len() < PAGE {
+                break;
+            }
+        }
+    }
+}

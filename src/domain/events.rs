@@ -1,0 +1,224 @@
+//! Live events (issue 47 item 1): what a dashboard or a control system
+//! would act on, read from the audit trail.
+//!
+//! Every act that changes what a reader would act on already writes an
+//! audit entry in its own transaction ([`super::audit`]), and the trail
+//! gives each a place in one total order (`seq`, without gaps, in the
+//! order the acts committed). An event is such an entry seen from outside:
+//! its `seq` is the event's id and sequence, so a client that resumes
+//! after the last id it saw misses nothing and sees nothing twice, and the
+//! trail — kept for good — is the events' retention. Acts that change
+//! nothing a reader acts on (tokens, definitions, the service's settings, a
+//! reprocessing that confirmed every number) are not events.
+//!
+//! | audit action | event type |
+//! |---|---|
+//! | `calibration.submitted` | `calibration.stored` |
+//! | `calibration.approve` from `under_review` | `calibration.released` |
+//! | `calibration.approve` otherwise | `calibration.approved` |
+//! | `calibration.reject`, `.withdraw`, `.supersede`, `.hold` | `calibration.rejected`, `.withdrawn`, `.superseded`, `.held` |
+//! | `certificate.issue`, `certificate.amend` | `certificate.issued`, `certificate.amended` |
+//! | `sensor.retype` | `sensor.retyped` |
+//! | `standard.nonconformity` | `standard.nonconformity` |
+//!
+//! An approval that issued the calibration's certificate is one act and
+//! one event, `calibration.approved` with its `certificate`; a filter on
+//! `certificate.issued` selects it too ([`LiveEvent::is`]).
+
+use serde::Serialize;
+use serde_json::Value;
+use utoipa::ToSchema;
+use uuid::Uuid;
+
+use super::audit::Entry;
+use super::timestamp::Timestamp;
+
+/// What happened.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, ToSchema)]
+pub enum EventType {
+    /// A calibration was stored.
+    #[serde(rename = "calibration.stored")]
+    CalibrationStored,
+    /// A reviewer approved a calibration.
+    #[serde(rename = "calibration.approved")]
+    CalibrationApproved,
+    /// A reviewer rejected a calibration.
+    #[serde(rename = "calibration.rejected")]
+    CalibrationRejected,
+    /// A calibration was withdrawn.
+    #[serde(rename = "calibration.withdrawn")]
+    CalibrationWithdrawn,
+    /// A corrected calibration replaced it (`change.superseded_by`).
+    #[serde(rename = "calibration.superseded")]
+    CalibrationSuperseded,
+    /// Held for a nonconforming standard: its coefficients are not usable.
+    #[serde(rename = "calibration.held")]
+    CalibrationHeld,
+    /// A held calibration approved again: usable once more.
+    #[serde(rename = "calibration.released")]
+    CalibrationReleased,
+    /// A certificate issued after its calibration's approval.
+    #[serde(rename = "certificate.issued")]
+    CertificateIssued,
+    /// A certificate amended (a new revision).
+    #[serde(rename = "certificate.amended")]
+    CertificateAmended,
+    /// A sensor given a (new) type, so judged by other limits.
+    #[serde(rename = "sensor.retyped")]
+    SensorRetyped,
+    /// A reference standard found nonconforming.
+    #[serde(rename = "standard.nonconformity")]
+    StandardNonconformity,
+}
+
+impl EventType {
+    /// Every type, in the order of the module's table.
+    pub const ALL: [EventType; 11] = [
+        EventType::CalibrationStored,
+        EventType::CalibrationApproved,
+        EventType::CalibrationRejected,
+        EventType::CalibrationWithdrawn,
+        EventType::CalibrationSuperseded,
+        EventType::CalibrationHeld,
+        EventType::CalibrationReleased,
+        EventType::CertificateIssued,
+        EventType::CertificateAmended,
+        EventType::SensorRetyped,
+        EventType::StandardNonconformity,
+    ];
+
+    /// The wire name (`calibration.stored`, …).
+    pub fn as_str(self) -> &'static str {
+        match self {
+            EventType::CalibrationStored => "calibration.stored",
+            EventType::CalibrationApproved => "calibration.approved",
+            EventType::CalibrationRejected => "calibration.rejected",
+            EventType::CalibrationWithdrawn => "calibration.withdrawn",
+            EventType::CalibrationSuperseded => "calibration.superseded",
+            EventType::CalibrationHeld => "calibration.held",
+            EventType::CalibrationReleased => "calibration.released",
+            EventType::CertificateIssued => "certificate.issued",
+            EventType::CertificateAmended => "certificate.amended",
+            EventType::SensorRetyped => "sensor.retyped",
+            EventType::StandardNonconformity => "standard.nonconformity",
+        }
+    }
+
+    /// The type named `s`, if any.
+    pub fn parse(s: &str) -> Option<EventType> {
+        EventType::ALL.into_iter().find(|t| t.as_str() == s)
+    }
+
+    /// The type of the audit entry's act, when it is an event: `from` is
+    /// the state a signature's change records it left.
+    fn of(action: &str, from: Option<&str>) -> Option<EventType> {
+        Some(match action {
+            "calibration.submitted" => EventType::CalibrationStored,
+            "calibration.approve" if from == Some("under_review") => EventType::CalibrationReleased,
+            "calibration.approve" => EventType::CalibrationApproved,
+            "calibration.reject" => EventType::CalibrationRejected,
+            "calibration.withdraw" => EventType::CalibrationWithdrawn,
+            "calibration.supersede" => EventType::CalibrationSuperseded,
+            "calibration.hold" => EventType::CalibrationHeld,
+            "certificate.issue" => EventType::CertificateIssued,
+            "certificate.amend" => EventType::CertificateAmended,
+            "sensor.retype" => EventType::SensorRetyped,
+            "standard.nonconformity" => EventType::StandardNonconformity,
+            _ => return None,
+        })
+    }
+}
+
+/// One event, as `GET /v1/events` sends it (the `data:` of an SSE event
+/// whose `id:` is `seq` and `event:` is `type`).
+#[derive(Clone, Debug, PartialEq, Serialize, ToSchema)]
+pub struct LiveEvent {
+    /// The event's id and place in the one order of events: the sequence
+    /// number of the audit entry it is.
+    pub seq: i64,
+    /// When the act happened.
+    #[schema(value_type = String, format = DateTime)]
+    pub at: Timestamp,
+    /// What happened.
+    #[serde(rename = "type")]
+    pub kind: EventType,
+    /// The sensor it concerns, if one.
+    pub sensor_id: Option<String>,
+    /// The calibration it concerns, if one.
+    pub calibration_id: Option<Uuid>,
+    /// What the act recorded (the audit entry's change): for a review, the
+    /// state `from` and `to`; for a supersession, `superseded_by`; for a
+    /// stored calibration, its `performed_at` and the digests of what was
+    /// stored.
+    #[schema(value_type = Object)]
+    pub change: Value,
+}
+
+impl LiveEvent {
+    /// The event an audit entry is, if any. Its sensor is the one the
+    /// entry names (a stored calibration's `sensor_id`, a retyped sensor's
+    /// object); for the other acts on a calibration the caller looks it up
+    /// ([`LiveEvent::needs_sensor`]).
+    pub fn from_entry(e: &Entry) -> Option<LiveEvent> {
+        let change: Value = serde_json::from_str(&e.change).unwrap_or(Value::Null);
+        let from = change.get("from").and_then(Value::as_str);
+        let kind = EventType::of(&e.action, from)?;
+        let calibration_id = e
+            .object
+            .strip_prefix("calibrations/")
+            .and_then(|id| Uuid::try_parse(id).ok());
+        let sensor_id = match kind {
+            EventType::SensorRetyped => e.object.strip_prefix("sensors/").map(str::to_owned),
+            _ => change
+                .get("sensor_id")
+                .and_then(Value::as_str)
+                .map(str::to_owned),
+        };
+        Some(LiveEvent {
+            seq: e.seq,
+            at: e.at,
+            kind,
+            sensor_id,
+            calibration_id,
+            change,
+        })
+    }
+
+    /// The calibration whose sensor this event must be given (none named).
+    pub fn needs_sensor(&self) -> Option<Uuid> {
+        self.calibration_id.filter(|_| self.sensor_id.is_none())
+    }
+
+    /// Whether this event is of type `t`: its own, or `certificate.issued`
+    /// for an approval that issued one.
+    pub fn is(&self, t: EventType) -> bool {
+        self.kind == t
+            || (t == EventType::CertificateIssued
+                && self.kind == EventType::CalibrationApproved
+                && self.change.get("certificate").is_some_and(|c| !c.is_null()))
+    }
+}
+
+/// Which events a client asked for: all, or those of the named sensors
+/// and of the named types (each list empty: any).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Filter {
+    /// Only events of these sensors.
+    pub sensors: Vec<String>,
+    /// Only events of these types.
+    pub types: Vec<EventType>,
+}
+
+impl Filter {
+    /// Whether `e` passes.
+    pub fn admits(&self, e: &LiveEvent) -> bool {
+        (self.sensors.is_empty()
+            || e.sensor_id
+                .as_ref()
+                .is_some_and(|s| self.sensors.contains(s)))
+            && (self.types.is_empty() || self.types.iter().any(|t| e.is(*t)))
+    }
+}
+
+#[cfg(test)]
+mod tests;

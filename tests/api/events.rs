@@ -1,0 +1,318 @@
+//! Live events (issue 47 item 2): `GET /v1/events` as a dashboard reads it
+//! — every act's event in order, filters, resuming with `Last-Event-ID`,
+//! two replicas' events on one stream, refusals, and a stream that does
+//! not hold a shutdown — on both engines.
+
+use std::time::Duration;
+
+use reqwest::StatusCode;
+use rstest::rstest;
+use serde_json::{Value, json};
+
+use accelcal_testkit::Engine::{self, Postgres, Sqlite};
+use accelcal_testkit::*;
+
+/// Checks an event's `data` against the committed contract's `LiveEvent`:
+/// every required property, no other, and a type the contract lists (the
+/// stream itself is left out of schemathesis's run, which would wait for
+/// its end: tests/contract/run.sh).
+fn conforms(data: &Value) {
+    let doc: Value = serde_norway::from_str(include_str!("../../openapi.yaml")).unwrap();
+    let schema = &doc["components"]["schemas"]["LiveEvent"];
+    let properties = schema["properties"].as_object().unwrap();
+    for required in schema["required"].as_array().unwrap() {
+        assert!(
+            data.get(required.as_str().unwrap()).is_some(),
+            "{required} missing: {data}"
+        );
+    }
+    for key in data.as_object().unwrap().keys() {
+        assert!(
+            properties.contains_key(key),
+            "`{key}` is not in the contract: {data}"
+        );
+    }
+    let types = doc["components"]["schemas"]["EventType"]["enum"]
+        .as_array()
+        .unwrap();
+    assert!(types.contains(&data["type"]), "{data}");
+}
+
+/// One event as read off the wire.
+#[derive(Debug)]
+struct Sent {
+    id: i64,
+    event: String,
+    data: Value,
+}
+
+/// An open event stream, parsed frame by frame (blank-line separated;
+/// comment frames skipped).
+struct Stream {
+    res: reqwest::Response,
+    buf: String,
+}
+
+impl Stream {
+    async fn open(app: &TestApp, token: &str, query: &str, last: Option<i64>) -> Stream {
+        let mut req = app
+            .client
+            .get(app.url(&format!("/v1/events{query}")))
+            .bearer_auth(token);
+        if let Some(id) = last {
+            req = req.header("Last-Event-ID", id.to_string());
+        }
+        let res = req.send().await.unwrap();
+        assert_eq!(res.status(), StatusCode::OK);
+        assert_eq!(
+            res.headers()["content-type"].to_str().unwrap(),
+            "text/event-stream"
+        );
+        Stream {
+            res,
+            buf: String::new(),
+        }
+    }
+
+    /// The next event, within `wait`; `None` when none came (or the stream
+    /// ended).
+    async fn within(&mut self, wait: Duration) -> Option<Sent> {
+        let deadline = tokio::time::Instant::now() + wait;
+        loop {
+            if let Some(end) = self.buf.find("\n\n") {
+                let frame: String = self.buf.drain(..end + 2).collect();
+                let field = |name: &str| {
+                    frame
+                        .lines()
+                        .find_map(|l| l.strip_prefix(name))
+                        .map(str::to_owned)
+                };
+                let Some(data) = field("data: ") else {
+                    continue; // a heartbeat
+                };
+                return Some(Sent {
+                    id: field("id: ").unwrap().parse().unwrap(),
+                    event: field("event: ").unwrap(),
+                    data: serde_json::from_str(&data).unwrap(),
+                });
+            }
+            let chunk = tokio::time::timeout_at(deadline, self.res.chunk())
+                .await
+                .ok()?
+                .unwrap()?;
+            self.buf.push_str(std::str::from_utf8(&chunk).unwrap());
+        }
+    }
+
+    /// The next event, which must come within 10 s.
+    async fn next(&mut self) -> Sent {
+        self.within(Duration::from_secs(10))
+            .await
+            .expect("an event within 10 s")
+    }
+}
+
+fn review(id: &Value) -> String {
+    format!("/v1/calibrations/{}/review", id.as_str().unwrap())
+}
+
+#[rstest]
+#[tokio::test]
+async fn every_act_is_an_event_in_order_and_a_client_resumes(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let station = app.held_token("station", "Sam Station", None).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let reader = app.token("reader", None).await;
+    let mut all = Stream::open(&app, &reader, "", None).await;
+    let mut of_b = Stream::open(&app, &reader, "?sensor_id=EV-B,EV-C", None).await;
+    let mut approvals = Stream::open(&app, &reader, "?type=calibration.approved", None).await;
+
+    let a = app
+        .submit(&station, &submission("EV-A", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let b = app
+        .submit(&station, &submission("EV-B", "2026-01-02T00:00:00Z", 4))
+        .await;
+    let res = app
+        .post(&review(&a["id"]), &rita, &json!({"decision": "approve"}))
+        .await;
+    assert_eq!(
+        res.status(),
+        StatusCode::OK,
+        "{}",
+        res.text().await.unwrap()
+    );
+
+    // Every act, in the order they were made, with ids that grow.
+    let got = [all.next().await, all.next().await, all.next().await];
+    let seen: Vec<(&str, &str, &str)> = got
+        .iter()
+        .map(|e| {
+            (
+                e.event.as_str(),
+                e.data["sensor_id"].as_str().unwrap(),
+                e.data["calibration_id"].as_str().unwrap(),
+            )
+        })
+        .collect();
+    let (a_id, b_id) = (a["id"].as_str().unwrap(), b["id"].as_str().unwrap());
+    assert_eq!(
+        seen,
+        [
+            ("calibration.stored", "EV-A", a_id),
+            ("calibration.stored", "EV-B", b_id),
+            ("calibration.approved", "EV-A", a_id),
+        ]
+    );
+    assert!(got[0].id < got[1].id && got[1].id < got[2].id, "{got:?}");
+    for e in &got {
+        conforms(&e.data);
+        assert_eq!(e.data["seq"], e.id);
+        assert_eq!(e.data["type"], e.event.as_str());
+    }
+    assert_eq!(got[2].data["change"]["to"], "approved");
+    // The ids are the audit trail's: the approval's entry is there.
+    let trail = app
+        .get_json(&format!("/v1/audit?object=calibrations/{a_id}"), ADMIN)
+        .await;
+    let entry = trail["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["action"] == "calibration.approve")
+        .unwrap()
+        .clone();
+    assert_eq!(entry["seq"], got[2].id);
+
+    // The filtered streams see only theirs.
+    let only_b = of_b.next().await;
+    assert_eq!(
+        (only_b.id, only_b.data["sensor_id"].as_str()),
+        (got[1].id, Some("EV-B"))
+    );
+    assert_eq!(approvals.next().await.id, got[2].id);
+    assert!(of_b.within(Duration::from_millis(600)).await.is_none());
+
+    // Resuming after the first event gives the two after it, from the trail.
+    let mut resumed = Stream::open(&app, &reader, "", Some(got[0].id)).await;
+    assert_eq!(resumed.next().await.id, got[1].id);
+    assert_eq!(resumed.next().await.id, got[2].id);
+    // … and then what happens next, once.
+    let c = app
+        .submit(&station, &submission("EV-C", "2026-01-03T00:00:00Z", 4))
+        .await;
+    let next = resumed.next().await;
+    assert_eq!(next.data["calibration_id"], c["id"]);
+    assert!(next.id > got[2].id);
+    assert_eq!(all.next().await.id, next.id);
+    assert_eq!(of_b.next().await.id, next.id);
+    // `after` does what `Last-Event-ID` does, with a filter.
+    let mut stored_after = Stream::open(
+        &app,
+        &reader,
+        &format!("?after={}&type=calibration.stored", got[1].id),
+        None,
+    )
+    .await;
+    assert_eq!(stored_after.next().await.id, next.id);
+}
+
+#[rstest]
+#[tokio::test]
+async fn bad_requests_are_refused_by_name(#[values(Sqlite)] engine: Engine) {
+    let app = TestApp::spawn(engine).await;
+    let reader = app.token("reader", None).await;
+    let get = |query: &'static str, last: Option<&'static str>| {
+        let mut req = app
+            .client
+            .get(app.url(&format!("/v1/events{query}")))
+            .bearer_auth(&reader);
+        if let Some(l) = last {
+            req = req.header("Last-Event-ID", l);
+        }
+        req.send()
+    };
+    for (query, last, named) in [
+        ("?type=calibration.deleted", None, "type"),
+        ("?type=", None, "type"),
+        ("?sensor_id=A,,B", None, "sensor_id"),
+        ("?after=-1", None, "after"),
+        ("", Some("abc"), "Last-Event-ID"),
+        ("", Some("999999"), "Last-Event-ID"),
+        ("?colour=red", None, "colour"),
+    ] {
+        let p = problem(get(query, last).await.unwrap(), StatusCode::BAD_REQUEST).await;
+        assert!(p.to_string().contains(named), "{query} {last:?}: {p}");
+    }
+    let res = app.client.get(app.url("/v1/events")).send().await.unwrap();
+    assert_eq!(res.status(), StatusCode::UNAUTHORIZED);
+}
+
+/// A client of one replica sees the other replica's events, in order.
+#[rstest]
+#[tokio::test]
+async fn two_replicas_clients_see_both_replicas_events(#[values(Postgres)] engine: Engine) {
+    let one = TestApp::spawn(engine).await;
+    let two = TestApp::spawn_on(&one.database).await;
+    let reader = one.token("reader", None).await;
+    let station = one.token("station", None).await;
+    let mut on_one = Stream::open(&one, &reader, "", None).await;
+    let mut on_two = Stream::open(&two, &reader, "", None).await;
+    let x = two
+        .submit(&station, &submission("EV-X", "2026-01-01T00:00:00Z", 4))
+        .await;
+    let y = one
+        .submit(&station, &submission("EV-Y", "2026-01-02T00:00:00Z", 4))
+        .await;
+    for stream in [&mut on_one, &mut on_two] {
+        let first = stream.next().await;
+        let second = stream.next().await;
+        assert_eq!(
+            (
+                first.data["calibration_id"].clone(),
+                second.data["calibration_id"].clone()
+            ),
+            (x["id"].clone(), y["id"].clone())
+        );
+        assert!(first.id < second.id);
+    }
+}
+
+/// An open stream does not hold the server's shutdown: it ends.
+#[rstest]
+#[tokio::test]
+async fn a_stream_ends_at_shutdown(#[values(Sqlite)] engine: Engine) {
+    let mut app = TestApp::spawn(engine).await;
+    let reader = app.token("reader", None).await;
+    let mut stream = Stream::open(&app, &reader, "", None).await;
+    tokio::time::timeout(Duration::from_secs(10), app.stop())
+        .await
+        .expect("the server stopped with a stream open");
+    assert!(stream.within(Duration::from_secs(5)).await.is_none());
+}
+
+/// While nothing happens, a heartbeat comment comes every
+/// `--events-heartbeat`.
+#[rstest]
+#[tokio::test]
+async fn a_quiet_stream_has_a_heartbeat(#[values(Sqlite)] engine: Engine) {
+    let app = TestApp::configured(engine, |c| {
+        c.web.events_heartbeat = Duration::from_millis(300);
+    })
+    .await;
+    let reader = app.token("reader", None).await;
+    let mut stream = Stream::open(&app, &reader, "", None).await;
+    let mut beats = 0;
+    while beats < 2 {
+        let chunk = tokio::time::timeout(Duration::from_secs(5), stream.res.chunk())
+            .await
+            .expect("a heartbeat within 5 s")
+            .unwrap()
+            .unwrap();
+        let text = std::str::from_utf8(&chunk).unwrap();
+        assert!(text.starts_with(':'), "{text:?}");
+        beats += 1;
+    }
+}
