@@ -2,8 +2,8 @@
 # Writes and reads under load, builds side by side (issue 48 item 4): wrk at
 # CONNS connections (64), LEG seconds a leg (10), ROUNDS rounds (3) in which
 # the builds alternate (in an order that rotates), on each engine of ENGINES
-# (sqlite postgres). Per build and engine one database, kept across rounds, so the hot sensor's
-# history grows from round to round. Each round, per build:
+# (sqlite postgres). Per build and engine one database, kept across rounds,
+# so the hot sensor's history grows from round to round. Each round, per build:
 #
 #   hot     durable POST /v1/calibrations, the paper's Table 1, every one to
 #           sensor HOT (a new performed_at each time, growing with the
@@ -21,6 +21,9 @@
 # a 2xx (wrk's non-2xx count is checked). Measures, never judges.
 # Usage: benches/writes.sh NAME=BIN NAME=BIN ...
 #        (e.g. a5689ea=/tmp/a5689ea head=target/release/accelcal)
+# A NAME ending in +sse runs its build with two clients of GET /v1/events
+# open on each server (benches/sse.py: one reading, one that never reads);
+# one ending in +stall with only the one that never reads.
 # PG_URL: a PostgreSQL server with trust auth (postgres://postgres@127.0.0.1:5432).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -46,7 +49,7 @@ NAMES=(); declare -A BIN
 for arg in "$@"; do
   name=${arg%%=*}; NAMES+=("$name"); BIN[$name]=$(realpath "${arg#*=}")
 done
-[ ${#NAMES[@]} -ge 1 ] || { sed -n 2,24p "$0" >&2; exit 2; }
+[ ${#NAMES[@]} -ge 1 ] || { sed -n 2,27p "$0" >&2; exit 2; }
 
 port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 # serve NAME DATABASE → prints the port; the pid lands in PIDS.
@@ -146,6 +149,14 @@ for engine in $ENGINES; do
     for name in "${NAMES[@]:shift_by}" "${NAMES[@]:0:shift_by}"; do
       if [ "$engine" = postgres ]; then database="$PG/writes_bench_${name//[^a-z0-9]/_}"; else database="$WORK/$name.db"; fi
       read -r pid p < <(serve "$name" "$database"); ready "$p"
+      clients=()
+      if [[ $name == *+sse ]]; then
+        python3 benches/sse.py read "http://127.0.0.1:$p" "$ACCELCAL_ADMIN_TOKEN" & clients+=($!)
+      fi
+      if [[ $name == *+sse || $name == *+stall ]]; then
+        python3 benches/sse.py stall "http://127.0.0.1:$p" "$ACCELCAL_ADMIN_TOKEN" & clients+=($!)
+        PIDS+=("${clients[@]}")
+      fi
       for leg in hot fleet; do
         [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }
         OFFSET=$((OFFSET + 1000000))
@@ -176,6 +187,7 @@ for engine in $ENGINES; do
         kill "$pid2"; wait "$pid2" 2>/dev/null || true
       fi
       kill "$pid"; wait "$pid" 2>/dev/null || true
+      for c in "${clients[@]}"; do kill "$c" 2>/dev/null || true; wait "$c" 2>/dev/null || true; done
     done
   done
 done

@@ -219,3 +219,67 @@ async fn poller(
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::domain::audit::Actor;
+    use crate::domain::events::EventType;
+    use crate::domain::timestamp::Timestamp;
+    use crate::store::audit::retyped;
+
+    /// A feed over a fresh SQLite file, polling every 10 ms.
+    fn feed() -> (tempfile::TempDir, Arc<dyn Store>, Feed) {
+        let dir = tempfile::tempdir().unwrap();
+        let store: Arc<dyn Store> =
+            Arc::new(crate::store::sqlite::SqliteStore::open(dir.path().join("f.db")).unwrap());
+        let feed = Feed::new(store.clone(), Duration::from_millis(10));
+        (dir, store, feed)
+    }
+
+    /// `n` acts that are events (sensors retyped), recorded in the trail.
+    async fn retype(store: &dyn Store, n: usize) {
+        let at = Timestamp::parse("2026-11-28T08:00:00Z").unwrap();
+        let acts = (0..n)
+            .map(|i| retyped(&format!("S-{i}"), "A", at, Actor::service()))
+            .collect();
+        store.record(acts).await.unwrap();
+    }
+
+    /// A subscriber gets every event after its subscription, in order; one
+    /// that does not read while more than [`BUFFER`] are handed on is told
+    /// it lagged (the poller never waited for it), and catches up from the
+    /// trail.
+    #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+    async fn subscribers_follow_the_trail_and_a_slow_one_lags() {
+        let (_dir, store, feed) = feed();
+        retype(store.as_ref(), 3).await; // before anyone subscribed
+        let mut reading = feed.subscribe().await.unwrap();
+        let mut stalled = feed.subscribe().await.unwrap();
+        let start = feed.head().await.unwrap();
+        retype(store.as_ref(), 2).await;
+        for expected in [start + 1, start + 2] {
+            let Next::Event(e) = reading.next().await else {
+                panic!("an event")
+            };
+            assert_eq!((e.seq, e.kind), (expected, EventType::SensorRetyped));
+        }
+        retype(store.as_ref(), BUFFER + 10).await;
+        let mut got = 0;
+        while got < BUFFER + 10 {
+            match tokio::time::timeout(Duration::from_secs(10), reading.next()).await {
+                Ok(Next::Event(_)) => got += 1,
+                Ok(Next::Lagged) => break, // read too slowly here too: allowed
+                _ => panic!("the reading subscriber stopped getting events"),
+            }
+        }
+        assert!(matches!(stalled.next().await, Next::Lagged));
+        // What it missed is in the trail, after its cursor.
+        let (missed, last) = feed.since(start, &Filter::default()).await.unwrap();
+        assert_eq!(missed.len(), PAGE);
+        assert_eq!(missed[0].seq, start + 1);
+        assert_eq!(last, start + PAGE as i64);
+        feed.close();
+        assert!(matches!(reading.next().await, Next::Closed));
+    }
+}

@@ -109,6 +109,18 @@ fn describe() {
         "accelcal_log_lines_dropped_total",
         "Log lines dropped because the log writer's queue was full (standard error not read fast enough)."
     );
+    describe_counter!(
+        "accelcal_events_total",
+        "Live events this replica read from the audit trail and handed to its GET /v1/events clients."
+    );
+    describe_gauge!(
+        "accelcal_events_clients",
+        "Clients of GET /v1/events connected to this replica."
+    );
+    describe_counter!(
+        "accelcal_events_clients_dropped_total",
+        "Clients of GET /v1/events disconnected for falling more than 1024 events behind."
+    );
     describe_gauge!("accelcal_build_info", "Always 1; the version is a label.");
 }
 

@@ -1,0 +1,90 @@
+#!/usr/bin/env python3
+"""Clients of GET /v1/events for the benchmarks (issue 47 item 6).
+
+  sse.py read    BASE TOKEN         reads the stream, counting events, until killed
+  sse.py stall   BASE TOKEN         opens the stream and never reads it
+  sse.py latency BASE TOKEN N       submits the paper's Table 1 N times, one at a
+                                    time, and prints the p50 and p99 (ms) from each
+                                    POST's answer to its event on an open stream
+
+Standard library only. Measures, never judges.
+"""
+import json
+import socket
+import sys
+import threading
+import time
+import urllib.request
+from urllib.parse import urlparse
+
+
+def stream(base, token):
+    req = urllib.request.Request(f"{base}/v1/events", headers={"Authorization": f"Bearer {token}"})
+    return urllib.request.urlopen(req)
+
+
+def events(res):
+    """Yields (arrival time, event data) for each event of the stream."""
+    data = None
+    for raw in res:
+        line = raw.decode().rstrip("\n")
+        if line.startswith("data: "):
+            data = json.loads(line[6:])
+        elif line == "" and data is not None:
+            yield time.monotonic(), data
+            data = None
+
+
+def read(base, token):
+    n = 0
+    for _ in events(stream(base, token)):
+        n += 1
+
+
+def stall(base, token):
+    url = urlparse(base)
+    s = socket.create_connection((url.hostname, url.port))
+    s.sendall(
+        f"GET /v1/events HTTP/1.1\r\nHost: {url.netloc}\r\nAuthorization: Bearer {token}\r\n\r\n".encode()
+    )
+    s.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 4096)
+    while True:
+        time.sleep(3600)
+
+
+def latency(base, token, n):
+    body = json.load(open("examples/paper-table1.json"))
+    body["sensor_id"] = "SSE-LATENCY"
+    arrived = {}
+    seen = threading.Condition()
+    res = stream(base, token)
+
+    def follow():
+        for at, e in events(res):
+            with seen:
+                arrived[e.get("calibration_id")] = at
+                seen.notify_all()
+
+    threading.Thread(target=follow, daemon=True).start()
+    out = []
+    for i in range(n):
+        body["performed_at"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(946684800 + i))
+        req = urllib.request.Request(
+            f"{base}/v1/calibrations",
+            data=json.dumps(body).encode(),
+            headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"},
+        )
+        with urllib.request.urlopen(req) as r:
+            cid = json.load(r)["id"]
+        answered = time.monotonic()
+        with seen:
+            if not seen.wait_for(lambda: cid in arrived, timeout=10):
+                sys.exit(f"no event for {cid} within 10 s")
+            out.append((arrived[cid] - answered) * 1000)
+    out.sort()
+    print(f"{out[len(out) // 2]:.1f} {out[min(len(out) - 1, int(len(out) * 0.99))]:.1f}")
+
+
+if __name__ == "__main__":
+    mode, base, token = sys.argv[1:4]
+    {"read": read, "stall": stall}.get(mode, lambda b, t: latency(b, t, int(sys.argv[4])))(base, token)
