@@ -177,16 +177,16 @@ impl Design {
     }
 
     /// The design widened by one column `x` (one value per position,
-    /// finite), solved from this design's factors instead of a
-    /// factorisation anew. It is refused (`None`) exactly as [`Design::new`]
+    /// finite): its fit found from this design's factors, with only the
+    /// singular values of `[A x]` computed (for the rank test) instead of a
+    /// new design's factors. It is refused (`None`) exactly as [`Design::new`]
     /// would refuse it: a singular value of `[A x]` at or below
     /// [`RANK_TOLERANCE`] of the largest (so also fewer positions than
     /// columns). Otherwise the answer is `ẑ = z / ‖z‖`, `z = (I − U·Uᵀ)·x`
     /// the part of `x` outside `A`'s columns: since `[A x]` spans what
     /// `[U ẑ]` spans, with orthonormal columns, the widened fit of any `y`
     /// leaves the residual `r − ẑ·(ẑᵀ·r)`, `r` this design's residual of
-    /// `y`. Only the singular values of `[A x]` are computed, not its
-    /// factors.
+    /// `y`.
     ///
     /// # Panics
     /// If `x.len()` differs from the number of positions.

@@ -258,15 +258,32 @@ impl TestApp {
     /// The actions of the audit trail's entries on `object` (such as
     /// `calibrations/<id>`), oldest first, as an admin reads them.
     pub async fn trail_actions(&self, object: &str) -> Vec<String> {
+        self.trail(object)
+            .await
+            .iter()
+            .map(|e| e["action"].as_str().unwrap().to_owned())
+            .collect()
+    }
+
+    /// The audit trail's entries about `object`, in order.
+    pub async fn trail(&self, object: &str) -> Vec<Value> {
         let trail = self
             .get_json(&format!("/v1/audit?object={object}"), ADMIN)
             .await;
         trail["items"]
             .as_array()
             .unwrap_or_else(|| panic!("no trail for {object}: {trail}"))
-            .iter()
-            .map(|e| e["action"].as_str().unwrap().to_owned())
-            .collect()
+            .clone()
+    }
+
+    /// The first entry of the audit trail about `object` whose action is
+    /// `action`.
+    pub async fn trail_entry(&self, object: &str, action: &str) -> Value {
+        self.trail(object)
+            .await
+            .into_iter()
+            .find(|e| e["action"] == action)
+            .unwrap_or_else(|| panic!("no `{action}` about {object} in the trail"))
     }
 
     /// POST JSON with a token.

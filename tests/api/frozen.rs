@@ -114,16 +114,9 @@ async fn an_issued_certificate_stays_as_issued_until_amended(
     ] {
         assert!(html.contains(text) && dcc.contains(text), "{text}");
     }
-    let trail = app
-        .get_json(&format!("/v1/audit?object=calibrations/{id}"), ADMIN)
+    let approve = app
+        .trail_entry(&format!("calibrations/{id}"), "calibration.approve")
         .await;
-    let approve = trail["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["action"] == "calibration.approve")
-        .unwrap()
-        .clone();
     let change = &approve["change"];
     assert_eq!(change["certificate"]["revision"], 1);
     assert_eq!(change["certificate"]["html_sha256"], sha(html.as_bytes()));

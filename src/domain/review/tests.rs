@@ -35,14 +35,7 @@ fn by(token: &str, holder: Option<&str>) -> Submitter {
 fn the_transitions_are_the_diagrams() {
     let reviewer = principal("r", Role::Reviewer, Some("R. Eviewer"));
     let submitter = by("s", Some("S. Tation"));
-    let states = [
-        State::Submitted,
-        State::Approved,
-        State::Rejected,
-        State::Withdrawn,
-        State::Superseded,
-        State::UnderReview,
-    ];
+    let states = State::ALL;
     // Columns: submitted, approved, rejected, withdrawn, superseded,
     // under review.
     let expected = [
