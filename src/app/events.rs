@@ -1,5 +1,7 @@
 //! The live events' feed (issue 47 item 2): one poller per replica reads
-//! the audit trail's newly sealed entries and hands each event
+//! the audit trail's newly sealed entries — every `--events-poll-ms`, and
+//! as soon as the store says this replica's own acts joined the chain
+//! ([`crate::store::Audit::trail_grew`]) — and hands each event
 //! ([`LiveEvent`]) to every subscriber on this replica; a subscriber that
 //! resumes reads what it missed from the trail itself.
 //!
@@ -36,8 +38,13 @@ pub const BUFFER: usize = 1024;
 /// Entries read from the trail at once.
 pub const PAGE: usize = 500;
 
-/// How often the poller looks for newly sealed entries, by default.
+/// How often the poller looks for newly sealed entries, by default (other
+/// replicas' acts; this replica's wake it at once).
 pub const POLL: Duration = Duration::from_millis(200);
+
+/// The least time between two looks: under a stream of acts, one look
+/// reads what several commits sealed.
+pub const GAP: Duration = Duration::from_millis(5);
 
 /// The feed of a replica: the trail's events, handed on as they are sealed.
 pub struct Feed {
@@ -106,6 +113,7 @@ impl Feed {
                     .store(self.store.audit_head().await?, Ordering::SeqCst);
                 tokio::spawn(poller(
                     self.store.clone(),
+                    self.store.trail_grew(),
                     self.poll,
                     self.tx.clone(),
                     self.head.clone(),
@@ -172,9 +180,12 @@ async fn events(
     Ok(out)
 }
 
-/// Hands on every entry sealed after `head`, every `poll`, until closed.
+/// Hands on every entry sealed after `head`, every `poll` and whenever
+/// the store says the trail grew (this replica's own acts, at once), until
+/// closed.
 async fn poller(
     store: Arc<dyn Store>,
+    grew: Option<Arc<tokio::sync::Notify>>,
     poll: Duration,
     tx: broadcast::Sender<Arc<LiveEvent>>,
     head: Arc<AtomicI64>,
@@ -183,10 +194,18 @@ async fn poller(
     let mut tick = tokio::time::interval(poll);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
+        let grown = async {
+            match &grew {
+                Some(n) => n.notified().await,
+                None => std::future::pending().await,
+            }
+        };
         tokio::select! {
             _ = tick.tick() => {}
+            () = grown => {}
             _ = closed.changed() => return,
         }
+        let looked = tokio::time::Instant::now();
         loop {
             let after = head.load(Ordering::SeqCst);
             let entries = match store.sealed_after(after, PAGE).await {
@@ -217,6 +236,7 @@ async fn poller(
                 break;
             }
         }
+        tokio::time::sleep_until(looked + GAP).await;
     }
 }
 

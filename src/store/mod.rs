@@ -140,6 +140,13 @@ pub trait Audit: Send + Sync + 'static {
     async fn sealed_after(&self, after: i64, limit: usize) -> Result<Vec<Entry>, StoreError>;
     /// The last sealed entry's sequence number (0 for an empty trail).
     async fn audit_head(&self) -> Result<i64, StoreError>;
+    /// Notified (one permit) soon after this process's own acts' entries
+    /// have joined the chain — so that a reader of [`sealed_after`]
+    /// (Self::sealed_after) need not wait for its next look; `None` when
+    /// the engine cannot tell.
+    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+        None
+    }
     /// Appends `events`, in order, in one transaction (`accelcal audit
     /// adopt`: the rows a database held before its trail).
     async fn record(&self, events: Vec<crate::domain::audit::Event>) -> Result<(), StoreError>;

@@ -174,16 +174,9 @@ async fn every_act_is_an_event_in_order_and_a_client_resumes(
     }
     assert_eq!(got[2].data["change"]["to"], "approved");
     // The ids are the audit trail's: the approval's entry is there.
-    let trail = app
-        .get_json(&format!("/v1/audit?object=calibrations/{a_id}"), ADMIN)
+    let entry = app
+        .trail_entry(&format!("calibrations/{a_id}"), "calibration.approve")
         .await;
-    let entry = trail["items"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .find(|e| e["action"] == "calibration.approve")
-        .unwrap()
-        .clone();
     assert_eq!(entry["seq"], got[2].id);
 
     // The filtered streams see only theirs.
@@ -314,5 +307,31 @@ async fn a_quiet_stream_has_a_heartbeat(#[values(Sqlite)] engine: Engine) {
         let text = std::str::from_utf8(&chunk).unwrap();
         assert!(text.starts_with(':'), "{text:?}");
         beats += 1;
+    }
+}
+
+/// A replica's own acts go out as soon as they are in the chain, not at
+/// the next look: with looks a minute apart, the event still comes at once.
+#[rstest]
+#[tokio::test]
+async fn a_replicas_own_acts_go_out_at_once(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::configured(engine, |c| {
+        c.web.events_poll = Duration::from_secs(60);
+    })
+    .await;
+    let reader = app.token("reader", None).await;
+    let mut stream = Stream::open(&app, &reader, "", None).await;
+    for (i, sensor) in ["EV-N1", "EV-N2"].into_iter().enumerate() {
+        let c = app
+            .submit(
+                ADMIN,
+                &submission(sensor, &format!("2026-01-0{}T00:00:00Z", i + 1), 4),
+            )
+            .await;
+        let e = stream
+            .within(Duration::from_secs(5))
+            .await
+            .expect("the event within 5 s, long before the next look");
+        assert_eq!(e.data["calibration_id"], c["id"]);
     }
 }

@@ -172,6 +172,10 @@ impl Audit for PostgresStore {
         })
     }
 
+    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+        Some(self.sealer.sealed())
+    }
+
     async fn unsealed(&self) -> Result<i64, StoreError> {
         op!(self, "audit_unsealed", |client| seal::pending(&client)
             .await)

@@ -192,6 +192,7 @@ pub async fn pending(client: &impl GenericClient) -> Result<i64, StoreError> {
 /// dropped, after the seal in progress.
 pub struct Sealer {
     wake: Arc<Notify>,
+    sealed: Arc<Notify>,
     stopping: Arc<AtomicBool>,
     task: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
 }
@@ -200,10 +201,12 @@ impl Sealer {
     /// Starts the task over `pool`, on the current tokio runtime.
     pub fn start(pool: Pool) -> Self {
         let wake = Arc::new(Notify::new());
+        let sealed = Arc::new(Notify::new());
         let stopping = Arc::new(AtomicBool::new(false));
-        let task = tokio::spawn(run(pool, wake.clone(), stopping.clone()));
+        let task = tokio::spawn(run(pool, wake.clone(), sealed.clone(), stopping.clone()));
         Sealer {
             wake,
+            sealed,
             stopping,
             task: std::sync::Mutex::new(Some(task)),
         }
@@ -229,6 +232,12 @@ impl Sealer {
     pub fn waker(&self) -> Arc<Notify> {
         self.wake.clone()
     }
+
+    /// Notified (one permit) after each seal that chained entries: the
+    /// trail grew ([`crate::store::Audit::trail_grew`]).
+    pub fn sealed(&self) -> Arc<Notify> {
+        self.sealed.clone()
+    }
 }
 
 impl Drop for Sealer {
@@ -238,7 +247,7 @@ impl Drop for Sealer {
     }
 }
 
-async fn run(pool: Pool, wake: Arc<Notify>, stopping: Arc<AtomicBool>) {
+async fn run(pool: Pool, wake: Arc<Notify>, sealed: Arc<Notify>, stopping: Arc<AtomicBool>) {
     let mut failing = false;
     let mut last = tokio::time::Instant::now();
     loop {
@@ -255,7 +264,12 @@ async fn run(pool: Pool, wake: Arc<Notify>, stopping: Arc<AtomicBool>) {
         }
         last = tokio::time::Instant::now();
         match once(&pool).await {
-            Ok(_) => failing = false,
+            Ok(n) => {
+                failing = false;
+                if n > 0 {
+                    sealed.notify_one();
+                }
+            }
             Err(e) if !failing => {
                 failing = true;
                 tracing::warn!(error = %e.chain(), "the audit sealer could not seal (retrying)");

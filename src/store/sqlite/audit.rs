@@ -137,6 +137,10 @@ impl Audit for SqliteStore {
         .await
     }
 
+    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+        Some(self.writer.committed.clone())
+    }
+
     async fn audit_head(&self) -> Result<i64, StoreError> {
         self.follow_the_file()?;
         self.run("audit_head", move |conn| {

@@ -102,6 +102,8 @@ enum Msg {
 pub struct Writer {
     /// When a batch last failed because the disk was full.
     pub full_at: std::sync::Arc<Mutex<Option<std::time::Instant>>>,
+    /// Notified (one permit) after each committed batch.
+    pub committed: std::sync::Arc<tokio::sync::Notify>,
     queue: mpsc::Sender<Msg>,
     capacity: usize,
     thread: Mutex<Option<JoinHandle<()>>>,
@@ -114,12 +116,15 @@ impl Writer {
         let (queue, rx) = mpsc::channel(capacity);
         let full_at = std::sync::Arc::new(Mutex::new(None));
         let full = full_at.clone();
+        let committed = std::sync::Arc::new(tokio::sync::Notify::new());
+        let done = committed.clone();
         let thread = std::thread::Builder::new()
             .name("accelcal-sqlite-writer".into())
-            .spawn(move || drain(&pool, &full, rx))
+            .spawn(move || drain(&pool, &full, &done, rx))
             .map_err(|e| StoreError::Unavailable(Box::new(e)))?;
         Ok(Writer {
             full_at,
+            committed,
             queue,
             capacity,
             thread: Mutex::new(Some(thread)),
@@ -160,7 +165,12 @@ impl Writer {
 }
 
 /// The writer thread: batch, run, commit, answer, until told to stop.
-fn drain(pool: &Pool, full: &Mutex<Option<std::time::Instant>>, mut rx: mpsc::Receiver<Msg>) {
+fn drain(
+    pool: &Pool,
+    full: &Mutex<Option<std::time::Instant>>,
+    committed: &tokio::sync::Notify,
+    mut rx: mpsc::Receiver<Msg>,
+) {
     let mut stop = false;
     while !stop {
         let Some(first) = rx.blocking_recv() else {
@@ -179,10 +189,13 @@ fn drain(pool: &Pool, full: &Mutex<Option<std::time::Instant>>, mut rx: mpsc::Re
         }
         if !batch.is_empty() {
             metrics::histogram!("accelcal_storage_write_batch_size").record(batch.len() as f64);
-            if let Err(e) = commit(pool, batch)
-                && super::errors::is_full(&e)
-            {
-                *full.lock().unwrap_or_else(|e| e.into_inner()) = Some(std::time::Instant::now());
+            match commit(pool, batch) {
+                Ok(()) => committed.notify_one(),
+                Err(e) if super::errors::is_full(&e) => {
+                    *full.lock().unwrap_or_else(|e| e.into_inner()) =
+                        Some(std::time::Instant::now());
+                }
+                Err(_) => {}
             }
         }
     }
