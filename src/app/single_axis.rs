@@ -78,7 +78,7 @@ pub async fn assess(
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
     resolve_standards(lab, &mut evaluated, performed_at).await?;
     let previous = subject
-        .previous(lab, &evaluated.submission.sensor_id, performed_at)
+        .previous(lab, performed_at)
         .await?
         .map(|c| Previous {
             id: c.id,

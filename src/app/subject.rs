@@ -50,7 +50,6 @@ impl Subject {
     pub async fn previous(
         &self,
         lab: &Lab,
-        sensor_id: &str,
         performed_at: Timestamp,
     ) -> Result<Option<CalibrationSummary>, Error> {
         let Some(sensor) = &self.sensor else {
@@ -61,17 +60,18 @@ impl Subject {
         }
         Ok(lab
             .store
-            .previous_calibration(sensor_id.to_owned(), performed_at, lab.basis)
+            .previous_calibration(sensor.sensor_id.clone(), performed_at, lab.basis)
             .await?)
     }
 }
 
 /// The sensor's summary and the sensor type in force: the one the
-/// submission names (which must exist), else the sensor's — for a sensor whose calibrations are of the
-/// submission's kind (`triad`, [`wrong_kind`]). Only an admin may re-type a
-/// sensor through a submission: a station may name the sensor's current
-/// type, or any type while the sensor has none (forbidden otherwise), since
-/// its type decides how its calibrations are judged.
+/// submission names (which must exist), else the sensor's — for a sensor
+/// whose calibrations are of the submission's kind (`triad`,
+/// [`wrong_kind`]). Only an admin may re-type a sensor through a
+/// submission: a station may name the sensor's current type, or any type
+/// while the sensor has none (forbidden otherwise), since its type decides
+/// how its calibrations are judged.
 pub async fn in_force(
     lab: &Lab,
     principal: &Principal,

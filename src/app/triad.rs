@@ -252,7 +252,7 @@ pub async fn assess(
         _ => 1,
     };
     let judged_by = sensor_type.clone();
-    let previous = subject.previous(lab, &sensor_id, performed_at).await?;
+    let previous = subject.previous(lab, performed_at).await?;
     let result = lab
         .compute_for(size, move || -> Result<TriadResult, Error> {
             let mut sub = sub;
