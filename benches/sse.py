@@ -1,11 +1,17 @@
 #!/usr/bin/env python3
-"""Clients of GET /v1/events for the benchmarks (issue 47 item 6).
+"""Clients of GET /v1/events and webhook receivers for the benchmarks
+(issue 47 item 6).
 
   sse.py read    BASE TOKEN         reads the stream, counting events, until killed
   sse.py stall   BASE TOKEN         opens the stream and never reads it
   sse.py latency BASE TOKEN N       submits the paper's Table 1 N times, one at a
                                     time, and prints the p50 and p99 (ms) from each
                                     POST's answer to its event on an open stream
+  sse.py hooklatency BASE TOKEN N   the same to the arrival of its webhook at a
+                                    receiver on loopback (the server needs
+                                    --webhook-allow-private)
+  sse.py receive PORT               a webhook receiver answering 204, until killed
+  sse.py blackhole PORT             a dead receiver: takes connections, never answers
 
 Standard library only. Measures, never judges.
 """
@@ -85,6 +91,75 @@ def latency(base, token, n):
     print(f"{out[len(out) // 2]:.1f} {out[min(len(out) - 1, int(len(out) * 0.99))]:.1f}")
 
 
+def receiver(port, on_post=None):
+    from http.server import BaseHTTPRequestHandler, ThreadingHTTPServer
+
+    class Handler(BaseHTTPRequestHandler):
+        def do_POST(self):
+            body = self.rfile.read(int(self.headers.get("content-length", 0)))
+            if on_post:
+                on_post(time.monotonic(), json.loads(body))
+            self.send_response(204)
+            self.end_headers()
+
+        def log_message(self, *args):
+            pass
+
+    return ThreadingHTTPServer(("127.0.0.1", port), Handler)
+
+
+def blackhole(port):
+    s = socket.create_server(("127.0.0.1", port), backlog=1024)
+    held = []
+    while True:
+        conn, _ = s.accept()
+        held.append(conn)
+
+
+def hook_latency(base, token, n):
+    arrived = {}
+    seen = threading.Condition()
+
+    def on_post(at, payload):
+        with seen:
+            arrived[payload["data"].get("calibration_id")] = at
+            seen.notify_all()
+
+    server = receiver(0, on_post)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    url = f"http://127.0.0.1:{server.server_address[1]}/hook"
+    req = urllib.request.Request(
+        f"{base}/v1/webhooks/bench-latency", method="PUT",
+        data=json.dumps({"url": url, "sensors": ["HOOK-LATENCY"]}).encode(),
+        headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"})
+    urllib.request.urlopen(req).read()
+    body = json.load(open("examples/paper-table1.json"))
+    body["sensor_id"] = "HOOK-LATENCY"
+    out = []
+    for i in range(n):
+        body["performed_at"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(946684800 + i))
+        req = urllib.request.Request(
+            f"{base}/v1/calibrations", data=json.dumps(body).encode(),
+            headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"})
+        with urllib.request.urlopen(req) as r:
+            cid = json.load(r)["id"]
+        answered = time.monotonic()
+        with seen:
+            if not seen.wait_for(lambda: cid in arrived, timeout=10):
+                sys.exit(f"no webhook for {cid} within 10 s")
+            out.append((arrived[cid] - answered) * 1000)
+    out.sort()
+    print(f"{out[len(out) // 2]:.1f} {out[min(len(out) - 1, int(len(out) * 0.99))]:.1f}")
+
+
 if __name__ == "__main__":
-    mode, base, token = sys.argv[1:4]
-    {"read": read, "stall": stall}.get(mode, lambda b, t: latency(b, t, int(sys.argv[4])))(base, token)
+    mode = sys.argv[1]
+    if mode == "receive":
+        receiver(int(sys.argv[2])).serve_forever()
+    elif mode == "blackhole":
+        blackhole(int(sys.argv[2]))
+    elif mode == "hooklatency":
+        hook_latency(sys.argv[2], sys.argv[3], int(sys.argv[4]))
+    else:
+        base, token = sys.argv[2:4]
+        {"read": read, "stall": stall}.get(mode, lambda b, t: latency(b, t, int(sys.argv[4])))(base, token)

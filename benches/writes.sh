@@ -23,7 +23,11 @@
 #        (e.g. a5689ea=/tmp/a5689ea head=target/release/accelcal)
 # A NAME ending in +sse runs its build with two clients of GET /v1/events
 # open on each server (benches/sse.py: one reading, one that never reads);
-# one ending in +stall with only the one that never reads.
+# one ending in +stall with only the one that never reads. One ending in
+# +hook has a webhook endpoint registered for every event, at a receiver on
+# loopback that answers 204 (benches/sse.py receive); one ending in +dead
+# at one that takes connections and never answers (benches/sse.py
+# blackhole: every attempt waits for --webhook-timeout).
 # PG_URL: a PostgreSQL server with trust auth (postgres://postgres@127.0.0.1:5432).
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -43,13 +47,14 @@ cleanup() {
 }
 trap cleanup EXIT
 export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
+export ACCELCAL_WEBHOOK_ALLOW_PRIVATE=true # the +hook and +dead receivers, on loopback
 command -v wrk >/dev/null || { echo "wrk is not installed (apt-get install wrk)" >&2; exit 1; }
 
 NAMES=(); declare -A BIN
 for arg in "$@"; do
   name=${arg%%=*}; NAMES+=("$name"); BIN[$name]=$(realpath "${arg#*=}")
 done
-[ ${#NAMES[@]} -ge 1 ] || { sed -n 2,27p "$0" >&2; exit 2; }
+[ ${#NAMES[@]} -ge 1 ] || { sed -n 2,31p "$0" >&2; exit 2; }
 
 port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",0)); print(s.getsockname()[1])'; }
 # serve NAME DATABASE → prints the port; the pid lands in PIDS.
@@ -156,6 +161,14 @@ for engine in $ENGINES; do
       if [[ $name == *+sse || $name == *+stall ]]; then
         python3 benches/sse.py stall "http://127.0.0.1:$p" "$ACCELCAL_ADMIN_TOKEN" & clients+=($!)
         PIDS+=("${clients[@]}")
+      fi
+      if [[ $name == *+hook || $name == *+dead ]]; then
+        hp=$(port)
+        if [[ $name == *+hook ]]; then python3 benches/sse.py receive "$hp" & else python3 benches/sse.py blackhole "$hp" & fi
+        clients+=($!); PIDS+=($!)
+        sleep 0.3
+        curl -sf -o /dev/null -X PUT "localhost:$p/v1/webhooks/bench" -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" \
+          -H 'Content-Type: application/json' -d "{\"url\": \"http://127.0.0.1:$hp/hook\"}"
       fi
       for leg in hot fleet; do
         [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }

@@ -12,6 +12,7 @@ use clap::{Args, Parser, Subcommand};
 
 mod database;
 mod dcc;
+mod live;
 use database::{adopt_audit, existing, migrate, verify_audit};
 
 use crate::domain::audit::Actor;
@@ -174,14 +175,8 @@ struct ServeArgs {
     /// every calibration not rejected or withdrawn).
     #[arg(long, env = "ACCELCAL_REQUIRE_APPROVAL")]
     require_approval: bool,
-    /// Seconds between heartbeat comments on `GET /v1/events` while nothing
-    /// happens.
-    #[arg(long, env = "ACCELCAL_EVENTS_HEARTBEAT", default_value_t = 15)]
-    events_heartbeat: u64,
-    /// Milliseconds between a replica's looks for new events in the audit
-    /// trail (while anyone listens to `GET /v1/events`).
-    #[arg(long, env = "ACCELCAL_EVENTS_POLL_MS", default_value_t = 200)]
-    events_poll_ms: u64,
+    #[command(flatten)]
+    live: live::LiveArgs,
     /// Seconds a web-page session lasts after sign-in.
     #[arg(long, env = "ACCELCAL_SESSION_TTL", default_value_t = 8 * 3600)]
     session_ttl: u64,
@@ -405,8 +400,9 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
         web: Web {
             public_url: a.public_url.filter(|u| !u.is_empty()),
             session_ttl: Duration::from_secs(a.session_ttl.max(1)),
-            events_heartbeat: Duration::from_secs(a.events_heartbeat.max(1)),
-            events_poll: Duration::from_millis(a.events_poll_ms.max(10)),
+            events_heartbeat: a.live.heartbeat(),
+            events_poll: a.live.poll(),
+            webhooks: a.live.webhooks()?,
             laboratory: Laboratory {
                 name: a.lab_name.filter(|n| !n.is_empty()),
                 address: a.lab_address.filter(|n| !n.is_empty()),

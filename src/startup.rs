@@ -286,6 +286,13 @@ impl Application {
         });
         let store = state.store.clone();
         let events = state.events.clone();
+        let (stop_deliveries, stopped) = tokio::sync::watch::channel(false);
+        crate::app::delivery::start(
+            store.clone(),
+            state.web.webhooks,
+            state.deliveries.clone(),
+            stopped,
+        );
         let router = http::router(state);
         let graceful = GracefulShutdown::new();
         let connections = Arc::new(Semaphore::new(config.max_connections));
@@ -335,6 +342,7 @@ impl Application {
         // Event streams never finish by themselves: ended now, their
         // clients resume elsewhere with their last id.
         events.close();
+        stop_deliveries.send_replace(true);
         if tokio::time::timeout(config.shutdown_grace, graceful.shutdown())
             .await
             .is_err()

@@ -141,13 +141,7 @@ impl Feed {
         after: i64,
         filter: &Filter,
     ) -> Result<(Vec<LiveEvent>, i64), StoreError> {
-        let entries = self.store.sealed_after(after, PAGE).await?;
-        let last = entries.last().map_or(after, |e| e.seq);
-        let events = events(self.store.as_ref(), &entries).await?;
-        Ok((
-            events.into_iter().filter(|e| filter.admits(e)).collect(),
-            last,
-        ))
+        since(self.store.as_ref(), after, filter, PAGE).await
     }
 
     /// Ends every subscription and the poller (the service is stopping).
@@ -159,6 +153,24 @@ impl Feed {
     pub fn subscribers(&self) -> usize {
         self.tx.receiver_count()
     }
+}
+
+/// The events after `after` that `filter` admits, read from the trail of
+/// `store`, at most `page` entries' worth, and the last `seq` read
+/// (`after` when there was none: caught up).
+pub async fn since(
+    store: &dyn Store,
+    after: i64,
+    filter: &Filter,
+    page: usize,
+) -> Result<(Vec<LiveEvent>, i64), StoreError> {
+    let entries = store.sealed_after(after, page).await?;
+    let last = entries.last().map_or(after, |e| e.seq);
+    let events = events(store, &entries).await?;
+    Ok((
+        events.into_iter().filter(|e| filter.admits(e)).collect(),
+        last,
+    ))
 }
 
 /// The events of `entries`, each with its sensor: the one the entry names,

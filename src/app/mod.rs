@@ -15,6 +15,7 @@
 //! ([`Kind`]).
 
 pub mod definitions;
+pub mod delivery;
 mod error;
 pub mod events;
 pub mod hold;
@@ -30,6 +31,7 @@ pub mod thermal;
 pub mod tokens;
 pub mod triad;
 mod upload;
+pub mod webhooks;
 
 pub use error::Error;
 pub use kind::Kind;

@@ -25,7 +25,7 @@
 //! one event, `calibration.approved` with its `certificate`; a filter on
 //! `certificate.issued` selects it too ([`LiveEvent::is`]).
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 use utoipa::ToSchema;
 use uuid::Uuid;
@@ -34,7 +34,7 @@ use super::audit::Entry;
 use super::timestamp::Timestamp;
 
 /// What happened.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, ToSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, ToSchema)]
 pub enum EventType {
     /// A calibration was stored.
     #[serde(rename = "calibration.stored")]

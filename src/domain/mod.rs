@@ -35,3 +35,4 @@ pub mod triad_csv;
 pub mod triad_export;
 pub mod typed;
 pub mod usability;
+pub mod webhooks;

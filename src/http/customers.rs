@@ -13,6 +13,7 @@ use super::AppState;
 use super::auth::require;
 use super::body::Body;
 use super::conditional::{precondition, tagged, written};
+use super::lookup::path_identifier;
 use super::problem::Problem;
 use crate::app::definitions;
 use crate::domain::auth::{Principal, Role};
@@ -26,14 +27,8 @@ fn unknown_customer(customer_id: &str) -> Problem {
     Problem::not_found(format!("no customer `{}`", echo(customer_id)))
 }
 
-/// 201 when created, 200 when replaced.
-/// Refuses (400) an id in the path that cannot be one.
-fn path_identifier(id: &str, what: &str) -> Result<(), Problem> {
-    check_str(id, MAX_ID_CHARS, Chars::Identifier)
-        .map_err(|why| Problem::bad_request(format!("the {what} id {why}")))
-}
-
-/// `PUT /v1/customers/{customer_id}` (admin).
+/// `PUT /v1/customers/{customer_id}` (admin): 201 when created, 200 when
+/// replaced.
 #[utoipa::path(
     put,
     path = "/v1/customers/{customer_id}",

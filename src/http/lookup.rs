@@ -126,3 +126,9 @@ impl SensorListQuery {
         ))
     }
 }
+
+/// Refuses (400) an id in the path that cannot be one.
+pub fn path_identifier(id: &str, what: &str) -> Result<(), Problem> {
+    check_str(id, MAX_ID_CHARS, Chars::Identifier)
+        .map_err(|why| Problem::bad_request(format!("the {what} id {why}")))
+}

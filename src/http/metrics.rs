@@ -121,6 +121,22 @@ fn describe() {
         "accelcal_events_clients_dropped_total",
         "Clients of GET /v1/events disconnected for falling more than 1024 events behind."
     );
+    describe_counter!(
+        "accelcal_webhook_attempts_total",
+        "Webhook delivery attempts by this replica, by outcome (delivered, failed: tried again later, abandoned: past the maximum age)."
+    );
+    describe_gauge!(
+        "accelcal_webhook_backlog_entries",
+        "Audit trail entries after the webhook endpoints' cursors, summed over endpoints (those not for an endpoint included): the outbox's depth."
+    );
+    describe_gauge!(
+        "accelcal_webhook_failing_endpoints",
+        "Webhook endpoints whose next event has failed at least once."
+    );
+    describe_gauge!(
+        "accelcal_webhook_undelivered_age_seconds",
+        "Per endpoint, the age of the event this replica last failed to deliver to it (0 once delivered): the oldest undelivered event's age."
+    );
     describe_gauge!("accelcal_build_info", "Always 1; the version is a label.");
 }
 

@@ -38,6 +38,7 @@ pub mod tokens;
 pub mod triad;
 pub mod triads;
 pub mod ui;
+pub mod webhooks;
 
 use std::sync::Arc;
 use std::time::Duration;
@@ -131,6 +132,9 @@ pub struct Shared {
     pub throttle: throttle::Throttle,
     /// The live events of `GET /v1/events`.
     pub events: Arc<crate::app::events::Feed>,
+    /// Wakes this replica's webhook dispatcher (an endpoint registered or
+    /// redelivered: its events are due at once).
+    pub deliveries: Arc<tokio::sync::Notify>,
 }
 
 impl std::ops::Deref for AppState {
@@ -164,6 +168,8 @@ pub struct Web {
     /// How often a replica looks for new events in the audit trail while
     /// someone listens (`--events-poll-ms`).
     pub events_poll: Duration,
+    /// How webhooks are delivered (`--webhook-*`).
+    pub webhooks: crate::app::delivery::Settings,
 }
 
 impl Default for Web {
@@ -176,6 +182,7 @@ impl Default for Web {
             dcc_signer: None,
             events_heartbeat: Duration::from_secs(15),
             events_poll: crate::app::events::POLL,
+            webhooks: crate::app::delivery::Settings::default(),
         }
     }
 }
@@ -290,6 +297,7 @@ impl AppState {
             summaries: rendered::ById::new(sensors::SUMMARIES),
             throttle: throttle::Throttle::new(limits.auth_failure_burst),
             events,
+            deliveries: Arc::new(tokio::sync::Notify::new()),
         }))
     }
 
@@ -355,6 +363,11 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(backup::backup))
         .routes(routes!(audit::list))
         .routes(routes!(events::stream))
+        .routes(routes!(webhooks::put, webhooks::get, webhooks::delete))
+        .routes(routes!(webhooks::list))
+        .routes(routes!(webhooks::rotate))
+        .routes(routes!(webhooks::redeliver))
+        .routes(routes!(webhooks::deliveries))
 }
 
 /// The probes and the document itself (no admission, no token).

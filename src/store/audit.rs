@@ -213,6 +213,76 @@ pub fn token_revoked(id: Uuid, at: Timestamp, by: Actor) -> Event {
     Event::new(at, by, "token.revoke", format!("tokens/{id}"), Map::new())
 }
 
+/// `webhook.put`: an endpoint registered or changed — its definition, and
+/// for a new one the SHA-256 of its secret (never the secret).
+pub fn webhook_put(
+    def: &crate::domain::webhooks::Definition,
+    secret: Option<&crate::domain::webhooks::Secret>,
+    at: Timestamp,
+    by: Actor,
+) -> Event {
+    let mut change = object(json!({
+        "url": def.url,
+        "event_types": def.event_types,
+        "sensors": def.sensors,
+        "description": def.description,
+    }));
+    if let Some(s) = secret {
+        change.insert("secret_sha256".into(), sha256(s.expose().as_bytes()).into());
+    }
+    Event::new(
+        at,
+        by,
+        "webhook.put",
+        format!("webhooks/{}", def.webhook_id),
+        change,
+    )
+}
+
+/// `webhook.rotate`: an endpoint's secret replaced (its SHA-256), the old
+/// one signing until `overlap_until`.
+pub fn webhook_rotated(
+    id: &str,
+    secret: &crate::domain::webhooks::Secret,
+    overlap_until: Timestamp,
+    at: Timestamp,
+    by: Actor,
+) -> Event {
+    Event::new(
+        at,
+        by,
+        "webhook.rotate",
+        format!("webhooks/{id}"),
+        object(json!({
+            "secret_sha256": sha256(secret.expose().as_bytes()),
+            "previous_until": overlap_until.to_string(),
+        })),
+    )
+}
+
+/// `webhook.redeliver`: an endpoint's deliveries started again after event
+/// `after`.
+pub fn webhook_redelivered(id: &str, after: i64, at: Timestamp, by: Actor) -> Event {
+    Event::new(
+        at,
+        by,
+        "webhook.redeliver",
+        format!("webhooks/{id}"),
+        object(json!({ "after": after })),
+    )
+}
+
+/// `webhook.delete`: an endpoint deleted.
+pub fn webhook_deleted(id: &str, at: Timestamp, by: Actor) -> Event {
+    Event::new(
+        at,
+        by,
+        "webhook.delete",
+        format!("webhooks/{id}"),
+        Map::new(),
+    )
+}
+
 /// `service.configure`: the settings that change decisions, as the service
 /// started with them (appended when they differ from the last recorded).
 pub fn configured(settings: Map<String, Value>, at: Timestamp) -> Event {

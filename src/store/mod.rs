@@ -47,6 +47,7 @@ use crate::domain::session::SessionRecord;
 use crate::domain::standards::Standard;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::tokens::TokenRecord;
+use crate::domain::webhooks::{Definition, Delivery, Endpoint, Secret};
 
 /// How long idempotency keys are kept, in seconds (at least 24 h promised).
 pub const IDEMPOTENCY_RETENTION_SECONDS: i64 = 48 * 3600;
@@ -69,6 +70,7 @@ pub trait Store:
     + Tokens
     + Sessions
     + Idempotency
+    + Webhooks
 {
 }
 
@@ -85,6 +87,7 @@ impl<T> Store for T where
         + Tokens
         + Sessions
         + Idempotency
+        + Webhooks
 {
 }
 
@@ -92,7 +95,7 @@ impl<T> Store for T where
 pub mod prelude {
     pub use super::{
         Audit, Calibrations, Certificates, Customers, Database, Idempotency, Reviews, SensorTypes,
-        Sensors, Sessions, Standards, Store, Tokens,
+        Sensors, Sessions, Standards, Store, Tokens, Webhooks,
     };
 }
 
@@ -436,6 +439,87 @@ pub trait Sessions: Send + Sync + 'static {
     async fn session(&self, id_hash: [u8; 32]) -> Result<Option<SessionRecord>, StoreError>;
     /// Ends a session; false when there was none.
     async fn delete_session(&self, id_hash: [u8; 32]) -> Result<bool, StoreError>;
+}
+
+/// Webhook endpoints and where their deliveries stand
+/// ([`crate::domain::webhooks`]); registering, changing, rotating,
+/// redelivering and deleting each append their audit entry.
+#[async_trait]
+pub trait Webhooks: Send + Sync + 'static {
+    /// Registers `def` (true) with `secret`, its deliveries starting after
+    /// event `head`; or changes an endpoint of that id (false), keeping its
+    /// secrets and where its deliveries stand.
+    async fn put_webhook(
+        &self,
+        def: Definition,
+        secret: Secret,
+        head: i64,
+        at: Timestamp,
+        by: Actor,
+    ) -> Result<(Endpoint, bool), StoreError>;
+    /// One endpoint.
+    async fn webhook(&self, id: String) -> Result<Option<Endpoint>, StoreError>;
+    /// Every endpoint, in id order.
+    async fn webhooks(&self) -> Result<Vec<Endpoint>, StoreError>;
+    /// Deletes an endpoint and its log; false when there is none.
+    async fn delete_webhook(
+        &self,
+        id: String,
+        at: Timestamp,
+        by: Actor,
+    ) -> Result<bool, StoreError>;
+    /// Makes `secret` the endpoint's, the one it replaces signing beside it
+    /// until `overlap_until`; `None` when there is no such endpoint.
+    async fn rotate_webhook(
+        &self,
+        id: String,
+        secret: Secret,
+        overlap_until: Timestamp,
+        at: Timestamp,
+        by: Actor,
+    ) -> Result<Option<Endpoint>, StoreError>;
+    /// Sets the endpoint's deliveries to start again after event `after`,
+    /// due at once (and ends any lease on it); `None` when there is none.
+    async fn redeliver_webhook(
+        &self,
+        id: String,
+        after: i64,
+        at: Timestamp,
+        by: Actor,
+    ) -> Result<Option<Endpoint>, StoreError>;
+    /// Leases one endpoint with events to deliver — its cursor before
+    /// `head`, its next attempt due at `now`, no lease on it unexpired —
+    /// to `lease.0` until `lease.1`: the one due longest. One holder at a
+    /// time, across replicas.
+    async fn claim_webhook(
+        &self,
+        head: i64,
+        now: Timestamp,
+        lease: (Uuid, Timestamp),
+    ) -> Result<Option<Endpoint>, StoreError>;
+    /// Records where the endpoint stands after an attempt (and logs it), if
+    /// `holder` still holds its lease, and ends the lease or renews it
+    /// (`s.hold_until`); the attempt is logged either way. False when the
+    /// lease was lost (redelivered or deleted meanwhile).
+    async fn settle_webhook(&self, id: String, holder: Uuid, s: Settle)
+    -> Result<bool, StoreError>;
+    /// The endpoint's newest `limit` attempts, newest first.
+    async fn deliveries(&self, id: String, limit: usize) -> Result<Vec<Delivery>, StoreError>;
+}
+
+/// Where an endpoint stands after an attempt.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settle {
+    /// The last event handled.
+    pub cursor: i64,
+    /// Failed attempts at the next.
+    pub failed: i64,
+    /// When the next attempt is due.
+    pub next_attempt_at: Timestamp,
+    /// The attempt to log, if one was made.
+    pub delivery: Option<Delivery>,
+    /// Keep the lease, until then (more events to attempt); `None` ends it.
+    pub hold_until: Option<Timestamp>,
 }
 
 /// Idempotency keys: claimed with a lease, completed with their calibration.

@@ -10,6 +10,7 @@
 pub mod app;
 pub mod pg;
 pub mod process;
+pub mod receiver;
 
 pub use app::*;
 

@@ -44,3 +44,4 @@ mod triad;
 mod triads;
 mod ui;
 mod unchanged;
+mod webhooks;

@@ -28,9 +28,12 @@ quiet $HERE/node_modules/.bin/openapi-typescript "$WORK/openapi.yaml" -o $HERE/g
 quiet $HERE/node_modules/.bin/openapi-ts -i "$WORK/openapi.yaml" -o $HERE/gen/hey
 quiet openapi-python-client generate --path "$WORK/openapi.yaml" --output-path "$WORK/py" \
   --config $HERE/python/config.yaml
+# The webhook receiver example is compiled with them (and run below).
+cp examples/webhooks/receiver.ts $HERE/gen/receiver.ts
 $HERE/node_modules/.bin/tsc -p $HERE || fail "tsc --strict refused a client program"
 
 . tests/server.sh
+export ACCELCAL_WEBHOOK_ALLOW_PRIVATE=true # the example receiver below, on loopback
 start_server "$ENGINE" clients "$WORK/server.log" "$WORK/server.log"
 export ACCELCAL_URL=$BASE
 ACCELCAL_TOKEN=$(curl -sf -X POST $ACCELCAL_URL/v1/tokens -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" \
@@ -40,5 +43,21 @@ export ACCELCAL_TOKEN
 node $HERE/build/ts/typed.js
 node $HERE/build/ts/hey.js
 PYTHONPATH="$WORK/py" python3 $HERE/python/client_test.py
+# The TypeScript webhook receiver (examples/webhooks/receiver.ts) verifies
+# a real delivery with the standardwebhooks package and prints it.
+HOOK_PORT=$(free_port)
+SECRET=$(curl -sf -X PUT $BASE/v1/webhooks/ts-example -H "Authorization: Bearer $ACCELCAL_ADMIN_TOKEN" \
+  -H 'Content-Type: application/json' -d "{\"url\": \"http://127.0.0.1:$HOOK_PORT/\", \"sensors\": [\"TS-HOOK\"]}" \
+  | python3 -c 'import json, sys; print(json.load(sys.stdin)["secret"])')
+ACCELCAL_WEBHOOK_SECRET=$SECRET node $HERE/build/gen/receiver.js "$HOOK_PORT" >"$WORK/hook.out" 2>&1 &
+HOOK=$!
+sleep 0.5
+python3 -c 'import json; b = json.load(open("examples/paper-table1.json")); b["sensor_id"] = "TS-HOOK"; print(json.dumps(b))' \
+  | curl -sf -o /dev/null -X POST $BASE/v1/calibrations -H "Authorization: Bearer $ACCELCAL_TOKEN" \
+      -H 'Content-Type: application/json' --data-binary @-
+for _ in $(seq 100); do grep -q '"type":"calibration.stored","sensor":"TS-HOOK"' "$WORK/hook.out" && break; sleep 0.1; done
+kill $HOOK
+grep -q '"type":"calibration.stored","sensor":"TS-HOOK"' "$WORK/hook.out" \
+  || { cat "$WORK/hook.out" >&2; fail "the TypeScript receiver did not verify the delivery"; }
 if grep -q 'status=5[0-9][0-9]' "$WORK/server.log"; then fail "the server answered 5xx"; fi
 echo "clients ($ENGINE): ok"

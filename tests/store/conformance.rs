@@ -1127,6 +1127,7 @@ async fn conformance(s: Arc<dyn Store>) {
     search(s.as_ref()).await;
     sessions(s.as_ref()).await;
     super::audit::trail(s.as_ref()).await;
+    super::webhooks::endpoints(s.as_ref()).await;
     s.close().await;
 }
 

@@ -9,7 +9,9 @@
 //! * [`cache`]: the sensor cache kept up to date by writes;
 //! * [`replicas`]: several handles or replicas on one database;
 //! * [`group_commit`]: PostgreSQL's batches, held and released
-//!   deterministically.
+//!   deterministically;
+//! * [`webhooks`]: endpoints' leases, settles and redelivery (in the
+//!   conformance suite), and two replicas claiming at once.
 
 use std::sync::Arc;
 
@@ -19,6 +21,7 @@ mod conformance;
 mod engines;
 mod group_commit;
 mod replicas;
+mod webhooks;
 
 use accelcal::domain::auth::Role;
 use accelcal::domain::sensor_types::SensorType;

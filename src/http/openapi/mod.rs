@@ -54,7 +54,7 @@ impl Modify for Bearer {
     ),
     servers((url = "http://127.0.0.1:8080")),
     security(("bearer" = [])),
-    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "audit"), (name = "events"), (name = "operations"), (name = "health")),
+    tags((name = "calibrations"), (name = "review"), (name = "sensors"), (name = "sensor-types"), (name = "standards"), (name = "customers"), (name = "compute"), (name = "tokens"), (name = "audit"), (name = "events"), (name = "webhooks"), (name = "operations"), (name = "health")),
     components(
         schemas(
             TermSchema, ModelSchema, CoefficientMap, NullableCoefficientMap, GravitySchema, Identifier,
@@ -67,6 +67,7 @@ impl Modify for Bearer {
             PolynomialSchema, ThermalModelSchema,
             crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,
             crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,
+            crate::domain::webhooks::Payload,
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,

@@ -26,6 +26,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0013_certificates.sql"),
     include_str!("migrations/0014_supersessions_indexed.sql"),
     include_str!("migrations/0015_audit_sealed.sql"),
+    include_str!("migrations/0016_webhooks.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -64,6 +64,7 @@ mod sessions;
 mod signatures;
 mod standards;
 mod tokens;
+mod webhooks;
 pub mod writer;
 
 use std::sync::Arc;

@@ -20,11 +20,11 @@ pub fn get<'a, T: FromSql<'a>>(row: &'a Row, column: &str) -> Result<T, StoreErr
     row.try_get(column).map_err(|e| decode(column, e))
 }
 
-fn timestamp(row: &Row, column: &str) -> Result<Timestamp, StoreError> {
+pub fn timestamp(row: &Row, column: &str) -> Result<Timestamp, StoreError> {
     get::<time::OffsetDateTime>(row, column).map(Timestamp::from_datetime)
 }
 
-fn optional_timestamp(row: &Row, column: &str) -> Result<Option<Timestamp>, StoreError> {
+pub fn optional_timestamp(row: &Row, column: &str) -> Result<Option<Timestamp>, StoreError> {
     Ok(get::<Option<time::OffsetDateTime>>(row, column)?.map(Timestamp::from_datetime))
 }
 

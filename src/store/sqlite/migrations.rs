@@ -29,6 +29,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0015_triads.sql"),
     include_str!("migrations/0016_certificates.sql"),
     include_str!("migrations/0017_supersessions_indexed.sql"),
+    include_str!("migrations/0018_webhooks.sql"),
 ];
 
 /// Brings the database to the latest schema.

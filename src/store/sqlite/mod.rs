@@ -29,6 +29,7 @@ mod sessions;
 mod signatures;
 mod standards;
 mod tokens;
+mod webhooks;
 pub mod writer;
 
 pub use self::pool::{READERS, RECHECK};

@@ -39,7 +39,7 @@ pub fn timestamp(row: &Row<'_>, column: &str) -> Result<Timestamp, StoreError> {
     decoded(row, column, Timestamp::parse)
 }
 
-fn optional_timestamp(row: &Row<'_>, column: &str) -> Result<Option<Timestamp>, StoreError> {
+pub fn optional_timestamp(row: &Row<'_>, column: &str) -> Result<Option<Timestamp>, StoreError> {
     let text: Option<String> = get(row, column)?;
     text.map(|t| {
         Timestamp::parse(&t).map_err(|e| StoreError::corrupt(format!("column `{column}`"), e))
