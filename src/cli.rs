@@ -403,6 +403,7 @@ async fn serve(a: ServeArgs) -> anyhow::Result<ExitCode> {
             events_heartbeat: a.live.heartbeat(),
             events_poll: a.live.poll(),
             webhooks: a.live.webhooks()?,
+            status_scan: a.live.status_scan()?,
             laboratory: Laboratory {
                 name: a.lab_name.filter(|n| !n.is_empty()),
                 address: a.lab_address.filter(|n| !n.is_empty()),

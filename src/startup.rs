@@ -291,8 +291,9 @@ impl Application {
             store.clone(),
             state.web.webhooks,
             state.deliveries.clone(),
-            stopped,
+            stopped.clone(),
         );
+        crate::app::clock::start(store.clone(), state.web.status_scan, stopped);
         let router = http::router(state);
         let graceful = GracefulShutdown::new();
         let connections = Arc::new(Semaphore::new(config.max_connections));

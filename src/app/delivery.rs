@@ -191,19 +191,13 @@ struct Dispatcher {
 
 impl Dispatcher {
     async fn run(self, mut closed: watch::Receiver<bool>) {
-        let grew = self.store.trail_grew();
+        let mut grew = self.store.trail_grew();
         let mut tick = tokio::time::interval(self.settings.poll);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
-            let grown = async {
-                match &grew {
-                    Some(n) => n.notified().await,
-                    None => std::future::pending().await,
-                }
-            };
             tokio::select! {
                 _ = tick.tick() => {}
-                () = grown => {}
+                () = super::events::grown(&mut grew) => {}
                 () = self.wake.notified() => {}
                 _ = closed.changed() => return,
             }

@@ -192,12 +192,23 @@ async fn events(
     Ok(out)
 }
 
+/// Waits until the store says the trail grew ([`Store::trail_grew`]);
+/// forever when it cannot tell, or has closed.
+pub(crate) async fn grown(rx: &mut Option<watch::Receiver<u64>>) {
+    if let Some(r) = rx
+        && r.changed().await.is_ok()
+    {
+        return;
+    }
+    std::future::pending().await
+}
+
 /// Hands on every entry sealed after `head`, every `poll` and whenever
 /// the store says the trail grew (this replica's own acts, at once), until
 /// closed.
 async fn poller(
     store: Arc<dyn Store>,
-    grew: Option<Arc<tokio::sync::Notify>>,
+    mut grew: Option<watch::Receiver<u64>>,
     poll: Duration,
     tx: broadcast::Sender<Arc<LiveEvent>>,
     head: Arc<AtomicI64>,
@@ -206,15 +217,9 @@ async fn poller(
     let mut tick = tokio::time::interval(poll);
     tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
     loop {
-        let grown = async {
-            match &grew {
-                Some(n) => n.notified().await,
-                None => std::future::pending().await,
-            }
-        };
         tokio::select! {
             _ = tick.tick() => {}
-            () = grown => {}
+            () = grown(&mut grew) => {}
             _ = closed.changed() => return,
         }
         let looked = tokio::time::Instant::now();

@@ -14,6 +14,7 @@
 //! answering an [`Assessed`] that the acts store alike, chosen in one place
 //! ([`Kind`]).
 
+pub mod clock;
 pub mod definitions;
 pub mod delivery;
 mod error;

@@ -1,5 +1,5 @@
 //! The flags of live updates (issue 47): the event stream's heartbeat and
-//! poll interval, and how webhooks are delivered (`--webhook-*`, each a
+//! poll interval, the status scan, and how webhooks are delivered (`--webhook-*`, each a
 //! setting of [`crate::app::delivery::Settings`]).
 
 use std::time::Duration;
@@ -19,6 +19,10 @@ pub struct LiveArgs {
     /// due deliveries).
     #[arg(long, env = "ACCELCAL_EVENTS_POLL_MS", default_value_t = 200)]
     pub events_poll_ms: u64,
+    /// Seconds between a replica's looks for sensors whose status changed
+    /// by the clock (due soon, overdue), each announced once as an event.
+    #[arg(long, env = "ACCELCAL_STATUS_SCAN", default_value_t = 60.0)]
+    pub status_scan: f64,
     /// Seconds before a failed webhook delivery is tried again the first
     /// time; the delay doubles with each failure (±20 % jitter).
     #[arg(long, env = "ACCELCAL_WEBHOOK_RETRY_BASE", default_value_t = 5.0)]
@@ -48,6 +52,11 @@ impl LiveArgs {
     /// The poll interval (at least 10 ms).
     pub fn poll(&self) -> Duration {
         Duration::from_millis(self.events_poll_ms.max(10))
+    }
+
+    /// The status scan's interval, checked.
+    pub fn status_scan(&self) -> anyhow::Result<Duration> {
+        seconds("--status-scan", self.status_scan)
     }
 
     /// The webhooks' settings, each checked.

@@ -19,6 +19,7 @@
 //! | `calibration.reject`, `.withdraw`, `.supersede`, `.hold` | `calibration.rejected`, `.withdrawn`, `.superseded`, `.held` |
 //! | `certificate.issue`, `certificate.amend` | `certificate.issued`, `certificate.amended` |
 //! | `sensor.retype` | `sensor.retyped` |
+//! | `sensor.status` | `sensor.status` (by the clock: due soon, overdue) |
 //! | `standard.nonconformity` | `standard.nonconformity` |
 //!
 //! An approval that issued the calibration's certificate is one act and
@@ -69,11 +70,16 @@ pub enum EventType {
     /// A reference standard found nonconforming.
     #[serde(rename = "standard.nonconformity")]
     StandardNonconformity,
+    /// A sensor's status changed by the clock: its due date came within 30
+    /// days (`due_soon`) or passed (`overdue`); `change.from`, `.to`,
+    /// `.due_at`.
+    #[serde(rename = "sensor.status")]
+    SensorStatus,
 }
 
 impl EventType {
     /// Every type, in the order of the module's table.
-    pub const ALL: [EventType; 11] = [
+    pub const ALL: [EventType; 12] = [
         EventType::CalibrationStored,
         EventType::CalibrationApproved,
         EventType::CalibrationRejected,
@@ -85,6 +91,7 @@ impl EventType {
         EventType::CertificateAmended,
         EventType::SensorRetyped,
         EventType::StandardNonconformity,
+        EventType::SensorStatus,
     ];
 
     /// The wire name (`calibration.stored`, …).
@@ -101,6 +108,7 @@ impl EventType {
             EventType::CertificateAmended => "certificate.amended",
             EventType::SensorRetyped => "sensor.retyped",
             EventType::StandardNonconformity => "standard.nonconformity",
+            EventType::SensorStatus => "sensor.status",
         }
     }
 
@@ -124,6 +132,7 @@ impl EventType {
             "certificate.amend" => EventType::CertificateAmended,
             "sensor.retype" => EventType::SensorRetyped,
             "standard.nonconformity" => EventType::StandardNonconformity,
+            "sensor.status" => EventType::SensorStatus,
             _ => return None,
         })
     }
@@ -168,7 +177,9 @@ impl LiveEvent {
             .strip_prefix("calibrations/")
             .and_then(|id| Uuid::try_parse(id).ok());
         let sensor_id = match kind {
-            EventType::SensorRetyped => e.object.strip_prefix("sensors/").map(str::to_owned),
+            EventType::SensorRetyped | EventType::SensorStatus => {
+                e.object.strip_prefix("sensors/").map(str::to_owned)
+            }
             _ => change
                 .get("sensor_id")
                 .and_then(Value::as_str)

@@ -170,6 +170,9 @@ pub struct Web {
     pub events_poll: Duration,
     /// How webhooks are delivered (`--webhook-*`).
     pub webhooks: crate::app::delivery::Settings,
+    /// How often a replica looks for statuses changed by the clock
+    /// (`--status-scan`).
+    pub status_scan: Duration,
 }
 
 impl Default for Web {
@@ -183,6 +186,7 @@ impl Default for Web {
             events_heartbeat: Duration::from_secs(15),
             events_poll: crate::app::events::POLL,
             webhooks: crate::app::delivery::Settings::default(),
+            status_scan: crate::app::clock::SCAN,
         }
     }
 }

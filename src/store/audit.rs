@@ -189,6 +189,29 @@ pub fn retyped(sensor_id: &str, type_id: &str, at: Timestamp, by: Actor) -> Even
     )
 }
 
+/// `sensor.status`: a sensor's status changed by the clock, to `to` with
+/// its due date `due_at`, from the status last announced for that due date
+/// (`None`: none was).
+pub fn status_changed(
+    sensor_id: &str,
+    from: Option<crate::domain::status::Status>,
+    to: crate::domain::status::Status,
+    due_at: Timestamp,
+    at: Timestamp,
+) -> Event {
+    Event::new(
+        at,
+        Actor::service(),
+        "sensor.status",
+        format!("sensors/{sensor_id}"),
+        object(json!({
+            "from": from.map(|s| s.as_str()),
+            "to": to.as_str(),
+            "due_at": due_at.to_string(),
+        })),
+    )
+}
+
 /// `token.create`: a token issued — never its secret or the hash stored of
 /// it, but the SHA-256 of that hash, so that a hash swapped behind the
 /// service's back (another secret let in) is found.

@@ -143,11 +143,12 @@ pub trait Audit: Send + Sync + 'static {
     async fn sealed_after(&self, after: i64, limit: usize) -> Result<Vec<Entry>, StoreError>;
     /// The last sealed entry's sequence number (0 for an empty trail).
     async fn audit_head(&self) -> Result<i64, StoreError>;
-    /// Notified (one permit) soon after this process's own acts' entries
+    /// A counter that moves soon after this process's own acts' entries
     /// have joined the chain — so that a reader of [`sealed_after`]
-    /// (Self::sealed_after) need not wait for its next look; `None` when
+    /// (Self::sealed_after) need not wait for its next look; each reader
+    /// takes its own receiver (every one sees every change); `None` when
     /// the engine cannot tell.
-    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+    fn trail_grew(&self) -> Option<tokio::sync::watch::Receiver<u64>> {
         None
     }
     /// Appends `events`, in order, in one transaction (`accelcal audit
@@ -339,6 +340,18 @@ pub trait Sensors: Send + Sync + 'static {
         &self,
         sensor_id: String,
     ) -> Result<Option<(Uuid, State)>, StoreError>;
+    /// The status last announced for each sensor, and the due date it was
+    /// announced for ([`Sensors::announce_statuses`]).
+    async fn announced_statuses(&self) -> Result<Vec<Announced>, StoreError>;
+    /// Announces each sensor's status by the clock: for each whose
+    /// announced status or due date differs, records it and appends
+    /// `sensor.status`, in one transaction; answers how many it announced.
+    /// Two replicas announcing the same change at once announce it once.
+    async fn announce_statuses(
+        &self,
+        now: Vec<Announced>,
+        at: Timestamp,
+    ) -> Result<usize, StoreError>;
     /// Assigns an existing type to an existing sensor; false when there is
     /// no such sensor.
     async fn assign_sensor_type(
@@ -505,21 +518,6 @@ pub trait Webhooks: Send + Sync + 'static {
     -> Result<bool, StoreError>;
     /// The endpoint's newest `limit` attempts, newest first.
     async fn deliveries(&self, id: String, limit: usize) -> Result<Vec<Delivery>, StoreError>;
-}
-
-/// Where an endpoint stands after an attempt.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Settle {
-    /// The last event handled.
-    pub cursor: i64,
-    /// Failed attempts at the next.
-    pub failed: i64,
-    /// When the next attempt is due.
-    pub next_attempt_at: Timestamp,
-    /// The attempt to log, if one was made.
-    pub delivery: Option<Delivery>,
-    /// Keep the lease, until then (more events to attempt); `None` ends it.
-    pub hold_until: Option<Timestamp>,
 }
 
 /// Idempotency keys: claimed with a lease, completed with their calibration.

@@ -551,3 +551,21 @@ pub enum Stored {
 
 #[cfg(test)]
 mod tests;
+
+/// A sensor's status as announced: its id, the status, its due date.
+pub type Announced = (String, crate::domain::status::Status, Timestamp);
+
+/// Where an endpoint stands after an attempt.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settle {
+    /// The last event handled.
+    pub cursor: i64,
+    /// Failed attempts at the next.
+    pub failed: i64,
+    /// When the next attempt is due.
+    pub next_attempt_at: Timestamp,
+    /// The attempt to log, if one was made.
+    pub delivery: Option<crate::domain::webhooks::Delivery>,
+    /// Keep the lease, until then (more events to attempt); `None` ends it.
+    pub hold_until: Option<Timestamp>,
+}

@@ -475,3 +475,75 @@ async fn two_replicas_deliver_each_event_once(#[values(Postgres)] engine: Engine
     let seqs: Vec<i64> = got.iter().map(|g| g.seq()).collect();
     assert!(seqs.windows(2).all(|w| w[0] < w[1]), "{seqs:?}");
 }
+
+/// A sensor whose due date passed (or comes within 30 days) changes status
+/// with no act: the change is announced once, within the scan interval, as
+/// `sensor.status` — once even with two replicas scanning (PostgreSQL).
+#[rstest]
+#[tokio::test]
+async fn a_status_changed_by_the_clock_is_one_event(#[values(Sqlite, Postgres)] engine: Engine) {
+    let scan = |c: &mut Config| {
+        quick(c);
+        c.web.status_scan = Duration::from_millis(100);
+    };
+    let one = TestApp::configured(engine, scan).await;
+    let _two = match engine {
+        Postgres => {
+            let mut config = Config::for_tests(&one.database, ADMIN);
+            scan(&mut config);
+            Some(TestApp::spawn_with(config).await)
+        }
+        Sqlite => None,
+    };
+    let r = Receiver::start().await;
+    register(
+        &one,
+        "w",
+        json!({"url": r.url, "event_types": ["sensor.status"]}),
+    )
+    .await;
+    let res = one
+        .put(
+            "/v1/sensor-types/CLOCK",
+            ADMIN,
+            &json!({"label": "Clock", "unit": "mA", "limits": {"k0": {"min": -1, "max": 1}},
+                    "decision_rule": "simple", "interval_days": 180}),
+        )
+        .await;
+    assert!(res.status().is_success(), "{}", res.text().await.unwrap());
+    let soon = accelcal::domain::timestamp::Timestamp::now().plus_seconds(-170 * 86_400);
+    for (sensor, at) in [
+        ("CLK-OLD", "2020-01-01T00:00:00Z".to_owned()),
+        ("CLK-SOON", soon.to_string()),
+    ] {
+        let mut body = submission(sensor, &at, 4);
+        body["sensor_type"] = json!("CLOCK");
+        one.submit(ADMIN, &body).await;
+    }
+    let got = accepted(&r, 2).await;
+    tokio::time::sleep(Duration::from_millis(600)).await; // several more scans
+    let got_all = r.received();
+    assert_eq!(got_all.len(), 2, "each change once: {got_all:?}");
+    let mut seen: Vec<(String, String, Value)> = got
+        .iter()
+        .map(|g| {
+            let d = g.json()["data"].clone();
+            (
+                d["sensor_id"].as_str().unwrap().to_owned(),
+                d["change"]["to"].as_str().unwrap().to_owned(),
+                d["change"]["from"].clone(),
+            )
+        })
+        .collect();
+    seen.sort_by(|a, b| a.0.cmp(&b.0));
+    assert_eq!(
+        seen,
+        [
+            ("CLK-OLD".to_owned(), "overdue".to_owned(), Value::Null),
+            ("CLK-SOON".to_owned(), "due_soon".to_owned(), Value::Null),
+        ]
+    );
+    let sensor = one.get_json("/v1/sensors/CLK-OLD", ADMIN).await;
+    assert_eq!(sensor["status"], "overdue");
+    assert!(got[0].json()["data"]["change"]["due_at"].is_string());
+}

@@ -1128,6 +1128,7 @@ async fn conformance(s: Arc<dyn Store>) {
     sessions(s.as_ref()).await;
     super::audit::trail(s.as_ref()).await;
     super::webhooks::endpoints(s.as_ref()).await;
+    super::webhooks::announcements(s.as_ref()).await;
     s.close().await;
 }
 

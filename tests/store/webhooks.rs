@@ -211,6 +211,93 @@ pub async fn endpoints(s: &dyn Store) {
     );
 }
 
+/// Statuses by the clock: announced once per change, `from` the status
+/// announced for the same due date (none after a new calibration).
+pub async fn announcements(s: &dyn Store) {
+    use accelcal::domain::status::Status::{DueSoon, Overdue};
+    let (d1, d2) = (t("2026-12-01T00:00:00Z"), t("2027-06-01T00:00:00Z"));
+    let at = t("2026-11-28T10:00:00Z");
+    assert_eq!(
+        s.announce_statuses(vec![("ANN-1".into(), DueSoon, d1)], at)
+            .await
+            .unwrap(),
+        1
+    );
+    assert_eq!(
+        s.announce_statuses(vec![("ANN-1".into(), DueSoon, d1)], at)
+            .await
+            .unwrap(),
+        0
+    );
+    assert_eq!(
+        s.announce_statuses(vec![("ANN-1".into(), Overdue, d1)], at)
+            .await
+            .unwrap(),
+        1
+    );
+    assert_eq!(
+        s.announce_statuses(vec![("ANN-1".into(), DueSoon, d2)], at)
+            .await
+            .unwrap(),
+        1
+    );
+    let q = accelcal::store::AuditQuery {
+        object: Some("sensors/ANN-1".into()),
+        limit: 100,
+        ..Default::default()
+    };
+    let changes: Vec<String> = s
+        .audit(q)
+        .await
+        .unwrap()
+        .into_iter()
+        .filter(|e| e.action == "sensor.status")
+        .map(|e| e.change)
+        .collect();
+    assert_eq!(
+        changes,
+        [
+            r#"{"due_at":"2026-12-01T00:00:00.000000Z","from":null,"to":"due_soon"}"#,
+            r#"{"due_at":"2026-12-01T00:00:00.000000Z","from":"due_soon","to":"overdue"}"#,
+            r#"{"due_at":"2027-06-01T00:00:00.000000Z","from":null,"to":"due_soon"}"#,
+        ]
+    );
+    assert_eq!(
+        s.announced_statuses().await.unwrap(),
+        [("ANN-1".to_owned(), DueSoon, d2)]
+    );
+}
+
+/// Two replicas announcing the same changes at once announce each once.
+#[tokio::test]
+async fn two_replicas_announce_a_change_once() {
+    use accelcal::domain::status::Status::Overdue;
+    let db = pg::TestDb::create().await;
+    let one: Arc<dyn Store> = Arc::new(PostgresStore::open(&db.url).await.unwrap());
+    let two: Arc<dyn Store> = Arc::new(PostgresStore::open(&db.url).await.unwrap());
+    let at = t("2026-11-28T10:00:00Z");
+    let changes: Vec<_> = (0..50)
+        .map(|i| (format!("S-{i}"), Overdue, t("2026-11-01T00:00:00Z")))
+        .collect();
+    let (x, y) = tokio::join!(
+        one.announce_statuses(changes.clone(), at),
+        two.announce_statuses(changes.clone(), at),
+    );
+    assert_eq!(x.unwrap() + y.unwrap(), 50);
+    let q = accelcal::store::AuditQuery {
+        limit: 1000,
+        ..Default::default()
+    };
+    let announced = one
+        .audit(q)
+        .await
+        .unwrap()
+        .into_iter()
+        .filter(|e| e.action == "sensor.status")
+        .count();
+    assert_eq!(announced, 50);
+}
+
 /// Two replicas' handles claiming one endpoint at once: exactly one gets it.
 #[tokio::test]
 async fn two_replicas_never_hold_one_endpoint_at_once() {

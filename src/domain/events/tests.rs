@@ -118,6 +118,17 @@ fn sensors_and_certificates_and_standards() {
         (e.kind, e.sensor_id.as_deref(), e.calibration_id),
         (EventType::SensorRetyped, Some("ACC-9"), None)
     );
+    let st = LiveEvent::from_entry(&entry(
+        3,
+        "sensor.status",
+        "sensors/ACC-9",
+        json!({"from": "due_soon", "to": "overdue", "due_at": "2026-11-28T00:00:00.000000Z"}),
+    ))
+    .unwrap();
+    assert_eq!(
+        (st.kind, st.sensor_id.as_deref(), st.calibration_id),
+        (EventType::SensorStatus, Some("ACC-9"), None)
+    );
     let c = calibration(4, "certificate.amend", json!({"revision": 2})).unwrap();
     assert_eq!(c.kind, EventType::CertificateAmended);
     let n = LiveEvent::from_entry(&entry(

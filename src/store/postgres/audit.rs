@@ -172,7 +172,7 @@ impl Audit for PostgresStore {
         })
     }
 
-    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
+    fn trail_grew(&self) -> Option<tokio::sync::watch::Receiver<u64>> {
         Some(self.sealer.sealed())
     }
 

@@ -192,7 +192,7 @@ pub async fn pending(client: &impl GenericClient) -> Result<i64, StoreError> {
 /// dropped, after the seal in progress.
 pub struct Sealer {
     wake: Arc<Notify>,
-    sealed: Arc<Notify>,
+    sealed: Arc<tokio::sync::watch::Sender<u64>>,
     stopping: Arc<AtomicBool>,
     task: std::sync::Mutex<Option<tokio::task::JoinHandle<()>>>,
 }
@@ -201,7 +201,7 @@ impl Sealer {
     /// Starts the task over `pool`, on the current tokio runtime.
     pub fn start(pool: Pool) -> Self {
         let wake = Arc::new(Notify::new());
-        let sealed = Arc::new(Notify::new());
+        let sealed = Arc::new(tokio::sync::watch::Sender::new(0));
         let stopping = Arc::new(AtomicBool::new(false));
         let task = tokio::spawn(run(pool, wake.clone(), sealed.clone(), stopping.clone()));
         Sealer {
@@ -233,10 +233,10 @@ impl Sealer {
         self.wake.clone()
     }
 
-    /// Notified (one permit) after each seal that chained entries: the
-    /// trail grew ([`crate::store::Audit::trail_grew`]).
-    pub fn sealed(&self) -> Arc<Notify> {
-        self.sealed.clone()
+    /// A receiver of the count of seals that chained entries: the trail
+    /// grew ([`crate::store::Audit::trail_grew`]).
+    pub fn sealed(&self) -> tokio::sync::watch::Receiver<u64> {
+        self.sealed.subscribe()
     }
 }
 
@@ -247,7 +247,12 @@ impl Drop for Sealer {
     }
 }
 
-async fn run(pool: Pool, wake: Arc<Notify>, sealed: Arc<Notify>, stopping: Arc<AtomicBool>) {
+async fn run(
+    pool: Pool,
+    wake: Arc<Notify>,
+    sealed: Arc<tokio::sync::watch::Sender<u64>>,
+    stopping: Arc<AtomicBool>,
+) {
     let mut failing = false;
     let mut last = tokio::time::Instant::now();
     loop {
@@ -267,7 +272,7 @@ async fn run(pool: Pool, wake: Arc<Notify>, sealed: Arc<Notify>, stopping: Arc<A
             Ok(n) => {
                 failing = false;
                 if n > 0 {
-                    sealed.notify_one();
+                    sealed.send_modify(|n| *n = n.wrapping_add(1));
                 }
             }
             Err(e) if !failing => {

@@ -11,7 +11,7 @@ use super::rows;
 use crate::domain::audit::Actor;
 use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{SensorQuery, SensorSummary, Sensors, StoreError};
+use crate::store::{Announced, SensorQuery, SensorSummary, Sensors, StoreError};
 
 #[async_trait]
 impl Sensors for PostgresStore {
@@ -104,4 +104,79 @@ impl Sensors for PostgresStore {
         self.cache.sensor_changed(&sensor_id);
         out
     }
+
+    async fn announced_statuses(&self) -> Result<Vec<Announced>, StoreError> {
+        op!(self, "announced_statuses", |client| {
+            let found = client
+                .query(
+                    "SELECT sensor_id, status, due_at FROM status_announcements ORDER BY sensor_id",
+                    &[],
+                )
+                .await
+                .map_err(map)?;
+            found.iter().map(announced).collect()
+        })
+    }
+
+    /// The row of a sensor already announced is locked first, so the
+    /// `from` read is the one replaced; a sensor announced for the first
+    /// time by two replicas at once is inserted by one, and the other's
+    /// upsert then finds nothing different.
+    async fn announce_statuses(
+        &self,
+        now: Vec<Announced>,
+        at: Timestamp,
+    ) -> Result<usize, StoreError> {
+        act!(self, "announce_statuses", |client| {
+            let tx = client.transaction().await.map_err(map)?;
+            let mut events = Vec::new();
+            for (sensor, to, due) in now {
+                let before = tx
+                    .query_opt(
+                        "SELECT sensor_id, status, due_at FROM status_announcements \
+                         WHERE sensor_id = $1 FOR UPDATE",
+                        &[&sensor],
+                    )
+                    .await
+                    .map_err(map)?
+                    .as_ref()
+                    .map(announced)
+                    .transpose()?;
+                let changed = tx
+                    .query_opt(
+                        "INSERT INTO status_announcements (sensor_id, status, due_at) \
+                         VALUES ($1, $2, $3) ON CONFLICT (sensor_id) DO UPDATE \
+                         SET status = EXCLUDED.status, due_at = EXCLUDED.due_at \
+                         WHERE (status_announcements.status, status_announcements.due_at) \
+                         IS DISTINCT FROM (EXCLUDED.status, EXCLUDED.due_at) RETURNING 1",
+                        &[&sensor, &to.as_str(), &due.datetime()],
+                    )
+                    .await
+                    .map_err(map)?;
+                if changed.is_some() {
+                    let from = before.filter(|(_, _, d)| *d == due).map(|(_, s, _)| s);
+                    events.push(crate::store::audit::status_changed(
+                        &sensor, from, to, due, at,
+                    ));
+                }
+            }
+            let n = events.len();
+            if n > 0 {
+                super::audit::append(&tx, events).await?;
+            }
+            tx.commit().await.map_err(map)?;
+            Ok(n)
+        })
+    }
+}
+
+/// A row of `status_announcements`.
+fn announced(row: &tokio_postgres::Row) -> Result<Announced, StoreError> {
+    let status: &str = rows::get(row, "status")?;
+    Ok((
+        rows::get(row, "sensor_id")?,
+        Status::parse(status)
+            .ok_or_else(|| StoreError::corrupt("status_announcements.status", status.to_owned()))?,
+        rows::timestamp(row, "due_at")?,
+    ))
 }

@@ -137,8 +137,8 @@ impl Audit for SqliteStore {
         .await
     }
 
-    fn trail_grew(&self) -> Option<std::sync::Arc<tokio::sync::Notify>> {
-        Some(self.writer.committed.clone())
+    fn trail_grew(&self) -> Option<tokio::sync::watch::Receiver<u64>> {
+        Some(self.writer.committed.subscribe())
     }
 
     async fn audit_head(&self) -> Result<i64, StoreError> {

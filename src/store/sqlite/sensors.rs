@@ -3,7 +3,7 @@
 //! cache ([`crate::store::cache`]).
 
 use async_trait::async_trait;
-use rusqlite::named_params;
+use rusqlite::{named_params, params};
 use uuid::Uuid;
 
 use super::SqliteStore;
@@ -12,7 +12,7 @@ use super::rows;
 use crate::domain::audit::Actor;
 use crate::domain::status::{DUE_SOON_DAYS, Status};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{SensorQuery, SensorSummary, Sensors, StoreError};
+use crate::store::{Announced, SensorQuery, SensorSummary, Sensors, StoreError};
 
 #[async_trait]
 impl Sensors for SqliteStore {
@@ -108,4 +108,61 @@ impl Sensors for SqliteStore {
         self.cache.sensor_changed(&sensor_id);
         out
     }
+
+    async fn announced_statuses(&self) -> Result<Vec<Announced>, StoreError> {
+        self.run("announced_statuses", |conn| {
+            rows::all(
+                conn,
+                "SELECT sensor_id, status, due_at FROM status_announcements ORDER BY sensor_id",
+                [],
+                announced,
+            )
+        })
+        .await
+    }
+
+    async fn announce_statuses(
+        &self,
+        now: Vec<Announced>,
+        at: Timestamp,
+    ) -> Result<usize, StoreError> {
+        self.write("announce_statuses", move |conn| {
+            let mut n = 0;
+            for (sensor, to, due) in now {
+                let sql = "SELECT sensor_id, status, due_at FROM status_announcements \
+                           WHERE sensor_id = ?1";
+                let before = rows::first(conn, sql, [&sensor], announced)?;
+                if before
+                    .as_ref()
+                    .is_some_and(|(_, s, d)| (*s, *d) == (to, due))
+                {
+                    continue;
+                }
+                let from = before.filter(|(_, _, d)| *d == due).map(|(_, s, _)| s);
+                conn.execute(
+                    "INSERT INTO status_announcements (sensor_id, status, due_at) \
+                     VALUES (?1, ?2, ?3) ON CONFLICT (sensor_id) DO UPDATE \
+                     SET status = excluded.status, due_at = excluded.due_at",
+                    params![sensor, to.as_str(), due.to_string()],
+                )
+                .map_err(map)?;
+                let event = crate::store::audit::status_changed(&sensor, from, to, due, at);
+                super::audit::append(conn, event)?;
+                n += 1;
+            }
+            Ok((n, n > 0))
+        })
+        .await
+    }
+}
+
+/// A row of `status_announcements`.
+fn announced(row: &rusqlite::Row<'_>) -> Result<Announced, StoreError> {
+    let status: String = row.get("status").map_err(map)?;
+    Ok((
+        row.get("sensor_id").map_err(map)?,
+        Status::parse(&status)
+            .ok_or_else(|| StoreError::corrupt("status_announcements.status", status.clone()))?,
+        rows::timestamp(row, "due_at")?,
+    ))
 }

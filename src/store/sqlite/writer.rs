@@ -102,8 +102,8 @@ enum Msg {
 pub struct Writer {
     /// When a batch last failed because the disk was full.
     pub full_at: std::sync::Arc<Mutex<Option<std::time::Instant>>>,
-    /// Notified (one permit) after each committed batch.
-    pub committed: std::sync::Arc<tokio::sync::Notify>,
+    /// Counts committed batches (each reader of the trail watches it).
+    pub committed: std::sync::Arc<tokio::sync::watch::Sender<u64>>,
     queue: mpsc::Sender<Msg>,
     capacity: usize,
     thread: Mutex<Option<JoinHandle<()>>>,
@@ -116,7 +116,7 @@ impl Writer {
         let (queue, rx) = mpsc::channel(capacity);
         let full_at = std::sync::Arc::new(Mutex::new(None));
         let full = full_at.clone();
-        let committed = std::sync::Arc::new(tokio::sync::Notify::new());
+        let committed = std::sync::Arc::new(tokio::sync::watch::Sender::new(0));
         let done = committed.clone();
         let thread = std::thread::Builder::new()
             .name("accelcal-sqlite-writer".into())
@@ -168,7 +168,7 @@ impl Writer {
 fn drain(
     pool: &Pool,
     full: &Mutex<Option<std::time::Instant>>,
-    committed: &tokio::sync::Notify,
+    committed: &tokio::sync::watch::Sender<u64>,
     mut rx: mpsc::Receiver<Msg>,
 ) {
     let mut stop = false;
@@ -190,7 +190,7 @@ fn drain(
         if !batch.is_empty() {
             metrics::histogram!("accelcal_storage_write_batch_size").record(batch.len() as f64);
             match commit(pool, batch) {
-                Ok(()) => committed.notify_one(),
+                Ok(()) => committed.send_modify(|n| *n = n.wrapping_add(1)),
                 Err(e) if super::errors::is_full(&e) => {
                     *full.lock().unwrap_or_else(|e| e.into_inner()) =
                         Some(std::time::Instant::now());

@@ -35,3 +35,12 @@ CREATE TABLE webhook_deliveries (
 ) STRICT;
 
 CREATE INDEX webhook_deliveries_by_webhook ON webhook_deliveries (webhook_id, id);
+
+-- The status each sensor was last announced in (a `sensor.status` audit
+-- entry) for its due date: the clock's status changes are announced once,
+-- whichever replica sees them first.
+CREATE TABLE status_announcements (
+    sensor_id TEXT PRIMARY KEY,
+    status    TEXT NOT NULL,
+    due_at    TEXT NOT NULL
+) STRICT;
