@@ -188,7 +188,17 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=15).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=16).collect::<Vec<_>>());
+    // Version 16: webhook endpoints, their log, the statuses announced.
+    let tables = c
+        .query(
+            "SELECT 1 FROM pg_tables WHERE tablename IN \
+             ('webhooks', 'webhook_deliveries', 'status_announcements')",
+            &[],
+        )
+        .await
+        .unwrap();
+    assert_eq!(tables.len(), 3, "version 16's tables");
     // Version 15: pending audit entries, never changed.
     let pending = c
         .query(

@@ -11,7 +11,9 @@ library (issue 47 items 3 and 4), through the example receiver
   kill -9    submissions under load while the server is killed with
              SIGKILL at random moments, ROUNDS times, and restarted: every
              acknowledged calibration's event arrives, verified, and a
-             repeat only ever repeats a webhook-id with the same event.
+             repeat only ever repeats a webhook-id with the same event. On
+             PostgreSQL a second replica serves half the load, and the
+             rounds kill each replica in turn.
 
 The server was started by tests/webhooks/run.sh (PID, on PORT, over
 DATABASE); this script kills and restarts it with the same command.
@@ -45,8 +47,8 @@ def fail(msg):
     sys.exit(1)
 
 
-def call(method, path, body=None, timeout=10):
-    req = urllib.request.Request(BASE + path, method=method,
+def call(method, path, body=None, timeout=10, base=None):
+    req = urllib.request.Request((base or BASE) + path, method=method,
                                  data=None if body is None else json.dumps(body).encode(),
                                  headers={"authorization": f"Bearer {TOKEN}",
                                           "content-type": "application/json"})
@@ -134,17 +136,17 @@ def check_repeats_and_order(inbox):
     return len(inbox.delivered()) - len(first)
 
 
-def start_server():
+def start_server(port=PORT):
     log = open(os.environ.get("SERVER_LOG", "/dev/null"), "ab")
-    proc = subprocess.Popen([BIN, "serve", "--listen", f"127.0.0.1:{PORT}", "--database", DATABASE],
+    proc = subprocess.Popen([BIN, "serve", "--listen", f"127.0.0.1:{port}", "--database", DATABASE],
                             stdout=log, stderr=log)
-    wait("the restarted server ready", lambda: ready(), 30)
+    wait("the restarted server ready", lambda: ready(port), 30)
     return proc
 
 
-def ready():
+def ready(port=PORT):
     try:
-        with urllib.request.urlopen(BASE + "/readyz", timeout=1) as res:
+        with urllib.request.urlopen(f"http://127.0.0.1:{port}/readyz", timeout=1) as res:
             return res.status == 200
     except Exception:
         return False
@@ -207,13 +209,13 @@ lock = threading.Lock()
 counter = [100]
 
 
-def load(stop):
+def load(stop, base):
     while not stop.is_set():
         with lock:
             counter[0] += 1
             i = counter[0]
         try:
-            status, c = call("POST", "/v1/calibrations", submission(f"WH-K{i % 7}", i), timeout=5)
+            status, c = call("POST", "/v1/calibrations", submission(f"WH-K{i % 7}", i), timeout=5, base=base)
         except Exception:
             time.sleep(0.05)
             continue
@@ -222,25 +224,34 @@ def load(stop):
                 acked.add(c["id"])
 
 
-proc = None
+# The servers: the one run.sh started (no handle: its pid), and on
+# PostgreSQL a second replica on another port.
+replicas = [[PORT, None]]
+if DATABASE.startswith("postgres"):
+    other = free_port()
+    replicas.append([other, start_server(other)])
 for round in range(ROUNDS):
     stop = threading.Event()
-    workers = [threading.Thread(target=load, args=(stop,)) for _ in range(4)]
+    workers = [threading.Thread(target=load, args=(stop, f"http://127.0.0.1:{replicas[k % len(replicas)][0]}"))
+               for k in range(4)]
     for w in workers:
         w.start()
     time.sleep(random.uniform(0.3, 1.2))
-    if proc is None:
+    victim = replicas[round % len(replicas)]
+    if victim[1] is None:
         os.kill(PID, signal.SIGKILL)
     else:
-        proc.kill()
-        proc.wait()
+        victim[1].kill()
+        victim[1].wait()
     stop.set()
     for w in workers:
         w.join()
-    proc = start_server()
+    victim[1] = start_server(victim[0])
 wait(f"all {len(acked)} acknowledged submissions' events", lambda: acked <= stored_ids(inbox), 120)
 repeats = check_repeats_and_order(inbox)
-proc.terminate()
-proc.wait(timeout=30)
-print(f"kill -9: {ROUNDS} rounds, {len(acked)} acknowledged, every event delivered and verified; "
+for _, proc in replicas:
+    if proc is not None:
+        proc.terminate()
+        proc.wait(timeout=30)
+print(f"kill -9: {ROUNDS} rounds over {len(replicas)} replica(s), {len(acked)} acknowledged, every event delivered and verified; "
       f"{repeats} repeats, each with its own webhook-id")
