@@ -58,20 +58,24 @@ def stall(base, token):
         time.sleep(3600)
 
 
-def latency(base, token, n):
+class Arrivals:
+    """When each calibration's event arrived, by calibration id."""
+
+    def __init__(self):
+        self.at = {}
+        self.seen = threading.Condition()
+
+    def arrived(self, at, event):
+        with self.seen:
+            self.at[event.get("calibration_id")] = at
+            self.seen.notify_all()
+
+
+def timed(base, token, n, sensor, arrivals, what):
+    """Submits the paper's Table 1 for `sensor` n times, one at a time, and
+    prints the p50 and p99 (ms) from each POST's answer to its arrival."""
     body = json.load(open("examples/paper-table1.json"))
-    body["sensor_id"] = "SSE-LATENCY"
-    arrived = {}
-    seen = threading.Condition()
-    res = stream(base, token)
-
-    def follow():
-        for at, e in events(res):
-            with seen:
-                arrived[e.get("calibration_id")] = at
-                seen.notify_all()
-
-    threading.Thread(target=follow, daemon=True).start()
+    body["sensor_id"] = sensor
     out = []
     for i in range(n):
         body["performed_at"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(946684800 + i))
@@ -83,12 +87,24 @@ def latency(base, token, n):
         with urllib.request.urlopen(req) as r:
             cid = json.load(r)["id"]
         answered = time.monotonic()
-        with seen:
-            if not seen.wait_for(lambda: cid in arrived, timeout=10):
-                sys.exit(f"no event for {cid} within 10 s")
-            out.append((arrived[cid] - answered) * 1000)
+        with arrivals.seen:
+            if not arrivals.seen.wait_for(lambda: cid in arrivals.at, timeout=10):
+                sys.exit(f"no {what} for {cid} within 10 s")
+            out.append((arrivals.at[cid] - answered) * 1000)
     out.sort()
     print(f"{out[len(out) // 2]:.1f} {out[min(len(out) - 1, int(len(out) * 0.99))]:.1f}")
+
+
+def latency(base, token, n):
+    arrivals = Arrivals()
+    res = stream(base, token)
+
+    def follow():
+        for at, e in events(res):
+            arrivals.arrived(at, e)
+
+    threading.Thread(target=follow, daemon=True).start()
+    timed(base, token, n, "SSE-LATENCY", arrivals, "event")
 
 
 def receiver(port, on_post=None):
@@ -117,15 +133,8 @@ def blackhole(port):
 
 
 def hook_latency(base, token, n):
-    arrived = {}
-    seen = threading.Condition()
-
-    def on_post(at, payload):
-        with seen:
-            arrived[payload["data"].get("calibration_id")] = at
-            seen.notify_all()
-
-    server = receiver(0, on_post)
+    arrivals = Arrivals()
+    server = receiver(0, lambda at, payload: arrivals.arrived(at, payload["data"]))
     threading.Thread(target=server.serve_forever, daemon=True).start()
     url = f"http://127.0.0.1:{server.server_address[1]}/hook"
     req = urllib.request.Request(
@@ -133,23 +142,7 @@ def hook_latency(base, token, n):
         data=json.dumps({"url": url, "sensors": ["HOOK-LATENCY"]}).encode(),
         headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"})
     urllib.request.urlopen(req).read()
-    body = json.load(open("examples/paper-table1.json"))
-    body["sensor_id"] = "HOOK-LATENCY"
-    out = []
-    for i in range(n):
-        body["performed_at"] = time.strftime("%Y-%m-%dT%H:%M:%SZ", time.gmtime(946684800 + i))
-        req = urllib.request.Request(
-            f"{base}/v1/calibrations", data=json.dumps(body).encode(),
-            headers={"Authorization": f"Bearer {token}", "Content-Type": "application/json"})
-        with urllib.request.urlopen(req) as r:
-            cid = json.load(r)["id"]
-        answered = time.monotonic()
-        with seen:
-            if not seen.wait_for(lambda: cid in arrived, timeout=10):
-                sys.exit(f"no webhook for {cid} within 10 s")
-            out.append((arrived[cid] - answered) * 1000)
-    out.sort()
-    print(f"{out[len(out) // 2]:.1f} {out[min(len(out) - 1, int(len(out) * 0.99))]:.1f}")
+    timed(base, token, n, "HOOK-LATENCY", arrivals, "webhook")
 
 
 if __name__ == "__main__":

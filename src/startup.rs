@@ -287,13 +287,13 @@ impl Application {
         let store = state.store.clone();
         let events = state.events.clone();
         let (stop_deliveries, stopped) = tokio::sync::watch::channel(false);
-        crate::app::delivery::start(
+        let deliveries = crate::app::delivery::start(
             store.clone(),
             state.web.webhooks,
             state.deliveries.clone(),
             stopped.clone(),
         );
-        crate::app::clock::start(store.clone(), state.web.status_scan, stopped);
+        let clock = crate::app::clock::start(store.clone(), state.web.status_scan, stopped);
         let router = http::router(state);
         let graceful = GracefulShutdown::new();
         let connections = Arc::new(Semaphore::new(config.max_connections));
@@ -352,6 +352,18 @@ impl Application {
         }
         if let Some(task) = metrics_task {
             task.abort();
+        }
+        // The dispatcher and the status scan let go of the store before it
+        // closes (a SQLite file is then free for the next process at once).
+        let background = async {
+            let _ = deliveries.await;
+            let _ = clock.await;
+        };
+        if tokio::time::timeout(Duration::from_secs(5), background)
+            .await
+            .is_err()
+        {
+            tracing::warn!("webhook delivery or the status scan did not stop within 5 s");
         }
         store.close().await;
         tracing::info!("database closed; bye");

@@ -29,8 +29,12 @@ pub const SCAN: Duration = Duration::from_secs(60);
 const PAGE: usize = 500;
 
 /// Starts this replica's scanner: a look at once, then every `every`,
-/// until `closed` turns true.
-pub fn start(store: Arc<dyn Store>, every: Duration, mut closed: watch::Receiver<bool>) {
+/// until `closed` turns true (the task then ends, letting go of the store).
+pub fn start(
+    store: Arc<dyn Store>,
+    every: Duration,
+    mut closed: watch::Receiver<bool>,
+) -> tokio::task::JoinHandle<()> {
     tokio::spawn(async move {
         let mut tick = tokio::time::interval(every);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
@@ -45,7 +49,7 @@ pub fn start(store: Arc<dyn Store>, every: Duration, mut closed: watch::Receiver
                 Err(e) => tracing::warn!(error = %e, "the statuses could not be scanned"),
             }
         }
-    });
+    })
 }
 
 /// Announces every sensor whose status at `now` is one the clock gives

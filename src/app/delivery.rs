@@ -160,14 +160,16 @@ fn client(s: &Settings) -> reqwest::Client {
     b.build().expect("a client of static settings")
 }
 
-/// Starts this replica's dispatcher; it runs until `closed` turns true.
-/// `wake` wakes it (an endpoint registered or redelivered).
+/// Starts this replica's dispatcher; it runs until `closed` turns true,
+/// then ends the attempts in flight (their leases expire, and their events
+/// are attempted again: at least once) and lets go of the store. `wake`
+/// wakes it (an endpoint registered or redelivered).
 pub fn start(
     store: Arc<dyn Store>,
     settings: Settings,
     wake: Arc<Notify>,
     closed: watch::Receiver<bool>,
-) {
+) -> tokio::task::JoinHandle<()> {
     let d = Dispatcher {
         client: client(&settings),
         store,
@@ -176,7 +178,7 @@ pub fn start(
         wake,
         slots: Arc::new(Semaphore::new(CONCURRENT)),
     };
-    tokio::spawn(d.run(closed));
+    tokio::spawn(d.run(closed))
 }
 
 #[derive(Clone)]
@@ -192,6 +194,7 @@ struct Dispatcher {
 impl Dispatcher {
     async fn run(self, mut closed: watch::Receiver<bool>) {
         let mut grew = self.store.trail_grew();
+        let mut attempts = tokio::task::JoinSet::new();
         let mut tick = tokio::time::interval(self.settings.poll);
         tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
         loop {
@@ -199,9 +202,13 @@ impl Dispatcher {
                 _ = tick.tick() => {}
                 () = super::events::grown(&mut grew) => {}
                 () = self.wake.notified() => {}
-                _ = closed.changed() => return,
+                _ = closed.changed() => {
+                    attempts.shutdown().await;
+                    return;
+                }
             }
-            if let Err(e) = self.round().await {
+            while attempts.try_join_next().is_some() {}
+            if let Err(e) = self.round(&mut attempts).await {
                 tracing::warn!(error = %e, "webhooks: the endpoints could not be read");
             }
             tokio::time::sleep(super::events::GAP).await;
@@ -210,7 +217,10 @@ impl Dispatcher {
 
     /// Claims every endpoint with a delivery due and attempts each, at most
     /// [`CONCURRENT`] at once.
-    async fn round(&self) -> Result<(), crate::store::StoreError> {
+    async fn round(
+        &self,
+        attempts: &mut tokio::task::JoinSet<()>,
+    ) -> Result<(), crate::store::StoreError> {
         let head = self.store.audit_head().await?;
         let endpoints = self.store.webhooks().await?;
         let now = Timestamp::now();
@@ -237,7 +247,7 @@ impl Dispatcher {
                 return Ok(());
             };
             let this = self.clone();
-            tokio::spawn(async move {
+            attempts.spawn(async move {
                 let id = endpoint.def.webhook_id.clone();
                 if let Err(e) = this.deliver(endpoint).await {
                     tracing::warn!(webhook = %id, error = %e, "webhooks: a delivery could not be recorded");

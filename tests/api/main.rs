@@ -45,3 +45,23 @@ mod triads;
 mod ui;
 mod unchanged;
 mod webhooks;
+
+/// Checks `value` against the committed contract's schema `name`: every
+/// required property present, no property it does not list.
+pub fn conforms_to(name: &str, value: &serde_json::Value) {
+    let doc: serde_json::Value =
+        serde_norway::from_str(include_str!("../../openapi.yaml")).unwrap();
+    let schema = &doc["components"]["schemas"][name];
+    for required in schema["required"].as_array().unwrap() {
+        assert!(
+            value.get(required.as_str().unwrap()).is_some(),
+            "{name}: {required} missing: {value}"
+        );
+    }
+    for key in value.as_object().unwrap().keys() {
+        assert!(
+            schema["properties"].get(key).is_some(),
+            "{name}: `{key}` is not in the contract: {value}"
+        );
+    }
+}

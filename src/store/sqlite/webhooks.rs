@@ -111,6 +111,22 @@ fn log(conn: &Connection, id: &str, d: &Delivery) -> Result<(), StoreError> {
     Ok(())
 }
 
+/// After an `UPDATE` of endpoint `id` that changed `n` rows: none, and
+/// nothing kept, when there is no such endpoint; else `event` appended and
+/// the endpoint as it now is.
+fn recorded(
+    conn: &Connection,
+    id: &str,
+    n: usize,
+    event: impl FnOnce() -> crate::domain::audit::Event,
+) -> Result<(Option<Endpoint>, bool), StoreError> {
+    if n == 0 {
+        return Ok((None, false));
+    }
+    super::audit::append(conn, event())?;
+    Ok((read(conn, id)?, true))
+}
+
 fn list(values: &impl serde::Serialize) -> String {
     serde_json::to_string(values).expect("a list of strings")
 }
@@ -222,13 +238,9 @@ impl Webhooks for SqliteStore {
                     ],
                 )
                 .map_err(map)?;
-            if n == 0 {
-                return Ok((None, false));
-            }
             let event =
-                crate::store::audit::webhook_rotated(&id, &new_secret, overlap_until, at, by);
-            audit::append(conn, event)?;
-            Ok((read(conn, &id)?, true))
+                || crate::store::audit::webhook_rotated(&id, &new_secret, overlap_until, at, by);
+            recorded(conn, &id, n, event)
         })
         .await
     }
@@ -248,14 +260,9 @@ impl Webhooks for SqliteStore {
                     params![id, after, at.to_string()],
                 )
                 .map_err(map)?;
-            if n == 0 {
-                return Ok((None, false));
-            }
-            audit::append(
-                conn,
-                crate::store::audit::webhook_redelivered(&id, after, at, by),
-            )?;
-            Ok((read(conn, &id)?, true))
+            recorded(conn, &id, n, || {
+                crate::store::audit::webhook_redelivered(&id, after, at, by)
+            })
         })
         .await
     }
