@@ -36,7 +36,10 @@ start_server() {
     "$BIN" serve --listen 127.0.0.1:$PORT --database "$DATABASE" >"$out" 2>"$err" &
   fi
   PID=$!
-  trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; eval "$DROP" >/dev/null 2>&1; rm -rf "$WORK"' EXIT
+  # Every step may fail (a test that killed the server itself, a database
+  # already gone) without changing the script's own exit status: under
+  # `set -e` a failing command in the trap would end the script with 1.
+  trap 'kill $PID 2>/dev/null || :; wait $PID 2>/dev/null || :; eval "$DROP" >/dev/null 2>&1 || :; rm -rf "$WORK"' EXIT
   for _ in $(seq 100); do curl -sf "$BASE/readyz" >/dev/null && return 0; sleep 0.1; done
   echo "the service did not become ready on $BASE" >&2
   cat "$err" >&2

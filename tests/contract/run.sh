@@ -24,7 +24,7 @@ export ACCELCAL_TOKEN="$(head -c 32 /dev/urandom | base64)"
 ACCELCAL_ADMIN_TOKEN=$ACCELCAL_TOKEN "$BIN" serve --listen 127.0.0.1:$PORT \
   --database "$WORK/accelcal.db" --log-format json --auth-failure-burst 100000 >/dev/null 2>"$WORK/server.log" &
 PID=$!
-trap 'kill $PID 2>/dev/null; wait $PID 2>/dev/null; rm -rf "$WORK"' EXIT
+trap 'kill $PID 2>/dev/null || :; wait $PID 2>/dev/null || :; rm -rf "$WORK"' EXIT
 for _ in $(seq 50); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && break; sleep 0.1; done
 
 "$ST" --config-file tests/contract/schemathesis.toml run openapi.yaml \

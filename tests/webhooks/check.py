@@ -254,4 +254,4 @@ for _, proc in replicas:
         proc.terminate()
         proc.wait(timeout=30)
 print(f"kill -9: {ROUNDS} rounds over {len(replicas)} replica(s), {len(acked)} acknowledged, every event delivered and verified; "
-      f"{repeats} repeats, each with its own webhook-id")
+      f"{repeats} repeats, each with the webhook-id of its first delivery")
