@@ -15,17 +15,12 @@
 //! when it reconnects), or `after` on a first connection, resumes after
 //! that id: the events are the audit trail's entries, kept for good, so
 //! any id the service sent can be resumed from. Without either the stream
-//! starts at the newest event. A client that falls [`events::BUFFER`]
-//! events behind is disconnected and resumes with its last id.
-
-use std::collections::VecDeque;
-use std::sync::Arc;
+//! starts at the newest event. The stream itself (catch-up, a slow client
+//! disconnected) is [`super::sse`]'s.
 
 use axum::extract::State;
-use axum::http::{HeaderMap, HeaderValue, header};
-use axum::response::sse::{Event as Sse, KeepAlive};
-use axum::response::{IntoResponse, Response};
-use futures_util::stream;
+use axum::http::HeaderMap;
+use axum::response::Response;
 use serde::Deserialize;
 use utoipa::IntoParams;
 
@@ -33,7 +28,7 @@ use super::AppState;
 use super::auth::require;
 use super::problem::Problem;
 use super::query::Params;
-use crate::app::events::{self, Next, Subscription};
+use super::sse::{self, Named};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::events::{EventType, Filter, LiveEvent};
 
@@ -74,17 +69,6 @@ fn names(name: &str, raw: Option<&str>) -> Result<Vec<String>, Problem> {
         ));
     }
     Ok(list)
-}
-
-/// An event id: a sequence number, 0 or more.
-fn event_id(name: &str, raw: &str) -> Result<i64, Problem> {
-    raw.trim()
-        .parse::<i64>()
-        .ok()
-        .filter(|n| *n >= 0)
-        .ok_or_else(|| {
-            Problem::bad_parameter(name, "must be an event id (a whole number, 0 or more)")
-        })
 }
 
 impl EventsParams {
@@ -142,126 +126,6 @@ pub async fn stream(
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
     let filter = q.filter()?;
-    let resume = match headers.get("last-event-id") {
-        Some(v) => Some(event_id(
-            "Last-Event-ID",
-            v.to_str().map_err(|_| {
-                Problem::bad_parameter("Last-Event-ID", "must be an event id (ASCII digits)")
-            })?,
-        )?),
-        None => q
-            .after
-            .as_deref()
-            .map(|a| event_id("after", a))
-            .transpose()?,
-    };
-    let feed = state.events.clone();
-    let subscription = feed.subscribe().await?;
-    let head = feed.head().await?;
-    let cursor = match resume {
-        Some(id) if id > head => {
-            return Err(Problem::bad_parameter(
-                if headers.contains_key("last-event-id") {
-                    "Last-Event-ID"
-                } else {
-                    "after"
-                },
-                format!("is {id}, past the newest event ({head}): was the database replaced?"),
-            ));
-        }
-        Some(id) => id,
-        None => head,
-    };
-    let client = Client {
-        feed,
-        subscription,
-        filter,
-        cursor,
-        catching_up: resume.is_some(),
-        pending: VecDeque::new(),
-        _gauge: Gauge::new(),
-    };
-    let events = stream::unfold(client, |mut c| async move {
-        let e = c.next().await?;
-        let sse = Sse::default()
-            .id(e.seq.to_string())
-            .event(e.kind.as_str())
-            .data(serde_json::to_string(&*e).unwrap_or_default());
-        Some((Ok::<_, std::convert::Infallible>(sse), c))
-    });
-    let mut res = axum::response::Sse::new(events)
-        .keep_alive(KeepAlive::new().interval(state.web.events_heartbeat))
-        .into_response();
-    let h = res.headers_mut();
-    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-cache"));
-    h.insert("x-accel-buffering", HeaderValue::from_static("no"));
-    Ok(res)
-}
-
-/// One client's stream: its catch-up from the trail, then the feed.
-struct Client {
-    feed: Arc<events::Feed>,
-    subscription: Subscription,
-    filter: Filter,
-    /// The last event id it has been sent or passed over.
-    cursor: i64,
-    catching_up: bool,
-    pending: VecDeque<LiveEvent>,
-    _gauge: Gauge,
-}
-
-impl Client {
-    /// The next event to send; `None` ends the stream (shutdown, a client
-    /// too slow, the trail unreadable: the client resumes with its last id).
-    async fn next(&mut self) -> Option<Arc<LiveEvent>> {
-        loop {
-            if let Some(e) = self.pending.pop_front() {
-                return Some(Arc::new(e));
-            }
-            if self.catching_up {
-                match self.feed.since(self.cursor, &self.filter).await {
-                    Ok((_, last)) if last == self.cursor => self.catching_up = false,
-                    Ok((found, last)) => {
-                        self.cursor = last;
-                        self.pending.extend(found);
-                    }
-                    Err(e) => {
-                        tracing::warn!(error = %e, "live events: a catch-up failed");
-                        return None;
-                    }
-                }
-                continue;
-            }
-            match self.subscription.next().await {
-                Next::Event(e) if e.seq > self.cursor => {
-                    self.cursor = e.seq;
-                    if self.filter.admits(&e) {
-                        return Some(e);
-                    }
-                }
-                Next::Event(_) => {}
-                Next::Lagged => {
-                    metrics::counter!("accelcal_events_clients_dropped_total").increment(1);
-                    return None;
-                }
-                Next::Closed => return None,
-            }
-        }
-    }
-}
-
-/// Counts a connected client in `accelcal_events_clients` while it lives.
-struct Gauge;
-
-impl Gauge {
-    fn new() -> Gauge {
-        metrics::gauge!("accelcal_events_clients").increment(1.0);
-        Gauge
-    }
-}
-
-impl Drop for Gauge {
-    fn drop(&mut self) {
-        metrics::gauge!("accelcal_events_clients").decrement(1.0);
-    }
+    let resume = sse::resume(&headers, q.after.as_deref())?;
+    sse::respond(&state, filter, resume, Named::Yes).await
 }

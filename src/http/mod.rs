@@ -29,6 +29,7 @@ pub mod rendered;
 pub mod reviews;
 pub mod sensor_types;
 pub mod sensors;
+pub mod sse;
 pub mod stability;
 pub mod stack;
 pub mod standards;

@@ -43,6 +43,7 @@ mod traceability;
 mod triad;
 mod triads;
 mod ui;
+mod ui_live;
 mod unchanged;
 mod webhooks;
 

@@ -126,6 +126,9 @@ async function axe(page, what) {
   );
 }
 
+// The pages' event stream asked for without a session cookie.
+const anonStream = () => fetch(`${BASE}/ui/events`, { redirect: 'manual' });
+
 const num = (text) => Number(text.trim().replace('−', '-'));
 const close = (got, want, rel, what) => assert.ok(
   Math.abs(got - want) <= rel * Math.abs(want) + 1e-300, `${what}: ${got} is not ${want} (to ${rel})`);
@@ -398,6 +401,39 @@ try {
   await page.screenshot({ path: path.join(SHOTS, 'readme.jpg'), type: 'jpeg', quality: 70 });
   ok('axe-core: no serious or critical violation, light and dark; no page wider than the screen, nothing cut off, only charts and wide data tables scrolling in their own regions (cards fit, and the certificate’s tables fit an A4 width), chart labels ≥ 10 px, at 1280 and 390 px; screenshots saved');
 
+  // ------------------------------------------------------------ live
+  // The sensor page and the fleet follow the event stream (issue 47 item
+  // 5): what the API stores appears on a page already open, which swaps
+  // its content without reloading (a mark left on the window survives).
+  const liveCal = (i, id) => ({ ...synthetic(i), sensor_id: id });
+  await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(liveCal(0, 'LIVE-001')) }), 'LIVE-001 first');
+  await page.goto('/ui/sensors/LIVE-001');
+  await page.waitForSelector('#live-status[data-state=open]', { state: 'attached' });
+  await page.evaluate(() => { window.stillThisPage = true; });
+  assert.equal(await page.$$eval('#chart-k0 circle.pt', (cs) => cs.length), 1);
+  const later = await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(liveCal(1, 'LIVE-001')) }), 'LIVE-001 second');
+  await page.waitForSelector(`#chart-k0 circle.pt[data-calibration-id="${later.id}"]`, { timeout: 20000 });
+  assert.equal(await page.evaluate(() => window.stillThisPage), true, 'updated in place, not reloaded');
+  assert.equal(await page.$$eval('#chart-k0 circle.pt', (cs) => cs.length), 2);
+  assert.match(await page.textContent('#live-status'), /^Updated .* \(calibration\.stored\)\.$/);
+  // Another sensor's events do not reach this page: events come in one
+  // order, so once the third of this sensor's is shown, the other sensor's
+  // (stored between them) would have come before it.
+  await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(liveCal(2, 'LIVE-OTHER')) }), 'another sensor');
+  const third = await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(liveCal(3, 'LIVE-001')) }), 'LIVE-001 third');
+  await page.waitForSelector(`#chart-k0 circle.pt[data-calibration-id="${third.id}"]`, { timeout: 20000 });
+  assert.equal(await page.$eval('#live-status', (p) => p.dataset.events), '2', 'two events of this sensor, none of the other');
+  await page.goto('/ui/sensors');
+  await page.waitForSelector('#live-status[data-state=open]', { state: 'attached' });
+  await page.evaluate(() => { window.stillThisPage = true; });
+  assert.equal(await page.locator('#fleet tr[data-sensor-id="LIVE-002"]').count(), 0);
+  await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(liveCal(0, 'LIVE-002')) }), 'LIVE-002');
+  await page.waitForSelector('#fleet tr[data-sensor-id="LIVE-002"]', { timeout: 20000 });
+  assert.equal(await page.evaluate(() => window.stillThisPage), true, 'the fleet updated in place');
+  await axe(page, 'fleet after a live update');
+  assert.equal((await anonStream()).status, 303, 'the pages\' stream needs a session');
+  ok('live: a calibration stored through the API appears on the open sensor page and the fleet without a reload; another sensor\'s event leaves the sensor page alone; the stream needs a session');
+
   // -------------------------------------------------------- refusals
   const anon = await newContext();
   const login = await anon.newPage();
@@ -437,6 +473,9 @@ try {
   const rc = await newContext();
   const rp = await rc.newPage();
   await signIn(rp, doomed.token);
+  // The fleet's event stream is open (had it connected after the
+  // revocation, its own request would have ended the session first).
+  await rp.waitForSelector('#live-status[data-state=open]', { state: 'attached' });
   await must(204, api('DELETE', `/v1/tokens/${doomed.id}`), 'revoke');
   await rp.goto('/ui/sensors');
   assert.match(rp.url(), /reason=ended/);

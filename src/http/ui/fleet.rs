@@ -7,7 +7,7 @@ use maud::{Markup, html};
 
 use super::format::{Notation, date};
 use super::viewer::Viewer;
-use super::{Html, UiError, badge, layout};
+use super::{Html, UiError, badge, live_layout};
 use crate::domain::status::Status;
 use crate::http::AppState;
 use crate::http::lookup::SensorListQuery;
@@ -148,5 +148,5 @@ pub async fn page(
             }
         }
     };
-    Ok(Html::ok(layout("Fleet", Some(&viewer), content)))
+    Ok(Html::ok(live_layout("Fleet", &viewer, None, content)))
 }

@@ -1,10 +1,14 @@
 //! The web pages under `/ui/`: server-rendered HTML (maud), charts drawn as
-//! inline SVG on the server, one embedded stylesheet — no script at all, no
-//! CDN, nothing fetched from elsewhere; the pages work offline and under a
-//! Content-Security-Policy that allows only this origin's stylesheet.
+//! inline SVG on the server, one embedded stylesheet — no CDN, nothing
+//! fetched from elsewhere; the pages work offline and under a
+//! Content-Security-Policy that allows only this origin's stylesheet and
+//! script. The one script (`live.js`) keeps the fleet and a sensor's page
+//! current from the event stream ([`live`]); every page reads the same
+//! without it.
 //!
 //! * [`session`]: sign-in with a token, session cookies, CSRF;
-//! * [`fleet`], [`sensor`], [`calibration`]: the pages;
+//! * [`fleet`], [`sensor`], [`calibration`]: the pages; [`live`]: their
+//!   event stream;
 //! * [`certificate`]: the printable certificate (also `GET
 //!   /v1/calibrations/{id}/certificate`); [`dcc`]: the same as a Digital
 //!   Calibration Certificate (XML);
@@ -26,6 +30,7 @@ pub mod fleet;
 pub mod format;
 pub mod issue;
 pub mod kinds;
+pub mod live;
 pub mod plot;
 pub mod result;
 pub mod review;
@@ -47,10 +52,13 @@ use super::AppState;
 use super::problem::Problem;
 use viewer::Viewer;
 
-/// The Content-Security-Policy of every page: this origin's stylesheet, and
-/// nothing else — no script, no frame, forms posting only here.
-pub const PAGE_CSP: &str = "default-src 'none'; style-src 'self'; img-src 'self'; \
-     form-action 'self'; frame-ancestors 'none'; base-uri 'none'";
+/// The Content-Security-Policy of every page: this origin's stylesheet and
+/// script (no inline script), requests only to this origin (the script's
+/// event stream and page fetches), and nothing else — no frame, forms
+/// posting only here.
+pub const PAGE_CSP: &str = "default-src 'none'; style-src 'self'; script-src 'self'; \
+     connect-src 'self'; img-src 'self'; form-action 'self'; frame-ancestors 'none'; \
+     base-uri 'none'";
 
 /// The pages' routes (nested under `/ui`).
 pub fn router() -> Router<AppState> {
@@ -59,6 +67,7 @@ pub fn router() -> Router<AppState> {
         .route("/login", get(session::login_form).post(session::login))
         .route("/logout", post(session::logout))
         .route("/sensors", get(fleet::page))
+        .route("/events", get(live::stream))
         .route("/sensors/{sensor_id}", get(sensor::page))
         .route("/calibrations/{id}", get(calibration::page))
         .route(
@@ -195,6 +204,29 @@ async fn not_found() -> UiError {
 /// The frame of every page: header with navigation and the signed-in
 /// principal (with its sign-out form), the content, a footer.
 pub fn layout(title: &str, viewer: Option<&Viewer>, content: Markup) -> Markup {
+    frame(title, viewer, None, content)
+}
+
+/// [`layout`] for a page kept current from the event stream ([`live`]) of
+/// `sensor_id`, or of every sensor: the script, the stream's URL on
+/// `<main>`, and a status line that says when the page was last updated.
+pub fn live_layout(
+    title: &str,
+    viewer: &Viewer,
+    sensor_id: Option<&str>,
+    content: Markup,
+) -> Markup {
+    let stream = match sensor_id {
+        Some(id) => format!(
+            "/ui/events?sensor_id={}",
+            form_urlencoded::byte_serialize(id.as_bytes()).collect::<String>()
+        ),
+        None => "/ui/events".to_owned(),
+    };
+    frame(title, Some(viewer), Some(&stream), content)
+}
+
+fn frame(title: &str, viewer: Option<&Viewer>, live: Option<&str>, content: Markup) -> Markup {
     html! {
         (DOCTYPE)
         html lang="en" {
@@ -204,6 +236,9 @@ pub fn layout(title: &str, viewer: Option<&Viewer>, content: Markup) -> Markup {
                 meta name="color-scheme" content="light dark";
                 title { (title) " · accelcal" }
                 link rel="stylesheet" href=(assets::stylesheet_path());
+                @if live.is_some() {
+                    script src=(assets::script_path()) defer {}
+                }
             }
             body {
                 a.skip href="#content" { "Skip to content" }
@@ -230,7 +265,10 @@ pub fn layout(title: &str, viewer: Option<&Viewer>, content: Markup) -> Markup {
                         }
                     }
                 }
-                main id="content" { (content) }
+                main id="content" data-live=[live] { (content) }
+                @if live.is_some() {
+                    p #live-status .muted role="status" aria-live="polite" {}
+                }
                 footer.site {
                     "accelcal " (env!("CARGO_PKG_VERSION"))
                     " · identification of the accelerometer's static model by data fusion (Pei & Wang, 2005)"

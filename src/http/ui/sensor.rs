@@ -18,7 +18,7 @@ use uuid::Uuid;
 use super::format::{Notation, date, instant, num, opt, unc};
 use super::plot::{self, Chart, Point, Rule, Segment, Series, XAxis};
 use super::viewer::Viewer;
-use super::{Html, UiError, badge, layout};
+use super::{Html, UiError, badge, live_layout};
 use crate::domain::timestamp::Timestamp;
 use crate::http::AppState;
 use crate::http::page::Page;
@@ -542,5 +542,10 @@ pub async fn page(
             @if let Some(next) = &history.next { a href=(window(Some(next))) rel="next" { "Older" } }
         }
     };
-    Ok(Html::ok(layout(&s.sensor_id, Some(&viewer), content)))
+    Ok(Html::ok(live_layout(
+        &s.sensor_id,
+        &viewer,
+        Some(&sensor_id),
+        content,
+    )))
 }
