@@ -28,7 +28,7 @@ use super::AppState;
 use super::auth::require;
 use super::problem::Problem;
 use super::query::Params;
-use super::sse::{self, Named};
+use super::sse::{self, Holder, Named};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::events::{EventType, Filter, LiveEvent};
 
@@ -127,5 +127,5 @@ pub async fn stream(
     require(&principal, Role::Reader)?;
     let filter = q.filter()?;
     let resume = sse::resume(&headers, q.after.as_deref())?;
-    sse::respond(&state, filter, resume, Named::Yes).await
+    sse::respond(&state, Holder::Token(principal), filter, resume, Named::Yes).await
 }

@@ -4,7 +4,10 @@
 //! trail after the id it resumes from, then the feed every replica's acts
 //! reach ([`crate::app::events::Feed`]). A client that falls
 //! [`crate::app::events::BUFFER`] events behind is disconnected — it never
-//! slows an act — and resumes with its last id.
+//! slows an act — and resumes with its last id. A stream outlives neither
+//! its token nor its session: who holds it ([`Holder`]) is looked at again
+//! every `--events-heartbeat`, and the stream ends once the token is
+//! revoked or the session ended or expired.
 
 use std::collections::VecDeque;
 use std::sync::Arc;
@@ -15,9 +18,48 @@ use axum::response::{IntoResponse, Response};
 use futures_util::stream;
 
 use super::AppState;
+use super::auth::still_valid;
 use super::problem::Problem;
 use crate::app::events::{self, Next, Subscription};
+use crate::domain::auth::{ENV_ADMIN, Principal};
 use crate::domain::events::{Filter, LiveEvent};
+use crate::domain::timestamp::Timestamp;
+
+/// Who holds a stream, looked at again every `--events-heartbeat`.
+#[derive(Clone, Debug)]
+pub enum Holder {
+    /// A bearer token's principal (`GET /v1/events`): the stream ends when
+    /// the token is revoked (the configured admin token lasts as long as
+    /// the process).
+    Token(Principal),
+    /// A page session, by the SHA-256 of its cookie (`GET /ui/events`):
+    /// the stream ends when the session is signed out, expires, or its
+    /// token is revoked.
+    Session([u8; 32]),
+}
+
+impl Holder {
+    /// Whether the holder may still read the stream; an unreadable store
+    /// says no (the client resumes with its last id once it can).
+    async fn still_allowed(&self, state: &AppState) -> bool {
+        match self {
+            Holder::Token(p) if p.id == ENV_ADMIN => true,
+            Holder::Token(p) => {
+                let Ok(id) = uuid::Uuid::try_parse(&p.id) else {
+                    return false;
+                };
+                matches!(state.store.token(id).await, Ok(Some(t)) if t.revoked_at.is_none())
+            }
+            Holder::Session(hash) => match state.store.session(*hash).await {
+                Ok(Some(s)) if s.expires_at > Timestamp::now() => matches!(
+                    still_valid(state, &s.principal, &s.credential_hash).await,
+                    Ok(Some(_))
+                ),
+                _ => false,
+            },
+        }
+    }
+}
 
 /// Whether each event carries its type as the SSE `event:` field. A
 /// browser's `EventSource` hands named events only to listeners of that
@@ -62,12 +104,13 @@ pub fn resume(
     Ok(Some((id, name)))
 }
 
-/// The stream of the events `filter` admits, after `resume` (an id and the
-/// name of the parameter or header that gave it, for a refusal) or from
-/// the newest event. An id past the newest is a 400: the client's ids come
-/// from another database.
+/// The stream of the events `filter` admits to `holder`, after `resume`
+/// (an id and the name of the parameter or header that gave it, for a
+/// refusal) or from the newest event. An id past the newest is a 400: the
+/// client's ids come from another database.
 pub async fn respond(
     state: &AppState,
+    holder: Holder,
     filter: Filter,
     resume: Option<(i64, &'static str)>,
     named: Named,
@@ -92,6 +135,14 @@ pub async fn respond(
         cursor,
         catching_up: resume.is_some(),
         pending: VecDeque::new(),
+        holder,
+        state: state.clone(),
+        recheck: {
+            let every = state.web.events_heartbeat;
+            let mut i = tokio::time::interval_at(tokio::time::Instant::now() + every, every);
+            i.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            i
+        },
         _gauge: Gauge::new(),
     };
     let events = stream::unfold(client, move |mut c| async move {
@@ -122,12 +173,17 @@ struct Client {
     cursor: i64,
     catching_up: bool,
     pending: VecDeque<LiveEvent>,
+    holder: Holder,
+    state: AppState,
+    /// When to look at the holder again.
+    recheck: tokio::time::Interval,
     _gauge: Gauge,
 }
 
 impl Client {
     /// The next event to send; `None` ends the stream (shutdown, a client
-    /// too slow, the trail unreadable: the client resumes with its last id).
+    /// too slow, the trail unreadable: the client resumes with its last id;
+    /// a holder no longer allowed).
     async fn next(&mut self) -> Option<Arc<LiveEvent>> {
         loop {
             if let Some(e) = self.pending.pop_front() {
@@ -147,7 +203,18 @@ impl Client {
                 }
                 continue;
             }
-            match self.subscription.next().await {
+            let next = tokio::select! {
+                next = self.subscription.next() => next,
+                _ = self.recheck.tick() => {
+                    if self.holder.still_allowed(&self.state).await {
+                        continue;
+                    }
+                    tracing::info!("live events: a stream's token or session ended; the stream ends");
+                    metrics::counter!("accelcal_events_clients_ended_total").increment(1);
+                    return None;
+                }
+            };
+            match next {
                 Next::Event(e) if e.seq > self.cursor => {
                     self.cursor = e.seq;
                     if self.filter.admits(&e) {

@@ -322,3 +322,39 @@ async fn a_replicas_own_acts_go_out_at_once(#[values(Sqlite, Postgres)] engine: 
         assert_eq!(e.data["calibration_id"], c["id"]);
     }
 }
+
+/// A stream outlives neither its token: revoking the token ends its
+/// streams within a heartbeat, and leaves another token's open.
+#[rstest]
+#[tokio::test]
+async fn a_revoked_tokens_stream_ends(#[values(Sqlite, Postgres)] engine: Engine) {
+    let app = TestApp::configured(engine, |c| {
+        c.web.events_heartbeat = Duration::from_millis(200);
+    })
+    .await;
+    let res = app
+        .post("/v1/tokens", ADMIN, &json!({"role": "reader"}))
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let doomed: Value = res.json().await.unwrap();
+    let kept = app.token("reader", None).await;
+    let mut ending = Stream::open(&app, doomed["token"].as_str().unwrap(), "", None).await;
+    let mut staying = Stream::open(&app, &kept, "", None).await;
+    let revoked = app
+        .client
+        .delete(app.url(&format!("/v1/tokens/{}", doomed["id"].as_str().unwrap())))
+        .bearer_auth(ADMIN)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    let ended = tokio::time::timeout(Duration::from_secs(10), async {
+        while ending.res.chunk().await.unwrap().is_some() {}
+    })
+    .await;
+    assert!(ended.is_ok(), "the revoked token's stream ended");
+    let c = app
+        .submit(ADMIN, &submission("EV-KEPT", "2026-01-01T00:00:00Z", 4))
+        .await;
+    assert_eq!(staying.next().await.data["calibration_id"], c["id"]);
+}

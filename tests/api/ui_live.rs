@@ -1,7 +1,8 @@
 //! The pages' own event stream (`GET /ui/events`, issue 47 item 5), over
 //! real HTTP: it needs a session, carries one sensor's events unnamed (the
-//! pages' script listens to `message`), and the pages that follow it name
-//! it and their script (tests/ui/ checks the refresh in a real browser).
+//! pages' script listens to `message`), ends with the session, and the
+//! pages that follow it name it and their script (tests/ui/ checks the
+//! refresh in a real browser).
 
 use std::time::Duration;
 
@@ -37,7 +38,10 @@ async fn next_event(res: &mut reqwest::Response, buf: &mut String) -> Vec<String
 #[rstest]
 #[tokio::test]
 async fn the_pages_follow_their_sensors_events(#[values(Sqlite, Postgres)] engine: Engine) {
-    let app = TestApp::spawn(engine).await;
+    let app = TestApp::configured(engine, |c| {
+        c.web.events_heartbeat = Duration::from_millis(200);
+    })
+    .await;
     let anonymous = reqwest::Client::builder()
         .redirect(reqwest::redirect::Policy::none())
         .build()
@@ -131,6 +135,31 @@ async fn the_pages_follow_their_sensors_events(#[values(Sqlite, Postgres)] engin
         );
         assert!(js.text().await.unwrap().contains("new EventSource"));
     }
+    // Signing out ends the page's stream (looked at every heartbeat).
+    let form = page(&app, "/ui/sensors", &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    let at = form.find(r#"name="csrf" value=""#).unwrap() + 19;
+    let csrf = &form[at..at + form[at..].find('"').unwrap()];
+    let mut ending = page(&app, "/ui/events", &session).await;
+    assert_eq!(ending.status(), StatusCode::OK);
+    let out = anonymous
+        .post(app.url("/ui/logout"))
+        .header("cookie", format!("accelcal_session={session}"))
+        .form(&[("csrf", csrf)])
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(out.status(), StatusCode::SEE_OTHER);
+    let ended = tokio::time::timeout(Duration::from_secs(10), async {
+        while ending.chunk().await.unwrap().is_some() {}
+    })
+    .await;
+    assert!(ended.is_ok(), "the signed-out session's stream ended");
+    let (session, _) = sign_in(&app, &reader).await;
+
     // A calibration's page changes only by a reviewer's act on it: no script.
     let html = page(
         &app,

@@ -2,8 +2,9 @@
 //! the fleet and a sensor's page current (`assets/live.js`). The same
 //! events as `GET /v1/events` ([`crate::http::sse`]), authenticated by the
 //! session cookie (a browser's `EventSource` sends no `Authorization`
-//! header), unnamed so that one `message` listener sees every type, and
-//! resumed by `Last-Event-ID` when the browser reconnects.
+//! header), unnamed so that one `message` listener sees every type,
+//! resumed by `Last-Event-ID` when the browser reconnects, and ended when
+//! the session ends.
 
 use axum::extract::{Query, State};
 use axum::http::HeaderMap;
@@ -16,7 +17,7 @@ use crate::domain::auth::Role;
 use crate::domain::events::Filter;
 use crate::http::AppState;
 use crate::http::auth::require;
-use crate::http::sse::{self, Named};
+use crate::http::sse::{self, Holder, Named};
 
 /// The query: one sensor's events, or every event (the fleet).
 #[derive(Debug, Deserialize)]
@@ -41,5 +42,6 @@ pub async fn stream(
         types: Vec::new(),
     };
     let resume = sse::resume(&headers, None)?;
-    Ok(sse::respond(&state, filter, resume, Named::No).await?)
+    let holder = Holder::Session(viewer.id_hash);
+    Ok(sse::respond(&state, holder, filter, resume, Named::No).await?)
 }
