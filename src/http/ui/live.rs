@@ -6,7 +6,7 @@
 //! resumed by `Last-Event-ID` when the browser reconnects, and ended when
 //! the session ends.
 
-use axum::extract::{Query, State};
+use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::response::Response;
 use serde::Deserialize;
@@ -17,6 +17,7 @@ use crate::domain::auth::Role;
 use crate::domain::events::Filter;
 use crate::http::AppState;
 use crate::http::auth::require;
+use crate::http::query::Params;
 use crate::http::sse::{self, Holder, Named};
 
 /// The query: one sensor's events, or every event (the fleet).
@@ -32,11 +33,9 @@ pub async fn stream(
     State(state): State<AppState>,
     viewer: Viewer,
     headers: HeaderMap,
-    query: Result<Query<LiveQuery>, axum::extract::rejection::QueryRejection>,
+    Params(q): Params<LiveQuery>,
 ) -> Result<Response, UiError> {
     require(&viewer.principal, Role::Reader)?;
-    let Query(q) =
-        query.map_err(|e| crate::http::problem::Problem::bad_parameter("query", e.body_text()))?;
     let filter = Filter {
         sensors: q.sensor_id.into_iter().collect(),
         types: Vec::new(),
