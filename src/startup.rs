@@ -289,6 +289,7 @@ impl Application {
         let (stop_deliveries, stopped) = tokio::sync::watch::channel(false);
         let deliveries = crate::app::delivery::start(
             store.clone(),
+            state.web.basis,
             state.web.webhooks,
             state.deliveries.clone(),
             stopped.clone(),

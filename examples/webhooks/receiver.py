@@ -59,11 +59,14 @@ def main():
             return  # a repeat: already handled
         seen.add(webhook_id)
         data = payload["data"]
-        # A control system would reload coefficients here on
-        # calibration.withdrawn / held / superseded / released.
+        # A control system reloads the sensor's coefficients when they
+        # changed: another calibration served, none, or the served one held
+        # or released (`coefficients.calibration_id` names the one served).
+        reload = (data.get("coefficients") or {}).get("changed", False)
         print(json.dumps({"id": webhook_id, "type": payload["type"],
                           "sensor": data.get("sensor_id"),
-                          "calibration": data.get("calibration_id")}), flush=True)
+                          "calibration": data.get("calibration_id"),
+                          "reload": reload}), flush=True)
 
     port = int(sys.argv[1]) if len(sys.argv) > 1 else 8000
     make_server(port, os.environ["ACCELCAL_WEBHOOK_SECRET"], on_event).serve_forever()

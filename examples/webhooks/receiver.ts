@@ -17,7 +17,14 @@ import { Webhook } from "standardwebhooks";
 interface Payload {
   type: string;
   timestamp: string;
-  data: { seq: number; sensor_id: string | null; calibration_id: string | null; change: unknown };
+  data: {
+    seq: number;
+    sensor_id: string | null;
+    calibration_id: string | null;
+    change: unknown;
+    // For an act on a calibration: what it did to the served coefficients.
+    coefficients?: { changed: boolean; calibration_id?: string | null };
+  };
 }
 
 const verifier = new Webhook(process.env.ACCELCAL_WEBHOOK_SECRET ?? "");
@@ -40,9 +47,10 @@ createServer((req, res) => {
     const id = headers["webhook-id"];
     if (!seen.has(id)) {
       seen.add(id);
-      // A control system reloads coefficients here on calibration.withdrawn,
-      // .held, .superseded or .released.
-      console.log(JSON.stringify({ id, type: payload.type, sensor: payload.data.sensor_id }));
+      // A control system reloads the sensor's coefficients when they changed
+      // (another calibration served, none, or the served one held or released).
+      const reload = payload.data.coefficients?.changed ?? false;
+      console.log(JSON.stringify({ id, type: payload.type, sensor: payload.data.sensor_id, reload }));
     }
     res.writeHead(204).end();
   });

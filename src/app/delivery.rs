@@ -31,6 +31,7 @@ use uuid::Uuid;
 
 use super::events::since;
 use crate::domain::events::LiveEvent;
+use crate::domain::review::Basis;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::webhooks::{
     Delivery, Endpoint, Outcome, Payload, Retry, message_id, refused_address,
@@ -166,6 +167,7 @@ fn client(s: &Settings) -> reqwest::Client {
 /// wakes it (an endpoint registered or redelivered).
 pub fn start(
     store: Arc<dyn Store>,
+    basis: Basis,
     settings: Settings,
     wake: Arc<Notify>,
     closed: watch::Receiver<bool>,
@@ -173,6 +175,7 @@ pub fn start(
     let d = Dispatcher {
         client: client(&settings),
         store,
+        basis,
         settings,
         holder: Uuid::now_v7(),
         wake,
@@ -184,6 +187,9 @@ pub fn start(
 #[derive(Clone)]
 struct Dispatcher {
     store: Arc<dyn Store>,
+    /// The service's basis, on which payloads tell what the coefficients
+    /// did.
+    basis: Basis,
     settings: Settings,
     client: reqwest::Client,
     holder: Uuid,
@@ -265,7 +271,8 @@ impl Dispatcher {
     /// stands after each.
     async fn deliver(&self, e: Endpoint) -> Result<(), crate::store::StoreError> {
         let id = e.def.webhook_id.clone();
-        let (events, last) = since(self.store.as_ref(), e.cursor, &e.filter(), PAGE).await?;
+        let (events, last) =
+            since(self.store.as_ref(), self.basis, e.cursor, &e.filter(), PAGE).await?;
         if events.is_empty() {
             let s = Settle {
                 cursor: last,

@@ -29,6 +29,7 @@ use std::time::Duration;
 use tokio::sync::{OnceCell, broadcast, watch};
 
 use crate::domain::events::{Filter, LiveEvent};
+use crate::domain::review::Basis;
 use crate::store::{Store, StoreError};
 
 /// Events a subscriber may fall behind the poller before it is
@@ -49,6 +50,8 @@ pub const GAP: Duration = Duration::from_millis(5);
 /// The feed of a replica: the trail's events, handed on as they are sealed.
 pub struct Feed {
     store: Arc<dyn Store>,
+    /// The service's basis, on which events tell what the coefficients did.
+    basis: Basis,
     poll: Duration,
     tx: broadcast::Sender<Arc<LiveEvent>>,
     /// The last `seq` the poller has handed on.
@@ -92,10 +95,12 @@ impl Subscription {
 
 impl Feed {
     /// A feed over `store` that looks for new entries every `poll` once
-    /// someone subscribes.
-    pub fn new(store: Arc<dyn Store>, poll: Duration) -> Feed {
+    /// someone subscribes; its events tell what the coefficients did on
+    /// `basis`.
+    pub fn new(store: Arc<dyn Store>, poll: Duration, basis: Basis) -> Feed {
         Feed {
             store,
+            basis,
             poll,
             tx: broadcast::channel(BUFFER).0,
             head: Arc::new(AtomicI64::new(0)),
@@ -113,6 +118,7 @@ impl Feed {
                     .store(self.store.audit_head().await?, Ordering::SeqCst);
                 tokio::spawn(poller(
                     self.store.clone(),
+                    self.basis,
                     self.store.trail_grew(),
                     self.poll,
                     self.tx.clone(),
@@ -141,7 +147,7 @@ impl Feed {
         after: i64,
         filter: &Filter,
     ) -> Result<(Vec<LiveEvent>, i64), StoreError> {
-        since(self.store.as_ref(), after, filter, PAGE).await
+        since(self.store.as_ref(), self.basis, after, filter, PAGE).await
     }
 
     /// Ends every subscription and the poller (the service is stopping).
@@ -157,16 +163,18 @@ impl Feed {
 
 /// The events after `after` that `filter` admits, read from the trail of
 /// `store`, at most `page` entries' worth, and the last `seq` read
-/// (`after` when there was none: caught up).
+/// (`after` when there was none: caught up); each telling what the
+/// coefficients did on `basis`.
 pub async fn since(
     store: &dyn Store,
+    basis: Basis,
     after: i64,
     filter: &Filter,
     page: usize,
 ) -> Result<(Vec<LiveEvent>, i64), StoreError> {
     let entries = store.sealed_after(after, page).await?;
     let last = entries.last().map_or(after, |e| e.seq);
-    let events = events(store, &entries).await?;
+    let events = events(store, basis, &entries).await?;
     Ok((
         events.into_iter().filter(|e| filter.admits(e)).collect(),
         last,
@@ -177,11 +185,12 @@ pub async fn since(
 /// else its calibration's.
 async fn events(
     store: &dyn Store,
+    basis: Basis,
     entries: &[crate::domain::audit::Entry],
 ) -> Result<Vec<LiveEvent>, StoreError> {
     let mut out = Vec::with_capacity(entries.len());
     for e in entries {
-        let Some(mut event) = LiveEvent::from_entry(e) else {
+        let Some(mut event) = LiveEvent::from_entry(e, basis) else {
             continue;
         };
         if let Some(id) = event.needs_sensor() {
@@ -208,6 +217,7 @@ pub(crate) async fn grown(rx: &mut Option<watch::Receiver<u64>>) {
 /// closed.
 async fn poller(
     store: Arc<dyn Store>,
+    basis: Basis,
     mut grew: Option<watch::Receiver<u64>>,
     poll: Duration,
     tx: broadcast::Sender<Arc<LiveEvent>>,
@@ -235,7 +245,7 @@ async fn poller(
             let Some(last) = entries.last().map(|e| e.seq) else {
                 break;
             };
-            match events(store.as_ref(), &entries).await {
+            match events(store.as_ref(), basis, &entries).await {
                 Ok(found) => {
                     head.store(last, Ordering::SeqCst);
                     metrics::counter!("accelcal_events_total").increment(found.len() as u64);
@@ -270,7 +280,7 @@ mod tests {
         let dir = tempfile::tempdir().unwrap();
         let store: Arc<dyn Store> =
             Arc::new(crate::store::sqlite::SqliteStore::open(dir.path().join("f.db")).unwrap());
-        let feed = Feed::new(store.clone(), Duration::from_millis(10));
+        let feed = Feed::new(store.clone(), Duration::from_millis(10), Basis::NotRejected);
         (dir, store, feed)
     }
 

@@ -280,6 +280,7 @@ impl AppState {
         let events = Arc::new(crate::app::events::Feed::new(
             store.clone(),
             web.events_poll,
+            web.basis,
         ));
         AppState(Arc::new(Shared {
             store: store.clone(),

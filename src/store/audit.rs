@@ -9,6 +9,7 @@ use uuid::Uuid;
 
 use super::NewCalibration;
 use crate::domain::audit::{self, Actor, Event};
+use crate::domain::events::Effect;
 use crate::domain::review::{Signature, State};
 use crate::domain::timestamp::Timestamp;
 
@@ -100,6 +101,16 @@ pub fn signed(id: Uuid, s: &Signature, from: State) -> Event {
             "superseded_by": s.superseded_by,
         })),
     )
+}
+
+/// `e` with what its act did to the coefficients its sensor's reads
+/// serve (`change.coefficients`, [`Effect`]): recorded in the act's own
+/// transaction, told by its event ([`crate::domain::events`]).
+pub fn with_effect(mut e: Event, effect: Effect) -> Event {
+    let mut change: Map<String, Value> = serde_json::from_str(&e.change).unwrap_or_default();
+    change.insert("coefficients".into(), effect.to_value());
+    e.change = Value::Object(change).to_string();
+    e
 }
 
 /// [`signed`] of a hold placed as a calibration is stored, naming the

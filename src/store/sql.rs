@@ -128,6 +128,15 @@ pub fn changes_the_sensor(before: State, after: State, replaced: bool) -> bool {
     replaced || before.counts(Basis::NotRejected) != after.counts(Basis::NotRejected)
 }
 
+/// The id of sensor `p`'s latest approved calibration by [`NEWEST_FIRST`]:
+/// what its reads serve with `--require-approval` (`id`).
+pub fn latest_approved_id_sql(p: &str) -> String {
+    format!(
+        "SELECT c.id FROM calibrations c WHERE c.sensor_id = {p} AND {} {NEWEST_FIRST} LIMIT 1",
+        counts(Basis::ApprovedOnly)
+    )
+}
+
 /// Removes a sensor's row when none of its calibrations counts any more
 /// (after [`sensor_recompute`]): it is then no sensor anyone lists or
 /// serves, though its calibrations stay, each with its state.

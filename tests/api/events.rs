@@ -358,3 +358,229 @@ async fn a_revoked_tokens_stream_ends(#[values(Sqlite, Postgres)] engine: Engine
         .await;
     assert_eq!(staying.next().await.data["calibration_id"], c["id"]);
 }
+
+/// What `GET /v1/sensors/{id}/coefficients` serves now: the calibration and
+/// whether its coefficients are usable (`None`: 404, nothing served).
+async fn served(app: &TestApp, token: &str, sensor: &str) -> Option<(String, bool)> {
+    let res = app
+        .client
+        .get(app.url(&format!("/v1/sensors/{sensor}/coefficients")))
+        .bearer_auth(token)
+        .send()
+        .await
+        .unwrap();
+    if res.status() == StatusCode::NOT_FOUND {
+        return None;
+    }
+    assert_eq!(res.status(), StatusCode::OK);
+    let body: Value = res.json().await.unwrap();
+    Some((
+        body["calibration_id"].as_str().unwrap().to_owned(),
+        body["usable"].as_bool().unwrap(),
+    ))
+}
+
+/// Makes acts on one sensor and checks each act's event against what the
+/// coefficients read served before and after it — read independently over
+/// HTTP, not from the event: `changed` exactly when the served calibration
+/// or its usability changed, and then the calibration served now.
+struct Watch<'a> {
+    app: &'a TestApp,
+    reader: String,
+    sensor: &'static str,
+    stream: Stream,
+    before: Option<(String, bool)>,
+}
+
+impl Watch<'_> {
+    /// The next event of `kind`.
+    async fn next_of(&mut self, kind: &str) -> Sent {
+        loop {
+            let e = self.stream.next().await;
+            if e.event == kind {
+                conforms(&e.data);
+                return e;
+            }
+        }
+    }
+
+    /// After an act: its event (of `kind`, skipping others such as the
+    /// nonconformity's own) says what the coefficients did.
+    async fn saw(&mut self, kind: &str) -> Value {
+        let e = self.next_of(kind).await;
+        let after = served(self.app, &self.reader, self.sensor).await;
+        let expected = if after == self.before {
+            json!({"changed": false})
+        } else {
+            json!({"changed": true, "calibration_id": after.as_ref().map(|(id, _)| id)})
+        };
+        assert_eq!(
+            e.data["coefficients"], expected,
+            "{kind}: served {:?} → {after:?}",
+            self.before
+        );
+        assert!(e.data["change"].get("coefficients").is_none());
+        self.before = after;
+        e.data["coefficients"].clone()
+    }
+}
+
+#[rstest]
+#[tokio::test]
+async fn each_event_says_what_the_served_coefficients_did(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let stand: Value =
+        serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
+    let res = app.put("/v1/standards/STAND-1", ADMIN, &stand).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let station = app.held_token("station", "Sam Station", Some("ST-1")).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let reader = app.token("reader", None).await;
+    let stream = Stream::open(&app, &reader, "?sensor_id=EV-S", None).await;
+    let mut w = Watch {
+        app: &app,
+        reader: reader.clone(),
+        sensor: "EV-S",
+        stream,
+        before: None,
+    };
+    let submit = |at: &'static str, named: bool| {
+        let mut s = submission("EV-S", at, 4);
+        s["station_id"] = json!("ST-1");
+        if named {
+            s["standards"] = json!({"stand": "STAND-1"});
+        }
+        let (app, station) = (&app, station.clone());
+        async move { app.submit(&station, &s).await["id"].clone() }
+    };
+    let post = |path: String, body: Value| {
+        let (app, rita) = (&app, rita.clone());
+        async move {
+            let res = app.post(&path, &rita, &body).await;
+            assert_eq!(
+                res.status(),
+                StatusCode::OK,
+                "{}",
+                res.text().await.unwrap()
+            );
+        }
+    };
+    let withdraw = |id: &Value| format!("/v1/calibrations/{}/withdraw", id.as_str().unwrap());
+
+    // The first calibration is served; an older one stored late is not.
+    let a1 = submit("2026-03-01T00:00:00Z", false).await;
+    assert_eq!(w.saw("calibration.stored").await["calibration_id"], a1);
+    let a0 = submit("2026-02-01T00:00:00Z", false).await;
+    assert_eq!(w.saw("calibration.stored").await["changed"], false);
+    // An approval changes nothing served (every calibration counts).
+    post(review(&a1), json!({"decision": "approve"})).await;
+    assert_eq!(w.saw("calibration.approved").await["changed"], false);
+    // Withdrawn: the older one is served again.
+    post(withdraw(&a1), json!({"reason": "wrong sensor"})).await;
+    assert_eq!(w.saw("calibration.withdrawn").await["calibration_id"], a0);
+    // A newer one made with a standard, then found nonconforming: the same
+    // calibration served, now unusable; approved again, usable again.
+    let a2 = submit("2026-04-01T00:00:00Z", true).await;
+    assert_eq!(w.saw("calibration.stored").await["calibration_id"], a2);
+    let nc = json!({"found_at": "2026-04-15T00:00:00Z",
+        "last_known_good_at": "2026-03-15T00:00:00Z",
+        "reason": "Indexing error of 9″ at the 90° stop."});
+    let res = app
+        .post("/v1/standards/STAND-1/nonconformity", ADMIN, &nc)
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    assert_eq!(w.saw("calibration.held").await["calibration_id"], a2);
+    assert_eq!(w.before, Some((a2.as_str().unwrap().to_owned(), false)));
+    let release = json!({"decision": "approve", "comment": "no effect: the 90° stop unused"});
+    post(review(&a2), release).await;
+    assert_eq!(w.saw("calibration.released").await["calibration_id"], a2);
+    // A newer one stored held at once (in the nonconformity's window): one
+    // transaction of two entries, each saying what its step did — served,
+    // then held — while a read sees only the end of both.
+    let a3 = submit("2026-04-10T00:00:00Z", true).await;
+    let a3_served = json!({"changed": true, "calibration_id": a3});
+    let stored = w.next_of("calibration.stored").await;
+    assert_eq!(stored.data["coefficients"], a3_served);
+    let held = w.next_of("calibration.held").await;
+    assert_eq!(held.data["coefficients"], a3_served);
+    w.before = served(&app, &reader, "EV-S").await;
+    assert_eq!(w.before, Some((a3.as_str().unwrap().to_owned(), false)));
+    // Withdrawn one after the other: at the end nothing is served.
+    post(withdraw(&a3), json!({"reason": "held"})).await;
+    assert_eq!(w.saw("calibration.withdrawn").await["calibration_id"], a2);
+    post(withdraw(&a2), json!({"reason": "redo"})).await;
+    assert_eq!(w.saw("calibration.withdrawn").await["calibration_id"], a0);
+    // Corrected by its station: the correction is served as it is stored,
+    // and the supersession changes nothing more.
+    let mut right = submission("EV-S", "2026-02-01T00:00:00Z", 5);
+    right["station_id"] = json!("ST-1");
+    let path = format!(
+        "/v1/calibrations/{}/supersede?reason=wrong%20runs",
+        a0.as_str().unwrap()
+    );
+    let res = app.post(&path, &station, &right).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let r = res.json::<Value>().await.unwrap()["id"].clone();
+    assert_eq!(w.saw("calibration.stored").await["calibration_id"], r);
+    assert_eq!(w.saw("calibration.superseded").await["changed"], false);
+    post(withdraw(&r), json!({"reason": "redo"})).await;
+    let last = w.saw("calibration.withdrawn").await;
+    assert_eq!(last, json!({"changed": true, "calibration_id": null}));
+}
+
+#[rstest]
+#[tokio::test]
+async fn with_require_approval_only_approvals_change_what_is_served(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::configured(engine, |c| {
+        c.web.basis = accelcal::domain::review::Basis::ApprovedOnly;
+    })
+    .await;
+    let station = app.held_token("station", "Sam Station", None).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let reader = app.token("reader", None).await;
+    let stream = Stream::open(&app, &reader, "?sensor_id=EV-S", None).await;
+    let mut w = Watch {
+        app: &app,
+        reader: reader.clone(),
+        sensor: "EV-S",
+        stream,
+        before: None,
+    };
+    let submit = |at: &'static str| {
+        let s = submission("EV-S", at, 4);
+        let (app, station) = (&app, station.clone());
+        async move { app.submit(&station, &s).await["id"].clone() }
+    };
+    let post = |path: String, body: Value| {
+        let (app, rita) = (&app, rita.clone());
+        async move {
+            let res = app.post(&path, &rita, &body).await;
+            assert_eq!(
+                res.status(),
+                StatusCode::OK,
+                "{}",
+                res.text().await.unwrap()
+            );
+        }
+    };
+    let b1 = submit("2026-03-01T00:00:00Z").await;
+    assert_eq!(w.saw("calibration.stored").await["changed"], false);
+    post(review(&b1), json!({"decision": "approve"})).await;
+    assert_eq!(w.saw("calibration.approved").await["calibration_id"], b1);
+    let b2 = submit("2026-04-01T00:00:00Z").await;
+    assert_eq!(w.saw("calibration.stored").await["changed"], false);
+    post(review(&b2), json!({"decision": "approve"})).await;
+    assert_eq!(w.saw("calibration.approved").await["calibration_id"], b2);
+    // An older one approved late changes nothing served.
+    let b0 = submit("2026-02-01T00:00:00Z").await;
+    assert_eq!(w.saw("calibration.stored").await["changed"], false);
+    post(review(&b0), json!({"decision": "approve"})).await;
+    assert_eq!(w.saw("calibration.approved").await["changed"], false);
+    let path = format!("/v1/calibrations/{}/withdraw", b2.as_str().unwrap());
+    post(path, json!({"reason": "wrong sensor"})).await;
+    assert_eq!(w.saw("calibration.withdrawn").await["calibration_id"], b1);
+}

@@ -170,7 +170,14 @@ for i in range(5):
         fail(f"submission: {status} {c}")
     acked.add(c["id"])
 wait("5 verified deliveries", lambda: acked <= stored_ids(inbox))
-print(f"signed: {len(inbox.delivered())} events verified by standardwebhooks, in order")
+# Each is newer than the one before: each is served as it is stored.
+for _, p in inbox.delivered():
+    d = p["data"]
+    if d.get("calibration_id") in acked and d.get("coefficients") != {
+            "changed": True, "calibration_id": d["calibration_id"]}:
+        fail(f"coefficients of {d['calibration_id']}: {d.get('coefficients')}")
+print(f"signed: {len(inbox.delivered())} events verified by standardwebhooks, in order, "
+      "each saying the coefficients it serves")
 
 # --- down/up --------------------------------------------------------------
 inbox.down = True

@@ -20,7 +20,10 @@ fn entry(seq: i64, action: &str, object: &str, change: Value) -> Entry {
 }
 
 fn calibration(seq: i64, action: &str, change: Value) -> Option<LiveEvent> {
-    LiveEvent::from_entry(&entry(seq, action, &format!("calibrations/{CAL}"), change))
+    LiveEvent::from_entry(
+        &entry(seq, action, &format!("calibrations/{CAL}"), change),
+        Basis::NotRejected,
+    )
 }
 
 /// A stored calibration names its sensor; the event carries it, the
@@ -97,7 +100,7 @@ fn other_acts_are_not_events() {
         ("audit.adopt", "audit"),
     ] {
         assert_eq!(
-            LiveEvent::from_entry(&entry(1, action, object, json!({}))),
+            LiveEvent::from_entry(&entry(1, action, object, json!({})), Basis::NotRejected),
             None
         );
     }
@@ -107,23 +110,29 @@ fn other_acts_are_not_events() {
 /// calibration; a nonconformity concerns no one sensor.
 #[test]
 fn sensors_and_certificates_and_standards() {
-    let e = LiveEvent::from_entry(&entry(
-        2,
-        "sensor.retype",
-        "sensors/ACC-9",
-        json!({"sensor_type": "A"}),
-    ))
+    let e = LiveEvent::from_entry(
+        &entry(
+            2,
+            "sensor.retype",
+            "sensors/ACC-9",
+            json!({"sensor_type": "A"}),
+        ),
+        Basis::NotRejected,
+    )
     .unwrap();
     assert_eq!(
         (e.kind, e.sensor_id.as_deref(), e.calibration_id),
         (EventType::SensorRetyped, Some("ACC-9"), None)
     );
-    let st = LiveEvent::from_entry(&entry(
-        3,
-        "sensor.status",
-        "sensors/ACC-9",
-        json!({"from": "due_soon", "to": "overdue", "due_at": "2026-11-28T00:00:00.000000Z"}),
-    ))
+    let st = LiveEvent::from_entry(
+        &entry(
+            3,
+            "sensor.status",
+            "sensors/ACC-9",
+            json!({"from": "due_soon", "to": "overdue", "due_at": "2026-11-28T00:00:00.000000Z"}),
+        ),
+        Basis::NotRejected,
+    )
     .unwrap();
     assert_eq!(
         (st.kind, st.sensor_id.as_deref(), st.calibration_id),
@@ -131,12 +140,10 @@ fn sensors_and_certificates_and_standards() {
     );
     let c = calibration(4, "certificate.amend", json!({"revision": 2})).unwrap();
     assert_eq!(c.kind, EventType::CertificateAmended);
-    let n = LiveEvent::from_entry(&entry(
-        5,
-        "standard.nonconformity",
-        "standards/STD-1",
-        json!({}),
-    ))
+    let n = LiveEvent::from_entry(
+        &entry(5, "standard.nonconformity", "standards/STD-1", json!({})),
+        Basis::NotRejected,
+    )
     .unwrap();
     assert_eq!(
         (n.kind, n.sensor_id.as_deref(), n.needs_sensor()),
@@ -196,4 +203,131 @@ fn type_names_round_trip() {
         assert_eq!(serde_json::to_value(t).unwrap(), t.as_str());
     }
     assert_eq!(EventType::parse("calibration.deleted"), None);
+}
+
+const OTHER: &str = "0193a2b4-0000-7000-8000-0000000000ff";
+
+fn id(s: &str) -> Uuid {
+    Uuid::try_parse(s).unwrap()
+}
+
+/// Served coefficients change with the calibration served, or with the
+/// served one's usability (a hold, a release); the calibration served now
+/// is said only when they changed, `null` when none is served.
+#[test]
+fn served_coefficients_change_with_the_calibration_or_its_hold() {
+    let (a, b) = (id(CAL), id(OTHER));
+    assert_eq!(
+        Served::between(Some((a, true)), Some((a, true))),
+        Served::UNCHANGED
+    );
+    assert_eq!(
+        Served::between(Some((a, true)), Some((b, true))),
+        Served {
+            changed: true,
+            calibration_id: Some(b)
+        }
+    );
+    assert_eq!(
+        Served::between(Some((a, true)), Some((a, false))),
+        Served {
+            changed: true,
+            calibration_id: Some(a)
+        }
+    );
+    assert_eq!(
+        Served::between(Some((a, true)), None),
+        Served {
+            changed: true,
+            calibration_id: None
+        }
+    );
+    // Another calibration's state is not the act's: only the acted one's
+    // hold makes its serving unusable.
+    assert_eq!(
+        Served::serving(Some(b), a, State::UnderReview),
+        Some((b, true))
+    );
+    assert_eq!(
+        Served::serving(Some(a), a, State::UnderReview),
+        Some((a, false))
+    );
+    assert_eq!(
+        Served::serving(Some(a), a, State::Approved),
+        Some((a, true))
+    );
+    assert_eq!(Served::serving(None, a, State::Approved), None);
+    assert_eq!(
+        serde_json::to_value(Served::UNCHANGED).unwrap(),
+        json!({"changed": false})
+    );
+    assert_eq!(
+        serde_json::to_value(Served::between(Some((a, true)), None)).unwrap(),
+        json!({"changed": true, "calibration_id": null})
+    );
+}
+
+/// The entry records both bases; the event says the service's, once, and
+/// not again inside `change`.
+#[test]
+fn the_event_tells_the_coefficients_on_the_services_basis() {
+    let stored = Effect::stored(id(CAL), true);
+    let change = json!({"sensor_id": "ACC-1", "coefficients": stored.to_value()});
+    let e = |basis| {
+        LiveEvent::from_entry(
+            &entry(
+                9,
+                "calibration.submitted",
+                &format!("calibrations/{CAL}"),
+                change.clone(),
+            ),
+            basis,
+        )
+        .unwrap()
+    };
+    let not_rejected = e(Basis::NotRejected);
+    assert_eq!(
+        not_rejected.coefficients,
+        Some(Served {
+            changed: true,
+            calibration_id: Some(id(CAL))
+        })
+    );
+    assert!(not_rejected.change.get("coefficients").is_none());
+    let json = serde_json::to_value(&not_rejected).unwrap();
+    assert_eq!(
+        json["coefficients"],
+        json!({"changed": true, "calibration_id": CAL})
+    );
+    // Stored unapproved: nothing served changes with --require-approval.
+    assert_eq!(e(Basis::ApprovedOnly).coefficients, Some(Served::UNCHANGED));
+    // Not the latest (an older calibration stored late): nothing changes.
+    assert_eq!(
+        Effect::stored(id(CAL), false),
+        Effect {
+            not_rejected: Served::UNCHANGED,
+            approved_only: Served::UNCHANGED
+        }
+    );
+    // Held as stored: the served one, now unusable.
+    assert_eq!(
+        Effect::held_on_storing(id(CAL), true).not_rejected,
+        Served {
+            changed: true,
+            calibration_id: Some(id(CAL))
+        }
+    );
+    assert_eq!(
+        Effect::held_on_storing(id(CAL), false).not_rejected,
+        Served::UNCHANGED
+    );
+    // An entry from before: no coefficients, and none in the JSON.
+    let old = calibration(3, "calibration.submitted", json!({"sensor_id": "ACC-1"})).unwrap();
+    assert_eq!(old.coefficients, None);
+    assert!(
+        serde_json::to_value(&old)
+            .unwrap()
+            .get("coefficients")
+            .is_none()
+    );
 }

@@ -84,14 +84,15 @@ pub async fn submitter(client: &impl GenericClient, token_id: &str) -> Result<Ac
 }
 
 /// The `calibration.submitted` events of `stored`, in order, each actor
-/// looked up once.
+/// looked up once; each with whether it became its sensor's latest
+/// ([`crate::domain::events::Effect::stored`]).
 pub async fn stored(
     client: &impl GenericClient,
-    stored: &[&crate::store::NewCalibration],
+    stored: &[(&crate::store::NewCalibration, bool)],
 ) -> Result<Vec<Event>, StoreError> {
     let mut actors: std::collections::HashMap<&str, Actor> = std::collections::HashMap::new();
     let mut events = Vec::with_capacity(stored.len());
-    for n in stored {
+    for &(n, latest) in stored {
         let by = match actors.get(n.submitted_by.as_str()) {
             Some(a) => a.clone(),
             None => {
@@ -100,7 +101,8 @@ pub async fn stored(
                 a
             }
         };
-        events.push(audit::stored(n, by));
+        let effect = crate::domain::events::Effect::stored(n.id, latest);
+        events.push(audit::with_effect(audit::stored(n, by), effect));
     }
     Ok(events)
 }

@@ -161,7 +161,19 @@ pub async fn write(
     let (pid, merged) = upsert_sensors(tx, &rows).await?;
 
     // 5. Their entries for the audit trail (pending until sealed: super::seal).
-    let written: Vec<&NewCalibration> = rows.iter().map(|r| r.new_calibration()).collect();
+    // A calibration is served once stored when it is its sensor's latest as
+    // the batch leaves the row: no reader sees the rows between the batch's
+    // writes, which commit as one.
+    let written: Vec<(&NewCalibration, bool)> = rows
+        .iter()
+        .map(|r| {
+            let n = r.new_calibration();
+            let latest = merged
+                .get(r.sensor_id())
+                .is_some_and(|s| s.latest_calibration_id == n.id);
+            (n, latest)
+        })
+        .collect();
     super::audit::append(tx, super::audit::stored(tx, &written).await?).await?;
     let answers = batch
         .iter()

@@ -275,8 +275,9 @@ pub async fn insert(
     super::holds::lock(&tx, &row.n).await?;
     match write(&tx, row, key).await? {
         Written::New(sensor) => {
-            let mut events = super::audit::stored(&tx, &[&row.n]).await?;
-            events.extend(super::holds::place(&tx, &row.n, &[]).await?);
+            let latest = sensor.latest_calibration_id == row.n.id;
+            let mut events = super::audit::stored(&tx, &[(&row.n, latest)]).await?;
+            events.extend(super::holds::place(&tx, &row.n, &[], latest).await?);
             super::audit::append(&tx, events).await?;
             tx.commit().await.map_err(map)?;
             Ok((Stored::New, Some(sensor)))

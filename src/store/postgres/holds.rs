@@ -83,11 +83,13 @@ pub async fn holding(tx: &Transaction<'_>, id: Uuid) -> Result<Vec<Nonconformity
 /// under every nonconformity of its standards that bears on it and under
 /// those of `inherited` (holding the calibration it supersedes) whose
 /// standard it still uses; answers the audit event to append, none when
-/// nothing holds it.
+/// nothing holds it. `latest`: whether `n` is its sensor's latest, so
+/// served until held.
 pub async fn place(
     tx: &Transaction<'_>,
     n: &NewCalibration,
     inherited: &[Nonconformity],
+    latest: bool,
 ) -> Result<Vec<Event>, StoreError> {
     if n.standards.is_empty() {
         return Ok(Vec::new());
@@ -122,9 +124,11 @@ pub async fn place(
     tx.execute(&sensor_recompute("$1"), &[&n.sensor_id])
         .await
         .map_err(map)?;
-    Ok(vec![crate::store::audit::signed(
+    let entry = crate::store::audit::held_on_storing(
         n.id,
         &signature,
-        State::Submitted,
-    )])
+        &held.iter().map(|nc| nc.id).collect::<Vec<_>>(),
+    );
+    let effect = crate::domain::events::Effect::held_on_storing(n.id, latest);
+    Ok(vec![crate::store::audit::with_effect(entry, effect)])
 }

@@ -14,13 +14,15 @@ use super::rows;
 use super::rows::nonconformity;
 use super::signatures::SIGNATURE_COLUMNS;
 use crate::domain::audit::{Actor, Event};
+use crate::domain::events::Effect;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
+use crate::store::audit::with_effect;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError,
-    chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
-    sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, latest_approved_id_sql,
+    made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The holder of the token `token_id` (a submission's `submitted_by`), if
@@ -105,9 +107,12 @@ async fn sign(
         Err(refusal) => return Ok((Signed::Refused(refusal), Vec::new())),
     };
     let mut held = Vec::new();
+    let mut replacement_latest = false;
     if let Some(r) = replacement {
         match write(tx, r, None).await? {
-            Written::New(_) => {}
+            Written::New(row) => {
+                replacement_latest = row.latest_calibration_id == r.new_calibration().id;
+            }
             _ => {
                 return Err(StoreError::corrupt(
                     "calibrations",
@@ -122,8 +127,20 @@ async fn sign(
         } else {
             Vec::new()
         };
-        held = super::holds::place(tx, r.new_calibration(), &inherited).await?;
+        held = super::holds::place(tx, r.new_calibration(), &inherited, replacement_latest).await?;
     }
+    // What the sensor's reads serve before the act (after storing the
+    // replacement, whose own entry says what storing it did), the sensor's
+    // row locked first, in a statement of its own: the recompute's own
+    // snapshot, taken after the lock is held, then sees every calibration
+    // committed before it (under READ COMMITTED a statement that waited for
+    // the lock would count from its older one).
+    let touches = Effect::touches_approved(state, s.state);
+    let latest_before = latest_of(tx, &sensor_id, true).await?;
+    let approved_before = match touches {
+        true => Some(latest_approved_of(tx, &sensor_id).await?),
+        false => None,
+    };
     super::signatures::insert(tx, id, &s).await?;
     // An approval issues the certificate, with the signatures it leaves,
     // unless one was issued already (an approval after a hold); the
@@ -160,34 +177,69 @@ async fn sign(
         }
         _ => None,
     };
-    if changes_the_sensor(state, s.state, replacement.is_some()) {
-        // The sensor's row locked first, in a statement of its own: the
-        // recompute's own snapshot, taken after the lock is held, then sees
-        // every calibration committed before it (under READ COMMITTED a
-        // statement that waited for the lock would count from its older one).
-        tx.execute(
-            "SELECT 1 FROM sensors WHERE sensor_id = $1 FOR UPDATE",
-            &[&sensor_id],
-        )
-        .await
-        .map_err(map)?;
+    let latest_after = if changes_the_sensor(state, s.state, replacement.is_some()) {
         tx.execute(&sensor_recompute("$1"), &[&sensor_id])
             .await
             .map_err(map)?;
         tx.execute(&sensor_forget("$1"), &[&sensor_id])
             .await
             .map_err(map)?;
-    }
+        latest_of(tx, &sensor_id, false).await?
+    } else {
+        latest_before
+    };
+    let approved = match approved_before {
+        Some(before) => Some((before, latest_approved_of(tx, &sensor_id).await?)),
+        None => None,
+    };
+    let effect = Effect::signed(id, state, s.state, (latest_before, latest_after), approved);
     let mut events = match replacement {
-        Some(r) => super::audit::stored(tx, &[r.new_calibration()]).await?,
+        Some(r) => super::audit::stored(tx, &[(r.new_calibration(), replacement_latest)]).await?,
         None => Vec::new(),
     };
     events.extend(held);
-    events.push(match &issued {
+    let entry = match &issued {
         Some(c) => crate::store::audit::signed_issuing(id, &s, state, c),
         None => crate::store::audit::signed(id, &s, state),
-    });
+    };
+    events.push(with_effect(entry, effect));
     Ok((Signed::Done(s, sensor_id), events))
+}
+
+/// Sensor `sensor_id`'s latest calibration as its row holds it (none: it
+/// has no row), the row locked (`lock`) or not: what its reads serve
+/// without `--require-approval`.
+async fn latest_of(
+    tx: &Transaction<'_>,
+    sensor_id: &str,
+    lock: bool,
+) -> Result<Option<Uuid>, StoreError> {
+    let sql = if lock {
+        "SELECT latest_calibration_id FROM sensors WHERE sensor_id = $1 FOR UPDATE"
+    } else {
+        "SELECT latest_calibration_id FROM sensors WHERE sensor_id = $1"
+    };
+    let stmt = tx.prepare_cached(sql).await.map_err(map)?;
+    match tx.query_opt(&stmt, &[&sensor_id]).await.map_err(map)? {
+        Some(row) => Ok(Some(rows::get(&row, "latest_calibration_id")?)),
+        None => Ok(None),
+    }
+}
+
+/// Sensor `sensor_id`'s latest approved calibration: what its reads serve
+/// with `--require-approval`.
+async fn latest_approved_of(
+    tx: &Transaction<'_>,
+    sensor_id: &str,
+) -> Result<Option<Uuid>, StoreError> {
+    let stmt = tx
+        .prepare_cached(&latest_approved_id_sql("$1"))
+        .await
+        .map_err(map)?;
+    match tx.query_opt(&stmt, &[&sensor_id]).await.map_err(map)? {
+        Some(row) => Ok(Some(rows::get(&row, "id")?)),
+        None => Ok(None),
+    }
 }
 
 /// Inserts the record of a nonconformity.

@@ -182,8 +182,13 @@ pub(super) fn insert(
         rows::sensor_row,
     )?;
     let by = super::audit::submitter(tx, &n.submitted_by)?;
-    super::audit::append(tx, crate::store::audit::stored(&n, by))?;
-    super::holds::place(tx, &n, inherited)?;
+    let latest = row
+        .as_ref()
+        .is_some_and(|r| r.latest_calibration_id == n.id);
+    let entry = crate::store::audit::stored(&n, by);
+    let effect = crate::domain::events::Effect::stored(n.id, latest);
+    super::audit::append(tx, crate::store::audit::with_effect(entry, effect))?;
+    super::holds::place(tx, &n, inherited, latest)?;
     Ok((Stored::New, row))
 }
 

@@ -53,10 +53,12 @@ pub(super) fn holding(conn: &Connection, id: &str) -> Result<Vec<Nonconformity>,
 /// Holds `n`, just stored, under every nonconformity of its standards that
 /// bears on it and under those of `inherited` (holding the calibration it
 /// supersedes) whose standard it still uses; nothing when none does.
+/// `latest`: whether it is its sensor's latest, so served until held.
 pub(super) fn place(
     conn: &Connection,
     n: &NewCalibration,
     inherited: &[Nonconformity],
+    latest: bool,
 ) -> Result<(), StoreError> {
     if n.standards.is_empty() {
         return Ok(());
@@ -86,14 +88,13 @@ pub(super) fn place(
             params![nc.id.to_string(), id, State::Submitted.as_str()],
         )?;
     }
-    audit::append(
-        conn,
-        crate::store::audit::held_on_storing(
-            n.id,
-            &signature,
-            &held.iter().map(|nc| nc.id).collect::<Vec<_>>(),
-        ),
-    )?;
+    let entry = crate::store::audit::held_on_storing(
+        n.id,
+        &signature,
+        &held.iter().map(|nc| nc.id).collect::<Vec<_>>(),
+    );
+    let effect = crate::domain::events::Effect::held_on_storing(n.id, latest);
+    audit::append(conn, crate::store::audit::with_effect(entry, effect))?;
     rows::execute(conn, &sensor_recompute("?1"), [&n.sensor_id])?;
     Ok(())
 }

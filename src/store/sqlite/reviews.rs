@@ -10,13 +10,15 @@ use super::rows;
 use super::rows::nonconformity;
 use super::signatures::{SIGNATURE_COLUMNS, insert};
 use crate::domain::audit::Actor;
+use crate::domain::events::Effect;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
 use crate::domain::review::{Act, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
+use crate::store::audit::with_effect;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError, Stored,
-    chain_end_sql, changes_the_sensor, earlier_submitters_sql, made_with_sql, sensor_forget,
-    sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, latest_approved_id_sql,
+    made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// Records `act` on calibration `id` inside the writer's transaction —
@@ -96,6 +98,13 @@ fn sign(
             }
         }
     }
+    // What the sensor's reads serve before the act (after storing the
+    // replacement, whose own entry says what storing it did).
+    let touches = Effect::touches_approved(state, signature.state);
+    let latest_before = latest_of(conn, &sensor_id)?;
+    let approved_before = touches
+        .then(|| latest_approved_of(conn, &sensor_id))
+        .transpose()?;
     insert(conn, id, &signature)?;
     // An approval issues the certificate, with the signatures it leaves,
     // unless one was issued already (an approval after a hold).
@@ -123,16 +132,49 @@ fn sign(
         }
         _ => None,
     };
+    let latest_after = if recompute {
+        rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
+        rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
+        latest_of(conn, &sensor_id)?
+    } else {
+        latest_before
+    };
+    let approved = match approved_before {
+        Some(before) => Some((before, latest_approved_of(conn, &sensor_id)?)),
+        None => None,
+    };
+    let effect = Effect::signed(
+        id,
+        state,
+        signature.state,
+        (latest_before, latest_after),
+        approved,
+    );
     let event = match &issued {
         Some(c) => crate::store::audit::signed_issuing(id, &signature, state, c),
         None => crate::store::audit::signed(id, &signature, state),
     };
-    super::audit::append(conn, event)?;
-    if recompute {
-        rows::execute(conn, &sensor_recompute("?1"), [&sensor_id])?;
-        rows::execute(conn, &sensor_forget("?1"), [&sensor_id])?;
-    }
+    super::audit::append(conn, with_effect(event, effect))?;
     Ok((Signed::Done(signature, sensor_id), true))
+}
+
+/// Sensor `sensor_id`'s latest calibration as its row holds it (none: it
+/// has no row): what its reads serve without `--require-approval`.
+fn latest_of(conn: &Connection, sensor_id: &str) -> Result<Option<Uuid>, StoreError> {
+    rows::first(
+        conn,
+        "SELECT latest_calibration_id FROM sensors WHERE sensor_id = ?1",
+        [sensor_id],
+        |r| rows::uuid(r, "latest_calibration_id"),
+    )
+}
+
+/// Sensor `sensor_id`'s latest approved calibration: what its reads serve
+/// with `--require-approval`.
+fn latest_approved_of(conn: &Connection, sensor_id: &str) -> Result<Option<Uuid>, StoreError> {
+    rows::first(conn, &latest_approved_id_sql("?1"), [sensor_id], |r| {
+        rows::uuid(r, "id")
+    })
 }
 
 /// The holder of the token `token_id` (a submission's `submitted_by`), if
