@@ -305,5 +305,11 @@ fn refusal(e: &ThermalError, at: &[f64]) -> Invalid {
     Invalid::one("/runs", detail)
 }
 
+mod px4;
+mod triad;
+
+pub use px4::px4;
+pub use triad::{TriadSetPoint, TriadThermalModel, triad_model};
+
 #[cfg(test)]
 mod tests;

@@ -313,7 +313,10 @@ fn known(rows: &[(u64, Vec<String>)], body: &mut TriadBody, errors: &mut Errors)
     body.orientations = Some(OrientationsBody::Vectors(first.clone()));
     body.runs = Some(
         runs.into_iter()
-            .map(|(_, samples)| TriadRunBody { samples })
+            .map(|(_, samples)| TriadRunBody {
+                samples,
+                temperature_c: None,
+            })
             .collect(),
     );
 }

@@ -141,7 +141,7 @@ pub enum ExportError {
 }
 
 /// m/s² per unit of the outputs: 1 for `m/s2`, standard g for `g`.
-fn to_m_s2(unit: &str) -> Option<f64> {
+pub fn to_m_s2(unit: &str) -> Option<f64> {
     match unit.trim() {
         "m/s2" | "m/s^2" | "m/s²" | "m s-2" => Some(1.0),
         "g" | "g0" | "gn" => Some(STANDARD_G),

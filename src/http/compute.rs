@@ -1,9 +1,10 @@
 //! Computations that store nothing: `POST /v1/identify`, `POST
-//! /v1/identify/thermal` and `POST /v1/fuse`.
+//! /v1/identify/thermal`, `POST /v1/identify/thermal/triad` and `POST
+//! /v1/fuse`.
 
 use accelcal_core::Estimates;
 use axum::Json;
-use axum::extract::State;
+use axum::extract::{RawQuery, State};
 use axum::response::{IntoResponse, Response};
 
 use super::AppState;
@@ -14,7 +15,7 @@ use super::query::Params;
 use crate::app::{single_axis, thermal};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::fuse::FuseRequest;
-use crate::domain::thermal::{ThermalModel, ThermalParams};
+use crate::domain::thermal::{ThermalModel, ThermalParams, px4};
 use crate::domain::timestamp::Timestamp;
 
 /// `POST /v1/identify`: a submission computed and returned, not stored.
@@ -97,6 +98,77 @@ pub async fn identify_thermal(
     Ok(Json(
         thermal::identify(&state.lab, &principal, body, tolerance_k, options).await?,
     ))
+}
+
+/// `POST /v1/identify/thermal/triad`: a triad's `b` and `S` over
+/// temperature, from runs with known orientations made at several
+/// temperatures, computed and returned, not stored.
+#[utoipa::path(
+    post,
+    path = "/v1/identify/thermal/triad",
+    tag = "compute",
+    operation_id = "identifyThermalTriad",
+    summary = "A triad's b and S over temperature from runs at several temperatures, not stored.",
+    description = "A triad body with known `orientations` and `runs`, each run with its \
+        `temperature_c`. The runs are grouped into set points as for a single axis, each set \
+        point calibrated and fused as a triad is, and every element of b and S given its \
+        polynomial e(T) = Σ a_d (T − T_ref)^d, fitted by weighted least squares on the set \
+        points' fused elements (weights 1/se², covariance inflated by max(1, χ²/ν)), its degree \
+        chosen by backward elimination at 1 % unless `degree` is given. Too few set points, too \
+        small a span or an ill-conditioned design are refused with what to add.",
+    params(crate::domain::thermal::ThermalParams, ThermalExportQuery),
+    request_body(content((crate::domain::triad::TriadBody = "application/json"))),
+    responses(
+        (status = 200, description = "The set points and each element's polynomial; with \
+            `export=px4`, PX4's parameter file.",
+            content((super::openapi::TriadThermalModelSchema = "application/json"), (String = "text/plain"))),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn identify_thermal_triad(
+    State(state): State<AppState>,
+    principal: Principal,
+    RawQuery(query): RawQuery,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Reader)?;
+    let (params, export) =
+        super::query::parse_but::<ThermalParams>(query.as_deref().unwrap_or_default(), "export")?;
+    if export.as_deref().is_some_and(|e| e != "px4") {
+        return Err(Problem::bad_parameter("export", "must be px4"));
+    }
+    let (tolerance_k, options) = params
+        .checked()
+        .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
+    let model = thermal::identify_triad(&state.lab, body, tolerance_k, options).await?;
+    if export.is_none() {
+        return Ok(Json(model).into_response());
+    }
+    let source = format!(
+        "triad {}, computed by accelcal {}",
+        model.sensor_id.as_deref().unwrap_or("(no sensor_id)"),
+        env!("CARGO_PKG_VERSION")
+    );
+    let file = px4(&model, &source).map_err(|e| {
+        Problem::validation(crate::domain::field::Invalid::one("/unit", e.to_string()))
+    })?;
+    Ok(super::firmware::attachment(
+        file,
+        "text/plain; charset=utf-8",
+        "accelcal-px4-thermal.params",
+    ))
+}
+
+/// The query `POST /v1/identify/thermal/triad` adds to the fit's.
+#[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
+#[into_params(parameter_in = Query)]
+pub struct ThermalExportQuery {
+    /// `px4`: answer PX4's thermal compensation parameters
+    /// (`TC_A0_*`: the offset polynomial per axis) instead of the model.
+    #[param(pattern = "^px4$")]
+    pub export: Option<String>,
 }
 
 /// `POST /v1/fuse`: mean and batch-estimation fusion of given per-run values

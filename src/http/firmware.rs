@@ -56,18 +56,18 @@ pub struct TriadExportUnits {
 pub fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {
     let file =
         export(e, format).map_err(|e| Problem::validation(Invalid::one("", e.to_string())))?;
-    let mut res = file.into_response();
+    Ok(attachment(file, format.media_type(), format.file_name()))
+}
+
+/// `body` answered as a download of type `media` named `name`.
+pub fn attachment(body: String, media: &'static str, name: &'static str) -> Response {
+    let mut res = body.into_response();
     let h = res.headers_mut();
-    h.insert(
-        header::CONTENT_TYPE,
-        HeaderValue::from_static(format.media_type()),
-    );
-    if let Ok(v) =
-        HeaderValue::from_str(&format!("attachment; filename=\"{}\"", format.file_name()))
-    {
+    h.insert(header::CONTENT_TYPE, HeaderValue::from_static(media));
+    if let Ok(v) = HeaderValue::from_str(&format!("attachment; filename=\"{name}\"")) {
         h.insert(header::CONTENT_DISPOSITION, v);
     }
-    Ok(res)
+    res
 }
 
 /// Calibration `id` as a firmware file in `format` (what the export route

@@ -360,6 +360,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
         .routes(routes!(standards::affected))
         .routes(routes!(compute::identify))
         .routes(routes!(compute::identify_thermal))
+        .routes(routes!(compute::identify_thermal_triad))
         .routes(routes!(compute::fuse))
         .routes(routes!(triad::identify))
         .routes(routes!(triads::submit))

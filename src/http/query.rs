@@ -20,42 +20,70 @@ impl<S: Send + Sync, T: DeserializeOwned> FromRequestParts<S> for Params<T> {
     type Rejection = Problem;
 
     async fn from_request_parts(parts: &mut Parts, _: &S) -> Result<Self, Problem> {
-        let query = parts.uri.query().unwrap_or_default();
-        let de = serde_urlencoded::Deserializer::new(form_urlencoded::parse(query.as_bytes()));
-        serde_path_to_error::deserialize(de)
-            .map(Params)
-            .map_err(|e| {
-                // serde_urlencoded's messages carry no position or input.
-                let msg = e.inner().to_string();
-                let named = |lead: &str| {
-                    msg.strip_prefix(lead)
-                        .and_then(|rest| rest.split_once('`'))
-                        .map(|(name, _)| name.to_owned())
-                };
-                if let Some(name) = named("unknown field `") {
-                    let expected = msg.split_once(", expected ").map_or("", |(_, e)| e);
-                    return Problem::bad_parameter(
-                        &name,
-                        format!("is not known here; expected {expected}"),
-                    );
-                }
-                if let Some(name) = named("duplicate field `") {
-                    return Problem::bad_parameter(&name, "is given more than once");
-                }
-                if let Some(name) = named("missing field `") {
-                    return Problem::bad_parameter(&name, "is required");
-                }
-                let name = e
-                    .path()
-                    .iter()
-                    .find_map(|s| match s {
-                        Segment::Map { key } => Some(key.clone()),
-                        _ => None,
-                    })
-                    .unwrap_or_else(|| "query".to_owned());
-                Problem::bad_parameter(&name, format!("is malformed: {msg}"))
-            })
+        parse(parts.uri.query().unwrap_or_default()).map(Params)
     }
+}
+
+/// The query string `query` read as `T` (what [`Params`] does).
+pub fn parse<T: DeserializeOwned>(query: &str) -> Result<T, Problem> {
+    parse_pairs(form_urlencoded::parse(query.as_bytes()))
+}
+
+/// The query string `query` read as `T` after taking out the parameter
+/// `name`, answered beside it (given once at most): for an operation whose
+/// query is a shared set of parameters and one of its own.
+pub fn parse_but<T: DeserializeOwned>(
+    query: &str,
+    name: &str,
+) -> Result<(T, Option<String>), Problem> {
+    let mut taken = None;
+    let mut rest = form_urlencoded::Serializer::new(String::new());
+    for (k, v) in form_urlencoded::parse(query.as_bytes()) {
+        if k == name {
+            if taken.is_some() {
+                return Err(Problem::bad_parameter(name, "is given more than once"));
+            }
+            taken = Some(v.into_owned());
+        } else {
+            rest.append_pair(&k, &v);
+        }
+    }
+    Ok((parse(&rest.finish())?, taken))
+}
+
+fn parse_pairs<T: DeserializeOwned>(pairs: form_urlencoded::Parse<'_>) -> Result<T, Problem> {
+    let de = serde_urlencoded::Deserializer::new(pairs);
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        // serde_urlencoded's messages carry no position or input.
+        let msg = e.inner().to_string();
+        let named = |lead: &str| {
+            msg.strip_prefix(lead)
+                .and_then(|rest| rest.split_once('`'))
+                .map(|(name, _)| name.to_owned())
+        };
+        if let Some(name) = named("unknown field `") {
+            let expected = msg.split_once(", expected ").map_or("", |(_, e)| e);
+            return Problem::bad_parameter(
+                &name,
+                format!("is not known here; expected {expected}"),
+            );
+        }
+        if let Some(name) = named("duplicate field `") {
+            return Problem::bad_parameter(&name, "is given more than once");
+        }
+        if let Some(name) = named("missing field `") {
+            return Problem::bad_parameter(&name, "is required");
+        }
+        let name = e
+            .path()
+            .iter()
+            .find_map(|s| match s {
+                Segment::Map { key } => Some(key.clone()),
+                _ => None,
+            })
+            .unwrap_or_else(|| "query".to_owned());
+        Problem::bad_parameter(&name, format!("is malformed: {msg}"))
+    })
 }
 
 /// The page size: `limit`, 1 to [`MAX_PAGE`], default [`DEFAULT_PAGE`].

@@ -38,6 +38,7 @@ mod standard_periods;
 mod standards;
 mod storage;
 mod thermal;
+mod thermal_triad;
 mod trace;
 mod traceability;
 mod triad;

@@ -64,7 +64,13 @@ fn f(v: &Value) -> f64 {
 
 /// Weighted least squares by the normal equations (Gaussian elimination):
 /// `(a, (XᵀWX)⁻¹ diagonal)` of degree `d` about `tref`.
-fn normal_equations(t: &[f64], c: &[f64], u: &[f64], tref: f64, d: usize) -> (Vec<f64>, Vec<f64>) {
+pub(crate) fn normal_equations(
+    t: &[f64],
+    c: &[f64],
+    u: &[f64],
+    tref: f64,
+    d: usize,
+) -> (Vec<f64>, Vec<f64>) {
     let n = d + 1;
     let x = |s: usize, k: usize| (t[s] - tref).powi(k as i32);
     // [XᵀWX | XᵀWc | I]

@@ -139,6 +139,11 @@ pub enum NamedSet {
 pub struct TriadRunBody {
     /// Per position, its samples of `(u_x, u_y, u_z)`.
     pub samples: Vec<Vec<[f64; 3]>>,
+    /// The temperature the run was made at, °C (−100 to 200): for every
+    /// run or for none; used by `POST /v1/identify/thermal/triad`, which
+    /// groups the runs into set points by it.
+    #[serde(default)]
+    pub temperature_c: Option<f64>,
 }
 
 /// A continuous recording. Its static intervals count against the same
@@ -225,6 +230,9 @@ pub enum Form {
         batches: usize,
         /// Each axis with its `kii`.
         second_order: bool,
+        /// Each run's temperature, °C, when the runs give them (all or
+        /// none).
+        temperatures_c: Option<Vec<f64>>,
     },
     /// The static positions' mean outputs.
     Unknown {

@@ -359,6 +359,7 @@ impl TriadBody {
                 "must be between 1 and the number of runs",
             );
         }
+        let temperatures_c = temperatures(&runs, errors);
         Some(Form::Known {
             positions,
             runs: runs
@@ -367,6 +368,39 @@ impl TriadBody {
                 .collect(),
             batches,
             second_order: self.second_order.unwrap_or(false),
+            temperatures_c,
         })
     }
+}
+
+/// The runs' temperatures: every run's, or none; each a plausible
+/// temperature ([`super::super::limits::TEMPERATURE_C`]).
+fn temperatures(runs: &[TriadRunBody], errors: &mut Errors) -> Option<Vec<f64>> {
+    let all = Loc::Root.key("runs");
+    let given = runs.iter().filter(|r| r.temperature_c.is_some()).count();
+    if given == 0 {
+        return None;
+    }
+    let range = super::super::limits::TEMPERATURE_C;
+    let mut out = Vec::with_capacity(runs.len());
+    for (j, r) in runs.iter().enumerate() {
+        let run = all.index(j);
+        let at = run.key("temperature_c");
+        match r.temperature_c {
+            None => errors.add(
+                at,
+                "is missing: give `temperature_c` for every run or for none",
+            ),
+            Some(t) if !range.contains(&t) => errors.add(
+                at,
+                format!(
+                    "must be a temperature from {} to {} °C",
+                    range.start(),
+                    range.end()
+                ),
+            ),
+            Some(t) => out.push(t),
+        }
+    }
+    (out.len() == runs.len()).then_some(out)
 }

@@ -76,7 +76,16 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             runs,
             batches,
             second_order,
+            temperatures_c,
         } => {
+            if temperatures_c.is_some() {
+                return Err(problem(
+                    Loc::Root.key("runs").index(0).key("temperature_c"),
+                    "runs at several temperatures make a temperature model: POST \
+                     /v1/identify/thermal/triad; a triad calibrated at one temperature \
+                     takes none",
+                ));
+            }
             let test = TriadTest::with_order(positions, runs, *second_order)
                 .map_err(|e| axis_problem(&e))?;
             let cal = test.calibrate(*batches).map_err(|e| axis_problem(&e))?;

@@ -1,5 +1,6 @@
-//! Schemas of a single axis's temperature model (`POST
-//! /v1/identify/thermal`), whose polynomial is a type of the pure core.
+//! Schemas of a single axis's and a triad's temperature models (`POST
+//! /v1/identify/thermal`, `/v1/identify/thermal/triad`), whose polynomial
+//! is a type of the pure core.
 
 use utoipa::openapi::RefOr;
 use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Schema, Type};
@@ -59,6 +60,48 @@ marker_schema!(
             .additional_properties(Some(reference("Polynomial"))))
         .required("sensor_id").required("unit").required("tolerance_k").required("selection")
         .required("set_points").required("coefficients")
+        .build()
+        .into()
+);
+
+fn triple(items: RefOr<Schema>) -> ArrayBuilder {
+    ArrayBuilder::new()
+        .items(items)
+        .min_items(Some(3))
+        .max_items(Some(3))
+}
+
+fn polynomials() -> ArrayBuilder {
+    ArrayBuilder::new()
+        .items(reference("Polynomial"))
+        .min_items(Some(3))
+        .max_items(Some(3))
+}
+
+marker_schema!(
+    /// A triad's temperature model: its set points, each calibrated and
+    /// fused, and each element of `b` and `S` (row by row) with its
+    /// polynomial.
+    TriadThermalModelSchema => ObjectBuilder::new()
+        .property("sensor_id", ObjectBuilder::new().schema_type(
+            utoipa::openapi::schema::SchemaType::from_iter([Type::String, Type::Null])))
+        .property("unit", of_type(Type::String))
+        .property("tolerance_k", of_type(Type::Number).minimum(Some(0.0)))
+        .property("selection", of_type(Type::String).enum_values(Some(["backward", "forward", "fixed"])))
+        .property("set_points", ArrayBuilder::new().items(ObjectBuilder::new()
+            .property("temperature_c", of_type(Type::Number))
+            .property("runs", ArrayBuilder::new().items(of_type(Type::Integer).minimum(Some(0.0))))
+            .property("batches", of_type(Type::Integer).minimum(Some(1.0)))
+            .property("b", triple(of_type(Type::Number).into()))
+            .property("b_std_errors", triple(of_type(Type::Number).into()))
+            .property("S", triple(triple(of_type(Type::Number).into()).into()))
+            .property("S_std_errors", triple(triple(of_type(Type::Number).into()).into()))
+            .required("temperature_c").required("runs").required("batches")
+            .required("b").required("b_std_errors").required("S").required("S_std_errors")))
+        .property("b", polynomials())
+        .property("S", triple(polynomials().into()))
+        .required("sensor_id").required("unit").required("tolerance_k").required("selection")
+        .required("set_points").required("b").required("S")
         .build()
         .into()
 );
