@@ -135,18 +135,14 @@ async fn five_set_points_give_each_element_its_planted_degree() {
     // linear when the linear fit's χ² is small by chance.
     let t: Vec<f64> = set_points.iter().map(|s| f(&s["temperature_c"])).collect();
     let b_degrees = [2, 1, 0];
-    let s_degrees = [[1, 0, 0], [0, 1, 0], [0, 0, 1]];
+    let (b_ref, s_ref) = planted(20.0);
     let mut elements = Vec::new();
-    for m in 0..3 {
-        elements.push((format!("/b/{m}"), b_degrees[m], planted(20.0).0[m], m, None));
-        for n in 0..3 {
-            elements.push((
-                format!("/S/{m}/{n}"),
-                s_degrees[m][n],
-                planted(20.0).1[m][n],
-                m,
-                Some(n),
-            ));
+    for (m, row) in s_ref.iter().enumerate() {
+        elements.push((format!("/b/{m}"), b_degrees[m], b_ref[m], m, None));
+        for (n, &value) in row.iter().enumerate() {
+            // The scale factors move with the temperature; the rest not.
+            let degree = usize::from(m == n);
+            elements.push((format!("/S/{m}/{n}"), degree, value, m, Some(n)));
         }
     }
     for (pointer, degree, at_tref, m, n) in elements {

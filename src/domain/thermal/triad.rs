@@ -156,12 +156,10 @@ pub fn triad_model(
     };
     let mut b = Vec::with_capacity(3);
     let mut s = Vec::with_capacity(9);
-    for m in 0..3 {
-        b.push(fit(format!("b_{}", AXES[m]), &|p| {
-            (p.b[m], p.b_std_errors[m])
-        })?);
-        for n in 0..3 {
-            s.push(fit(format!("S_{}{}", AXES[m], AXES[n]), &|p| {
+    for (m, row) in AXES.iter().enumerate() {
+        b.push(fit(format!("b_{row}"), &|p| (p.b[m], p.b_std_errors[m]))?);
+        for (n, column) in AXES.iter().enumerate() {
+            s.push(fit(format!("S_{row}{column}"), &|p| {
                 (p.s[m][n], p.s_std_errors[m][n])
             })?);
         }
