@@ -111,7 +111,7 @@ async fn the_trail_records_who_did_what(#[values(Sqlite, Postgres)] engine: Engi
     }
 }
 
-fn verify(database: &str) -> std::process::Output {
+pub(crate) fn verify(database: &str) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(["audit", "verify", "--database", database])
         .output()

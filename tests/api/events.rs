@@ -430,7 +430,7 @@ impl Watch<'_> {
 async fn each_event_says_what_the_served_coefficients_did(
     #[values(Sqlite, Postgres)] engine: Engine,
 ) {
-    let app = TestApp::spawn(engine).await;
+    let mut app = TestApp::spawn(engine).await;
     let stand: Value =
         serde_json::from_str(include_str!("../../examples/standard-stand.json")).unwrap();
     let res = app.put("/v1/standards/STAND-1", ADMIN, &stand).await;
@@ -528,6 +528,24 @@ async fn each_event_says_what_the_served_coefficients_did(
     post(withdraw(&r), json!({"reason": "redo"})).await;
     let last = w.saw("calibration.withdrawn").await;
     assert_eq!(last, json!({"changed": true, "calibration_id": null}));
+
+    // And the trail vouches for every row these acts wrote — the hold
+    // placed as a calibration was stored included (PostgreSQL recorded it
+    // without its nonconformities before e5e145d, and verify called the
+    // untouched nonconformity edited).
+    drop(w);
+    app.stop().await;
+    // Off the runtime's thread: the test database's proxy runs on it.
+    let database = app.database.clone();
+    let out = tokio::task::spawn_blocking(move || crate::audit::verify(&database))
+        .await
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
 }
 
 #[rstest]
