@@ -166,18 +166,8 @@ pub fn model(
     tolerance_k: f64,
     options: &Options,
 ) -> Result<ThermalModel, Invalid> {
-    let Some(temperatures) = submission.temperatures_c.as_deref() else {
-        return Err(Invalid::one(
-            "/runs/0/temperature_c",
-            "is missing: a temperature model needs every run's temperature",
-        ));
-    };
-    let groups = thermal::set_points(temperatures, tolerance_k);
-    let at: Vec<f64> = groups.iter().map(|g| g.temperature_c).collect();
-    let reference = options
-        .reference_c
-        .unwrap_or_else(|| thermal::reference(&at));
-    thermal::check(&at, reference, options.degree, options).map_err(|e| refusal(&e, &at))?;
+    let (groups, at, options) =
+        grouped(submission.temperatures_c.as_deref(), tolerance_k, options)?;
     let test = &submission.test;
     let mut set_points = Vec::with_capacity(groups.len());
     for g in groups {
@@ -203,10 +193,6 @@ pub fn model(
             std_errors: at_set_point.fused.std_errors.clone(),
         });
     }
-    let options = Options {
-        reference_c: Some(reference),
-        ..*options
-    };
     let coefficients = test
         .model()
         .terms()
@@ -220,33 +206,75 @@ pub fn model(
                     std_uncertainty: s.std_errors.get(term).copied().unwrap_or(0.0),
                 })
                 .collect();
-            thermal::fit(&points, &options)
-                .map(|p| (term, p))
-                .map_err(|e| match e {
-                    ThermalError::Unweighted { temperature_c } => Invalid::one(
-                        "/runs",
-                        format!(
-                            "the set point at {} °C gives `{term}` no positive standard error, so \
-                             it cannot be weighted: give it more runs, or runs that differ",
-                            round(temperature_c)
-                        ),
-                    ),
-                    e => refusal(&e, &at),
-                })
+            fitted(&term.to_string(), &points, &options, &at).map(|p| (term, p))
         })
         .collect::<Result<Vec<_>, _>>()?;
     Ok(ThermalModel {
         sensor_id: submission.sensor_id.clone(),
         unit: submission.unit.clone(),
         tolerance_k,
-        selection: match (options.degree, options.selection) {
-            (Some(_), _) => "fixed".to_owned(),
-            (None, Selection::Backward) => "backward".to_owned(),
-            (None, Selection::Forward) => "forward".to_owned(),
-        },
+        selection: selection(&options),
         set_points,
         coefficients: TermMap(coefficients),
     })
+}
+
+/// The runs at `temperatures` (every run's, or `None`) grouped within
+/// `tolerance_k` into set points, checked to make a sane polynomial: the
+/// groups, their temperatures, and `options` with `T_ref` settled.
+fn grouped(
+    temperatures: Option<&[f64]>,
+    tolerance_k: f64,
+    options: &Options,
+) -> Result<(Vec<thermal::SetPoint>, Vec<f64>, Options), Invalid> {
+    let Some(temperatures) = temperatures else {
+        return Err(Invalid::one(
+            "/runs/0/temperature_c",
+            "is missing: a temperature model needs every run's temperature",
+        ));
+    };
+    let groups = thermal::set_points(temperatures, tolerance_k);
+    let at: Vec<f64> = groups.iter().map(|g| g.temperature_c).collect();
+    let reference = options
+        .reference_c
+        .unwrap_or_else(|| thermal::reference(&at));
+    thermal::check(&at, reference, options.degree, options).map_err(|e| refusal(&e, &at))?;
+    let options = Options {
+        reference_c: Some(reference),
+        ..*options
+    };
+    Ok((groups, at, options))
+}
+
+/// The polynomial of the quantity `name` over the set points `points` (at
+/// `at`), or the refusal saying what to add.
+fn fitted(
+    name: &str,
+    points: &[Point],
+    options: &Options,
+    at: &[f64],
+) -> Result<Polynomial, Invalid> {
+    thermal::fit(points, options).map_err(|e| match e {
+        ThermalError::Unweighted { temperature_c } => Invalid::one(
+            "/runs",
+            format!(
+                "the set point at {} °C gives `{name}` no positive standard error, so it \
+                 cannot be weighted: give it more runs, or runs that differ",
+                round(temperature_c)
+            ),
+        ),
+        e => refusal(&e, at),
+    })
+}
+
+/// How the degrees were chosen: `fixed`, `backward` or `forward`.
+fn selection(options: &Options) -> String {
+    match (options.degree, options.selection) {
+        (Some(_), _) => "fixed",
+        (None, Selection::Backward) => "backward",
+        (None, Selection::Forward) => "forward",
+    }
+    .to_owned()
 }
 
 /// A temperature to 0.01 K, as the refusals print it.

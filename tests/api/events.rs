@@ -392,7 +392,31 @@ struct Watch<'a> {
     before: Option<(String, bool)>,
 }
 
-impl Watch<'_> {
+/// POSTs `body` to `path` as `token`: the act must be done (200).
+async fn done(app: &TestApp, token: &str, path: String, body: Value) {
+    let res = app.post(&path, token, &body).await;
+    assert_eq!(
+        res.status(),
+        StatusCode::OK,
+        "{}",
+        res.text().await.unwrap()
+    );
+}
+
+impl<'a> Watch<'a> {
+    /// Watches `sensor`'s events, as a reader, from now on.
+    async fn on(app: &'a TestApp, sensor: &'static str) -> Watch<'a> {
+        let reader = app.token("reader", None).await;
+        let stream = Stream::open(app, &reader, &format!("?sensor_id={sensor}"), None).await;
+        Watch {
+            app,
+            reader,
+            sensor,
+            stream,
+            before: None,
+        }
+    }
+
     /// The next event of `kind`.
     async fn next_of(&mut self, kind: &str) -> Sent {
         loop {
@@ -437,15 +461,7 @@ async fn each_event_says_what_the_served_coefficients_did(
     assert_eq!(res.status(), StatusCode::CREATED);
     let station = app.held_token("station", "Sam Station", Some("ST-1")).await;
     let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
-    let reader = app.token("reader", None).await;
-    let stream = Stream::open(&app, &reader, "?sensor_id=EV-S", None).await;
-    let mut w = Watch {
-        app: &app,
-        reader: reader.clone(),
-        sensor: "EV-S",
-        stream,
-        before: None,
-    };
+    let mut w = Watch::on(&app, "EV-S").await;
     let submit = |at: &'static str, named: bool| {
         let mut s = submission("EV-S", at, 4);
         s["station_id"] = json!("ST-1");
@@ -455,18 +471,7 @@ async fn each_event_says_what_the_served_coefficients_did(
         let (app, station) = (&app, station.clone());
         async move { app.submit(&station, &s).await["id"].clone() }
     };
-    let post = |path: String, body: Value| {
-        let (app, rita) = (&app, rita.clone());
-        async move {
-            let res = app.post(&path, &rita, &body).await;
-            assert_eq!(
-                res.status(),
-                StatusCode::OK,
-                "{}",
-                res.text().await.unwrap()
-            );
-        }
-    };
+    let post = |path: String, body: Value| done(&app, &rita, path, body);
     let withdraw = |id: &Value| format!("/v1/calibrations/{}/withdraw", id.as_str().unwrap());
 
     // The first calibration is served; an older one stored late is not.
@@ -505,7 +510,7 @@ async fn each_event_says_what_the_served_coefficients_did(
     assert_eq!(stored.data["coefficients"], a3_served);
     let held = w.next_of("calibration.held").await;
     assert_eq!(held.data["coefficients"], a3_served);
-    w.before = served(&app, &reader, "EV-S").await;
+    w.before = served(&app, &w.reader, "EV-S").await;
     assert_eq!(w.before, Some((a3.as_str().unwrap().to_owned(), false)));
     // Withdrawn one after the other: at the end nothing is served.
     post(withdraw(&a3), json!({"reason": "held"})).await;
@@ -559,32 +564,13 @@ async fn with_require_approval_only_approvals_change_what_is_served(
     .await;
     let station = app.held_token("station", "Sam Station", None).await;
     let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
-    let reader = app.token("reader", None).await;
-    let stream = Stream::open(&app, &reader, "?sensor_id=EV-S", None).await;
-    let mut w = Watch {
-        app: &app,
-        reader: reader.clone(),
-        sensor: "EV-S",
-        stream,
-        before: None,
-    };
+    let mut w = Watch::on(&app, "EV-S").await;
     let submit = |at: &'static str| {
         let s = submission("EV-S", at, 4);
         let (app, station) = (&app, station.clone());
         async move { app.submit(&station, &s).await["id"].clone() }
     };
-    let post = |path: String, body: Value| {
-        let (app, rita) = (&app, rita.clone());
-        async move {
-            let res = app.post(&path, &rita, &body).await;
-            assert_eq!(
-                res.status(),
-                StatusCode::OK,
-                "{}",
-                res.text().await.unwrap()
-            );
-        }
-    };
+    let post = |path: String, body: Value| done(&app, &rita, path, body);
     let b1 = submit("2026-03-01T00:00:00Z").await;
     assert_eq!(w.saw("calibration.stored").await["changed"], false);
     post(review(&b1), json!({"decision": "approve"})).await;

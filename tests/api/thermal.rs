@@ -64,13 +64,7 @@ fn f(v: &Value) -> f64 {
 
 /// Weighted least squares by the normal equations (Gaussian elimination):
 /// `(a, (XᵀWX)⁻¹ diagonal)` of degree `d` about `tref`.
-pub(crate) fn normal_equations(
-    t: &[f64],
-    c: &[f64],
-    u: &[f64],
-    tref: f64,
-    d: usize,
-) -> (Vec<f64>, Vec<f64>) {
+fn normal_equations(t: &[f64], c: &[f64], u: &[f64], tref: f64, d: usize) -> (Vec<f64>, Vec<f64>) {
     let n = d + 1;
     let x = |s: usize, k: usize| (t[s] - tref).powi(k as i32);
     // [XᵀWX | XᵀWc | I]
@@ -109,6 +103,40 @@ pub(crate) fn normal_equations(
         (0..n).map(|i| m[i][n]).collect(),
         (0..n).map(|i| m[i][n + 1 + i]).collect(),
     )
+}
+
+/// Checks the answered polynomial `p` (named `what`) against the weighted
+/// fit of its degree to `c` ± `u` at `t` by the normal equations: each
+/// `a_d`, its standard uncertainty with the covariance inflated by
+/// `max(1, χ²/ν)`, and `χ²`.
+pub(crate) fn is_the_weighted_fit(p: &Value, t: &[f64], c: &[f64], u: &[f64], what: &str) {
+    let degree = p["degree"].as_u64().unwrap() as usize;
+    let tref = f(&p["reference_c"]);
+    let (a, var) = normal_equations(t, c, u, tref, degree);
+    let chi2: f64 = (0..t.len())
+        .map(|s| {
+            let fit: f64 = (0..=degree)
+                .map(|d| a[d] * (t[s] - tref).powi(d as i32))
+                .sum();
+            ((c[s] - fit) / u[s]).powi(2)
+        })
+        .sum();
+    let inflation = (chi2 / (t.len() - 1 - degree) as f64).max(1.0);
+    for d in 0..=degree {
+        let su = (var[d] * inflation).sqrt();
+        assert!(
+            (f(&p["coefficients"][d]) - a[d]).abs() < 1e-6 * su,
+            "{what} a_{d}"
+        );
+        assert!(
+            (f(&p["std_uncertainties"][d]) / su - 1.0).abs() < 1e-6,
+            "{what} u(a_{d})"
+        );
+    }
+    assert!(
+        (f(&p["chi2"]) - chi2).abs() < 1e-6 * chi2.max(1.0),
+        "{what} χ²"
+    );
 }
 
 #[tokio::test]
@@ -176,31 +204,7 @@ async fn five_set_points_give_each_coefficient_its_planted_degree() {
             .iter()
             .map(|s| f(&s["std_errors"][term]))
             .collect();
-        let (a, var) = normal_equations(&t, &c, &u, tref, degree);
-        let chi2: f64 = (0..5)
-            .map(|s| {
-                let fit: f64 = (0..=degree)
-                    .map(|d| a[d] * (t[s] - tref).powi(d as i32))
-                    .sum();
-                ((c[s] - fit) / u[s]).powi(2)
-            })
-            .sum();
-        let inflation = (chi2 / (4 - degree) as f64).max(1.0);
-        for d in 0..=degree {
-            let su = (var[d] * inflation).sqrt();
-            assert!(
-                (f(&p["coefficients"][d]) - a[d]).abs() < 1e-6 * su,
-                "{term} a_{d}"
-            );
-            assert!(
-                (f(&p["std_uncertainties"][d]) / su - 1.0).abs() < 1e-6,
-                "{term} u(a_{d})"
-            );
-        }
-        assert!(
-            (f(&p["chi2"]) - chi2).abs() < 1e-6 * chi2.max(1.0),
-            "{term} χ²"
-        );
+        is_the_weighted_fit(p, &t, &c, &u, term);
         assert_eq!(p["range_c"][0], set_points[0]["temperature_c"]);
         assert_eq!(p["range_c"][1], set_points[4]["temperature_c"]);
         // The planted model within the stated uncertainty at T_ref (a_0)

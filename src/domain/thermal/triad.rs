@@ -9,13 +9,13 @@
 //! elements share the set points, so their `T_ref` and range are one; each
 //! has its own degree.
 
-use accelcal_core::thermal::{self, Options, Point, Polynomial, Selection, ThermalError};
+use accelcal_core::thermal::{Options, Point, Polynomial};
 use accelcal_core::triad::{AXES, TriadRun, TriadTest};
 use serde::Serialize;
 
 use super::super::field::Invalid;
 use super::super::triad::{Form, TriadSubmission};
-use super::{list, refusal, round};
+use super::{fitted, grouped, list, round, selection};
 
 /// One set point of a triad, calibrated and fused.
 #[derive(Clone, Debug, Serialize)]
@@ -88,18 +88,7 @@ pub fn triad_model(
             "second-order terms are not modelled over temperature: omit it",
         ));
     }
-    let Some(temperatures) = temperatures_c.as_deref() else {
-        return Err(Invalid::one(
-            "/runs/0/temperature_c",
-            "is missing: a temperature model needs every run's temperature",
-        ));
-    };
-    let groups = thermal::set_points(temperatures, tolerance_k);
-    let at: Vec<f64> = groups.iter().map(|g| g.temperature_c).collect();
-    let reference = options
-        .reference_c
-        .unwrap_or_else(|| thermal::reference(&at));
-    thermal::check(&at, reference, options.degree, options).map_err(|e| refusal(&e, &at))?;
+    let (groups, at, options) = grouped(temperatures_c.as_deref(), tolerance_k, options)?;
     let mut set_points = Vec::with_capacity(groups.len());
     for g in groups {
         let of_group: Vec<TriadRun> = g.runs.iter().map(|&j| runs[j].clone()).collect();
@@ -126,10 +115,6 @@ pub fn triad_model(
             s_std_errors: cal.std_errors.matrix,
         });
     }
-    let options = Options {
-        reference_c: Some(reference),
-        ..*options
-    };
     let fit = |name: String, element: &dyn Fn(&TriadSetPoint) -> (f64, f64)| {
         let points: Vec<Point> = set_points
             .iter()
@@ -142,17 +127,7 @@ pub fn triad_model(
                 }
             })
             .collect();
-        thermal::fit(&points, &options).map_err(|e| match e {
-            ThermalError::Unweighted { temperature_c } => Invalid::one(
-                "/runs",
-                format!(
-                    "the set point at {} °C gives `{name}` no positive standard error, so it \
-                     cannot be weighted: give it more runs, or runs that differ",
-                    round(temperature_c)
-                ),
-            ),
-            e => refusal(&e, &at),
-        })
+        fitted(&name, &points, &options, &at)
     };
     let mut b = Vec::with_capacity(3);
     let mut s = Vec::with_capacity(9);
@@ -171,11 +146,7 @@ pub fn triad_model(
         sensor_id: sub.sensor_id.clone(),
         unit: sub.unit.clone(),
         tolerance_k,
-        selection: match (options.degree, options.selection) {
-            (Some(_), _) => "fixed".to_owned(),
-            (None, Selection::Backward) => "backward".to_owned(),
-            (None, Selection::Forward) => "forward".to_owned(),
-        },
+        selection: selection(&options),
         set_points,
         b: b.try_into().expect("three"),
         s,
