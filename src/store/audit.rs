@@ -60,14 +60,12 @@ fn sha256(bytes: &[u8]) -> String {
 /// of its submission and of its result document — so that the trail also
 /// vouches for the stored bytes — the SHA-256 of its served columns
 /// (`row_sha256`, [`super::verify`]), its media type, and the sensor type
-/// in force and whether it became the sensor's.
-pub fn stored(n: &NewCalibration, by: Actor) -> Event {
-    Event::new(
-        n.received_at,
-        by,
-        "calibration.submitted",
-        audit::calibration(n.id),
-        object(json!({
+/// in force and whether it became the sensor's; and what storing it did
+/// to the coefficients served (`effect`), put in the change as it is built
+/// rather than parsed back in ([`with_effect`]): this is every
+/// submission's entry.
+pub fn stored(n: &NewCalibration, by: Actor, effect: Effect) -> Event {
+    let mut change = object(json!({
             "sensor_id": n.sensor_id,
             "station_id": n.station_id,
             "performed_at": n.performed_at.to_string(),
@@ -77,7 +75,14 @@ pub fn stored(n: &NewCalibration, by: Actor) -> Event {
             "content_type": n.content_type,
             "sensor_type": n.sensor_type,
             "assigns_type": n.assigns_type,
-        })),
+    }));
+    change.insert("coefficients".into(), effect.to_value());
+    Event::new(
+        n.received_at,
+        by,
+        "calibration.submitted",
+        audit::calibration(n.id),
+        change,
     )
 }
 

@@ -102,7 +102,7 @@ pub async fn stored(
             }
         };
         let effect = crate::domain::events::Effect::stored(n.id, latest);
-        events.push(audit::with_effect(audit::stored(n, by), effect));
+        events.push(audit::stored(n, by, effect));
     }
     Ok(events)
 }

@@ -185,9 +185,8 @@ pub(super) fn insert(
     let latest = row
         .as_ref()
         .is_some_and(|r| r.latest_calibration_id == n.id);
-    let entry = crate::store::audit::stored(&n, by);
     let effect = crate::domain::events::Effect::stored(n.id, latest);
-    super::audit::append(tx, crate::store::audit::with_effect(entry, effect))?;
+    super::audit::append(tx, crate::store::audit::stored(&n, by, effect))?;
     super::holds::place(tx, &n, inherited, latest)?;
     Ok((Stored::New, row))
 }
