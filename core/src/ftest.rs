@@ -8,12 +8,12 @@
 //! upper α point of F(ν1, ν2)" is the same statement as `p < α`, since the
 //! tail is strictly decreasing in `F`.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor};
 
 /// One F test: the statistic, its degrees of freedom, its p-value and the
 /// level it is judged at.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FTest {
     /// The statistic.
     pub f: f64,

@@ -64,7 +64,7 @@
 //! [`MAX_CONDITION`]). The valid range is the set points' span.
 
 use nalgebra::{DMatrix, DVector};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use crate::ftest::FTest;
 
@@ -193,7 +193,7 @@ pub enum ThermalError {
 }
 
 /// How the degree is chosen when none is asked for (module doc).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, serde::Deserialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Selection {
     /// Down from the highest degree the set points allow (the default).
@@ -231,7 +231,7 @@ impl Default for Options {
 }
 
 /// A coefficient's fitted polynomial.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Polynomial {
     /// `T_ref`, °C.
     pub reference_c: f64,

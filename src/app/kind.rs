@@ -1,31 +1,42 @@
 //! The kinds of calibration a station submits, and the one place an act
 //! asks a kind to assess a submission: a new kind is a variant here and
-//! its own assessment module ([`super::single_axis`], [`super::triad`]).
+//! its own assessment module ([`super::single_axis`], [`super::triad`],
+//! [`super::thermal`]).
 
 use uuid::Uuid;
 
-use super::{Assessed, Error, Lab, Upload, single_axis, triad};
+use super::{Assessed, Error, Lab, Upload, single_axis, thermal, triad};
 use crate::domain::auth::Principal;
 use crate::domain::review::Supersedes;
+use crate::domain::thermal::Fit;
 use crate::domain::timestamp::Timestamp;
 use crate::store::CalibrationSummary;
 
 /// A kind of calibration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
     /// One pendulous accelerometer's static model, from tumble tests.
     SingleAxis,
     /// A triad's u = b + S g.
     Triad,
+    /// A single axis's static model over temperature, fitted so.
+    Thermal(Fit),
 }
 
 impl Kind {
     /// The kind of a stored calibration.
+    /// A temperature model is fitted again as it was: with the parameters
+    /// it was fitted with (which were checked when it was).
     pub fn of(c: &CalibrationSummary) -> Kind {
         if c.triad.is_some() {
-            Kind::Triad
-        } else {
-            Kind::SingleAxis
+            return Kind::Triad;
+        }
+        match c.thermal.as_ref().map(|t| t.fitted_with.checked()) {
+            Some(Ok(fit)) => Kind::Thermal(fit),
+            // Parameters stored that no longer check cannot be: a default
+            // fit then, which the stored model's own checks still guard.
+            Some(Err(_)) => Kind::Thermal(Fit::default()),
+            None => Kind::SingleAxis,
         }
     }
 
@@ -46,6 +57,9 @@ impl Kind {
                 single_axis::assess(lab, principal, upload, received_at, Some(id), supersedes).await
             }
             Kind::Triad => triad::assess(lab, principal, upload, received_at, id, supersedes).await,
+            Kind::Thermal(fit) => {
+                thermal::assess(lab, principal, upload, received_at, id, supersedes, fit).await
+            }
         }
     }
 }

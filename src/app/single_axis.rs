@@ -127,6 +127,7 @@ pub async fn assess(
             due_at: metrology.due_at,
             expanded: Some(metrology.uncertainty.expanded()),
             triad: None,
+            thermal: None,
             standards: Resolved::uses(&e.submission.standards_used),
         });
         Ok(Assessed {

@@ -112,10 +112,10 @@ async fn store(
         rec.verdict,
         rec.result.clone(),
     );
-    let kind = if rec.triad.is_some() {
-        "triad"
-    } else {
-        "single-axis"
+    let kind = match (&rec.triad, &rec.thermal) {
+        (Some(_), _) => "triad",
+        (None, Some(_)) => "thermal",
+        (None, None) => "single-axis",
     };
     let stored = lab.store.insert_calibration(rec, key).await?;
     if let Some(g) = guard {

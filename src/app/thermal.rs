@@ -1,18 +1,66 @@
-//! Identifying a single axis's coefficients over temperature (issue 45):
-//! a submission whose runs were made at several temperatures, read,
-//! checked and identified set point by set point on the compute pool, and
-//! each coefficient's polynomial answered ([`crate::domain::thermal`]).
-//! A triad's `b` and `S` likewise, from runs with known orientations.
-//! Nothing is stored: the thermal calibration kind — its record, review,
-//! certificate and compensation at a temperature — builds on this.
+//! Coefficients over temperature (issue 45): a single axis's submission
+//! whose runs were made at several temperatures, read, checked and
+//! identified set point by set point on the compute pool, and each
+//! coefficient's polynomial fitted ([`crate::domain::thermal`]) — answered
+//! (`identify`), or stored as the thermal calibration kind (`assess`): one
+//! calibration of its sensor whose coefficients are the model at `T_ref`
+//! and whose temperature model is kept beside them, for the coefficients
+//! and compensation at a temperature. A triad's `b` and `S` likewise, not
+//! stored yet.
 
-use super::subject::station;
-use super::{Error, Lab, Upload};
+use accelcal_core::TermMap;
+use bytes::Bytes;
+use serde::Serialize;
+use uuid::Uuid;
+
+use super::subject::{in_force, station};
+use super::{Assessed, Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
+use crate::domain::review::Supersedes;
 use crate::domain::submission::evaluate;
-use crate::domain::thermal::{ThermalModel, TriadThermalModel, model, triad_model};
+use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
 use crate::domain::timestamp::Timestamp;
+use crate::store::NewCalibration;
+
+/// A stored temperature model's result document (`POST
+/// /v1/calibrations/thermal`, and `GET /v1/calibrations/{id}` for one).
+#[derive(Debug, Serialize, utoipa::ToSchema)]
+pub struct StoredThermal {
+    /// `thermal`.
+    pub kind: &'static str,
+    /// The calibration's id.
+    pub id: Uuid,
+    /// The sensor.
+    pub sensor_id: String,
+    /// The submitting station, if known.
+    pub station_id: Option<String>,
+    /// When the test was performed.
+    pub performed_at: Timestamp,
+    /// When accelcal received it.
+    pub received_at: Timestamp,
+    /// The calibration this one supersedes, and why.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub supersedes: Option<Supersedes>,
+    /// The outputs' unit.
+    pub unit: String,
+    /// The runs submitted.
+    pub runs: usize,
+    /// `T_ref`, °C: where `coefficients` hold.
+    pub reference_c: f64,
+    /// The valid range `[T_min, T_max]`, °C.
+    pub range_c: [f64; 2],
+    /// Every coefficient at `T_ref` (`a_0`): what history, stability and
+    /// the coefficients without a temperature serve.
+    #[schema(value_type = crate::domain::schema::CoefficientMap)]
+    pub coefficients: TermMap<f64>,
+    /// Their standard uncertainties.
+    #[schema(value_type = crate::domain::schema::CoefficientMap)]
+    pub std_errors: TermMap<f64>,
+    /// The model: the set points and every coefficient's polynomial.
+    #[schema(value_type = Object)]
+    pub thermal: ThermalModel,
+}
 
 /// The temperature model of `upload` for `principal`, its runs grouped
 /// within `tolerance_k` and each polynomial fitted with `options`
@@ -23,8 +71,7 @@ pub async fn identify(
     lab: &Lab,
     principal: &Principal,
     upload: Upload,
-    tolerance_k: f64,
-    options: accelcal_core::thermal::Options,
+    fit: Fit,
 ) -> Result<ThermalModel, Error> {
     let who = principal.clone();
     lab.compute_for(
@@ -38,7 +85,7 @@ pub async fn identify(
             if e.submission.standards.is_some() {
                 return Err(not_yet("standards", "the reference standards' budget"));
             }
-            Ok(model(&e.submission, tolerance_k, &options)?)
+            Ok(model(&e.submission, &fit)?)
         },
     )
     .await?
@@ -68,6 +115,102 @@ pub async fn identify_triad(
         },
     )
     .await?
+}
+
+/// `upload` assessed as a temperature model fitted with `fit`, to be
+/// stored under `id` (with `supersedes`, the calibration it corrects):
+/// read and fitted on the compute pool; a sensor type (named, or the
+/// sensor's) or reference standards are refused rather than ignored, as
+/// for `identify`.
+pub async fn assess(
+    lab: &Lab,
+    principal: &Principal,
+    upload: Upload,
+    received_at: Timestamp,
+    id: Uuid,
+    supersedes: Option<Supersedes>,
+    fit: Fit,
+) -> Result<Assessed, Error> {
+    let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
+    let who = principal.clone();
+    let (e, station_id, thermal) = lab
+        .compute_for(upload.bytes.len(), move || {
+            let e = evaluate(upload.media, &upload.bytes, received_at)?;
+            let station_id = station(&who, e.submission.station_id.as_deref())?;
+            if e.submission.sensor_type.is_some() {
+                return Err(not_yet("sensor_type", "a sensor type's decision"));
+            }
+            if e.submission.standards.is_some() {
+                return Err(not_yet("standards", "the reference standards' budget"));
+            }
+            let thermal = model(&e.submission, &fit)?;
+            Ok((e, station_id, thermal))
+        })
+        .await??;
+    let sub = &e.submission;
+    let subject = in_force(lab, principal, &sub.sensor_id, None, false, received_at).await?;
+    if let Some(t) = &subject.sensor_type {
+        return Err(Error::invalid(
+            Loc::Root.key("sensor_id"),
+            format!(
+                "sensor `{}` is of type `{}`, and a temperature model is not judged against a \
+                 type's limits yet (issue 45 item 4): store it for an untyped sensor",
+                crate::domain::text::echo(&sub.sensor_id),
+                t.type_id
+            ),
+        ));
+    }
+    let performed_at = sub.performed_at.unwrap_or(received_at);
+    let at_reference = thermal.at(thermal.reference_c());
+    let view = StoredThermal {
+        kind: "thermal",
+        id,
+        sensor_id: sub.sensor_id.clone(),
+        station_id: station_id.clone(),
+        performed_at,
+        received_at,
+        supersedes,
+        unit: sub.unit.clone(),
+        runs: sub.test.runs().len(),
+        reference_c: thermal.reference_c(),
+        range_c: thermal.range_c(),
+        coefficients: at_reference.coefficients.clone(),
+        std_errors: at_reference.std_errors.clone(),
+        thermal,
+    };
+    let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
+        tracing::error!(error = %err, "a temperature model's result did not serialise");
+        Error::Internal
+    })?);
+    let record = NewCalibration {
+        id,
+        sensor_id: view.sensor_id.clone(),
+        station_id,
+        performed_at,
+        received_at,
+        unit: view.unit.clone(),
+        model: sub.test.model().clone(),
+        runs: view.runs,
+        coefficients: view.coefficients,
+        std_errors: view.std_errors,
+        result: result.clone(),
+        submission,
+        content_type,
+        submitted_by: principal.id.clone(),
+        sensor_type: None,
+        assigns_type: false,
+        verdict: None,
+        due_at: None,
+        expanded: None,
+        triad: None,
+        thermal: Some(view.thermal),
+        standards: Vec::new(),
+    };
+    Ok(Assessed {
+        sensor_id: record.sensor_id.clone(),
+        result,
+        record: Some(record),
+    })
 }
 
 /// The refusal of `key`, which names `what` a temperature model does not

@@ -302,6 +302,7 @@ pub async fn assess(
         due_at,
         expanded: None,
         triad: Some(elements(&result)),
+        thermal: None,
         standards: uses,
     };
     let view = StoredTriad {

@@ -17,6 +17,10 @@ use super::review::{Basis, State};
 use super::timestamp::Timestamp;
 use super::usability::Usability;
 
+mod thermal;
+
+pub use thermal::{TemperatureUsed, Temperatures, no_model, outside_range};
+
 /// The body of a compensation request.
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
@@ -37,6 +41,16 @@ pub struct CompensateRequest {
     /// Use this calibration of the sensor instead of the latest.
     #[serde(default)]
     pub calibration_id: Option<Uuid>,
+    /// The sensor's temperature, °C, for a calibration that is a
+    /// temperature model (required then, refused otherwise): one number
+    /// for every output, or one per output.
+    #[serde(default)]
+    #[schema(value_type = Option<Object>)]
+    pub temperature_c: Option<Temperatures>,
+    /// Use a temperature model outside its valid range (the answer then
+    /// says `extrapolated` and by how many kelvin); default false.
+    #[serde(default)]
+    pub allow_extrapolation: bool,
 }
 
 /// The answer of a compensation.
@@ -70,6 +84,10 @@ pub struct Compensated {
     /// outputs, `g = S⁻¹ (u − b)`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub g: Option<Vec<[f64; 3]>>,
+    /// For a temperature model: the temperature its coefficients were
+    /// evaluated at, its range and whether it was extrapolated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<TemperatureUsed>,
     /// The calibration's state (one that does not count on `basis` is not
     /// usable).
     pub state: State,
@@ -274,6 +292,9 @@ impl CompensateRequest {
         if let Some(v) = &self.a_o {
             numbers("a_o", v, MAX_CROSS_G, Some(n));
         }
+        if let Some(t) = &self.temperature_c {
+            t.check(n, &mut errors);
+        }
         errors.finish(|| self)
     }
 
@@ -360,6 +381,8 @@ mod tests {
             a_p,
             a_o: None,
             calibration_id: None,
+            temperature_c: None,
+            allow_extrapolation: false,
         }
     }
 
@@ -405,6 +428,8 @@ mod assumed {
             a_p: None,
             a_o: None,
             calibration_id: None,
+            temperature_c: None,
+            allow_extrapolation: false,
         };
         assert_eq!(none.assumed_zero(&model(&[K0, Ki])), []);
         assert_eq!(none.assumed_zero(&model(&[K0, Ki, Kp])), [CrossAxis::AP]);

@@ -15,39 +15,46 @@ use serde::{Deserialize, Serialize};
 
 use super::field::Invalid;
 use super::submission::Submission;
+use super::triad_export::Format;
 
 /// How the temperature model is fitted (the query of
 /// `POST /v1/identify/thermal`; each has its documented default).
-#[derive(Clone, Copy, Debug, Default, Deserialize, utoipa::IntoParams)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Deserialize, Serialize, utoipa::IntoParams)]
 #[serde(deny_unknown_fields)]
 #[into_params(parameter_in = Query)]
 pub struct ThermalParams {
     /// Runs within this many kelvin of a set point's coolest run form the
     /// set point (default 0.5).
     #[param(minimum = 0.0, maximum = 50.0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub tolerance_k: Option<f64>,
     /// The reference temperature `T_ref`, °C (default: the set points'
     /// mean, rounded to 0.1 K).
     #[param(minimum = -100.0, maximum = 200.0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub reference_c: Option<f64>,
     /// The polynomial's degree, 0 to 3, for every coefficient (default:
     /// chosen per coefficient by `selection`).
     #[param(minimum = 0, maximum = 3)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub degree: Option<usize>,
     /// How the degree is chosen: `backward` (default) or `forward`.
     #[param(inline)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub selection: Option<SelectionParam>,
     /// The smallest span of set points, K (default 10).
     #[param(minimum = 0.0, maximum = 500.0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub min_span_k: Option<f64>,
     /// The largest condition number of the column-scaled design
     /// (default 100).
     #[param(minimum = 1.0)]
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub max_condition: Option<f64>,
 }
 
 /// How the degree is chosen when none is asked for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, utoipa::ToSchema)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Deserialize, Serialize, utoipa::ToSchema)]
 #[serde(rename_all = "snake_case")]
 pub enum SelectionParam {
     /// Down from the highest degree the set points allow (the default).
@@ -74,9 +81,32 @@ pub struct BadParameter {
     pub detail: String,
 }
 
+/// Checked parameters: as asked, and the tolerance and fit options they
+/// make.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Fit {
+    /// As asked.
+    pub params: ThermalParams,
+    /// Runs within this many kelvin form a set point.
+    pub tolerance_k: f64,
+    /// How each polynomial is fitted.
+    pub options: Options,
+}
+
+impl Default for Fit {
+    /// Every parameter at its documented default.
+    fn default() -> Self {
+        Fit {
+            params: ThermalParams::default(),
+            tolerance_k: TOLERANCE_K,
+            options: Options::default(),
+        }
+    }
+}
+
 impl ThermalParams {
     /// The tolerance and the fit's options, checked.
-    pub fn checked(&self) -> Result<(f64, Options), BadParameter> {
+    pub fn checked(&self) -> Result<Fit, BadParameter> {
         let bad = |name, detail: &str| BadParameter {
             name,
             detail: detail.to_owned(),
@@ -113,21 +143,22 @@ impl ThermalParams {
                 "must be a finite number of at least 1",
             ));
         }
-        Ok((
-            tolerance,
-            Options {
+        Ok(Fit {
+            params: *self,
+            tolerance_k: tolerance,
+            options: Options {
                 reference_c: self.reference_c,
                 degree: self.degree,
                 selection: self.selection.map_or(Selection::Backward, Selection::from),
                 min_span_k,
                 max_condition,
             },
-        ))
+        })
     }
 }
 
 /// One set point, identified and fused.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct SetPointResult {
     /// The mean of its runs' temperatures, °C.
     pub temperature_c: f64,
@@ -143,7 +174,7 @@ pub struct SetPointResult {
 }
 
 /// A single axis's temperature model.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ThermalModel {
     /// The sensor.
     pub sensor_id: String,
@@ -153,6 +184,10 @@ pub struct ThermalModel {
     pub tolerance_k: f64,
     /// How each degree was chosen (`backward`, `forward`), or `fixed`.
     pub selection: String,
+    /// The parameters it was fitted with, as asked (what a correction or
+    /// a reprocessing of a stored model fits with again).
+    #[serde(default)]
+    pub fitted_with: ThermalParams,
     /// The set points, coolest first.
     pub set_points: Vec<SetPointResult>,
     /// Each coefficient's polynomial `c(T) = Σ a_d (T − T_ref)^d`, its
@@ -160,12 +195,9 @@ pub struct ThermalModel {
     pub coefficients: TermMap<Polynomial>,
 }
 
-/// The temperature model of `submission` (module doc).
-pub fn model(
-    submission: &Submission,
-    tolerance_k: f64,
-    options: &Options,
-) -> Result<ThermalModel, Invalid> {
+/// The temperature model of `submission` (module doc), fitted with `fit`.
+pub fn model(submission: &Submission, fit: &Fit) -> Result<ThermalModel, Invalid> {
+    let (tolerance_k, options) = (fit.tolerance_k, &fit.options);
     let (groups, at, options) =
         grouped(submission.temperatures_c.as_deref(), tolerance_k, options)?;
     let test = &submission.test;
@@ -214,6 +246,7 @@ pub fn model(
         unit: submission.unit.clone(),
         tolerance_k,
         selection: selection(&options),
+        fitted_with: fit.params,
         set_points,
         coefficients: TermMap(coefficients),
     })
@@ -333,9 +366,39 @@ fn refusal(e: &ThermalError, at: &[f64]) -> Invalid {
     Invalid::one("/runs", detail)
 }
 
+/// The triad's temperature `model` as a file in `format`, described by
+/// `source`: `json` the model itself, `c` [`firmware::c_header`], `px4`
+/// and `ardupilot` their parameters.
+pub fn export(
+    model: &TriadThermalModel,
+    format: Format,
+    source: &str,
+) -> Result<String, firmware::ThermalExportError> {
+    match format {
+        Format::Json => Ok(serde_json::to_string_pretty(model).unwrap_or_default()),
+        Format::C => Ok(firmware::c_header(model, source)),
+        Format::Px4 => px4(model, source),
+        Format::ArduPilot => ardupilot(model, source),
+    }
+}
+
+/// The file name a temperature model in `format` is suggested under.
+pub fn file_name(format: Format) -> &'static str {
+    match format {
+        Format::Json => "accelcal-thermal-triad.json",
+        Format::C => "accelcal_thermal_triad.h",
+        Format::Px4 => "accelcal-px4-thermal.params",
+        Format::ArduPilot => "accelcal-ardupilot-thermal.param",
+    }
+}
+
+mod ardupilot;
+mod at;
+pub mod firmware;
 mod px4;
 mod triad;
 
+pub use ardupilot::ardupilot;
 pub use px4::px4;
 pub use triad::{TriadSetPoint, TriadThermalModel, triad_model};
 

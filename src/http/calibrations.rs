@@ -1,4 +1,5 @@
-//! `POST /v1/calibrations` and reading calibrations back.
+//! `POST /v1/calibrations`, `POST /v1/calibrations/thermal` and reading
+//! calibrations back.
 
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{HeaderMap, HeaderValue, header};
@@ -8,12 +9,14 @@ use uuid::Uuid;
 use super::auth::require;
 use super::body::Body;
 use super::problem::Problem;
+use super::query::Params;
 use super::stored::{created, idempotency_key};
 use super::ui::dcc::prefers_xml;
 use super::ui::issue;
 use super::{AppState, path_id};
 use crate::app::{Kind, submit};
 use crate::domain::auth::{Principal, Role};
+use crate::domain::thermal::ThermalParams;
 
 /// `POST /v1/calibrations`: check, identify, fuse, store durably, answer 201;
 /// with an `Idempotency-Key`, at most once per key.
@@ -55,8 +58,72 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
-    let key = idempotency_key(&headers, &principal, &body)?;
+    let key = idempotency_key(&headers, &principal, &body, None)?;
     let submitted = submit::submit(&state.lab, &principal, body, key, Kind::SingleAxis).await?;
+    Ok(created(submitted))
+}
+
+/// `POST /v1/calibrations/thermal`: a single axis tumbled at several
+/// temperatures, its temperature model fitted and stored as one
+/// calibration of its sensor; with an `Idempotency-Key`, at most once per
+/// key.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations/thermal",
+    tag = "calibrations",
+    operation_id = "submitThermalCalibration",
+    summary = "Fit a single axis's coefficients over temperature and store the model.",
+    description = "The body of `POST /v1/calibrations` (JSON or CSV), each run with its \
+        `temperature_c`, and the fit's parameters of `POST /v1/identify/thermal`. The runs are \
+        grouped into set points, each identified and fused, and every coefficient's polynomial \
+        fitted; the model is stored as one calibration of the sensor whose `coefficients` are \
+        the model at `T_ref`: history, stability, review and withdrawal follow, and \
+        `GET /v1/sensors/{sensor_id}/coefficients?temperature_c=` and `/compensate` with \
+        `temperature_c` evaluate it within its range. A sensor type or reference standards \
+        are refused (a temperature model is not judged or budgeted yet), as is a typed sensor; \
+        its certificate is not issued yet.",
+    params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
+    request_body(content(
+        (super::openapi::SubmissionSchema = "application/json"),
+        (super::openapi::RawBodySchema = "text/csv"),
+    )),
+    responses(
+        (status = 201, description = "Stored (or, for a retried Idempotency-Key, stored before).",
+            body = crate::app::thermal::StoredThermal,
+            headers(
+                ("Location" = String, description = "The calibration's URL."),
+                ("Idempotent-Replayed" = String, description = "`true` when this answer replays an earlier request with the same key."),
+            ),
+            links(
+                ("GetCalibration" = (operation_id = "getCalibration", parameters(("id" = "$response.body#/id")))),
+                ("GetSensor" = (operation_id = "getSensor", parameters(("sensor_id" = "$response.body#/sensor_id")))),
+            )),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 409, response = super::openapi::ProblemResponse),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn submit_thermal(
+    State(state): State<AppState>,
+    principal: Principal,
+    headers: HeaderMap,
+    Params(params): Params<ThermalParams>,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Station)?;
+    let fit = params
+        .checked()
+        .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
+    let fitted_with = serde_json::to_string(&fit.params).map_err(|_| Problem::internal())?;
+    let key = idempotency_key(
+        &headers,
+        &principal,
+        &body,
+        Some(&format!("thermal {fitted_with}")),
+    )?;
+    let submitted = submit::submit(&state.lab, &principal, body, key, Kind::Thermal(fit)).await?;
     Ok(created(submitted))
 }
 
@@ -73,7 +140,7 @@ fn unknown(id: Uuid) -> Problem {
     params(super::openapi::CalibrationIdPath),
     responses(
         (status = 200, description = "The result, as answered when it was submitted: a single-axis \
-            calibration's, or a triad's (`kind: triad`).", body = super::openapi::StoredResultSchema),
+            calibration's, a triad's (`kind: triad`) or a temperature model's (`kind: thermal`).", body = super::openapi::StoredResultSchema),
         (status = 404, response = super::openapi::NotFound),
         super::openapi::Always,
     )

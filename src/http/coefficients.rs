@@ -19,7 +19,10 @@ use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::rendered::{APPLICATION_JSON, ById};
 use crate::domain::auth::{Principal, Role};
-use crate::domain::compensate::{CompensateRequest, Compensated};
+use crate::domain::compensate::{
+    CompensateRequest, Compensated, TemperatureUsed, Temperatures, no_model, outside_range,
+};
+use crate::domain::field::Invalid;
 use crate::domain::review::{Basis, State as ReviewState};
 use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
@@ -59,6 +62,11 @@ pub struct Coefficients {
     /// single-axis sensor; a triad's `coefficients` are empty).
     #[serde(skip_serializing_if = "Option::is_none")]
     triad: Option<crate::store::TriadElements>,
+    /// For a temperature model: the temperature `coefficients` and
+    /// `std_errors` are evaluated at (`temperature_c`, else `T_ref`), the
+    /// model's range, and whether it was extrapolated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    temperature: Option<TemperatureUsed>,
     /// Which calibrations are served: `not_rejected` (every calibration not
     /// rejected or withdrawn) or `approved_only` (`--require-approval`).
     basis: Basis,
@@ -68,7 +76,12 @@ impl Coefficients {
     /// The coefficients of `summary`, judged at `now`, served on `basis`
     /// (which it counts on: it is the sensor's latest on it).
     fn of(summary: CalibrationSummary, now: Timestamp, basis: Basis) -> Self {
+        let temperature = summary
+            .thermal
+            .as_ref()
+            .map(|m| TemperatureUsed::of(m, Temperatures::One(m.reference_c())));
         Coefficients {
+            temperature,
             sensor_id: summary.sensor_id,
             calibration_id: summary.id,
             performed_at: summary.performed_at,
@@ -109,6 +122,75 @@ impl RequireQuery {
             )),
         }
     }
+}
+
+/// The query of `/coefficients`: [`RequireQuery`]'s, and a temperature.
+#[derive(Debug, Deserialize, IntoParams)]
+#[serde(deny_unknown_fields)]
+#[into_params(parameter_in = Query)]
+pub struct CoefficientsQuery {
+    /// `usable`: answer 409 (`not-usable`) instead of coefficients whose
+    /// calibration failed or is overdue.
+    #[param(value_type = Option<String>, pattern = "^usable$")]
+    require: Option<String>,
+    /// The sensor's temperature, °C: the coefficients of a temperature
+    /// model evaluated there, with their standard uncertainties (422 for a
+    /// calibration that is not one, or outside its range unless
+    /// `allow_extrapolation`).
+    #[param(minimum = -100.0, maximum = 200.0)]
+    temperature_c: Option<f64>,
+    /// `true`: evaluate a temperature model outside its range too (the
+    /// answer says `extrapolated` and by how many kelvin); default false.
+    allow_extrapolation: Option<bool>,
+}
+
+/// The coefficients of `sensor_id`'s latest calibration, a temperature
+/// model, evaluated at `t` °C (extrapolated only when `allow`).
+async fn at_temperature(
+    state: &AppState,
+    sensor_id: &str,
+    t: f64,
+    allow: bool,
+    usable: bool,
+) -> Result<Response, Problem> {
+    let limits = crate::domain::limits::TEMPERATURE_C;
+    if !limits.contains(&t) {
+        return Err(Problem::bad_parameter(
+            "temperature_c",
+            format!(
+                "must be a temperature from {} to {} °C",
+                limits.start(),
+                limits.end()
+            ),
+        ));
+    }
+    let now = Timestamp::now();
+    let basis = state.web.basis;
+    let latest = if basis == Basis::ApprovedOnly {
+        latest_approved(state, sensor_id).await?
+    } else {
+        sensor(state, sensor_id).await?.latest
+    };
+    if usable {
+        let usability =
+            Usability::of(latest.verdict, latest.due_at, now).in_state(latest.state, basis);
+        refuse_unusable(&latest, &usability)?;
+    }
+    let refused = |detail: String| {
+        Problem::new(Kind::Validation, format!("temperature_c {detail}")).naming("temperature_c")
+    };
+    let Some(model) = latest.thermal.clone() else {
+        return Err(refused(no_model(latest.id)));
+    };
+    let at = model.at(t);
+    if at.outside_k > 0.0 && !allow {
+        return Err(refused(outside_range(t, at.outside_k, &model, latest.id)));
+    }
+    let mut c = Coefficients::of(latest, now, basis);
+    c.coefficients = at.coefficients;
+    c.std_errors = at.std_errors;
+    c.temperature = Some(TemperatureUsed::of(&model, Temperatures::One(t)));
+    Ok(Json(c).into_response())
 }
 
 /// The 409 for coefficients of `summary` whose usability is `u`.
@@ -158,13 +240,16 @@ async fn latest_approved(state: &AppState, sensor_id: &str) -> Result<Calibratio
         or is overdue are not usable. With `require=usable` such coefficients are \
         a 409 instead. The latest calibration is the latest not rejected or \
         withdrawn, or with `--require-approval` the latest approved (`basis` \
-        says which); a sensor with none is a 404.",
-    params(super::openapi::SensorIdPath, RequireQuery),
+        says which); a sensor with none is a 404. A temperature model's coefficients are \
+        those at its `T_ref` unless `temperature_c` asks for another temperature (`temperature` \
+        says which, and the model's range).",
+    params(super::openapi::SensorIdPath, CoefficientsQuery),
     responses(
         (status = 200, description = "The coefficients.", body = Coefficients),
         (status = 400, response = super::openapi::BadRequest),
         (status = 404, response = super::openapi::NotFound),
         (status = 409, response = super::openapi::NotUsable),
+        (status = 422, response = super::openapi::ProblemResponse),
         super::openapi::Always,
     )
 )]
@@ -172,10 +257,17 @@ pub async fn coefficients(
     State(state): State<AppState>,
     principal: Principal,
     Path(sensor_id): Path<String>,
-    Params(query): Params<RequireQuery>,
+    Params(query): Params<CoefficientsQuery>,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Reader)?;
-    let usable = query.usable()?;
+    let usable = RequireQuery {
+        require: query.require,
+    }
+    .usable()?;
+    if let Some(t) = query.temperature_c {
+        let allow = query.allow_extrapolation.unwrap_or(false);
+        return at_temperature(&state, &sensor_id, t, allow, usable).await;
+    }
     let now = Timestamp::now();
     if state.web.basis == Basis::ApprovedOnly {
         let latest = latest_approved(&state, &sensor_id).await?;
@@ -325,14 +417,26 @@ pub async fn compensate(
     if usable {
         refuse_unusable(&summary, &usability)?;
     }
-    let (a_i, g) = match &summary.triad {
-        None => (
-            Some(request.compensate(&summary.coefficients, summary.id)?),
-            None,
-        ),
-        Some(t) => (
+    if request.temperature_c.is_some() && summary.thermal.is_none() {
+        return Err(Problem::validation(Invalid::one(
+            "/temperature_c",
+            no_model(summary.id),
+        )));
+    }
+    let (a_i, g, temperature) = match (&summary.triad, &summary.thermal) {
+        (Some(t), _) => (
             None,
             Some(request.compensate_triad(&t.model(), summary.id)?),
+            None,
+        ),
+        (None, Some(model)) => {
+            let (a_i, used) = request.compensate_at(model, summary.id)?;
+            (Some(a_i), None, Some(used))
+        }
+        (None, None) => (
+            Some(request.compensate(&summary.coefficients, summary.id)?),
+            None,
+            None,
         ),
     };
     Ok(Json(Compensated {
@@ -346,6 +450,7 @@ pub async fn compensate(
         unit: summary.unit,
         a_i,
         g,
+        temperature,
         state: summary.state,
         basis,
     }))

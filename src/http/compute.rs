@@ -10,13 +10,15 @@ use axum::response::{IntoResponse, Response};
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::problem::Problem;
+use super::problem::{Kind, Problem};
 use super::query::Params;
 use crate::app::{single_axis, thermal};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::fuse::FuseRequest;
-use crate::domain::thermal::{ThermalModel, ThermalParams, px4};
+use crate::domain::thermal::firmware::ThermalExportError;
+use crate::domain::thermal::{ThermalModel, ThermalParams, export as model_file, file_name};
 use crate::domain::timestamp::Timestamp;
+use crate::domain::triad_export::Format;
 
 /// `POST /v1/identify`: a submission computed and returned, not stored.
 ///
@@ -92,11 +94,11 @@ pub async fn identify_thermal(
     body: Body,
 ) -> Result<Json<ThermalModel>, Problem> {
     require(&principal, Role::Reader)?;
-    let (tolerance_k, options) = params
+    let fit = params
         .checked()
         .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
     Ok(Json(
-        thermal::identify(&state.lab, &principal, body, tolerance_k, options).await?,
+        thermal::identify(&state.lab, &principal, body, fit).await?,
     ))
 }
 
@@ -120,8 +122,9 @@ pub async fn identify_thermal(
     request_body(content((crate::domain::triad::TriadBody = "application/json"))),
     responses(
         (status = 200, description = "The set points and each element's polynomial; with \
-            `export=px4`, PX4's parameter file.",
-            content((super::openapi::TriadThermalModelSchema = "application/json"), (String = "text/plain"))),
+            `export`, the file asked for.",
+            content((super::openapi::TriadThermalModelSchema = "application/json"), (String = "text/plain"), (String = "text/x-c"))),
+        (status = 409, response = super::openapi::NotCarried),
         (status = 413, response = super::openapi::TooLarge),
         super::openapi::Always,
         super::openapi::BodyProblems,
@@ -136,28 +139,36 @@ pub async fn identify_thermal_triad(
     require(&principal, Role::Reader)?;
     let (params, export) =
         super::query::parse_but::<ThermalParams>(query.as_deref().unwrap_or_default(), "export")?;
-    if export.as_deref().is_some_and(|e| e != "px4") {
-        return Err(Problem::bad_parameter("export", "must be px4"));
-    }
-    let (tolerance_k, options) = params
+    let format = export
+        .as_deref()
+        .map(|e| {
+            Format::parse(e).ok_or_else(|| {
+                Problem::bad_parameter("export", "must be json, c, px4 or ardupilot")
+            })
+        })
+        .transpose()?;
+    let fit = params
         .checked()
         .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
-    let model = thermal::identify_triad(&state.lab, body, tolerance_k, options).await?;
-    if export.is_none() {
+    let model = thermal::identify_triad(&state.lab, body, fit.tolerance_k, fit.options).await?;
+    let Some(format) = format else {
         return Ok(Json(model).into_response());
-    }
+    };
     let source = format!(
         "triad {}, computed by accelcal {}",
         model.sensor_id.as_deref().unwrap_or("(no sensor_id)"),
         env!("CARGO_PKG_VERSION")
     );
-    let file = px4(&model, &source).map_err(|e| {
-        Problem::validation(crate::domain::field::Invalid::one("/unit", e.to_string()))
+    let file = model_file(&model, format, &source).map_err(|e| match e {
+        ThermalExportError::Unit(e) => {
+            Problem::validation(crate::domain::field::Invalid::one("/unit", e.to_string()))
+        }
+        e @ ThermalExportError::NotCarried { .. } => Problem::new(Kind::NotCarried, e.to_string()),
     })?;
     Ok(super::firmware::attachment(
         file,
-        "text/plain; charset=utf-8",
-        "accelcal-px4-thermal.params",
+        format.media_type(),
+        file_name(format),
     ))
 }
 
@@ -165,9 +176,14 @@ pub async fn identify_thermal_triad(
 #[derive(Debug, serde::Deserialize, utoipa::IntoParams)]
 #[into_params(parameter_in = Query)]
 pub struct ThermalExportQuery {
-    /// `px4`: answer PX4's thermal compensation parameters
-    /// (`TC_A0_*`: the offset polynomial per axis) instead of the model.
-    #[param(pattern = "^px4$")]
+    /// Answer a file instead of the model: `json` (the model), `c` (a C
+    /// header of every polynomial), `px4` (PX4's `TC_A0_*`) or
+    /// `ardupilot` (ArduPilot's `INS_TCAL1_*` with the offsets at their
+    /// calibration temperature). PX4 and ArduPilot carry the offset's
+    /// polynomial only: when an element of S changes over the range by
+    /// more than its expanded uncertainty they are refused with 409
+    /// `not-carried`.
+    #[param(pattern = "^(json|c|px4|ardupilot)$")]
     pub export: Option<String>,
 }
 

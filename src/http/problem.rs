@@ -60,6 +60,10 @@ pub enum Kind {
     /// triad's (or the other way round): a sensor's calibrations are all of
     /// one kind.
     WrongKind,
+    /// 409: the firmware format asked for cannot carry a term of the
+    /// temperature model that matters over its range (an element of `S`
+    /// changing by more than its expanded uncertainty).
+    NotCarried,
     /// 412: a conditional write (`If-Match`, `If-None-Match`) whose
     /// precondition does not hold: the record changed since it was read.
     PreconditionFailed,
@@ -81,7 +85,7 @@ pub enum Kind {
 
 impl Kind {
     /// Every kind, for documentation.
-    pub const ALL: [Kind; 20] = [
+    pub const ALL: [Kind; 21] = [
         Kind::Malformed,
         Kind::Validation,
         Kind::Unauthorized,
@@ -94,6 +98,7 @@ impl Kind {
         Kind::StateConflict,
         Kind::Incomplete,
         Kind::WrongKind,
+        Kind::NotCarried,
         Kind::PreconditionFailed,
         Kind::TooLarge,
         Kind::TooManyRequests,
@@ -119,6 +124,7 @@ impl Kind {
             Kind::StateConflict => "state-conflict",
             Kind::Incomplete => "incomplete-record",
             Kind::WrongKind => "wrong-kind",
+            Kind::NotCarried => "not-carried",
             Kind::PreconditionFailed => "precondition-failed",
             Kind::TooLarge => "too-large",
             Kind::TooManyRequests => "too-many-requests",
@@ -144,7 +150,8 @@ impl Kind {
             Kind::NotUsable => "Coefficients not usable",
             Kind::StateConflict => "Not allowed in the calibration's state",
             Kind::Incomplete => "Records incomplete for this document",
-            Kind::WrongKind => "Single-axis and triad calibrations do not mix",
+            Kind::WrongKind => "Not for this kind of calibration",
+            Kind::NotCarried => "The format cannot carry the model",
             Kind::PreconditionFailed => "The record changed since it was read",
             Kind::TooLarge => "Request body too large",
             Kind::TooManyRequests => "Too many requests",
@@ -170,7 +177,8 @@ impl Kind {
             | Kind::NotUsable
             | Kind::StateConflict
             | Kind::Incomplete
-            | Kind::WrongKind => StatusCode::CONFLICT,
+            | Kind::WrongKind
+            | Kind::NotCarried => StatusCode::CONFLICT,
             Kind::PreconditionFailed => StatusCode::PRECONDITION_FAILED,
             Kind::TooLarge => StatusCode::PAYLOAD_TOO_LARGE,
             Kind::TooManyRequests => StatusCode::TOO_MANY_REQUESTS,

@@ -18,11 +18,14 @@ use crate::store::IdempotencyKey;
 pub static IDEMPOTENCY_KEY: HeaderName = HeaderName::from_static("idempotency-key");
 
 /// The idempotency key of a request, if it sent one: 1–255 visible ASCII
-/// characters, scoped to the principal, fingerprinted with the body.
+/// characters, scoped to the principal, fingerprinted with the body and,
+/// for a kind other than a single axis, with `kind` (what the body is
+/// submitted as, and how it is fitted).
 pub fn idempotency_key(
     headers: &HeaderMap,
     principal: &Principal,
     body: &Body,
+    kind: Option<&str>,
 ) -> Result<Option<IdempotencyKey>, Problem> {
     let mut values = headers.get_all(&IDEMPOTENCY_KEY).iter();
     let Some(value) = values.next() else {
@@ -45,6 +48,13 @@ pub fn idempotency_key(
             )
         })?;
     let mut hash = Sha256::new();
+    // What the body is submitted as, unless a single axis (whose hash is
+    // as it always was): the same key and bytes sent as another kind, or
+    // fitted otherwise, are another request.
+    if let Some(kind) = kind {
+        hash.update(kind.as_bytes());
+        hash.update(b"\n");
+    }
     hash.update(match body.media {
         Media::Json => b"json\n".as_slice(),
         Media::Csv => b"csv\n".as_slice(),

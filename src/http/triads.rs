@@ -63,7 +63,7 @@ pub async fn submit(
     body: Body,
 ) -> Result<Response, Problem> {
     require(&principal, Role::Station)?;
-    let key = idempotency_key(&headers, &principal, &body)?;
+    let key = idempotency_key(&headers, &principal, &body, Some("triad"))?;
     let submitted = submit::submit(&state.lab, &principal, body, key, Kind::Triad).await?;
     Ok(created(submitted))
 }

@@ -14,6 +14,7 @@ use crate::domain::nonconformity::{
 };
 use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
+use crate::domain::thermal::ThermalModel;
 use crate::domain::timestamp::Timestamp;
 
 /// Everything stored for one calibration, written in one transaction.
@@ -60,6 +61,9 @@ pub struct NewCalibration {
     pub expanded: Option<TermMap<f64>>,
     /// A triad's elements (none for a single-axis calibration).
     pub triad: Option<TriadElements>,
+    /// A single axis's temperature model, when it is one (issue 45): its
+    /// `coefficients` are then the model at `T_ref`.
+    pub thermal: Option<ThermalModel>,
     /// The reference standards the test used, each with the calibration
     /// date of its certificate in force when it was performed: what the
     /// store judges against the standards' nonconformities in the
@@ -138,6 +142,16 @@ impl NewCalibration {
         {
             return Err(StoreError::Refused(format!("the triad's `{name}` is {v}")));
         }
+        if let Some((name, v)) = self
+            .thermal
+            .iter()
+            .flat_map(ThermalModel::numbers)
+            .find(|(_, v)| !v.is_finite())
+        {
+            return Err(StoreError::Refused(format!(
+                "the temperature model's `{name}` is {v}"
+            )));
+        }
         Ok(())
     }
 }
@@ -161,6 +175,7 @@ impl From<&NewCalibration> for CalibrationSummary {
             due_at: n.due_at,
             expanded: n.expanded.clone(),
             triad: n.triad.clone(),
+            thermal: n.thermal.clone(),
             state: State::Submitted,
         }
     }
@@ -217,6 +232,12 @@ pub struct CalibrationSummary {
     /// `coefficients` are its result; a triad's `coefficients` are empty).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub triad: Option<TriadElements>,
+    /// A single axis's temperature model, when it is one (issue 45; its
+    /// `coefficients` are the model at `T_ref`): served by the
+    /// coefficients at a temperature and the calibration's document, not
+    /// in lists.
+    #[serde(skip)]
+    pub thermal: Option<ThermalModel>,
     /// Where it stands: `submitted`, `approved`, `rejected` or `withdrawn`
     /// (only the first two count).
     pub state: State,
@@ -285,6 +306,7 @@ impl CalibrationSummary {
             due_at: None,
             expanded: None,
             triad: None,
+            thermal: None,
             state: State::Submitted,
         }
     }

@@ -38,6 +38,8 @@ mod standard_periods;
 mod standards;
 mod storage;
 mod thermal;
+mod thermal_export;
+mod thermal_stored;
 mod thermal_triad;
 mod trace;
 mod traceability;

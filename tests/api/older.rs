@@ -63,6 +63,7 @@ pub async fn store_by_an_older_method(
                         .collect(),
                 )),
                 triad: None,
+                thermal: None,
                 standards: Vec::new(),
             },
             None,

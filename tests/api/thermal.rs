@@ -13,7 +13,7 @@ use accelcal_testkit::Engine::Sqlite;
 use accelcal_testkit::*;
 
 /// The chamber's set points, °C, and the reference (their mean).
-const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
+pub const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
 
 /// The planted model at `t` °C: `(k0, ki, kp)`.
 fn planted(t: f64) -> [f64; 3] {
@@ -30,7 +30,7 @@ fn jitter(k: u64) -> f64 {
 /// Eight runs at each of `set_points` (fused in four batches), two samples
 /// a position, the run's temperature within ±0.02 K of its set point (a
 /// chamber held steady), noise 1e-5.
-fn body(set_points: &[f64]) -> Value {
+pub fn body(set_points: &[f64]) -> Value {
     let angles = [0.0f64, 90.0, 180.0, 270.0];
     let mut runs = Vec::new();
     for (s, &t) in set_points.iter().enumerate() {
@@ -58,7 +58,7 @@ fn body(set_points: &[f64]) -> Value {
            "runs": runs, "batches": 4})
 }
 
-fn f(v: &Value) -> f64 {
+pub fn f(v: &Value) -> f64 {
     v.as_f64().unwrap()
 }
 

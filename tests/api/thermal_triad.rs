@@ -15,18 +15,25 @@ use accelcal_testkit::*;
 use crate::thermal::is_the_weighted_fit;
 
 /// The chamber's set points, °C (their mean, the reference, is 20).
-const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
+pub const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
 
 /// The planted triad at `t` °C: `b` (m/s², x quadratic, y linear, z
 /// constant) and `S` (m/s² per g: the scale factors linear, the rest
 /// constant).
 fn planted(t: f64) -> ([f64; 3], [[f64; 3]; 3]) {
+    planted_with(t, 1.0)
+}
+
+/// [`planted`] with the scale factors' temperature coefficients times
+/// `scale_tc` (0: `S` constant).
+pub fn planted_with(t: f64, scale_tc: f64) -> ([f64; 3], [[f64; 3]; 3]) {
     let dt = t - 20.0;
+    let (sx, sy, sz) = (1e-4 * scale_tc, -5e-5 * scale_tc, 2e-4 * scale_tc);
     let b = [0.05 + 1e-3 * dt + 2e-5 * dt * dt, -0.03 + 5e-4 * dt, 0.02];
     let s = [
-        [9.81 * (1.0 + 1e-4 * dt), 0.002, -0.001],
-        [0.0015, 9.79 * (1.0 - 5e-5 * dt), 0.003],
-        [-0.002, 0.001, 9.83 * (1.0 + 2e-4 * dt)],
+        [9.81 * (1.0 + sx * dt), 0.002, -0.001],
+        [0.0015, 9.79 * (1.0 + sy * dt), 0.003],
+        [-0.002, 0.001, 9.83 * (1.0 + sz * dt)],
     ];
     (b, s)
 }
@@ -50,13 +57,18 @@ const FACES: [[f64; 3]; 6] = [
 /// batch's variance from two runs has one degree of freedom, and the
 /// weights 1/se² then follow its luck more than the noise), two samples
 /// a face, each run within ±0.02 K of its set point, noise 2e-4 m/s².
-fn body(set_points: &[f64]) -> Value {
+pub fn body(set_points: &[f64]) -> Value {
+    body_with(set_points, 1.0)
+}
+
+/// [`body`] of [`planted_with`]`(·, scale_tc)`.
+pub fn body_with(set_points: &[f64], scale_tc: f64) -> Value {
     let mut runs = Vec::new();
     for (sp, &t) in set_points.iter().enumerate() {
         for r in 0..10u64 {
             let k = (sp as u64) * 1000 + r * 100;
             let temperature = t + 0.02 * jitter(k);
-            let (b, s) = planted(temperature);
+            let (b, s) = planted_with(temperature, scale_tc);
             let samples: Vec<Value> = FACES
                 .iter()
                 .enumerate()
@@ -79,7 +91,7 @@ fn body(set_points: &[f64]) -> Value {
            "runs": runs, "batches": 2})
 }
 
-fn f(v: &Value) -> f64 {
+pub fn f(v: &Value) -> f64 {
     v.as_f64().unwrap()
 }
 
@@ -283,103 +295,4 @@ async fn refusals_name_what_to_fix() {
     )
     .await;
     assert_eq!(p["parameter"], "degree", "{p}");
-}
-
-/// PX4's thermal parameters evaluate, under PX4's own formula
-/// (`calc_thermal_offsets_3D`: `X0 + X1 dT + X2 dT² + X3 dT³`, `dT` the
-/// temperature clamped to `TMIN…TMAX` less `TREF`), to the model's `b(T)`
-/// at every temperature of the range, and to its ends outside it; `S(T)`
-/// is said not carried.
-#[tokio::test]
-async fn px4_parameters_evaluate_to_the_models_bias() {
-    let app = TestApp::spawn(Sqlite).await;
-    let b = body(&CHAMBER);
-    let model: Value = app
-        .post("/v1/identify/thermal/triad", ADMIN, &b)
-        .await
-        .json()
-        .await
-        .unwrap();
-    let res = app
-        .post(
-            "/v1/identify/thermal/triad?export=px4&tolerance_k=0.5",
-            ADMIN,
-            &b,
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::OK);
-    assert_eq!(
-        res.headers()["content-type"].to_str().unwrap(),
-        "text/plain; charset=utf-8"
-    );
-    let file = res.text().await.unwrap();
-    let params: std::collections::HashMap<String, (f64, String)> = file
-        .lines()
-        .filter(|l| !l.starts_with('#'))
-        .map(|l| {
-            let f: Vec<&str> = l.split('\t').collect();
-            assert_eq!((f.len(), f[0], f[1]), (5, "1", "1"), "{l}");
-            (f[2].to_owned(), (f[3].parse().unwrap(), f[4].to_owned()))
-        })
-        .collect();
-    assert_eq!(params["TC_A_ENABLE"], (1.0, "6".to_owned()));
-    let p = |name: &str| {
-        let (v, t) = &params[name];
-        assert_eq!(t, "9", "{name}");
-        *v
-    };
-    assert_eq!(p("TC_A0_TREF"), 20.0);
-    let (t_min, t_max) = (p("TC_A0_TMIN"), p("TC_A0_TMAX"));
-    assert!((t_min - f(&model["b"][0]["range_c"][0])).abs() < 1e-6);
-    assert!((t_max - f(&model["b"][0]["range_c"][1])).abs() < 1e-6);
-    // The model's b_i(T) from its own coefficients, and PX4's offset.
-    let model_b = |i: usize, t: f64| -> f64 {
-        let poly = &model["b"][i];
-        let dt = t - f(&poly["reference_c"]);
-        poly["coefficients"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .enumerate()
-            .map(|(d, a)| f(a) * dt.powi(d as i32))
-            .sum()
-    };
-    let px4_offset = |i: usize, t: f64| -> f64 {
-        let dt = t.clamp(t_min, t_max) - p("TC_A0_TREF");
-        (0..4)
-            .map(|d| p(&format!("TC_A0_X{d}_{i}")) * dt.powi(d))
-            .sum()
-    };
-    for t in [-20.0f64, -7.5, 0.0, 13.7, 20.0, 33.3, 45.0, 59.9] {
-        let t = t.clamp(t_min, t_max);
-        for i in 0..3 {
-            let (want, got) = (model_b(i, t), px4_offset(i, t));
-            assert!(
-                (want - got).abs() < 1e-9,
-                "b_{i}({t}): {want} against {got}"
-            );
-        }
-    }
-    // Outside the range PX4 holds the end's value, as the model's range asks.
-    assert!((px4_offset(0, 80.0) - model_b(0, t_max)).abs() < 1e-9);
-    assert!((px4_offset(0, -40.0) - model_b(0, t_min)).abs() < 1e-9);
-    assert!(file.contains("NOT CARRIED: S_xx(T)"), "{file}");
-    assert!(file.contains("CAL_ACC0_xOFF to 0"), "{file}");
-    // Only px4 is a format here; outputs in no acceleration unit cannot be.
-    let p = problem(
-        app.post("/v1/identify/thermal/triad?export=c", ADMIN, &b)
-            .await,
-        StatusCode::BAD_REQUEST,
-    )
-    .await;
-    assert_eq!(p["parameter"], "export", "{p}");
-    let mut volts = b.clone();
-    volts["unit"] = json!("V");
-    let p = problem(
-        app.post("/v1/identify/thermal/triad?export=px4", ADMIN, &volts)
-            .await,
-        StatusCode::UNPROCESSABLE_ENTITY,
-    )
-    .await;
-    assert!(p["detail"].as_str().unwrap().contains("m/s²"), "{p}");
 }

@@ -1386,6 +1386,7 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
                 due_at: None,
                 expanded: None,
                 triad: Some(elements),
+                thermal: None,
                 standards: Vec::new(),
             },
             None,

@@ -69,6 +69,7 @@ fn calibration(sensor: &str, performed_at: &str) -> NewCalibration {
         due_at: None,
         expanded: Some(TermMap(vec![(Term::K0, 2e-6), (Term::Ki, 4e-6)])),
         triad: None,
+        thermal: None,
         standards: Vec::new(),
     }
 }

@@ -188,7 +188,17 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=16).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=17).collect::<Vec<_>>());
+    // Version 17: a calibration's temperature model, checked an object.
+    let thermal = c
+        .query(
+            "SELECT 1 FROM information_schema.columns \
+             WHERE table_name = 'calibrations' AND column_name = 'thermal'",
+            &[],
+        )
+        .await
+        .unwrap();
+    assert_eq!(thermal.len(), 1, "version 17's column");
     // Version 16: webhook endpoints, their log, the statuses announced.
     let tables = c
         .query(

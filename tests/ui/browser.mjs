@@ -147,11 +147,12 @@ try {
     await must(201, api('POST', '/v1/calibrations', { body: JSON.stringify(synthetic(i)) }), `synthetic ${i}`);
   }
   const triad = await must(201, api('POST', '/v1/calibrations/triad', { body: fs.readFileSync('examples/triad-recording.json') }), 'triad');
+  const thermal = await must(201, api('POST', '/v1/calibrations/thermal', { body: fs.readFileSync('examples/thermal-chamber.json') }), 'temperature model');
   const history = (await must(200, api('GET', '/v1/sensors/SYN-001/calibrations?limit=500'), 'history')).items;
   const stability = await must(200, api('GET', '/v1/sensors/SYN-001/stability'), 'stability');
   const sensors = (await must(200, api('GET', '/v1/sensors'), 'sensors')).items;
   assert.equal(history.length, 12);
-  ok('seeded: the paper, its recalibration, twelve synthetic calibrations and a triad');
+  ok('seeded: the paper, its recalibration, twelve synthetic calibrations, a triad and a temperature model');
 
   // ------------------------------------------------------------ sign in
   const context = await newContext({ viewport: { width: 1280, height: 900 } });
@@ -326,6 +327,16 @@ try {
   close(plotted, triad.b[0], 1e-12, 'b_x charted as stored');
   ok('triad: the page shows b and T as stored, offers the firmware files and the DCC, and the sensor page charts and lists its elements');
 
+  // --------------------------------------------------- temperature model
+  await page.goto(`/ui/calibrations/${thermal.id}`);
+  const polynomials = await page.$$eval('#thermal-polynomials tbody tr', (trs) => trs.map((tr) => [tr.querySelector('th').textContent, tr.querySelectorAll('td')[3].textContent]));
+  assert.deepEqual(polynomials.map((r) => r[0]), ['k0', 'ki', 'kp'], 'one polynomial per term');
+  const k0 = thermal.thermal.coefficients.k0;
+  close(num(polynomials[0][1]), k0.coefficients[1], 1e-3, 'a_1 of k0 on the page');
+  assert.equal(await page.$$eval('#thermal-set-points tbody tr', (trs) => trs.length), 5, 'five set points');
+  assert.equal(await page.$('#dcc-link'), null, 'no certificate for a temperature model yet');
+  ok('temperature model: the page shows its polynomials and set points as stored, and offers no certificate');
+
   // ---------------------------------- accessibility and screenshots
   const pages = {
     fleet: '/ui/sensors',
@@ -335,6 +346,7 @@ try {
     triad: `/ui/calibrations/${triad.id}`,
     triadCertificate: `/ui/calibrations/${triad.id}/certificate`,
     triadSensor: '/ui/sensors/IMU-DEMO-1',
+    thermal: `/ui/calibrations/${thermal.id}`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

@@ -22,31 +22,24 @@
 //! PX4's own thermal workflow recalibrates). PX4 clamps the temperature to
 //! the range, which is what the model's range asks.
 //!
-//! **Not carried**, and said in the file: PX4 has no thermal scale factor
-//! or cross-axis term, so `S(T)` is not exported; the file states how far
-//! each scale factor moves over the range, for the reader to judge.
+//! **Not carried**: PX4 has no thermal scale factor or cross-axis term,
+//! so `S(T)` is not exported; the file states how far each element moves
+//! over the range against its uncertainty, and the export is refused when
+//! one moves beyond it ([`super::firmware`]).
 
 use std::fmt::Write as _;
 
-use accelcal_core::thermal::Polynomial;
-
 use super::TriadThermalModel;
+use super::firmware::{ThermalExportError, carried, not_carried_lines};
 use crate::domain::triad_export::{ExportError, ascii_escaped, to_m_s2};
 
-/// `p` at `t` °C.
-fn at(p: &Polynomial, t: f64) -> f64 {
-    p.coefficients
-        .iter()
-        .rev()
-        .fold(0.0, |acc, a| acc * (t - p.reference_c) + a)
-}
-
 /// The PX4 parameter file of `model`, described by `source`.
-pub fn px4(model: &TriadThermalModel, source: &str) -> Result<String, ExportError> {
+pub fn px4(model: &TriadThermalModel, source: &str) -> Result<String, ThermalExportError> {
     let per_unit = to_m_s2(&model.unit).ok_or_else(|| ExportError::Unit {
         format: "PX4",
         unit: model.unit.clone(),
     })?;
+    let dropped = carried(model, "PX4")?;
     let reference = model.b[0].reference_c;
     let [t_min, t_max] = model.b[0].range_c;
     let mut out = String::new();
@@ -70,17 +63,7 @@ pub fn px4(model: &TriadThermalModel, source: &str) -> Result<String, ExportErro
         out,
         "# Set TC_A0_ID to the accelerometer's device id before loading."
     );
-    for m in 0..3 {
-        let s = &model.s[m][m];
-        let (lo, hi) = (at(s, t_min), at(s, t_max));
-        let _ = writeln!(
-            out,
-            "# NOT CARRIED: S_{axis}{axis}(T) (PX4 has no thermal scale factor): {lo:.6} at {t_min} C, \
-             {hi:.6} at {t_max} C ({change:+.3e} relative); nor S's cross-axis terms",
-            axis = ["x", "y", "z"][m],
-            change = (hi - lo) / lo,
-        );
-    }
+    not_carried_lines(&mut out, "PX4", &dropped);
     // Temperatures to 1e-6 K; the polynomial's coefficients, which span
     // many decades (a_3 of 1e-9 beside a_0 of 1e-1), to ten significant
     // digits — more than the float PX4 keeps.

@@ -2,8 +2,10 @@ use super::*;
 
 #[test]
 fn parameters_default_as_documented_and_out_of_range_ones_are_named() {
-    let (tolerance, o) = ThermalParams::default().checked().unwrap();
+    let fit = ThermalParams::default().checked().unwrap();
+    let (tolerance, o) = (fit.tolerance_k, fit.options);
     assert_eq!(tolerance, 0.5);
+    assert_eq!(fit.params, ThermalParams::default());
     assert_eq!(
         (o.degree, o.reference_c, o.selection),
         (None, None, Selection::Backward)

@@ -71,7 +71,7 @@ impl Modify for Bearer {
         ),
         responses(
             ProblemResponse, BadRequest, Unauthorized, Forbidden, NotFound, TooLarge,
-            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Incomplete, WrongKind,
+            UnsupportedMediaType, Invalid, NotUsable, StateConflict, Incomplete, WrongKind, NotCarried,
             PreconditionFailed, Unavailable,
         ),
     ),

@@ -61,7 +61,11 @@ problem_response!(
 );
 problem_response!(
     WrongKind,
-    "Single-axis and triad calibrations do not mix (`wrong-kind`): a triad for a sensor id holding single-axis calibrations or the other way round, or a single-axis document asked of a triad; `detail` says what to use instead."
+    "Not for this kind of calibration (`wrong-kind`): single-axis and triad calibrations do not mix (a triad for a sensor id holding single-axis calibrations or the other way round, or a single-axis document asked of a triad), and a temperature model has no certificate yet; `detail` says what to use instead."
+);
+problem_response!(
+    NotCarried,
+    "The firmware format asked for cannot carry the temperature model (`not-carried`): PX4 and ArduPilot correct the offset over temperature only, and an element of S changes over the range by more than its expanded uncertainty; `detail` names each such element with its change; export `json` or `c`."
 );
 problem_response!(
     PreconditionFailed,

@@ -167,6 +167,8 @@ pub struct Page<'a> {
     pub facts: Markup,
     /// Files to download before the documents' links.
     pub downloads: Option<Markup>,
+    /// Whether it has a certificate and a DCC to link to.
+    pub certified: bool,
     /// The kind's sections, before the review.
     pub sections: Markup,
 }

@@ -3,14 +3,15 @@
 //! and the few passages only it writes — over which the certificate and the
 //! DCC are written once, and into a [`Page`], its sections of the one
 //! calibration page. A new kind is a module here and a variant of
-//! [`StoredDoc`].
+//! [`StoredDoc`] (of [`PageDoc`] while it has a page and no documents).
 
 pub mod single_axis;
+pub mod thermal;
 pub mod triad;
 
 use super::certificate::Context;
 use super::document::{Document, Page};
-use super::stored::StoredDoc;
+use super::stored::{PageDoc, StoredDoc};
 
 /// Stored calibration `d` as its documents read it, in context `c`.
 pub fn document<'a>(d: &'a StoredDoc, c: &Context) -> Document<'a> {
@@ -21,9 +22,10 @@ pub fn document<'a>(d: &'a StoredDoc, c: &Context) -> Document<'a> {
 }
 
 /// Stored calibration `d` as its page shows it.
-pub fn page(d: &StoredDoc) -> Page<'_> {
+pub fn page(d: &PageDoc) -> Page<'_> {
     match d {
-        StoredDoc::Axis(d) => single_axis::page::page(d),
-        StoredDoc::Triad(d) => triad::page::page(d),
+        PageDoc::Documented(StoredDoc::Axis(d)) => single_axis::page::page(d),
+        PageDoc::Documented(StoredDoc::Triad(d)) => triad::page::page(d),
+        PageDoc::Thermal(d) => thermal::page(d),
     }
 }

@@ -1,6 +1,6 @@
 //! A stored calibration as the pages and documents read it: its result
-//! document of either kind, its state and signatures, and its instants as
-//! the pages print them.
+//! document of any kind (a temperature model's for its page only), its
+//! state and signatures, and its instants as the pages print them.
 
 use super::format::instant;
 use super::result::ResultDoc;
@@ -16,33 +16,80 @@ pub enum StoredDoc {
     Triad(Box<super::triad_result::TriadDoc>),
 }
 
-/// Reads a stored result document of either kind (404 for an unknown id).
-pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Problem> {
+/// A stored result document as the calibration page reads it: one the
+/// certificate and DCC are written from, or a temperature model's (whose
+/// certificate is not issued yet).
+pub enum PageDoc {
+    /// A single-axis calibration's or a triad's.
+    Documented(StoredDoc),
+    /// A temperature model's.
+    Thermal(Box<super::kinds::thermal::ThermalDoc>),
+}
+
+/// A stored result document's bytes (404 for an unknown id).
+async fn result_of(state: &AppState, raw_id: &str) -> Result<(uuid::Uuid, bytes::Bytes), Problem> {
     let id = path_id(raw_id, "calibration")?;
     let bytes = state
         .store
         .calibration_result(id)
         .await?
         .ok_or_else(|| Problem::not_found(format!("no calibration with id `{id}`")))?;
-    let read = if is_triad(&bytes) {
-        serde_json::from_slice(&bytes).map(|d| StoredDoc::Triad(Box::new(d)))
-    } else {
-        serde_json::from_slice(&bytes).map(|d| StoredDoc::Axis(Box::new(d)))
-    };
-    read.map_err(|e| {
-        tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
-        Problem::internal()
-    })
+    Ok((id, bytes))
 }
 
-/// Whether a stored result is a triad's (`"kind": "triad"`): those are
-/// not single-axis result documents.
-pub fn is_triad(result: &[u8]) -> bool {
+/// Reads a stored result document of any kind, for its page.
+pub async fn load_page(state: &AppState, raw_id: &str) -> Result<PageDoc, Problem> {
+    let (id, bytes) = result_of(state, raw_id).await?;
+    if kind(&bytes).as_deref() != Some("thermal") {
+        return Ok(PageDoc::Documented(read(id, &bytes)?));
+    }
+    serde_json::from_slice(&bytes)
+        .map(|d| PageDoc::Thermal(Box::new(d)))
+        .map_err(|e| unreadable(id, e))
+}
+
+/// The 500 of a stored result `id` that does not read back.
+fn unreadable(id: uuid::Uuid, e: serde_json::Error) -> Problem {
+    tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
+    Problem::internal()
+}
+
+/// Reads a stored result document of either kind the documents are
+/// written from (404 for an unknown id; 409 for a temperature model).
+pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Problem> {
+    let (id, bytes) = result_of(state, raw_id).await?;
+    read(id, &bytes)
+}
+
+/// Stored result `bytes` of calibration `id` as a documented kind.
+fn read(id: uuid::Uuid, bytes: &[u8]) -> Result<StoredDoc, Problem> {
+    let kind = kind(bytes);
+    if kind.as_deref() == Some("thermal") {
+        return Err(Problem::new(
+            crate::http::problem::Kind::WrongKind,
+            format!(
+                "calibration {id} is a temperature model: its certificate, with the coefficients \
+                 at its set points and their polynomials, is not issued yet (issue 45 item 4); \
+                 GET /v1/calibrations/{id} answers the model"
+            ),
+        ));
+    }
+    let read = if kind.as_deref() == Some("triad") {
+        serde_json::from_slice(bytes).map(|d| StoredDoc::Triad(Box::new(d)))
+    } else {
+        serde_json::from_slice(bytes).map(|d| StoredDoc::Axis(Box::new(d)))
+    };
+    read.map_err(|e| unreadable(id, e))
+}
+
+/// A stored result's `kind` (`"triad"`, `"thermal"`), none for a single
+/// axis's result document.
+fn kind(result: &[u8]) -> Option<String> {
     #[derive(serde::Deserialize)]
     struct Kind {
         kind: Option<String>,
     }
-    serde_json::from_slice::<Kind>(result).is_ok_and(|k| k.kind.as_deref() == Some("triad"))
+    serde_json::from_slice::<Kind>(result).ok()?.kind
 }
 
 /// A calibration's state and signatures.

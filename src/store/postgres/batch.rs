@@ -192,18 +192,18 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
         .prepare_cached(
             "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
              model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
-             sensor_type, verdict, due_at, expanded, triad) \
+             sensor_type, verdict, due_at, expanded, triad, thermal) \
              SELECT u.id, u.sensor_id, u.station_id, u.performed_at, u.received_at, u.unit, \
              u.model::json, u.runs, u.coefficients::json, u.std_errors::json, u.result, \
              u.submission, u.content_type, u.submitted_by, u.sensor_type, u.verdict, u.due_at, \
-             u.expanded::json, u.triad::json \
+             u.expanded::json, u.triad::json, u.thermal::json \
              FROM unnest($1::uuid[], $2::text[], $3::text[], $4::timestamptz[], \
                $5::timestamptz[], $6::text[], $7::text[], $8::int4[], $9::text[], $10::text[], \
                $11::text[], $12::bytea[], $13::text[], $14::text[], $15::text[], $16::text[], \
-               $17::timestamptz[], $18::text[], $19::text[]) \
+               $17::timestamptz[], $18::text[], $19::text[], $20::text[]) \
              AS u(id, sensor_id, station_id, performed_at, received_at, unit, model, runs, \
                coefficients, std_errors, result, submission, content_type, submitted_by, \
-               sensor_type, verdict, due_at, expanded, triad)",
+               sensor_type, verdict, due_at, expanded, triad, thermal)",
         )
         .await
         .map_err(map)?;
@@ -234,6 +234,7 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
         .collect();
     let expanded: Vec<Option<&str>> = rows.iter().map(|r| r.expanded()).collect();
     let triads: Vec<Option<&str>> = rows.iter().map(|r| r.triad()).collect();
+    let thermals: Vec<Option<&str>> = rows.iter().map(|r| r.thermal()).collect();
     tx.execute(
         &insert,
         &[
@@ -256,6 +257,7 @@ async fn insert_calibrations<'a>(tx: &Transaction<'_>, rows: &[&'a Row]) -> Resu
             &due,
             &expanded,
             &triads,
+            &thermals,
         ],
     )
     .await

@@ -60,6 +60,7 @@ pub struct Row {
     std_errors: String,
     expanded: Option<String>,
     triad: Option<String>,
+    thermal: Option<String>,
     runs: i32,
 }
 
@@ -74,6 +75,7 @@ impl Row {
             std_errors: json(&n.std_errors)?,
             expanded: n.expanded.as_ref().map(json).transpose()?,
             triad: n.triad.as_ref().map(json).transpose()?,
+            thermal: n.thermal.as_ref().map(json).transpose()?,
             runs: i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?,
             n,
         })
@@ -112,6 +114,11 @@ impl Row {
     /// A triad's elements, as JSON.
     pub fn triad(&self) -> Option<&str> {
         self.triad.as_deref()
+    }
+
+    /// A temperature model, as JSON.
+    pub fn thermal(&self) -> Option<&str> {
+        self.thermal.as_deref()
     }
 
     /// The number of runs.
@@ -176,9 +183,9 @@ pub async fn write(
         .prepare_cached(
             "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
              model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
-             sensor_type, verdict, due_at, expanded, triad) \
+             sensor_type, verdict, due_at, expanded, triad, thermal) \
              VALUES ($1, $2, $3, $4, $5, $6, $7::text::json, $8, $9::text::json, $10::text::json, \
-             $11, $12, $13, $14, $15, $16, $17, $18::text::json, $19::text::json)",
+             $11, $12, $13, $14, $15, $16, $17, $18::text::json, $19::text::json, $20::text::json)",
         )
         .await
         .map_err(map)?;
@@ -204,6 +211,7 @@ pub async fn write(
             &due_at,
             &row.expanded,
             &row.triad,
+            &row.thermal,
         ],
     )
     .await

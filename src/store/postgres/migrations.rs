@@ -27,6 +27,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0014_supersessions_indexed.sql"),
     include_str!("migrations/0015_audit_sealed.sql"),
     include_str!("migrations/0016_webhooks.sql"),
+    include_str!("migrations/0017_thermal.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

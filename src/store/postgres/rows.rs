@@ -64,7 +64,7 @@ pub const SUMMARY_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded, c.triad::text AS triad, ",
+     c.expanded::text AS expanded, c.triad::text AS triad, c.thermal::text AS thermal, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -87,6 +87,7 @@ pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
         triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
+        thermal: optional_json::<crate::domain::thermal::ThermalModel>(row, "thermal")?,
         state: state(row)?,
     })
 }
@@ -96,7 +97,7 @@ pub const RECORD_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model::text AS model, c.runs, c.coefficients::text AS coefficients, \
      c.std_errors::text AS std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded::text AS expanded, c.triad::text AS triad, c.result, c.submission, c.content_type, c.submitted_by, ",
+     c.expanded::text AS expanded, c.triad::text AS triad, c.thermal::text AS thermal, c.result, c.submission, c.content_type, c.submitted_by, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -125,6 +126,7 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
         due_at: s.due_at,
         expanded: s.expanded,
         triad: s.triad,
+        thermal: s.thermal,
         standards: Vec::new(),
     })
 }

@@ -55,6 +55,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         expanded: Some(TermMap(vec![])),
         received_at: ts("2026-01-02T00:00:00Z"),
         triad: Some(elements()),
+        thermal: None,
         ..cal(9, "2026-01-01T00:00:00Z")
     };
     let n = NewCalibration {
@@ -78,6 +79,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         due_at: c.due_at,
         expanded: c.expanded.clone(),
         triad: c.triad.clone(),
+        thermal: c.thermal.clone(),
         standards: Vec::new(),
     };
     assert_eq!(CalibrationSummary::from(&n), c);
@@ -168,6 +170,7 @@ fn a_triads_numbers_are_named_and_must_be_finite() {
             due_at: None,
             expanded: None,
             triad: None,
+            thermal: None,
             standards: Vec::new(),
         }
     };

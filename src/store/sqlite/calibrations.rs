@@ -114,8 +114,8 @@ pub(super) fn insert(
         tx,
         "INSERT INTO calibrations (id, sensor_id, station_id, performed_at, received_at, unit, \
          model, runs, coefficients, std_errors, result, submission, content_type, submitted_by, \
-         sensor_type, verdict, due_at, expanded, triad) \
-         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19)",
+         sensor_type, verdict, due_at, expanded, triad, thermal) \
+         VALUES (?1, ?2, ?3, ?4, ?5, ?6, ?7, ?8, ?9, ?10, ?11, ?12, ?13, ?14, ?15, ?16, ?17, ?18, ?19, ?20)",
         params![
             id,
             n.sensor_id,
@@ -135,7 +135,8 @@ pub(super) fn insert(
             n.verdict.map(|v| v.as_str()),
             n.due_at.map(|t| t.to_string()),
             n.expanded.as_ref().map(json).transpose()?,
-            n.triad.as_ref().map(json).transpose()?
+            n.triad.as_ref().map(json).transpose()?,
+            n.thermal.as_ref().map(json).transpose()?
         ],
     )?;
     if let Some(k) = key {

@@ -77,7 +77,7 @@ fn count(row: &Row<'_>, column: &str) -> Result<u64, StoreError> {
 pub const SUMMARY_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded, c.triad, ",
+     c.expanded, c.triad, c.thermal, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -113,6 +113,7 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
         triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
+        thermal: optional_json::<crate::domain::thermal::ThermalModel>(row, "thermal")?,
         state: state(row)?,
     })
 }
@@ -121,7 +122,7 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
 pub const RECORD_COLUMNS: &str = concat!(
     "c.id, c.sensor_id, c.station_id, c.performed_at, c.received_at, \
      c.unit, c.model, c.runs, c.coefficients, c.std_errors, c.sensor_type, c.verdict, c.due_at, \
-     c.expanded, c.triad, c.result, c.submission, c.content_type, c.submitted_by, ",
+     c.expanded, c.triad, c.thermal, c.result, c.submission, c.content_type, c.submitted_by, ",
     crate::state_sql!(),
     " AS state"
 );
@@ -152,6 +153,7 @@ pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError>
         due_at: s.due_at,
         expanded: s.expanded,
         triad: s.triad,
+        thermal: s.thermal,
         standards: Vec::new(),
     })
 }

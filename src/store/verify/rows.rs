@@ -49,7 +49,7 @@ pub fn columns_digest(n: &NewCalibration) -> String {
 
 /// A calibration's served columns, as JSON (every map's keys in order).
 fn columns(n: &NewCalibration) -> Value {
-    serde_json::json!({
+    let mut v = serde_json::json!({
         "id": n.id,
         "sensor_id": n.sensor_id,
         "station_id": n.station_id,
@@ -67,7 +67,13 @@ fn columns(n: &NewCalibration) -> Value {
         "sensor_type": n.sensor_type,
         "verdict": n.verdict.map(|v| v.as_str()),
         "due_at": n.due_at.map(|t| t.to_string()),
-    })
+    });
+    // A temperature model is one more served column, named only where
+    // there is one: every digest recorded before it stays the same.
+    if let (Some(t), Some(map)) = (&n.thermal, v.as_object_mut()) {
+        map.insert("thermal".to_owned(), serde_json::json!(t));
+    }
+    v
 }
 
 fn f64s(v: Option<&Value>) -> Option<Vec<(String, f64)>> {

@@ -60,6 +60,7 @@ pub fn page(d: &ResultDoc) -> Page<'_> {
                 } }
             }
         },
+        certified: true,
         downloads: None,
         sections: html! {
             @if let Some(n) = &d.notes { p { "Notes: " (n) } }

@@ -105,6 +105,7 @@ pub fn page(d: &TriadDoc) -> Page<'_> {
                 } }
             }
         },
+        certified: true,
         downloads: Some(html! {
             "Download: "
             @for (k, (format, label)) in EXPORTS.iter().enumerate() {

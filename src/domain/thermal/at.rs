@@ -1,0 +1,83 @@
+//! A single axis's temperature model read at a temperature (issue 45
+//! item 3): every coefficient `c(T) = Σ a_d (T − T_ref)^d` with its
+//! standard uncertainty `√(vᵀ C_a v)`, `v_d = (T − T_ref)^d`
+//! ([`accelcal_core::thermal::Polynomial::at`]), and how far `T` lies
+//! outside the valid range `[T_min, T_max]` — which a caller must allow
+//! before it is used there.
+
+use accelcal_core::TermMap;
+
+use super::ThermalModel;
+
+/// The coefficients of a model at one temperature.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AtTemperature {
+    /// The temperature, °C.
+    pub temperature_c: f64,
+    /// Every coefficient there.
+    pub coefficients: TermMap<f64>,
+    /// Their standard uncertainties through the polynomials' covariance.
+    pub std_errors: TermMap<f64>,
+    /// How far outside the valid range, K (0 within).
+    pub outside_k: f64,
+}
+
+impl ThermalModel {
+    /// `T_ref`, °C (every coefficient's: the set points are one).
+    pub fn reference_c(&self) -> f64 {
+        self.coefficients
+            .iter()
+            .next()
+            .map_or(f64::NAN, |(_, p)| p.reference_c)
+    }
+
+    /// The valid range `[T_min, T_max]`, °C: the set points' span.
+    pub fn range_c(&self) -> [f64; 2] {
+        self.coefficients
+            .iter()
+            .next()
+            .map_or([f64::NAN; 2], |(_, p)| p.range_c)
+    }
+
+    /// Every coefficient at `temperature_c`.
+    pub fn at(&self, temperature_c: f64) -> AtTemperature {
+        let mut coefficients = Vec::with_capacity(self.coefficients.len());
+        let mut std_errors = Vec::with_capacity(self.coefficients.len());
+        for (term, p) in self.coefficients.iter() {
+            let (value, u) = p.at(temperature_c);
+            coefficients.push((term, value));
+            std_errors.push((term, u));
+        }
+        let [lo, hi] = self.range_c();
+        AtTemperature {
+            temperature_c,
+            coefficients: TermMap(coefficients),
+            std_errors: TermMap(std_errors),
+            outside_k: (lo - temperature_c).max(temperature_c - hi).max(0.0),
+        }
+    }
+
+    /// Every number it holds, named: what must be finite to be stored.
+    pub fn numbers(&self) -> impl Iterator<Item = (String, f64)> + '_ {
+        let set_points = self.set_points.iter().enumerate().flat_map(|(s, p)| {
+            std::iter::once((format!("set_points[{s}].temperature_c"), p.temperature_c)).chain(
+                p.coefficients
+                    .iter()
+                    .chain(p.std_errors.iter())
+                    .map(move |(t, v)| (format!("set_points[{s}].{t}"), *v)),
+            )
+        });
+        let polynomials = self.coefficients.iter().flat_map(|(t, p)| {
+            p.coefficients
+                .iter()
+                .chain(&p.std_uncertainties)
+                .chain(p.covariance.iter().flatten())
+                .chain(&p.range_c)
+                .chain([&p.reference_c, &p.chi2, &p.inflation])
+                .map(move |v| (format!("coefficients.{t}"), *v))
+        });
+        set_points
+            .chain(polynomials)
+            .chain([("tolerance_k".to_owned(), self.tolerance_k)])
+    }
+}

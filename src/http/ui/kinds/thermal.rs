@@ -1,0 +1,143 @@
+//! A temperature model on its calibration page (issue 45): its range and
+//! reference, every coefficient at `T_ref`, each set point's fused
+//! coefficients, and every polynomial `c(T) = Σ a_d (T − T_ref)^d` with
+//! the standard uncertainties of its `a_d`, its degree and how it was
+//! chosen, `χ²/ν` and the covariance's inflation. Its certificate and DCC
+//! are not issued yet (issue 45 item 4): the page offers none.
+
+use accelcal_core::TermMap;
+use maud::html;
+use serde::Deserialize;
+
+use crate::domain::review::Supersedes;
+use crate::domain::thermal::ThermalModel;
+use crate::http::ui::document::Page;
+use crate::http::ui::format::{Notation, num, unc};
+
+/// A stored temperature model's result document, as its page reads it.
+#[derive(Debug, Deserialize)]
+pub struct ThermalDoc {
+    /// The calibration.
+    pub id: uuid::Uuid,
+    /// Its sensor.
+    pub sensor_id: String,
+    /// The station.
+    pub station_id: Option<String>,
+    /// When performed (RFC 3339).
+    pub performed_at: String,
+    /// When received (RFC 3339).
+    pub received_at: String,
+    /// The calibration it supersedes.
+    pub supersedes: Option<Supersedes>,
+    /// The outputs' unit.
+    pub unit: String,
+    /// The runs submitted.
+    pub runs: usize,
+    /// `T_ref`, °C.
+    pub reference_c: f64,
+    /// The valid range, °C.
+    pub range_c: [f64; 2],
+    /// Every coefficient at `T_ref`.
+    pub coefficients: TermMap<f64>,
+    /// Their standard uncertainties.
+    pub std_errors: TermMap<f64>,
+    /// The model.
+    pub thermal: ThermalModel,
+}
+
+/// A temperature to 0.01 K, as the page prints it.
+fn celsius(t: f64) -> String {
+    format!("{t:.2}")
+}
+
+/// `d` as its page shows it.
+pub fn page(d: &ThermalDoc) -> Page<'_> {
+    let m = &d.thermal;
+    let terms: Vec<String> = m.coefficients.iter().map(|(t, _)| t.to_string()).collect();
+    let at_ref = |t: &str| {
+        let c = m.coefficients.iter().find(|(x, _)| x.to_string() == t);
+        c.map(|(_, p)| (p.coefficients[0], p.std_uncertainties[0]))
+    };
+    Page {
+        id: d.id,
+        sensor_id: &d.sensor_id,
+        title: "Temperature model",
+        noun: "temperature model",
+        verdict: None,
+        supersedes: d.supersedes.as_ref(),
+        performed_at: &d.performed_at,
+        station_id: d.station_id.as_deref(),
+        received_at: &d.received_at,
+        facts: html! {
+            div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
+            div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
+            div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
+            div { dt { "Degrees" } dd { (m.selection) } }
+            div { dt { "Certificate" } dd { "not issued for a temperature model yet" } }
+        },
+        downloads: None,
+        certified: false,
+        sections: html! {
+            h2 { "Coefficients at T_ref" }
+            div.table-wrap tabindex="0" role="region" aria-label="Coefficients at T_ref" { table #thermal-at-reference .numbers {
+                caption { "c(T_ref) = a_0, in " (d.unit) " (per g for the scale terms), with standard uncertainty u" }
+                thead { tr { th scope="col" { "term" } th scope="col" { "c(T_ref)" } th scope="col" { "u" } } }
+                tbody {
+                    @for t in &terms {
+                        @if let Some((c, u)) = at_ref(t) {
+                            tr { th scope="row" { (t) } td.num { (num(c)) } td.num { (unc(u)) } }
+                        }
+                    }
+                }
+            } }
+            h2 { "Polynomials" }
+            div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
+                caption { "c(T) = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
+                thead { tr {
+                    th scope="col" { "term" } th scope="col" { "degree" }
+                    @for d in 0..=3 { th scope="col" { "a_" (d) } th scope="col" { "u" } }
+                    th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
+                } }
+                tbody {
+                    @for (t, p) in m.coefficients.iter() {
+                        tr {
+                            th scope="row" { (t.to_string()) }
+                            td.num { (p.degree) }
+                            @for d in 0..=3 {
+                                td.num { (p.coefficients.get(d).map_or("—".into(), |a| num(*a))) }
+                                td.num { (p.std_uncertainties.get(d).map_or("—".into(), |u| unc(*u))) }
+                            }
+                            td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
+                            td.num { (num(p.inflation)) }
+                        }
+                    }
+                }
+            } }
+            h2 { "Set points" }
+            div.table-wrap tabindex="0" role="region" aria-label="Set points" { table #thermal-set-points .numbers {
+                caption { "Each set point identified and fused: its coefficients with standard errors" }
+                thead { tr {
+                    th scope="col" { "T, °C" } th scope="col" { "runs" }
+                    @for t in &terms { th scope="col" { (t) } th scope="col" { "u" } }
+                } }
+                @let notation: Vec<Notation> = terms.iter().map(|t| Notation::of(
+                    m.set_points.iter().filter_map(|s| s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v))
+                )).collect();
+                tbody {
+                    @for s in &m.set_points {
+                        tr {
+                            th scope="row" { (celsius(s.temperature_c)) }
+                            td.num { (s.runs.len()) }
+                            @for (k, t) in terms.iter().enumerate() {
+                                @let value = s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
+                                @let error = s.std_errors.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
+                                td.num { (value.map_or("—".into(), |v| notation[k].num(v))) }
+                                td.num { (error.map_or("—".into(), unc)) }
+                            }
+                        }
+                    }
+                }
+            } }
+        },
+    }
+}

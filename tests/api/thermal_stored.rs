@@ -1,0 +1,395 @@
+//! A single axis's temperature model stored as a calibration (issue 45
+//! items 1 and 3), `POST /v1/calibrations/thermal`, on both engines: the
+//! model stored is the one `POST /v1/identify/thermal` fits; the
+//! coefficients at a temperature and compensation there are the stored
+//! polynomials evaluated — computed here from the model's own JSON, `Σ a_d
+//! x^d` with `√(vᵀ C v)`, and the single-axis model inverted by hand —
+//! through a restart (read back from the database); outside the range
+//! they are refused unless extrapolation is allowed, and then say by how
+//! far; a calibration without a model refuses a temperature; reprocessing
+//! fits the same model again; the trail verifies.
+
+use reqwest::StatusCode;
+use rstest::rstest;
+use serde_json::{Value, json};
+
+use accelcal_testkit::Engine::{Postgres, Sqlite};
+use accelcal_testkit::*;
+
+use crate::thermal::{CHAMBER, body, f};
+
+/// `(c(t), u(c(t)))` of the polynomial `p` (a stored model's JSON).
+fn evaluated(p: &Value, t: f64) -> (f64, f64) {
+    let x = t - f(&p["reference_c"]);
+    let a: Vec<f64> = p["coefficients"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(f)
+        .collect();
+    let c: Vec<Vec<f64>> = p["covariance"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|r| r.as_array().unwrap().iter().map(f).collect())
+        .collect();
+    let v: Vec<f64> = (0..a.len()).map(|d| x.powi(d as i32)).collect();
+    let value = (0..a.len()).map(|d| a[d] * v[d]).sum();
+    let var: f64 = (0..a.len())
+        .flat_map(|i| (0..a.len()).map(move |j| (i, j)))
+        .map(|(i, j)| v[i] * c[i][j] * v[j])
+        .sum();
+    (value, var.sqrt())
+}
+
+fn near(got: f64, want: f64, what: &str) {
+    assert!(
+        (got - want).abs() <= 1e-12 * want.abs().max(1e-9),
+        "{what}: {got} against {want}"
+    );
+}
+
+#[rstest]
+#[tokio::test]
+async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperature(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let mut app = TestApp::spawn(engine).await;
+    let b = body(&CHAMBER);
+    let fitted: Value = app
+        .post("/v1/identify/thermal", ADMIN, &b)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let res = app.post("/v1/calibrations/thermal", ADMIN, &b).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let stored: Value = res.json().await.unwrap();
+    crate::conforms_to("StoredThermal", &stored);
+    assert_eq!(stored["kind"], "thermal");
+    // The model stored is the one identify fits, and its coefficients are
+    // the model at T_ref.
+    assert_eq!(stored["thermal"], fitted);
+    assert_eq!(stored["reference_c"], 20.0);
+    for term in ["k0", "ki", "kp"] {
+        let p = &fitted["coefficients"][term];
+        assert_eq!(stored["coefficients"][term], p["coefficients"][0], "{term}");
+        assert_eq!(
+            stored["std_errors"][term], p["std_uncertainties"][0],
+            "{term}"
+        );
+    }
+    let id = stored["id"].as_str().unwrap().to_owned();
+
+    // Restarted: everything below is read back from the database.
+    app.stop().await;
+    let db = app.take_database().unwrap();
+    let mut app = TestApp::spawn_on(&db.url).await;
+    let coefficients = "/v1/sensors/MEMS-T/coefficients";
+    let at_ref = app.get_json(coefficients, ADMIN).await;
+    assert_eq!(at_ref["coefficients"], stored["coefficients"]);
+    assert_eq!(at_ref["temperature"]["temperature_c"], 20.0);
+    assert_eq!(
+        at_ref["temperature"]["range_c"],
+        fitted["coefficients"]["k0"]["range_c"]
+    );
+
+    let model = &fitted["coefficients"];
+    // The range is the set points' mean temperatures: -19.997 to 60.002.
+    for t in [-19.99, 0.5, 33.0, 60.0] {
+        let r = app
+            .get_json(&format!("{coefficients}?temperature_c={t}"), ADMIN)
+            .await;
+        assert_eq!(r["calibration_id"], json!(id));
+        assert_eq!(r["temperature"]["temperature_c"], t);
+        assert_eq!(r["temperature"]["extrapolated"], false);
+        for term in ["k0", "ki", "kp"] {
+            let (c, u) = evaluated(&model[term], t);
+            near(f(&r["coefficients"][term]), c, &format!("{term}({t})"));
+            near(f(&r["std_errors"][term]), u, &format!("u({term}({t}))"));
+        }
+    }
+
+    // Compensation: u = k0 + ki a_i + kp a_p inverted with the model at
+    // each output's temperature (one for all, or one each).
+    let invert = |u: f64, t: f64, a_p: f64| {
+        let c = |term: &str| evaluated(&model[term], t).0;
+        (u - c("k0") - c("kp") * a_p) / c("ki")
+    };
+    let compensate = "/v1/sensors/MEMS-T/compensate";
+    let r: Value = app
+        .post(
+            compensate,
+            ADMIN,
+            &json!({"outputs": [0.5, -1.1], "a_p": [0.0, 0.2], "temperature_c": 33.0}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    near(f(&r["a_i"][0]), invert(0.5, 33.0, 0.0), "a_i at 33");
+    near(f(&r["a_i"][1]), invert(-1.1, 33.0, 0.2), "a_i at 33");
+    assert_eq!(r["temperature"]["temperature_c"], 33.0);
+    let r: Value = app
+        .post(
+            compensate,
+            ADMIN,
+            &json!({"outputs": [0.5, 0.5], "temperature_c": [-10.0, 55.0],
+                    "calibration_id": id}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    near(f(&r["a_i"][0]), invert(0.5, -10.0, 0.0), "a_i at -10");
+    near(f(&r["a_i"][1]), invert(0.5, 55.0, 0.0), "a_i at 55");
+    assert!(
+        f(&r["a_i"][0]) != f(&r["a_i"][1]),
+        "the temperature matters"
+    );
+    assert_eq!(r["temperature"]["temperature_c"], json!([-10.0, 55.0]));
+
+    // Outside the range: refused, naming where, unless allowed; then said.
+    let t_max = f(&fitted["coefficients"]["k0"]["range_c"][1]);
+    let p = problem(
+        app.get(&format!("{coefficients}?temperature_c=70"), ADMIN)
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(p["parameter"], "temperature_c", "{p}");
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("allow_extrapolation"),
+        "{p}"
+    );
+    let r = app
+        .get_json(
+            &format!("{coefficients}?temperature_c=70&allow_extrapolation=true"),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(r["temperature"]["extrapolated"], true);
+    near(
+        f(&r["temperature"]["extrapolated_k"]),
+        70.0 - t_max,
+        "extrapolated_k",
+    );
+    near(
+        f(&r["coefficients"]["k0"]),
+        evaluated(&model["k0"], 70.0).0,
+        "k0(70)",
+    );
+    let p = problem(
+        app.post(
+            compensate,
+            ADMIN,
+            &json!({"outputs": [0.5, 0.5], "temperature_c": [20.0, -40.0]}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/temperature_c/1"], "{p}");
+    let r: Value = app
+        .post(
+            compensate,
+            ADMIN,
+            &json!({"outputs": [0.5], "temperature_c": -40.0, "allow_extrapolation": true}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    near(f(&r["a_i"][0]), invert(0.5, -40.0, 0.0), "a_i at -40");
+    assert_eq!(r["temperature"]["extrapolated"], true);
+    // A model needs the temperature; one per output or one for all.
+    for (bad, pointer) in [
+        (json!({"outputs": [0.5]}), "/temperature_c"),
+        (
+            json!({"outputs": [0.5, 0.4], "temperature_c": [20.0]}),
+            "/temperature_c",
+        ),
+        (
+            json!({"outputs": [0.5], "temperature_c": 900}),
+            "/temperature_c",
+        ),
+        (
+            json!({"outputs": [0.5], "temperature_c": "warm"}),
+            "/temperature_c",
+        ),
+    ] {
+        let p = problem(
+            app.post(compensate, ADMIN, &bad).await,
+            StatusCode::UNPROCESSABLE_ENTITY,
+        )
+        .await;
+        assert_eq!(pointers(&p), [pointer], "{bad}: {p}");
+    }
+
+    // A calibration without a model refuses a temperature.
+    let plain = app
+        .submit(ADMIN, &submission("PLAIN-1", "2026-01-01T00:00:00Z", 4))
+        .await;
+    assert!(plain["id"].is_string());
+    let p = problem(
+        app.get("/v1/sensors/PLAIN-1/coefficients?temperature_c=20", ADMIN)
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("no temperature model"),
+        "{p}"
+    );
+    let p = problem(
+        app.post(
+            "/v1/sensors/PLAIN-1/compensate",
+            ADMIN,
+            &json!({"outputs": [0.5], "temperature_c": 20}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/temperature_c"], "{p}");
+
+    // Its certificate is not issued yet, and says so.
+    let p = problem(
+        app.get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+            .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert_eq!(p["type"], "urn:accelcal:problem:wrong-kind", "{p}");
+
+    // Its page shows the model and offers no certificate; the sensor's
+    // page lists it.
+    let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
+    let res = crate::ui::page(&app, &format!("/ui/calibrations/{id}"), &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let html = res.text().await.unwrap();
+    for part in [
+        "Temperature model of MEMS-T",
+        "thermal-polynomials",
+        "thermal-set-points",
+    ] {
+        assert!(html.contains(part), "{part}");
+    }
+    assert!(!html.contains("/certificate.xml"), "no DCC link");
+    let res = crate::ui::page(&app, "/ui/sensors/MEMS-T", &session).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert!(res.text().await.unwrap().contains(&id));
+
+    // Reprocessing fits the same model again, with the parameters it was
+    // fitted with.
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{id}/reprocess"),
+            ADMIN,
+            &json!({}),
+        )
+        .await;
+    let status = res.status();
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(status, StatusCode::OK, "{r}");
+    let again = app
+        .get_json(
+            &format!(
+                "/v1/calibrations/{}",
+                r["replacement_id"].as_str().unwrap_or(&id)
+            ),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(again["thermal"]["coefficients"], fitted["coefficients"]);
+
+    // And the trail vouches for the rows, the model's included.
+    app.stop().await;
+    let database = app.database.clone();
+    let out = tokio::task::spawn_blocking(move || crate::audit::verify(&database))
+        .await
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    drop(db);
+}
+
+/// What a temperature model is not applied to yet is refused, naming it;
+/// a degree or tolerance out of range is a 400 naming the parameter.
+#[tokio::test]
+async fn what_a_stored_model_does_not_apply_yet_is_refused() {
+    let app = TestApp::spawn(Sqlite).await;
+    let b = body(&CHAMBER);
+    let mut typed = b.clone();
+    typed["sensor_type"] = json!("MEMS");
+    let p = problem(
+        app.post("/v1/calibrations/thermal", ADMIN, &typed).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/sensor_type"], "{p}");
+    let p = problem(
+        app.post("/v1/calibrations/thermal?degree=7", ADMIN, &b)
+            .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "degree", "{p}");
+    // Too small a span: nothing stored.
+    let p = problem(
+        app.post("/v1/calibrations/thermal", ADMIN, &body(&[20.0, 25.0]))
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert!(
+        p["errors"][0]["detail"]
+            .as_str()
+            .unwrap()
+            .contains("less than the 10 K"),
+        "{p}"
+    );
+    let res = app.get("/v1/sensors/MEMS-T", ADMIN).await;
+    assert_eq!(res.status(), StatusCode::NOT_FOUND);
+}
+
+/// One `Idempotency-Key` is one request: the same key and bytes sent as a
+/// single axis and then as a temperature model, or fitted otherwise, are
+/// refused as a reused key, not answered with what the first stored; the
+/// same request again is answered with it.
+#[tokio::test]
+async fn a_key_names_the_kind_and_the_fit_it_was_sent_with() {
+    let app = TestApp::spawn(Sqlite).await;
+    let b = body(&CHAMBER);
+    let send = |path: &'static str| {
+        app.client
+            .post(app.url(path))
+            .bearer_auth(ADMIN)
+            .header("idempotency-key", "chamber-1")
+            .json(&b)
+            .send()
+    };
+    let first = send("/v1/calibrations/thermal").await.unwrap();
+    assert_eq!(first.status(), StatusCode::CREATED);
+    let first: Value = first.json().await.unwrap();
+    let again = send("/v1/calibrations/thermal").await.unwrap();
+    assert_eq!(again.headers()["idempotent-replayed"], "true");
+    assert_eq!(again.json::<Value>().await.unwrap()["id"], first["id"]);
+    for other in ["/v1/calibrations", "/v1/calibrations/thermal?degree=1"] {
+        let p = problem(send(other).await.unwrap(), StatusCode::UNPROCESSABLE_ENTITY).await;
+        assert_eq!(
+            p["type"], "urn:accelcal:problem:idempotency-key-reused",
+            "{other}: {p}"
+        );
+    }
+}
