@@ -19,6 +19,7 @@ use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
 use crate::domain::review::Supersedes;
 use crate::domain::submission::evaluate;
+use crate::domain::thermal::decision::{ThermalDecision, decide_model};
 use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
 use crate::domain::timestamp::Timestamp;
 use crate::store::NewCalibration;
@@ -57,6 +58,18 @@ pub struct StoredThermal {
     /// Their standard uncertainties.
     #[schema(value_type = crate::domain::schema::CoefficientMap)]
     pub std_errors: TermMap<f64>,
+    /// The sensor type it was judged by, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensor_type: Option<String>,
+    /// Its judgement against that type's limits: every limited coefficient
+    /// at every set point and across the range, its worst stated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub decision: Option<ThermalDecision>,
+    /// When the sensor is next due: a judged model's performance date plus
+    /// its type's interval.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub due_at: Option<Timestamp>,
     /// The model: the set points and every coefficient's polynomial.
     #[schema(value_type = Object)]
     pub thermal: ThermalModel,
@@ -80,7 +93,11 @@ pub async fn identify(
             let e = evaluate(upload.media, &upload.bytes, Timestamp::now())?;
             station(&who, e.submission.station_id.as_deref())?;
             if e.submission.sensor_type.is_some() {
-                return Err(not_yet("sensor_type", "a sensor type's decision"));
+                return Err(Error::invalid(
+                    Loc::Root.key("sensor_type"),
+                    "a sensor type judges a temperature model when it is stored (POST \
+                     /v1/calibrations/thermal): omit it here",
+                ));
             }
             if e.submission.standards.is_some() {
                 return Err(not_yet("standards", "the reference standards' budget"));
@@ -119,9 +136,10 @@ pub async fn identify_triad(
 
 /// `upload` assessed as a temperature model fitted with `fit`, to be
 /// stored under `id` (with `supersedes`, the calibration it corrects):
-/// read and fitted on the compute pool; a sensor type (named, or the
-/// sensor's) or reference standards are refused rather than ignored, as
-/// for `identify`.
+/// read and fitted on the compute pool, and judged by the sensor type in
+/// force (named, or the sensor's) at every set point and across the range
+/// ([`decide_model`]); reference standards are refused rather than
+/// ignored, as for `identify`.
 pub async fn assess(
     lab: &Lab,
     principal: &Principal,
@@ -137,9 +155,6 @@ pub async fn assess(
         .compute_for(upload.bytes.len(), move || {
             let e = evaluate(upload.media, &upload.bytes, received_at)?;
             let station_id = station(&who, e.submission.station_id.as_deref())?;
-            if e.submission.sensor_type.is_some() {
-                return Err(not_yet("sensor_type", "a sensor type's decision"));
-            }
             if e.submission.standards.is_some() {
                 return Err(not_yet("standards", "the reference standards' budget"));
             }
@@ -148,19 +163,25 @@ pub async fn assess(
         })
         .await??;
     let sub = &e.submission;
-    let subject = in_force(lab, principal, &sub.sensor_id, None, false, received_at).await?;
-    if let Some(t) = &subject.sensor_type {
-        return Err(Error::invalid(
-            Loc::Root.key("sensor_id"),
-            format!(
-                "sensor `{}` is of type `{}`, and a temperature model is not judged against a \
-                 type's limits yet (issue 45 item 4): store it for an untyped sensor",
-                crate::domain::text::echo(&sub.sensor_id),
-                t.type_id
-            ),
-        ));
-    }
+    let subject = in_force(
+        lab,
+        principal,
+        &sub.sensor_id,
+        sub.sensor_type.as_ref(),
+        false,
+        received_at,
+    )
+    .await?;
     let performed_at = sub.performed_at.unwrap_or(received_at);
+    let decision = match &subject.sensor_type {
+        None => None,
+        Some(t) => Some(judged(&thermal, t, &sub.unit)?),
+    };
+    let due_at = subject
+        .sensor_type
+        .as_ref()
+        .filter(|_| decision.is_some())
+        .map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
     let at_reference = thermal.at(thermal.reference_c());
     let view = StoredThermal {
         kind: "thermal",
@@ -176,6 +197,9 @@ pub async fn assess(
         range_c: thermal.range_c(),
         coefficients: at_reference.coefficients.clone(),
         std_errors: at_reference.std_errors.clone(),
+        sensor_type: subject.sensor_type.as_ref().map(|t| t.type_id.clone()),
+        decision,
+        due_at,
         thermal,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
@@ -197,10 +221,10 @@ pub async fn assess(
         submission,
         content_type,
         submitted_by: principal.id.clone(),
-        sensor_type: None,
-        assigns_type: false,
-        verdict: None,
-        due_at: None,
+        sensor_type: view.sensor_type,
+        assigns_type: sub.sensor_type.is_some(),
+        verdict: view.decision.map(|d| d.verdict),
+        due_at,
         expanded: None,
         triad: None,
         thermal: Some(view.thermal),
@@ -210,6 +234,37 @@ pub async fn assess(
         sensor_id: record.sensor_id.clone(),
         result,
         record: Some(record),
+    })
+}
+
+/// `thermal` judged by sensor type `t`, whose limits are in the outputs'
+/// unit `unit`.
+fn judged(
+    thermal: &ThermalModel,
+    t: &crate::domain::sensor_types::SensorType,
+    unit: &str,
+) -> Result<ThermalDecision, Error> {
+    if let Some(limits_unit) = t.unit.as_ref().filter(|u| **u != unit) {
+        return Err(Error::invalid(
+            Loc::Root.key("unit"),
+            format!(
+                "is `{}`, but sensor type `{}` sets its limits in `{limits_unit}`: send the \
+                 outputs in `{limits_unit}`, or give the sensor a type in `{}`",
+                crate::domain::text::echo(unit),
+                t.type_id,
+                crate::domain::text::echo(unit)
+            ),
+        ));
+    }
+    decide_model(thermal, t.decision_rule, &t.limits, t.coverage()).map_err(|term| {
+        Error::invalid(
+            Loc::Root.key("model"),
+            format!(
+                "sensor type `{}` sets limits on `{term}`, which this model does not identify; \
+                 add `{term}` to the model",
+                t.type_id
+            ),
+        )
     })
 }
 

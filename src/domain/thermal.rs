@@ -171,6 +171,10 @@ pub struct SetPointResult {
     pub coefficients: TermMap<f64>,
     /// Their standard errors: each polynomial's weights are `1 / se²`.
     pub std_errors: TermMap<f64>,
+    /// Their degrees of freedom (batch estimation's; none in a model
+    /// stored before they were kept).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub dof: Option<TermMap<f64>>,
 }
 
 /// A single axis's temperature model.
@@ -223,6 +227,16 @@ pub fn model(submission: &Submission, fit: &Fit) -> Result<ThermalModel, Invalid
             batches,
             coefficients: at_set_point.fused.coefficients.clone(),
             std_errors: at_set_point.fused.std_errors.clone(),
+            // An infinite ν (a batch variance of zero) is stated as none.
+            dof: Some(TermMap(
+                at_set_point
+                    .fused
+                    .dof
+                    .iter()
+                    .filter(|(_, d)| d.is_finite())
+                    .map(|(t, d)| (t, *d))
+                    .collect(),
+            )),
         });
     }
     let coefficients = test
@@ -394,6 +408,7 @@ pub fn file_name(format: Format) -> &'static str {
 
 mod ardupilot;
 mod at;
+pub mod decision;
 pub mod firmware;
 mod px4;
 mod triad;

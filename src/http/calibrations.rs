@@ -79,9 +79,10 @@ pub async fn submit(
         fitted; the model is stored as one calibration of the sensor whose `coefficients` are \
         the model at `T_ref`: history, stability, review and withdrawal follow, and \
         `GET /v1/sensors/{sensor_id}/coefficients?temperature_c=` and `/compensate` with \
-        `temperature_c` evaluate it within its range. A sensor type or reference standards \
-        are refused (a temperature model is not judged or budgeted yet), as is a typed sensor; \
-        its certificate is not issued yet.",
+        `temperature_c` evaluate it within its range. The sensor type in force (named, or the \
+        sensor's) judges every limited coefficient at every set point and across the range \
+        (`decision`, its worst the verdict). Reference standards are refused (a temperature \
+        model is not budgeted with them yet); its certificate is not issued yet.",
     params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
     request_body(content(
         (super::openapi::SubmissionSchema = "application/json"),

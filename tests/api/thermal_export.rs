@@ -420,3 +420,47 @@ async fn unknown_formats_and_units_are_refused() {
         assert!(p["detail"].as_str().unwrap().contains("m/s²"), "{p}");
     }
 }
+
+/// The example triad (examples/thermal-triad.py) comes back with its
+/// planted bias polynomials within four standard uncertainties, and its
+/// scale factors' 40 ppm/K are what PX4 refuses, naming each.
+#[tokio::test]
+async fn the_example_triad_recovers_its_bias_and_cannot_go_to_px4() {
+    let app = TestApp::spawn(Sqlite).await;
+    let b: Value = serde_json::from_str(include_str!("../../examples/thermal-triad.json")).unwrap();
+    let model: Value = app
+        .post("/v1/identify/thermal/triad", ADMIN, &b)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let planted = [
+        [0.183, 1.6e-3, 1.1e-5],
+        [-0.127, -0.9e-3, 0.0],
+        [0.342, 2.4e-3, -0.8e-5],
+    ];
+    for (m, want) in planted.iter().enumerate() {
+        let p = &model["b"][m];
+        for (d, w) in want.iter().enumerate() {
+            let a = p["coefficients"].get(d).map_or(0.0, f);
+            let u = p["std_uncertainties"].get(d).map_or(0.0, f);
+            assert!(
+                (a - w).abs() <= 4.0 * u.max(1e-12),
+                "b_{m} a_{d}: {a} ± {u} against {w}"
+            );
+        }
+    }
+    let p = problem(
+        app.post("/v1/identify/thermal/triad?export=px4", ADMIN, &b)
+            .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    let named: Vec<String> = named(p["detail"].as_str().unwrap())
+        .into_iter()
+        .map(|t| t.0)
+        .collect();
+    for term in ["S_xx", "S_yy", "S_zz"] {
+        assert!(named.iter().any(|n| n == term), "{term}: {p}");
+    }
+}

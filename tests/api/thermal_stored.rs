@@ -324,20 +324,30 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
     drop(db);
 }
 
-/// What a temperature model is not applied to yet is refused, naming it;
+/// What a stored model cannot use is refused, naming it;
 /// a degree or tolerance out of range is a 400 naming the parameter.
 #[tokio::test]
 async fn what_a_stored_model_does_not_apply_yet_is_refused() {
     let app = TestApp::spawn(Sqlite).await;
     let b = body(&CHAMBER);
+    // A sensor type that does not exist; standards, not budgeted yet.
     let mut typed = b.clone();
-    typed["sensor_type"] = json!("MEMS");
+    typed["sensor_type"] = json!("NO-SUCH-TYPE");
     let p = problem(
         app.post("/v1/calibrations/thermal", ADMIN, &typed).await,
         StatusCode::UNPROCESSABLE_ENTITY,
     )
     .await;
     assert_eq!(pointers(&p), ["/sensor_type"], "{p}");
+    let mut with_standards = b.clone();
+    with_standards["standards"] = json!({"stand": "DH-1"});
+    let p = problem(
+        app.post("/v1/calibrations/thermal", ADMIN, &with_standards)
+            .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/standards"], "{p}");
     let p = problem(
         app.post("/v1/calibrations/thermal?degree=7", ADMIN, &b)
             .await,
@@ -392,4 +402,167 @@ async fn a_key_names_the_kind_and_the_fit_it_was_sent_with() {
             "{other}: {p}"
         );
     }
+}
+
+/// The example chamber run (examples/thermal-chamber.py) is stored with
+/// its planted polynomials within four standard uncertainties, and its
+/// coefficients at 33 °C are the planted model's there within four.
+#[tokio::test]
+async fn the_example_chamber_run_recovers_its_planted_model() {
+    let app = TestApp::spawn(Sqlite).await;
+    let b: Value =
+        serde_json::from_str(include_str!("../../examples/thermal-chamber.json")).unwrap();
+    let res = app.post("/v1/calibrations/thermal", ADMIN, &b).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let stored: Value = res.json().await.unwrap();
+    let planted: [(&str, &[f64]); 3] = [
+        ("k0", &[0.0021, 3.5e-5, 2.2e-7]),
+        ("ki", &[1.2148, -1.2148 * 1.2e-4]),
+        ("kp", &[0.0032]),
+    ];
+    for (term, want) in planted {
+        let p = &stored["thermal"]["coefficients"][term];
+        assert_eq!(
+            p["degree"].as_u64().unwrap() as usize,
+            want.len() - 1,
+            "{term}: {p}"
+        );
+        for (d, w) in want.iter().enumerate() {
+            let (a, u) = (f(&p["coefficients"][d]), f(&p["std_uncertainties"][d]));
+            assert!(
+                (a - w).abs() <= 4.0 * u,
+                "{term} a_{d}: {a} ± {u} against {w}"
+            );
+        }
+    }
+    let r = app
+        .get_json("/v1/sensors/MEMS-TC-7/coefficients?temperature_c=33", ADMIN)
+        .await;
+    let dt = 13.0;
+    for (term, want) in [
+        ("k0", 0.0021 + 3.5e-5 * dt + 2.2e-7 * dt * dt),
+        ("ki", 1.2148 * (1.0 - 1.2e-4 * dt)),
+        ("kp", 0.0032),
+    ] {
+        let (c, u) = (f(&r["coefficients"][term]), f(&r["std_errors"][term]));
+        assert!(
+            (c - want).abs() <= 4.0 * u,
+            "{term}(33): {c} ± {u} against {want}"
+        );
+    }
+}
+
+/// The guarded rule (ILAC-G8), written out here: pass inside the limits by
+/// `U`, fail outside them by `U`, conditional between.
+fn guarded(value: f64, u: f64, min: f64, max: f64) -> &'static str {
+    if value - u >= min && value + u <= max {
+        "pass"
+    } else if value + u < min || value - u > max {
+        "fail"
+    } else {
+        "conditional"
+    }
+}
+
+/// A typed sensor's model is judged at every set point and across its
+/// range, each coefficient by its worst: k0, planted to rise past its
+/// upper limit above about 50 °C though well inside it at T_ref, fails
+/// where a scan of the stored polynomial (4 001 temperatures, U = 2 u)
+/// and the set points (U = 2 se) say it does; ki passes; the sensor's
+/// coefficients are then not usable, and its due date is the type's.
+#[rstest]
+#[tokio::test]
+async fn a_typed_sensors_model_is_judged_over_its_range(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let (k0_max, ki_min, ki_max) = (2.0e-3, -1.21, -1.19);
+    let res = app
+        .put(
+            "/v1/sensor-types/CHAMBER",
+            ADMIN,
+            &json!({"unit": "V", "decision_rule": "guarded", "coverage_factor": 2.0,
+                    "interval_days": 180,
+                    "limits": {"k0": {"max": k0_max}, "ki": {"min": ki_min, "max": ki_max}}}),
+        )
+        .await;
+    assert!(res.status().is_success(), "{}", res.text().await.unwrap());
+    let mut b = body(&CHAMBER);
+    b["sensor_type"] = json!("CHAMBER");
+    let res = app.post("/v1/calibrations/thermal", ADMIN, &b).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let stored: Value = res.json().await.unwrap();
+    let d = &stored["decision"];
+    assert_eq!(d["rule"], "guarded");
+    assert_eq!(stored["sensor_type"], "CHAMBER");
+
+    let model = &stored["thermal"];
+    for (term, min, max) in [("k0", f64::NEG_INFINITY, k0_max), ("ki", ki_min, ki_max)] {
+        let p = &model["coefficients"][term];
+        let j = &d["terms"][term];
+        // Each set point, by its own fused value and 2 se.
+        let mut verdicts = Vec::new();
+        for (s, sp) in model["set_points"].as_array().unwrap().iter().enumerate() {
+            let (v, se) = (f(&sp["coefficients"][term]), f(&sp["std_errors"][term]));
+            let want = guarded(v, 2.0 * se, min, max);
+            assert_eq!(j["set_points"][s]["verdict"], want, "{term} set point {s}");
+            verdicts.push(want);
+        }
+        // Across the range, by the polynomial and 2 u(T).
+        let (lo, hi) = (f(&p["range_c"][0]), f(&p["range_c"][1]));
+        let mut worst = ("pass", lo);
+        for i in 0..=4000 {
+            let t = lo + (hi - lo) * f64::from(i) / 4000.0;
+            let (v, u) = evaluated(p, t);
+            let verdict = guarded(v, 2.0 * u, min, max);
+            let rank = |v: &str| ["pass", "conditional", "fail"].iter().position(|x| *x == v);
+            if rank(verdict) > rank(worst.0) {
+                worst = (verdict, t);
+            }
+        }
+        assert_eq!(j["range"]["verdict"], worst.0, "{term}: {j}");
+        verdicts.push(worst.0);
+        let overall = ["fail", "conditional", "pass"]
+            .into_iter()
+            .find(|v| verdicts.contains(v))
+            .unwrap();
+        assert_eq!(j["worst"]["verdict"], overall, "{term}: {j}");
+    }
+    assert_eq!(d["terms"]["k0"]["worst"]["verdict"], "fail");
+    assert!(f(&d["terms"]["k0"]["worst"]["temperature_c"]) > 40.0);
+    assert_eq!(d["terms"]["ki"]["worst"]["verdict"], "pass");
+    assert_eq!(d["verdict"], "fail");
+    // At T_ref k0 is well inside: only the range says it fails.
+    assert!(f(&stored["coefficients"]["k0"]) + 2.0 * f(&stored["std_errors"]["k0"]) < k0_max);
+
+    let c = app.get_json("/v1/sensors/MEMS-T/coefficients", ADMIN).await;
+    assert_eq!(c["verdict"], "fail");
+    assert_eq!(c["usable"], false);
+    use accelcal::domain::timestamp::Timestamp;
+    let at = |v: &Value| Timestamp::parse(v.as_str().unwrap()).unwrap();
+    assert_eq!(
+        at(&c["due_at"]),
+        at(&stored["performed_at"]).plus_seconds(180 * 86_400)
+    );
+    assert_eq!(c["due_at"], stored["due_at"]);
+    // The page states the decision, the worst first.
+    let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
+    let id = stored["id"].as_str().unwrap();
+    let html = crate::ui::page(&app, &format!("/ui/calibrations/{id}"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(html.contains("thermal-decision"), "{html}");
+    assert!(html.contains("badge fail"), "the verdict beside the title");
+    let p = problem(
+        app.get(
+            "/v1/sensors/MEMS-T/coefficients?require=usable&temperature_c=20",
+            ADMIN,
+        )
+        .await,
+        StatusCode::CONFLICT,
+    )
+    .await;
+    assert_eq!(p["type"], "urn:accelcal:problem:not-usable", "{p}");
 }

@@ -11,6 +11,8 @@ use serde::Deserialize;
 
 use crate::domain::review::Supersedes;
 use crate::domain::thermal::ThermalModel;
+use crate::domain::thermal::decision::ThermalDecision;
+use crate::http::ui::badge;
 use crate::http::ui::document::Page;
 use crate::http::ui::format::{Notation, num, unc};
 
@@ -41,6 +43,10 @@ pub struct ThermalDoc {
     pub coefficients: TermMap<f64>,
     /// Their standard uncertainties.
     pub std_errors: TermMap<f64>,
+    /// The sensor type it was judged by.
+    pub sensor_type: Option<String>,
+    /// Its judgement.
+    pub decision: Option<ThermalDecision>,
     /// The model.
     pub thermal: ThermalModel,
 }
@@ -63,7 +69,9 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
         sensor_id: &d.sensor_id,
         title: "Temperature model",
         noun: "temperature model",
-        verdict: None,
+        verdict: Some(
+            html! { @if let Some(dec) = &d.decision { (badge(dec.verdict.as_str(), dec.verdict.as_str())) } },
+        ),
         supersedes: d.supersedes.as_ref(),
         performed_at: &d.performed_at,
         station_id: d.station_id.as_deref(),
@@ -73,11 +81,38 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
             div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
             div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
             div { dt { "Degrees" } dd { (m.selection) } }
+            @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
             div { dt { "Certificate" } dd { "not issued for a temperature model yet" } }
         },
         downloads: None,
         certified: false,
         sections: html! {
+            @if let Some(dec) = &d.decision {
+                h2 { "Decision" }
+                div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #thermal-decision .numbers {
+                    caption { "Each limited coefficient at every set point and across the range ("
+                        (format!("{:?}", dec.rule).to_lowercase()) " rule): its worst" }
+                    thead { tr {
+                        th scope="col" { "term" } th scope="col" { "verdict" } th scope="col" { "at, °C" }
+                        th scope="col" { "value" } th scope="col" { "U" } th scope="col" { "k" }
+                        th scope="col" { "min" } th scope="col" { "max" }
+                    } }
+                    tbody {
+                        @for (t, j) in dec.terms.iter() {
+                            tr {
+                                th scope="row" { (t.to_string()) }
+                                td { (badge(j.worst.verdict.as_str(), j.worst.verdict.as_str())) }
+                                td.num { (celsius(j.worst.temperature_c)) }
+                                td.num { (num(j.worst.value)) }
+                                td.num { (unc(j.worst.expanded)) }
+                                td.num { (num(j.worst.coverage_factor)) }
+                                td.num { (j.min.map_or("—".into(), num)) }
+                                td.num { (j.max.map_or("—".into(), num)) }
+                            }
+                        }
+                    }
+                } }
+            }
             h2 { "Coefficients at T_ref" }
             div.table-wrap tabindex="0" role="region" aria-label="Coefficients at T_ref" { table #thermal-at-reference .numbers {
                 caption { "c(T_ref) = a_0, in " (d.unit) " (per g for the scale terms), with standard uncertainty u" }
