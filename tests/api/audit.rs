@@ -111,6 +111,20 @@ async fn the_trail_records_who_did_what(#[values(Sqlite, Postgres)] engine: Engi
     }
 }
 
+/// `accelcal audit verify` on `database` passes; run off the runtime's
+/// thread (a PostgreSQL test database's proxy runs on it).
+pub(crate) async fn verifies(database: String) {
+    let out = tokio::task::spawn_blocking(move || verify(&database))
+        .await
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
 pub(crate) fn verify(database: &str) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_accelcal"))
         .args(["audit", "verify", "--database", database])

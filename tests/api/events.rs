@@ -540,17 +540,7 @@ async fn each_event_says_what_the_served_coefficients_did(
     // untouched nonconformity edited).
     drop(w);
     app.stop().await;
-    // Off the runtime's thread: the test database's proxy runs on it.
-    let database = app.database.clone();
-    let out = tokio::task::spawn_blocking(move || crate::audit::verify(&database))
-        .await
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::audit::verifies(app.database.clone()).await;
 }
 
 #[rstest]

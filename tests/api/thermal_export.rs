@@ -51,6 +51,13 @@ fn eval(model: &Value, pointer: &str, t: f64) -> f64 {
         .sum()
 }
 
+/// The problem `POST /v1/identify/thermal/triad?export={format}` answers
+/// `b` with, of `status`.
+async fn refused(app: &TestApp, format: &str, b: &Value, status: StatusCode) -> Value {
+    let path = format!("/v1/identify/thermal/triad?export={format}");
+    problem(app.post(&path, ADMIN, b).await, status).await
+}
+
 /// The temperatures checked: across the range and past both ends.
 const CHECKED: [f64; 10] = [-40.0, -20.0, -7.5, 0.0, 13.7, 20.0, 33.3, 45.0, 59.9, 80.0];
 
@@ -202,16 +209,7 @@ async fn formats_without_a_thermal_scale_factor_refuse_one_that_moves() {
         .await
         .unwrap();
     for format in ["px4", "ardupilot"] {
-        let p = problem(
-            app.post(
-                &format!("/v1/identify/thermal/triad?export={format}"),
-                ADMIN,
-                &b,
-            )
-            .await,
-            StatusCode::CONFLICT,
-        )
-        .await;
+        let p = refused(&app, format, &b, StatusCode::CONFLICT).await;
         assert_eq!(p["type"], "urn:accelcal:problem:not-carried", "{p}");
         let detail = p["detail"].as_str().unwrap();
         let terms = named(detail);
@@ -397,26 +395,12 @@ fn scan(poly: &Value) -> (f64, f64, f64) {
 async fn unknown_formats_and_units_are_refused() {
     let app = TestApp::spawn(Sqlite).await;
     let b = body_with(&CHAMBER, 0.0);
-    let p = problem(
-        app.post("/v1/identify/thermal/triad?export=mavlink", ADMIN, &b)
-            .await,
-        StatusCode::BAD_REQUEST,
-    )
-    .await;
+    let p = refused(&app, "mavlink", &b, StatusCode::BAD_REQUEST).await;
     assert_eq!(p["parameter"], "export", "{p}");
     let mut volts = b.clone();
     volts["unit"] = json!("V");
     for format in ["px4", "ardupilot"] {
-        let p = problem(
-            app.post(
-                &format!("/v1/identify/thermal/triad?export={format}"),
-                ADMIN,
-                &volts,
-            )
-            .await,
-            StatusCode::UNPROCESSABLE_ENTITY,
-        )
-        .await;
+        let p = refused(&app, format, &volts, StatusCode::UNPROCESSABLE_ENTITY).await;
         assert!(p["detail"].as_str().unwrap().contains("m/s²"), "{p}");
     }
 }
@@ -450,12 +434,7 @@ async fn the_example_triad_recovers_its_bias_and_cannot_go_to_px4() {
             );
         }
     }
-    let p = problem(
-        app.post("/v1/identify/thermal/triad?export=px4", ADMIN, &b)
-            .await,
-        StatusCode::CONFLICT,
-    )
-    .await;
+    let p = refused(&app, "px4", &b, StatusCode::CONFLICT).await;
     let named: Vec<String> = named(p["detail"].as_str().unwrap())
         .into_iter()
         .map(|t| t.0)

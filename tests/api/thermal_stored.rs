@@ -311,16 +311,7 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
 
     // And the trail vouches for the rows, the model's included.
     app.stop().await;
-    let database = app.database.clone();
-    let out = tokio::task::spawn_blocking(move || crate::audit::verify(&database))
-        .await
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    crate::audit::verifies(app.database.clone()).await;
     drop(db);
 }
 

@@ -3,11 +3,38 @@
 //! standard uncertainty `√(vᵀ C_a v)`, `v_d = (T − T_ref)^d`
 //! ([`accelcal_core::thermal::Polynomial::at`]), and how far `T` lies
 //! outside the valid range `[T_min, T_max]` — which a caller must allow
-//! before it is used there.
+//! before it is used there; and where a polynomial is stationary on its
+//! range (what the exports and the decisions search).
 
 use accelcal_core::TermMap;
+use accelcal_core::thermal::Polynomial;
 
 use super::ThermalModel;
+
+/// The temperatures inside `p`'s range where `c′(T) = a_1 + 2 a_2 x +
+/// 3 a_3 x² = 0` (`x = T − T_ref`): with the ends, where `c` can be
+/// largest or smallest on its range.
+pub fn stationary(p: &Polynomial) -> Vec<f64> {
+    let [lo, hi] = p.range_c;
+    let a = |d: usize| p.coefficients.get(d).copied().unwrap_or(0.0);
+    let (q0, q1, q2) = (a(1), 2.0 * a(2), 3.0 * a(3));
+    let mut xs = Vec::new();
+    if q2 != 0.0 {
+        let disc = q1 * q1 - 4.0 * q2 * q0;
+        if disc >= 0.0 {
+            xs.extend([
+                (-q1 + disc.sqrt()) / (2.0 * q2),
+                (-q1 - disc.sqrt()) / (2.0 * q2),
+            ]);
+        }
+    } else if q1 != 0.0 {
+        xs.push(-q0 / q1);
+    }
+    xs.into_iter()
+        .map(|x| x + p.reference_c)
+        .filter(|t| (lo..=hi).contains(t))
+        .collect()
+}
 
 /// The coefficients of a model at one temperature.
 #[derive(Clone, Debug, PartialEq)]

@@ -18,6 +18,7 @@ use accelcal_core::{Term, TermMap};
 use serde::{Deserialize, Serialize};
 
 use super::ThermalModel;
+use super::at::stationary;
 
 /// Temperatures scanned across the range, ends included.
 pub const SCAN: usize = 401;
@@ -95,25 +96,7 @@ fn temperatures(p: &Polynomial) -> Vec<f64> {
     let mut ts: Vec<f64> = (0..SCAN)
         .map(|i| lo + (hi - lo) * i as f64 / (SCAN - 1) as f64)
         .collect();
-    let a = |d: usize| p.coefficients.get(d).copied().unwrap_or(0.0);
-    let (q0, q1, q2) = (a(1), 2.0 * a(2), 3.0 * a(3));
-    let mut xs = Vec::new();
-    if q2 != 0.0 {
-        let disc = q1 * q1 - 4.0 * q2 * q0;
-        if disc >= 0.0 {
-            xs.extend([
-                (-q1 + disc.sqrt()) / (2.0 * q2),
-                (-q1 - disc.sqrt()) / (2.0 * q2),
-            ]);
-        }
-    } else if q1 != 0.0 {
-        xs.push(-q0 / q1);
-    }
-    ts.extend(
-        xs.into_iter()
-            .map(|x| x + p.reference_c)
-            .filter(|t| (lo..=hi).contains(t)),
-    );
+    ts.extend(stationary(p));
     ts
 }
 

@@ -25,6 +25,7 @@ use accelcal_core::thermal::Polynomial;
 use accelcal_core::triad::AXES;
 
 use super::TriadThermalModel;
+use super::at::stationary;
 use crate::domain::triad_export::{ExportError, c_string};
 
 /// The coverage factor of a dropped term's expanded uncertainty.
@@ -109,28 +110,11 @@ fn change(p: &Polynomial, t: f64) -> (f64, f64) {
     (value, var.max(0.0).sqrt())
 }
 
-/// Where `|Δ|` of `p` can be largest on its range: the ends, and the
-/// roots of `Δ'(x) = a_1 + 2 a_2 x + 3 a_3 x²` within it.
+/// Where `|Δ|` of `p` can be largest on its range: the ends, and where
+/// `Δ′ = c′ = 0` within it.
 fn candidates(p: &Polynomial) -> Vec<f64> {
-    let [lo, hi] = p.range_c;
-    let a = |d: usize| p.coefficients.get(d).copied().unwrap_or(0.0);
-    let (q0, q1, q2) = (a(1), 2.0 * a(2), 3.0 * a(3));
-    let mut xs = Vec::new();
-    if q2 != 0.0 {
-        let disc = q1 * q1 - 4.0 * q2 * q0;
-        if disc >= 0.0 {
-            xs.push((-q1 + disc.sqrt()) / (2.0 * q2));
-            xs.push((-q1 - disc.sqrt()) / (2.0 * q2));
-        }
-    } else if q1 != 0.0 {
-        xs.push(-q0 / q1);
-    }
-    let mut ts = vec![lo, hi];
-    ts.extend(
-        xs.into_iter()
-            .map(|x| x + p.reference_c)
-            .filter(|t| (lo..=hi).contains(t)),
-    );
+    let mut ts = p.range_c.to_vec();
+    ts.extend(stationary(p));
     ts
 }
 
