@@ -244,28 +244,11 @@ fn judged(
     t: &crate::domain::sensor_types::SensorType,
     unit: &str,
 ) -> Result<ThermalDecision, Error> {
-    if let Some(limits_unit) = t.unit.as_ref().filter(|u| **u != unit) {
-        return Err(Error::invalid(
-            Loc::Root.key("unit"),
-            format!(
-                "is `{}`, but sensor type `{}` sets its limits in `{limits_unit}`: send the \
-                 outputs in `{limits_unit}`, or give the sensor a type in `{}`",
-                crate::domain::text::echo(unit),
-                t.type_id,
-                crate::domain::text::echo(unit)
-            ),
-        ));
+    if let Some(refused) = t.unit_refusal(unit) {
+        return Err(refused.into());
     }
-    decide_model(thermal, t.decision_rule, &t.limits, t.coverage()).map_err(|term| {
-        Error::invalid(
-            Loc::Root.key("model"),
-            format!(
-                "sensor type `{}` sets limits on `{term}`, which this model does not identify; \
-                 add `{term}` to the model",
-                t.type_id
-            ),
-        )
-    })
+    decide_model(thermal, t.decision_rule, &t.limits, t.coverage())
+        .map_err(|term| t.missing_term(term).into())
 }
 
 /// The refusal of `key`, which names `what` a temperature model does not

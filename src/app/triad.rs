@@ -21,7 +21,6 @@ use crate::domain::field::Loc;
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::submission::{Media, performed_when};
-use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::{
     Form, GRAVITY_MAGNITUDE, TriadBody, TriadResult, TriadSubmission, as_found, compute,
@@ -218,19 +217,8 @@ pub async fn assess(
     )
     .await?;
     let sensor_type = subject.sensor_type.clone();
-    if let Some(t) = &sensor_type
-        && let Some(unit) = t.unit.as_ref().filter(|u| **u != sub.unit)
-    {
-        return Err(Error::invalid(
-            root.key("unit"),
-            format!(
-                "is `{}`, but sensor type `{}` sets its limits in `{unit}`: send the outputs in \
-                 `{unit}`, or give the sensor a type in `{}`",
-                echo(&sub.unit),
-                t.type_id,
-                echo(&sub.unit)
-            ),
-        ));
+    if let Some(refused) = sensor_type.as_ref().and_then(|t| t.unit_refusal(&sub.unit)) {
+        return Err(refused.into());
     }
     let assigns_type = sub.sensor_type.is_some();
     let mut sub = sub;

@@ -73,17 +73,8 @@ pub fn assess_calibration(
     let s = &e.submission;
     let cal = &e.calibration;
     let stand = s.stand.as_ref().map_or(Stand::default(), StandIn::core);
-    if let Some(t) = sensor_type
-        && let Some(unit) = t.unit.as_ref().filter(|u| **u != s.unit)
-    {
-        return Err(Invalid::one(
-            Loc::Root.key("unit"),
-            format!(
-                "is `{}`, but sensor type `{}` sets its limits in `{unit}`: send the outputs \
-                 in `{unit}`, or give the sensor a type in `{}`",
-                s.unit, t.type_id, s.unit
-            ),
-        ));
+    if let Some(refused) = sensor_type.and_then(|t| t.unit_refusal(&s.unit)) {
+        return Err(refused);
     }
     let quality = assess(&s.test, cal);
     let uncertainty = budget(
@@ -97,18 +88,13 @@ pub fn assess_calibration(
     .map_err(|err| Invalid::one(Loc::Root.key("stand"), err.to_string()))?;
     let decision = sensor_type
         .map(|t| {
-            decide(t.decision_rule, &t.limits, &cal.fused.coefficients, &uncertainty.expanded()).map_err(
-                |term| {
-                    Invalid::one(
-                        Loc::Root.key("model"),
-                        format!(
-                            "sensor type `{}` sets limits on `{term}`, which this model does not identify; \
-                             add `{term}` to the model",
-                            t.type_id
-                        ),
-                    )
-                },
+            decide(
+                t.decision_rule,
+                &t.limits,
+                &cal.fused.coefficients,
+                &uncertainty.expanded(),
             )
+            .map_err(|term| t.missing_term(term))
         })
         .transpose()?;
     let (as_found, as_found_note) = match previous {

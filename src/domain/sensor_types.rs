@@ -109,6 +109,36 @@ impl SensorType {
     }
 }
 
+impl SensorType {
+    /// Why outputs in `unit` cannot be judged by this type, whose limits are
+    /// in another unit (at `/unit`).
+    pub fn unit_refusal(&self, unit: &str) -> Option<Invalid> {
+        let limits_unit = self.unit.as_ref().filter(|u| **u != unit)?;
+        let unit = super::text::echo(unit);
+        Some(Invalid::one(
+            Loc::Root.key("unit"),
+            format!(
+                "is `{unit}`, but sensor type `{}` sets its limits in `{limits_unit}`: send the \
+                 outputs in `{limits_unit}`, or give the sensor a type in `{unit}`",
+                self.type_id
+            ),
+        ))
+    }
+
+    /// The refusal of a model that lacks `term`, on which this type sets
+    /// limits (at `/model`).
+    pub fn missing_term(&self, term: accelcal_core::Term) -> Invalid {
+        Invalid::one(
+            Loc::Root.key("model"),
+            format!(
+                "sensor type `{}` sets limits on `{term}`, which this model does not identify; \
+                 add `{term}` to the model",
+                self.type_id
+            ),
+        )
+    }
+}
+
 /// The coverage of a sensor's expanded uncertainties: its type's, else the
 /// default probability.
 pub fn coverage(t: Option<&SensorType>) -> Coverage {

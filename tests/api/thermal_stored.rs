@@ -480,6 +480,34 @@ async fn a_typed_sensors_model_is_judged_over_its_range(
     assert!(res.status().is_success(), "{}", res.text().await.unwrap());
     let mut b = body(&CHAMBER);
     b["sensor_type"] = json!("CHAMBER");
+    // Outputs in another unit than the type's limits, and a limit on a
+    // term the model lacks, are refused where they are.
+    let mut in_ma = b.clone();
+    in_ma["unit"] = json!("mA");
+    let p = problem(
+        app.post("/v1/calibrations/thermal", ADMIN, &in_ma).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/unit"], "{p}");
+    let res = app
+        .put(
+            "/v1/sensor-types/SECOND-ORDER",
+            ADMIN,
+            &json!({"unit": "V", "decision_rule": "simple", "interval_days": 180,
+                    "limits": {"kii": {"max": 1e-3}}}),
+        )
+        .await;
+    assert!(res.status().is_success());
+    let mut kii = b.clone();
+    kii["sensor_type"] = json!("SECOND-ORDER");
+    kii["sensor_id"] = json!("MEMS-K2");
+    let p = problem(
+        app.post("/v1/calibrations/thermal", ADMIN, &kii).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/model"], "{p}");
     let res = app.post("/v1/calibrations/thermal", ADMIN, &b).await;
     assert_eq!(res.status(), StatusCode::CREATED);
     let stored: Value = res.json().await.unwrap();
