@@ -48,7 +48,15 @@ pub fn parse_but<T: DeserializeOwned>(
             rest.append_pair(&k, &v);
         }
     }
-    Ok((parse(&rest.finish())?, taken))
+    let parsed = parse(&rest.finish()).map_err(|mut p| {
+        // An unknown parameter is told every parameter there is: `name`
+        // too.
+        if p.detail.contains("is not known here; expected ") {
+            p.detail = format!("{}, or `{name}`", p.detail);
+        }
+        p
+    })?;
+    Ok((parsed, taken))
 }
 
 fn parse_pairs<T: DeserializeOwned>(pairs: form_urlencoded::Parse<'_>) -> Result<T, Problem> {

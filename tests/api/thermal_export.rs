@@ -397,6 +397,19 @@ async fn unknown_formats_and_units_are_refused() {
     let b = body_with(&CHAMBER, 0.0);
     let p = refused(&app, "mavlink", &b, StatusCode::BAD_REQUEST).await;
     assert_eq!(p["parameter"], "export", "{p}");
+    // An unknown parameter is told every one there is, `export` too.
+    let p = problem(
+        app.post("/v1/identify/thermal/triad?colour=red", ADMIN, &b)
+            .await,
+        StatusCode::BAD_REQUEST,
+    )
+    .await;
+    assert_eq!(p["parameter"], "colour", "{p}");
+    let detail = p["detail"].as_str().unwrap();
+    assert!(
+        detail.contains("`tolerance_k`") && detail.ends_with("or `export`"),
+        "{p}"
+    );
     let mut volts = b.clone();
     volts["unit"] = json!("V");
     for format in ["px4", "ardupilot"] {
