@@ -32,6 +32,9 @@ for _ in $(seq 50); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && bre
   --max-examples "$EXAMPLES" --no-color --workers 1 --seed "${SCHEMATHESIS_SEED:-20261122}" \
   --exclude-operation-id streamEvents
 
+# Each kind's stored result document against getCalibration's schema.
+"$(dirname "$(command -v "$ST")")/python3" tests/contract/documents.py "http://127.0.0.1:$PORT" "$ACCELCAL_TOKEN"
+
 # Whatever schemathesis thought, the server itself must never have answered 5xx.
 if grep -q '"status":5[0-9][0-9]' "$WORK/server.log"; then
   echo "contract: the server logged 5xx answers:" >&2

@@ -540,11 +540,12 @@ marker_schema!(
 );
 
 marker_schema!(
-    /// A stored calibration's result document: single-axis, or a triad's
-    /// (`kind: triad`).
+    /// A stored calibration's result document: single-axis, a triad's
+    /// (`kind: triad`) or a temperature model's (`kind: thermal`).
     StoredResultSchema => RefOr::T(Schema::OneOf(utoipa::openapi::schema::OneOfBuilder::new()
         .item(reference("StoredCalibration"))
         .item(reference("StoredTriad"))
+        .item(reference("StoredThermal"))
         .build()))
 );
 
