@@ -17,14 +17,16 @@ use accelcal_testkit::*;
 
 use crate::thermal_triad::{CHAMBER, body_with, f};
 
+/// The temperature model `POST /v1/identify/thermal/triad` fits to `b`.
+async fn model_of(app: &TestApp, b: &Value) -> Value {
+    let res = app.post("/v1/identify/thermal/triad", ADMIN, b).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    res.json().await.unwrap()
+}
+
 /// The model of `b` and its file in `export`.
 async fn model_and_file(app: &TestApp, b: &Value, export: &str) -> (Value, String) {
-    let model: Value = app
-        .post("/v1/identify/thermal/triad", ADMIN, b)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let model = model_of(app, b).await;
     let res = app
         .post(
             &format!("/v1/identify/thermal/triad?export={export}"),
@@ -202,12 +204,7 @@ fn named(detail: &str) -> Vec<(String, f64, f64, f64)> {
 async fn formats_without_a_thermal_scale_factor_refuse_one_that_moves() {
     let app = TestApp::spawn(Sqlite).await;
     let b = body_with(&CHAMBER, 1.0);
-    let model: Value = app
-        .post("/v1/identify/thermal/triad", ADMIN, &b)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let model = model_of(&app, &b).await;
     for format in ["px4", "ardupilot"] {
         let p = refused(&app, format, &b, StatusCode::CONFLICT).await;
         assert_eq!(p["type"], "urn:accelcal:problem:not-carried", "{p}");
@@ -425,12 +422,7 @@ async fn unknown_formats_and_units_are_refused() {
 async fn the_example_triad_recovers_its_bias_and_cannot_go_to_px4() {
     let app = TestApp::spawn(Sqlite).await;
     let b: Value = serde_json::from_str(include_str!("../../examples/thermal-triad.json")).unwrap();
-    let model: Value = app
-        .post("/v1/identify/thermal/triad", ADMIN, &b)
-        .await
-        .json()
-        .await
-        .unwrap();
+    let model = model_of(&app, &b).await;
     let planted = [
         [0.183, 1.6e-3, 1.1e-5],
         [-0.127, -0.9e-3, 0.0],

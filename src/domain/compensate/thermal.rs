@@ -212,11 +212,8 @@ impl CompensateRequest {
                 errors.add(at, outside_range(t, outside, model, id));
             }
         }
-        let errors = errors.finish(|| ());
-        let mut errors = match errors {
-            Ok(()) => Errors::default(),
-            Err(e) => return Err(e),
-        };
+        errors.finish(|| ())?;
+        let mut errors = Errors::default();
         // One compensator per distinct temperature.
         let mut by_temperature: HashMap<u64, Result<Compensator, String>> = HashMap::new();
         let outputs_at = root.key("outputs");
