@@ -21,8 +21,8 @@ use crate::store::NewCalibration;
 /// Resolves the standards `e` names against the registry, for a test
 /// performed at `performed_at` ([`resolve`]); the stand's indexing error
 /// and the gravity value's relative uncertainty become the submission's
-/// stand.
-async fn resolve_standards(
+/// stand. Temperature models resolve theirs so too.
+pub(super) async fn resolve_standards(
     lab: &Lab,
     e: &mut Evaluated,
     performed_at: Timestamp,

@@ -7,17 +7,33 @@
 //! and whose temperature model is kept beside them, for the coefficients
 //! and compensation at a temperature. A triad's `b` and `S` likewise, not
 //! stored yet.
+//!
+//! **Standards.** The stand, thermometer and gravity value a submission
+//! names are resolved as a single axis's are ([`resolve_standards`]): in
+//! calibration and in service when the test was performed, recorded as
+//! used (so that a nonconformity of one holds the model), and a
+//! nonconformity's window holding the test holds it as stored. The
+//! thermometer's `temperature_std_c` enters the model's budget at every
+//! temperature it is read at (`u_T · |dc/dT|`,
+//! [`ThermalModel::read`](crate::domain::thermal::ThermalModel::read)).
+//! The stand's indexing error and the gravity value's uncertainty are not
+//! carried into the polynomials: the model states no expanded uncertainty
+//! of the single-axis budget's kind.
 
 use accelcal_core::TermMap;
 use bytes::Bytes;
 use serde::Serialize;
 use uuid::Uuid;
 
+use super::single_axis::resolve_standards;
+use super::standards::Resolved;
 use super::subject::{in_force, station};
 use super::{Assessed, Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
+use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
+use crate::domain::standards::UsedStandard;
 use crate::domain::submission::evaluate;
 use crate::domain::thermal::decision::{ThermalDecision, decide_model};
 use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
@@ -70,16 +86,25 @@ pub struct StoredThermal {
     /// its type's interval.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub due_at: Option<Timestamp>,
-    /// The model: the set points and every coefficient's polynomial.
+    /// The reference standards used, with the certificates in force.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub standards: Vec<UsedStandard>,
+    /// The nonconformities of those standards in whose windows the test
+    /// was performed: the model was stored held.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[schema(value_type = Vec<Object>)]
+    pub held_by: Vec<HeldBy>,
+    /// The model: the set points and every coefficient's polynomial (with
+    /// the thermometer's standard uncertainty, when one was named).
     #[schema(value_type = Object)]
     pub thermal: ThermalModel,
 }
 
 /// The temperature model of `upload` for `principal`, its runs grouped
 /// within `tolerance_k` and each polynomial fitted with `options`
-/// (`crate::domain::thermal::ThermalParams::checked`). A sensor type
-/// or reference standards are refused rather than ignored: nothing here
-/// judges against limits or budgets with a standard yet.
+/// (`crate::domain::thermal::ThermalParams::checked`), the standards it
+/// names resolved (module doc). A sensor type is refused rather than
+/// ignored: a model is judged when it is stored.
 pub async fn identify(
     lab: &Lab,
     principal: &Principal,
@@ -87,10 +112,10 @@ pub async fn identify(
     fit: Fit,
 ) -> Result<ThermalModel, Error> {
     let who = principal.clone();
-    lab.compute_for(
-        upload.bytes.len(),
-        move || -> Result<ThermalModel, Error> {
-            let e = evaluate(upload.media, &upload.bytes, Timestamp::now())?;
+    let now = Timestamp::now();
+    let (mut e, mut thermal) = lab
+        .compute_for(upload.bytes.len(), move || {
+            let e = evaluate(upload.media, &upload.bytes, now)?;
             station(&who, e.submission.station_id.as_deref())?;
             if e.submission.sensor_type.is_some() {
                 return Err(Error::invalid(
@@ -99,13 +124,22 @@ pub async fn identify(
                      /v1/calibrations/thermal): omit it here",
                 ));
             }
-            if e.submission.standards.is_some() {
-                return Err(not_yet("standards", "the reference standards' budget"));
-            }
-            Ok(model(&e.submission, &fit)?)
-        },
-    )
-    .await?
+            let thermal = model(&e.submission, &fit)?;
+            Ok::<_, Error>((e, thermal))
+        })
+        .await??;
+    let performed_at = e.submission.performed_at.unwrap_or(now);
+    resolve_standards(lab, &mut e, performed_at).await?;
+    thermal.thermometer_std_c = thermometer(&e.submission.standards_used);
+    Ok(thermal)
+}
+
+/// The standard uncertainty of the thermometer among `used`, if one was
+/// named.
+fn thermometer(used: &[UsedStandard]) -> Option<f64> {
+    used.iter()
+        .find(|u| u.role == "thermometer")
+        .and_then(|u| u.parameters.temperature_std_c)
 }
 
 /// The temperature model of the triad `upload`, its runs grouped within
@@ -136,10 +170,9 @@ pub async fn identify_triad(
 
 /// `upload` assessed as a temperature model fitted with `fit`, to be
 /// stored under `id` (with `supersedes`, the calibration it corrects):
-/// read and fitted on the compute pool, and judged by the sensor type in
-/// force (named, or the sensor's) at every set point and across the range
-/// ([`decide_model`]); reference standards are refused rather than
-/// ignored, as for `identify`.
+/// read and fitted on the compute pool, its standards resolved (module
+/// doc), and judged by the sensor type in force (named, or the sensor's)
+/// at every set point and across the range ([`decide_model`]).
 pub async fn assess(
     lab: &Lab,
     principal: &Principal,
@@ -151,17 +184,17 @@ pub async fn assess(
 ) -> Result<Assessed, Error> {
     let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
     let who = principal.clone();
-    let (e, station_id, thermal) = lab
+    let (mut e, station_id, mut thermal) = lab
         .compute_for(upload.bytes.len(), move || {
             let e = evaluate(upload.media, &upload.bytes, received_at)?;
             let station_id = station(&who, e.submission.station_id.as_deref())?;
-            if e.submission.standards.is_some() {
-                return Err(not_yet("standards", "the reference standards' budget"));
-            }
             let thermal = model(&e.submission, &fit)?;
-            Ok((e, station_id, thermal))
+            Ok::<_, Error>((e, station_id, thermal))
         })
         .await??;
+    let performed_at = e.submission.performed_at.unwrap_or(received_at);
+    resolve_standards(lab, &mut e, performed_at).await?;
+    thermal.thermometer_std_c = thermometer(&e.submission.standards_used);
     let sub = &e.submission;
     let subject = in_force(
         lab,
@@ -172,7 +205,6 @@ pub async fn assess(
         received_at,
     )
     .await?;
-    let performed_at = sub.performed_at.unwrap_or(received_at);
     let decision = match &subject.sensor_type {
         None => None,
         Some(t) => Some(judged(&thermal, t, &sub.unit)?),
@@ -200,6 +232,8 @@ pub async fn assess(
         sensor_type: subject.sensor_type.as_ref().map(|t| t.type_id.clone()),
         decision,
         due_at,
+        standards: sub.standards_used.clone(),
+        held_by: sub.held_by.clone(),
         thermal,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
@@ -227,8 +261,8 @@ pub async fn assess(
         due_at,
         expanded: None,
         triad: None,
+        standards: Resolved::uses(&view.standards),
         thermal: Some(view.thermal),
-        standards: Vec::new(),
     };
     Ok(Assessed {
         sensor_id: record.sensor_id.clone(),
@@ -251,11 +285,14 @@ fn judged(
         .map_err(|term| t.missing_term(term).into())
 }
 
-/// The refusal of `key`, which names `what` a temperature model does not
-/// apply yet.
+/// The refusal of `key`, which names `what` a triad's temperature model
+/// (computed, not stored) does not apply yet.
 fn not_yet(key: &str, what: &str) -> Error {
     Error::invalid(
         Loc::Root.key(key),
-        format!("{what} is not applied to a temperature model yet (issue 45 item 4): omit it"),
+        format!(
+            "{what} is not applied to a triad's temperature model, which is computed and not \
+             stored yet: omit it"
+        ),
     )
 }

@@ -197,6 +197,12 @@ pub struct ThermalModel {
     /// Each coefficient's polynomial `c(T) = Σ a_d (T − T_ref)^d`, its
     /// `a_d` in the coefficient's unit per K^d.
     pub coefficients: TermMap<Polynomial>,
+    /// The standard uncertainty of the named thermometer's reading, K
+    /// (`temperature_std_c` of its certificate in force): the model read
+    /// at a temperature adds `u_T · |dc/dT|` to each coefficient's budget
+    /// ([`ThermalModel::at`]). None when no thermometer was named.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermometer_std_c: Option<f64>,
 }
 
 /// The temperature model of `submission` (module doc), fitted with `fit`.
@@ -263,6 +269,7 @@ pub fn model(submission: &Submission, fit: &Fit) -> Result<ThermalModel, Invalid
         fitted_with: fit.params,
         set_points,
         coefficients: TermMap(coefficients),
+        thermometer_std_c: None,
     })
 }
 

@@ -318,10 +318,10 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
 /// What a stored model cannot use is refused, naming it;
 /// a degree or tolerance out of range is a 400 naming the parameter.
 #[tokio::test]
-async fn what_a_stored_model_does_not_apply_yet_is_refused() {
+async fn what_a_stored_model_cannot_use_is_refused() {
     let app = TestApp::spawn(Sqlite).await;
     let b = body(&CHAMBER);
-    // A sensor type that does not exist; standards, not budgeted yet.
+    // A sensor type that does not exist; a standard that does not.
     let mut typed = b.clone();
     typed["sensor_type"] = json!("NO-SUCH-TYPE");
     let p = problem(
@@ -338,7 +338,7 @@ async fn what_a_stored_model_does_not_apply_yet_is_refused() {
         StatusCode::UNPROCESSABLE_ENTITY,
     )
     .await;
-    assert_eq!(pointers(&p), ["/standards"], "{p}");
+    assert_eq!(pointers(&p), ["/standards/stand"], "{p}");
     let p = problem(
         app.post("/v1/calibrations/thermal?degree=7", ADMIN, &b)
             .await,

@@ -133,6 +133,11 @@ pub struct TemperatureUsed {
     pub extrapolated: bool,
     /// How far outside, K (the farthest; 0 within).
     pub extrapolated_k: f64,
+    /// The standard uncertainty of the thermometer the model names, K:
+    /// the coefficients' standard uncertainties at the temperature include
+    /// `u_T · |dc/dT|` (absent when the model names none).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thermometer_std_c: Option<f64>,
 }
 
 impl TemperatureUsed {
@@ -150,6 +155,7 @@ impl TemperatureUsed {
             range_c: [lo, hi],
             extrapolated: outside > 0.0,
             extrapolated_k: outside,
+            thermometer_std_c: model.thermometer_std_c,
         }
     }
 }

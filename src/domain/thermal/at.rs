@@ -1,7 +1,16 @@
 //! A single axis's temperature model read at a temperature (issue 45
-//! item 3): every coefficient `c(T) = Σ a_d (T − T_ref)^d` with its
-//! standard uncertainty `√(vᵀ C_a v)`, `v_d = (T − T_ref)^d`
-//! ([`accelcal_core::thermal::Polynomial::at`]), and how far `T` lies
+//! items 3 and 4): every coefficient `c(T) = Σ a_d (T − T_ref)^d` with its
+//! standard uncertainty
+//!
+//! ```text
+//! u(c(T))² = vᵀ C_a v + (u_T · c′(T))²,   v_d = (T − T_ref)^d,
+//! ```
+//!
+//! the polynomial's own ([`accelcal_core::thermal::Polynomial::at`]) and,
+//! when a thermometer was named, its reading's standard uncertainty `u_T`
+//! carried through the slope `c′(T) = Σ d a_d (T − T_ref)^(d−1)` (a
+//! temperature read `u_T` off moves `c` by `c′ u_T` to first order; the
+//! two are independent). And how far `T` lies
 //! outside the valid range `[T_min, T_max]` — which a caller must allow
 //! before it is used there; and where a polynomial is stationary on its
 //! range (what the exports and the decisions search).
@@ -66,12 +75,23 @@ impl ThermalModel {
             .map_or([f64::NAN; 2], |(_, p)| p.range_c)
     }
 
+    /// Polynomial `p` of this model at `temperature_c`: its value and
+    /// standard uncertainty, the thermometer's term included (module doc).
+    pub fn read(&self, p: &Polynomial, temperature_c: f64) -> (f64, f64) {
+        let (value, u) = p.at(temperature_c);
+        let u = match self.thermometer_std_c {
+            Some(u_t) => u.hypot(u_t * p.slope(temperature_c)),
+            None => u,
+        };
+        (value, u)
+    }
+
     /// Every coefficient at `temperature_c`.
     pub fn at(&self, temperature_c: f64) -> AtTemperature {
         let mut coefficients = Vec::with_capacity(self.coefficients.len());
         let mut std_errors = Vec::with_capacity(self.coefficients.len());
         for (term, p) in self.coefficients.iter() {
-            let (value, u) = p.at(temperature_c);
+            let (value, u) = self.read(p, temperature_c);
             coefficients.push((term, value));
             std_errors.push((term, u));
         }
@@ -106,5 +126,9 @@ impl ThermalModel {
         set_points
             .chain(polynomials)
             .chain([("tolerance_k".to_owned(), self.tolerance_k)])
+            .chain(
+                self.thermometer_std_c
+                    .map(|u| ("thermometer_std_c".to_owned(), u)),
+            )
     }
 }

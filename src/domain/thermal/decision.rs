@@ -3,7 +3,9 @@
 //! with `U = k · se`, `k` for the set point's fused degrees of freedom — and
 //! across the valid range — `c(T)` with `U = k · √(vᵀ C v)`, `k` for the
 //! polynomial's `ν = N − D − 1` when the scatter set its covariance (the
-//! Birge ratio inflated it), for infinite degrees of freedom otherwise —
+//! Birge ratio inflated it), for infinite degrees of freedom otherwise, and
+//! the thermometer's `u_T · |c′(T)|` in `u` when one was named
+//! ([`ThermalModel::read`]) —
 //! each judged by the type's rule ([`accelcal_core::decision::judge`]).
 //! The range is judged at the ends, where `c′(T) = 0`, and at
 //! [`SCAN`] evenly spaced temperatures between (where `U` grows while `c`
@@ -139,7 +141,7 @@ pub fn decide_model(
         let range = temperatures(p)
             .into_iter()
             .map(|t| {
-                let (value, u) = p.at(t);
+                let (value, u) = model.read(p, t);
                 at(t, value, u, k)
             })
             .reduce(|a, b| worse(a, b, *limit))
@@ -169,4 +171,63 @@ pub fn decide_model(
         verdict,
         terms: TermMap(terms),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use accelcal_core::thermal::Polynomial;
+
+    /// `k0(T) = 1e-3 (T − 20)` on 0…40 °C, judged against `k0 ≤ 0.05`
+    /// with `k = 2`: the worst of the range is at 40 °C, its `U` is
+    /// `2 √(vᵀ C v + (u_T · 1e-3)²)` computed here by hand.
+    #[test]
+    fn the_range_is_judged_with_the_thermometers_term() {
+        let p = Polynomial {
+            reference_c: 20.0,
+            degree: 1,
+            coefficients: vec![0.0, 1e-3],
+            std_uncertainties: vec![1e-5, 1e-7],
+            covariance: vec![vec![1e-10, 0.0], vec![0.0, 1e-14]],
+            chi2: 1.0,
+            dof: 3,
+            inflation: 1.0,
+            range_c: [0.0, 40.0],
+            selection: Vec::new(),
+        };
+        let mut model = ThermalModel {
+            sensor_id: "S".into(),
+            unit: "V".into(),
+            tolerance_k: 0.5,
+            selection: "fixed".into(),
+            fitted_with: Default::default(),
+            set_points: Vec::new(),
+            coefficients: TermMap(vec![(Term::K0, p)]),
+            thermometer_std_c: None,
+        };
+        let limits = TermMap(vec![(
+            Term::K0,
+            Limit {
+                min: None,
+                max: Some(0.05),
+            },
+        )]);
+        let judged = |m: &ThermalModel| {
+            decide_model(m, Rule::Simple, &limits, Coverage::Factor(2.0)).unwrap()
+        };
+        let u_fit = (1e-10f64 + 20.0 * 20.0 * 1e-14).sqrt();
+        let plain = judged(&model).terms.get(Term::K0).unwrap().range;
+        assert_eq!(plain.temperature_c, 40.0);
+        assert!((plain.expanded - 2.0 * u_fit).abs() < 1e-18);
+        model.thermometer_std_c = Some(0.5);
+        let with = judged(&model).terms.get(Term::K0).unwrap().range;
+        let want = 2.0 * (u_fit * u_fit + (0.5 * 1e-3f64).powi(2)).sqrt();
+        assert_eq!(with.temperature_c, 40.0);
+        assert!(
+            (with.expanded - want).abs() < 1e-15,
+            "{} {want}",
+            with.expanded
+        );
+        assert_eq!((with.value, with.verdict), (0.02, Verdict::Pass));
+    }
 }
