@@ -41,7 +41,7 @@
 //! (the second line since `(w_b/W)² s_b²/n_b = w_b/W²`). One batch gives
 //! `n − 1`; a single run, its own residual degrees of freedom `m − p`.
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 /// The coverage probability of a sensor without a type, or of a type that
@@ -51,7 +51,7 @@ pub const DEFAULT_PROBABILITY: f64 = 0.9545;
 /// What an expanded uncertainty holds fixed: the probability it must cover
 /// (the coverage factor then follows from the degrees of freedom), or the
 /// coverage factor (the probability then follows).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Coverage {
     /// A coverage probability, `0 < p < 1`.

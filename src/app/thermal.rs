@@ -86,6 +86,11 @@ pub struct StoredThermal {
     /// its type's interval.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub due_at: Option<Timestamp>,
+    /// What its expanded uncertainties hold fixed — the sensor type's
+    /// coverage probability or factor, 95.45 % without one — for the
+    /// decision and the certificate's `a_d` alike.
+    #[schema(value_type = Object)]
+    pub coverage: accelcal_core::coverage::Coverage,
     /// The reference standards used, with the certificates in force.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub standards: Vec<UsedStandard>,
@@ -232,6 +237,7 @@ pub async fn assess(
         sensor_type: subject.sensor_type.as_ref().map(|t| t.type_id.clone()),
         decision,
         due_at,
+        coverage: crate::domain::sensor_types::coverage(subject.sensor_type.as_ref()),
         standards: sub.standards_used.clone(),
         held_by: sub.held_by.clone(),
         thermal,

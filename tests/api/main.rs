@@ -38,6 +38,7 @@ mod standard_periods;
 mod standards;
 mod storage;
 mod thermal;
+mod thermal_certificate;
 mod thermal_export;
 mod thermal_standards;
 mod thermal_stored;

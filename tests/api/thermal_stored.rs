@@ -259,16 +259,15 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
     .await;
     assert_eq!(pointers(&p), ["/temperature_c"], "{p}");
 
-    // Its certificate is not issued yet, and says so.
-    let p = problem(
-        app.get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
-            .await,
-        StatusCode::CONFLICT,
-    )
-    .await;
-    assert_eq!(p["type"], "urn:accelcal:problem:wrong-kind", "{p}");
+    // Not approved, its certificate is a draft (tests/api/thermal_certificate.rs
+    // reads an issued one).
+    let res = app
+        .get(&format!("/v1/calibrations/{id}/certificate"), ADMIN)
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    assert!(res.text().await.unwrap().contains("data-term=\"k0_a0\""));
 
-    // Its page shows the model and offers no certificate; the sensor's
+    // Its page shows the model and links its certificate; the sensor's
     // page lists it.
     let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
     let res = crate::ui::page(&app, &format!("/ui/calibrations/{id}"), &session).await;
@@ -281,7 +280,7 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
     ] {
         assert!(html.contains(part), "{part}");
     }
-    assert!(!html.contains("/certificate.xml"), "no DCC link");
+    assert!(html.contains("id=\"dcc-link\""), "the DCC's link");
     let res = crate::ui::page(&app, "/ui/sensors/MEMS-T", &session).await;
     assert_eq!(res.status(), StatusCode::OK);
     assert!(res.text().await.unwrap().contains(&id));

@@ -2,8 +2,9 @@
 
 Against a running accelcal (BASE, admin token in ACCELCAL_ADMIN_TOKEN, the
 laboratory configured): approves a single-axis calibration (the paper's
-Table 1) and a triad (examples/triad-recording.json) whose free text is
-hostile but accepted, fetches both Digital Calibration Certificates, and
+Table 1), a triad (examples/triad-recording.json) and a temperature model
+(examples/thermal-chamber.json, its a_d in units per K^d) whose free text is
+hostile but accepted, fetches their Digital Calibration Certificates, and
 reads each with dcc-json-toolkit's content validation (ISO dates, D-SI
 units, quantity tables) and every si:unit with dsiUnits. The text must come
 back as sent. Exits non-zero on any finding.
@@ -62,7 +63,7 @@ def main():
                     {"role": "reviewer", "holder": "Rita " + HOSTILE})["token"]
     call("PUT", "/v1/customers/ACME", ADMIN,
          {"name": "Acme " + HOSTILE, "address": HOSTILE, "due_date_agreed": True})
-    for sensor in ["PAPER-2005", "IMU-DEMO-1"]:
+    for sensor in ["PAPER-2005", "IMU-DEMO-1", "MEMS-TC-7"]:
         call("PUT", f"/v1/sensors/{sensor}/item", ADMIN,
              {"manufacturer": HOSTILE, "model": HOSTILE, "serial": HOSTILE, "customer": "ACME"})
     stand = json.load(open("examples/standard-stand.json"))
@@ -76,9 +77,12 @@ def main():
                    "performed_at": "2026-06-01T08:00:00Z"})
     triad = json.load(open("examples/triad-recording.json"))
     triad["unit"] = "<&]]>\"𝔤'"  # at most 32 characters
+    thermal = json.load(open("examples/thermal-chamber.json"))
+    thermal.update({"standards": {"stand": "STAND-1"}, "performed_at": "2026-06-01T08:00:00Z"})
     ids = {
         "single-axis": approved("/v1/calibrations", single, reviewer, HOSTILE),
         "triad": approved("/v1/calibrations/triad", triad, reviewer, HOSTILE),
+        "temperature model": approved("/v1/calibrations/thermal", thermal, reviewer, HOSTILE),
     }
     findings = []
     for kind, id_ in ids.items():
@@ -109,7 +113,7 @@ def main():
     if findings:
         print("\n".join(findings), file=sys.stderr)
         sys.exit(1)
-    print("dcc: both DCCs read by dcc-json-toolkit and dsiUnits, the text as sent")
+    print("dcc: every kind's DCC read by dcc-json-toolkit and dsiUnits, the text as sent")
 
 
 main()

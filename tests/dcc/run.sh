@@ -1,10 +1,10 @@
 #!/usr/bin/env bash
 # accelcal's Digital Calibration Certificates read by PTB's own libraries:
 # starts accelcal (laboratory configured) on a fresh SQLite database, and
-# tests/dcc/read.py approves a single-axis and a triad calibration whose
-# free text is hostile (markup, `]]>`, quotes, astral and combining
-# characters), then reads both DCCs with dcc-json-toolkit's content
-# validation and every si:unit with dsiUnits. Needs the packages in
+# tests/dcc/read.py approves a single-axis calibration, a triad and a
+# temperature model whose free text is hostile (markup, `]]>`, quotes,
+# astral and combining characters), then reads their DCCs with
+# dcc-json-toolkit's content validation and every si:unit with dsiUnits. Needs the packages in
 # tests/dcc/requirements.txt (.ci/run installs them in its venv).
 # Usage: tests/dcc/run.sh [path/to/accelcal]
 set -euo pipefail

@@ -334,8 +334,15 @@ try {
   const k0 = thermal.thermal.coefficients.k0;
   close(num(polynomials[0][1]), k0.coefficients[1], 1e-3, 'a_1 of k0 on the page');
   assert.equal(await page.$$eval('#thermal-set-points tbody tr', (trs) => trs.length), 5, 'five set points');
-  assert.equal(await page.$('#dcc-link'), null, 'no certificate for a temperature model yet');
-  ok('temperature model: the page shows its polynomials and set points as stored, and offers no certificate');
+  assert.ok(await page.$('#dcc-link'), 'the temperature model links its DCC');
+  await Promise.all([page.waitForNavigation(), page.click('a[href$="/certificate"]')]);
+  const aRows = await page.$$eval('#certificate-results tbody tr', (trs) => trs.map((tr) => [tr.dataset.term, tr.querySelectorAll('td')[0].textContent, tr.querySelectorAll('td')[6].textContent]));
+  const wantRows = Object.entries(thermal.thermal.coefficients).flatMap(([t, p]) => p.coefficients.map((_, d) => `${t}_a${d}`));
+  assert.deepEqual(aRows.map((r) => r[0]), wantRows, 'a row per a_d of every polynomial');
+  const [, a1, a1U] = aRows.find((r) => r[0] === 'k0_a1');
+  assert.ok(Math.abs(num(a1) - k0.coefficients[1]) <= num(a1U) / 20, `k0_a1 on the certificate: ${a1} is not ${k0.coefficients[1]} to U/20`);
+  assert.equal(await page.$$eval('#thermal-set-points tbody tr', (trs) => trs.length), 5, 'the certificate lists the set points');
+  ok('temperature model: the page shows its polynomials and set points as stored and links its certificate, which lists every a_d rounded to its U and the set points');
 
   // ---------------------------------- accessibility and screenshots
   const pages = {
@@ -347,6 +354,7 @@ try {
     triadCertificate: `/ui/calibrations/${triad.id}/certificate`,
     triadSensor: '/ui/sensors/IMU-DEMO-1',
     thermal: `/ui/calibrations/${thermal.id}`,
+    thermalCertificate: `/ui/calibrations/${thermal.id}/certificate`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

@@ -11,7 +11,7 @@ use axum::http::{HeaderMap, HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 use maud::html;
 
-use super::stored::{load_page, record, when};
+use super::stored::{load_stored, record, when};
 use super::viewer::Viewer;
 use super::{Html, UiError, layout, review};
 use crate::http::problem::Problem;
@@ -25,7 +25,7 @@ pub async fn page(
     viewer: Viewer,
     Path(id): Path<String>,
 ) -> Result<Html, UiError> {
-    let stored = load_page(&state, &id).await?;
+    let stored = load_stored(&state, &id).await?;
     let d = super::kinds::page(&stored);
     let (review_state, signatures) = record(&state, &id).await?;
     let trail = if viewer.principal.role >= crate::domain::auth::Role::Reviewer {

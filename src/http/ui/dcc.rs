@@ -272,7 +272,12 @@ fn results(x: &mut Xml, doc: &Document<'_>) {
             })
         });
         equipment(x, doc.admin.standards);
-        conditions(x, t.temperatures.as_deref(), doc.admin.standards);
+        conditions(
+            x,
+            t.temperatures.as_deref(),
+            t.reference_c,
+            doc.admin.standards,
+        );
         x.el("dcc:results", |x| {
             x.el("dcc:result", |x| {
                 rich(x, "dcc:name", t.results_name);
@@ -287,6 +292,7 @@ fn results(x: &mut Xml, doc: &Document<'_>) {
                                 "dcc:name",
                                 &format!("{} — {} ({})", q.name, q.meaning, q.dcc_unit),
                             );
+                            let unit = per_kelvin(&unit, q.per_kelvin);
                             real(x, &q.name, q.value, &unit, q.expanded.zip(q.covered));
                             meta_data(
                                 x,

@@ -38,6 +38,9 @@ pub struct Quantity {
     /// Its unit with the specific force a ratio (unit one), as the DCC
     /// names it.
     pub dcc_unit: String,
+    /// The power of the kelvin it is per: a temperature model's `a_d` is
+    /// in the coefficient's unit per K^d (0 for every other quantity).
+    pub per_kelvin: i32,
     /// Its judgement against the sensor type's limits, when judged.
     pub limited: Option<Limited>,
     /// Why it is not measured but fixed (a triad's `S_xy` from the
@@ -131,8 +134,12 @@ pub struct DccText {
     pub method: String,
     /// The method's published reference, when it follows one.
     pub reference: Option<&'static str>,
-    /// The runs' temperatures, °C, when recorded.
+    /// The runs' temperatures, °C, when recorded; a temperature model's
+    /// set points.
     pub temperatures: Option<Vec<f64>>,
+    /// A temperature model's `T_ref`, °C: the temperatures are then its
+    /// valid range.
+    pub reference_c: Option<f64>,
     /// The output's unit, which every quantity's value is stated in (the
     /// specific force a ratio).
     pub unit: String,

@@ -66,10 +66,7 @@ pub async fn issuing(
 /// Reads what calibration `raw_id`'s certificate is rendered from.
 pub async fn draft(state: &AppState, headers: &HeaderMap, raw_id: &str) -> Result<Draft, Problem> {
     let doc = load_stored(state, raw_id).await?;
-    let sensor = match &doc {
-        StoredDoc::Axis(d) => d.sensor_id.clone(),
-        StoredDoc::Triad(d) => d.sensor_id.clone(),
-    };
+    let sensor = doc.sensor_id().to_owned();
     let ctx = context(state, headers, raw_id, &sensor).await?;
     Ok(Draft {
         doc,
@@ -133,10 +130,7 @@ impl Draft {
     }
 
     fn id(&self) -> uuid::Uuid {
-        match &self.doc {
-            StoredDoc::Axis(d) => d.id,
-            StoredDoc::Triad(d) => d.id,
-        }
+        self.doc.id()
     }
 }
 

@@ -3,7 +3,7 @@
 //! and the few passages only it writes — over which the certificate and the
 //! DCC are written once, and into a [`Page`], its sections of the one
 //! calibration page. A new kind is a module here and a variant of
-//! [`StoredDoc`] (of [`PageDoc`] while it has a page and no documents).
+//! [`StoredDoc`].
 
 pub mod single_axis;
 pub mod thermal;
@@ -11,21 +11,22 @@ pub mod triad;
 
 use super::certificate::Context;
 use super::document::{Document, Page};
-use super::stored::{PageDoc, StoredDoc};
+use super::stored::StoredDoc;
 
 /// Stored calibration `d` as its documents read it, in context `c`.
 pub fn document<'a>(d: &'a StoredDoc, c: &Context) -> Document<'a> {
     match d {
         StoredDoc::Axis(d) => single_axis::document(d, c),
         StoredDoc::Triad(d) => triad::document(d, c),
+        StoredDoc::Thermal(d) => thermal::document(d, c),
     }
 }
 
 /// Stored calibration `d` as its page shows it.
-pub fn page(d: &PageDoc) -> Page<'_> {
+pub fn page(d: &StoredDoc) -> Page<'_> {
     match d {
-        PageDoc::Documented(StoredDoc::Axis(d)) => single_axis::page::page(d),
-        PageDoc::Documented(StoredDoc::Triad(d)) => triad::page::page(d),
-        PageDoc::Thermal(d) => thermal::page(d),
+        StoredDoc::Axis(d) => single_axis::page::page(d),
+        StoredDoc::Triad(d) => triad::page::page(d),
+        StoredDoc::Thermal(d) => thermal::page::page(d),
     }
 }

@@ -38,6 +38,7 @@ pub mod sensor;
 pub mod session;
 pub mod sign;
 pub mod stored;
+pub mod thermal_result;
 pub mod triad_result;
 pub mod viewer;
 pub mod xml;

@@ -1,6 +1,6 @@
 //! A stored calibration as the pages and documents read it: its result
-//! document of any kind (a temperature model's for its page only), its
-//! state and signatures, and its instants as the pages print them.
+//! document of any kind, its state and signatures, and its instants as the
+//! pages print them.
 
 use super::format::instant;
 use super::result::ResultDoc;
@@ -8,22 +8,34 @@ use crate::domain::timestamp::Timestamp;
 use crate::http::problem::Problem;
 use crate::http::{AppState, path_id};
 
-/// A stored result document of either kind.
+/// A stored result document of any kind.
 pub enum StoredDoc {
     /// A single-axis calibration's.
     Axis(Box<ResultDoc>),
     /// A triad's.
     Triad(Box<super::triad_result::TriadDoc>),
+    /// A temperature model's.
+    Thermal(Box<super::thermal_result::ThermalDoc>),
 }
 
-/// A stored result document as the calibration page reads it: one the
-/// certificate and DCC are written from, or a temperature model's (whose
-/// certificate is not issued yet).
-pub enum PageDoc {
-    /// A single-axis calibration's or a triad's.
-    Documented(StoredDoc),
-    /// A temperature model's.
-    Thermal(Box<super::kinds::thermal::ThermalDoc>),
+impl StoredDoc {
+    /// The calibration's id.
+    pub fn id(&self) -> uuid::Uuid {
+        match self {
+            StoredDoc::Axis(d) => d.id,
+            StoredDoc::Triad(d) => d.id,
+            StoredDoc::Thermal(d) => d.id,
+        }
+    }
+
+    /// Its sensor.
+    pub fn sensor_id(&self) -> &str {
+        match self {
+            StoredDoc::Axis(d) => &d.sensor_id,
+            StoredDoc::Triad(d) => &d.sensor_id,
+            StoredDoc::Thermal(d) => &d.sensor_id,
+        }
+    }
 }
 
 /// A stored result document's bytes (404 for an unknown id).
@@ -37,47 +49,24 @@ async fn result_of(state: &AppState, raw_id: &str) -> Result<(uuid::Uuid, bytes:
     Ok((id, bytes))
 }
 
-/// Reads a stored result document of any kind, for its page.
-pub async fn load_page(state: &AppState, raw_id: &str) -> Result<PageDoc, Problem> {
-    let (id, bytes) = result_of(state, raw_id).await?;
-    if kind(&bytes).as_deref() != Some("thermal") {
-        return Ok(PageDoc::Documented(read(id, &bytes)?));
-    }
-    serde_json::from_slice(&bytes)
-        .map(|d| PageDoc::Thermal(Box::new(d)))
-        .map_err(|e| unreadable(id, e))
-}
-
 /// The 500 of a stored result `id` that does not read back.
 fn unreadable(id: uuid::Uuid, e: serde_json::Error) -> Problem {
     tracing::error!(calibration_id = %id, error = %e, "a stored result does not read back");
     Problem::internal()
 }
 
-/// Reads a stored result document of either kind the documents are
-/// written from (404 for an unknown id; 409 for a temperature model).
+/// Reads a stored result document of any kind (404 for an unknown id).
 pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Problem> {
     let (id, bytes) = result_of(state, raw_id).await?;
     read(id, &bytes)
 }
 
-/// Stored result `bytes` of calibration `id` as a documented kind.
+/// Stored result `bytes` of calibration `id`, by its kind.
 fn read(id: uuid::Uuid, bytes: &[u8]) -> Result<StoredDoc, Problem> {
-    let kind = kind(bytes);
-    if kind.as_deref() == Some("thermal") {
-        return Err(Problem::new(
-            crate::http::problem::Kind::WrongKind,
-            format!(
-                "calibration {id} is a temperature model: its certificate, with the coefficients \
-                 at its set points and their polynomials, is not issued yet (issue 45 item 4); \
-                 GET /v1/calibrations/{id} answers the model"
-            ),
-        ));
-    }
-    let read = if kind.as_deref() == Some("triad") {
-        serde_json::from_slice(bytes).map(|d| StoredDoc::Triad(Box::new(d)))
-    } else {
-        serde_json::from_slice(bytes).map(|d| StoredDoc::Axis(Box::new(d)))
+    let read = match kind(bytes).as_deref() {
+        Some("thermal") => serde_json::from_slice(bytes).map(|d| StoredDoc::Thermal(Box::new(d))),
+        Some("triad") => serde_json::from_slice(bytes).map(|d| StoredDoc::Triad(Box::new(d))),
+        _ => serde_json::from_slice(bytes).map(|d| StoredDoc::Axis(Box::new(d))),
     };
     read.map_err(|e| unreadable(id, e))
 }

@@ -87,6 +87,7 @@ pub(super) fn standard_quantities(
 pub fn conditions(
     x: &mut Xml,
     temperatures_c: Option<&[f64]>,
+    reference_c: Option<f64>,
     standards: &[crate::domain::standards::UsedStandard],
 ) {
     let temps = temperatures_c.filter(|t| !t.is_empty());
@@ -115,26 +116,29 @@ pub fn conditions(
                 .iter()
                 .find(|u| u.role == "thermometer")
                 .and_then(|u| u.parameters.temperature_std_c);
+            // A temperature model's set points bound its valid range.
+            let [name, lowest, highest] = match reference_c {
+                None => [
+                    "Ambient temperature over the runs",
+                    "Lowest run temperature",
+                    "Highest run temperature",
+                ],
+                Some(_) => [
+                    "Temperature range of the model (its set points' span)",
+                    "Lowest set point, T_min",
+                    "Highest set point, T_max",
+                ],
+            };
             x.el("dcc:influenceCondition", |x| {
-                rich(x, "dcc:name", "Ambient temperature over the runs");
+                rich(x, "dcc:name", name);
                 x.el("dcc:data", |x| {
                     let c = r"\degreecelsius";
-                    quantity(
-                        x,
-                        "Lowest run temperature",
-                        "temperature_min",
-                        lo,
-                        c,
-                        thermometer,
-                    );
-                    quantity(
-                        x,
-                        "Highest run temperature",
-                        "temperature_max",
-                        hi,
-                        c,
-                        thermometer,
-                    );
+                    quantity(x, lowest, "temperature_min", lo, c, thermometer);
+                    quantity(x, highest, "temperature_max", hi, c, thermometer);
+                    if let Some(t) = reference_c {
+                        let name = "Reference temperature of the polynomials, T_ref";
+                        quantity(x, name, "temperature_ref", t, c, None);
+                    }
                 });
             });
         }

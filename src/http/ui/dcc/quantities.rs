@@ -54,6 +54,17 @@ pub fn dsi_unit(unit: &str) -> String {
     format!("|{}", if plain.is_empty() { "output" } else { &plain })
 }
 
+/// D-SI unit `unit` per K^`d` (`\volt\kelvin\tothe{-1}`; `\one` per K is
+/// `\kelvin\tothe{-1}`; a non-D-SI `|unit` is written `|unit/K^d`).
+pub fn per_kelvin(unit: &str, d: i32) -> String {
+    match (d, unit) {
+        (0, _) => unit.to_owned(),
+        (_, r"\one") => format!(r"\kelvin\tothe{{{}}}", -d),
+        (_, u) if u.starts_with('|') => format!("{u}/K^{d}"),
+        (_, u) => format!(r"{u}\kelvin\tothe{{{}}}", -d),
+    }
+}
+
 /// A number as D-SI's `decimalType` reads it (`-0.0123`, `1.2e-9`): the
 /// shortest text that reads back as the same number.
 pub(super) fn decimal(v: f64) -> String {

@@ -65,6 +65,7 @@ pub fn quantities(d: &ResultDoc) -> Vec<Quantity> {
                         max: j.max,
                     })
                 }),
+                per_kelvin: 0,
                 fixed: None,
             }
         })
@@ -171,6 +172,7 @@ pub fn document<'a>(d: &'a ResultDoc, c: &Context) -> Document<'a> {
         ),
         reference: Some(PAPER),
         temperatures: d.temperatures_c.clone(),
+        reference_c: None,
         unit: d.unit.clone(),
         results_name: "Fused coefficients",
     };

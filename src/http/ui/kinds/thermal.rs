@@ -1,178 +1,233 @@
-//! A temperature model on its calibration page (issue 45): its range and
-//! reference, every coefficient at `T_ref`, each set point's fused
-//! coefficients, and every polynomial `c(T) = Σ a_d (T − T_ref)^d` with
-//! the standard uncertainties of its `a_d`, its degree and how it was
-//! chosen, `χ²/ν` and the covariance's inflation. Its certificate and DCC
-//! are not issued yet (issue 45 item 4): the page offers none.
+//! A temperature model as its documents read it (issue 45 item 4): every
+//! coefficient's polynomial `c(T) = Σ a_d (T − T_ref)^d` as one
+//! [`Quantity`] per `a_d` — in the coefficient's unit per K^d (`V/g/K`;
+//! D-SI `\volt\kelvin\tothe{-1}`, the specific force a ratio) — and the
+//! passages only this kind writes: the set points and the fit, the table
+//! of each set point's fused coefficients, the decision over the range.
+//!
+//! **Uncertainty of an `a_d`.** `u(a_d)` is the square root of the
+//! polynomial's covariance diagonal, `(XᵀWX)⁻¹ · max(1, χ²/ν)`; its
+//! expanded uncertainty `U = k · u(a_d)` at the certificate's coverage
+//! probability (the sensor type's, or 95.45 %; or the type's factor),
+//! `k` for `ν = N − D − 1` when the Birge ratio
+//! inflated the covariance (the set points' scatter set it), for infinite
+//! degrees of freedom otherwise — as the decision forms `U` across the
+//! range. The `a_d` are correlated: what a user reads at a temperature is
+//! `√(vᵀ C v)` (and the thermometer's term), which the certificate states
+//! in words and the calibration's JSON holds in full (`thermal.coefficients.
+//! <term>.covariance`).
+//!
+//! **The DCC** lists the `a_d` as `si:real` (label `<term>_a<d>`), and the
+//! range as the influence condition — the lowest and highest set point
+//! and `T_ref`, with the thermometer's standard uncertainty when one was
+//! named.
 
-use accelcal_core::TermMap;
+pub mod page;
+
 use maud::html;
-use serde::Deserialize;
 
-use crate::domain::review::Supersedes;
-use crate::domain::thermal::ThermalModel;
 use crate::domain::thermal::decision::ThermalDecision;
-use crate::http::ui::badge;
-use crate::http::ui::document::Page;
-use crate::http::ui::format::{Notation, num, unc};
+use crate::http::ui::certificate::{Context, PAPER, standards};
+use crate::http::ui::document::{Admin, Column, DccText, Document, Judged, Printed, Quantity};
+use crate::http::ui::format::term_unit;
+use crate::http::ui::kinds::single_axis::term_meaning;
+use crate::http::ui::result::Covered;
+use crate::http::ui::stored::when;
+use crate::http::ui::thermal_result::ThermalDoc;
+use page::{celsius, decision_table, set_points_table};
 
-/// A stored temperature model's result document, as its page reads it.
-#[derive(Debug, Deserialize)]
-pub struct ThermalDoc {
-    /// The calibration.
-    pub id: uuid::Uuid,
-    /// Its sensor.
-    pub sensor_id: String,
-    /// The station.
-    pub station_id: Option<String>,
-    /// When performed (RFC 3339).
-    pub performed_at: String,
-    /// When received (RFC 3339).
-    pub received_at: String,
-    /// The calibration it supersedes.
-    pub supersedes: Option<Supersedes>,
-    /// The outputs' unit.
-    pub unit: String,
-    /// The runs submitted.
-    pub runs: usize,
-    /// `T_ref`, °C.
-    pub reference_c: f64,
-    /// The valid range, °C.
-    pub range_c: [f64; 2],
-    /// Every coefficient at `T_ref`.
-    pub coefficients: TermMap<f64>,
-    /// Their standard uncertainties.
-    pub std_errors: TermMap<f64>,
-    /// The sensor type it was judged by.
-    pub sensor_type: Option<String>,
-    /// Its judgement.
-    pub decision: Option<ThermalDecision>,
-    /// The model.
-    pub thermal: ThermalModel,
+/// `^d` as a unit's exponent is printed (`K`, `K²`, `K³`).
+fn kelvin(d: usize) -> &'static str {
+    ["", "/K", "/K²", "/K³"][d.min(3)]
 }
 
-/// A temperature to 0.01 K, as the page prints it.
-fn celsius(t: f64) -> String {
-    format!("{t:.2}")
+/// What `a_d` of a coefficient that is `meaning` is, about `reference_c`.
+fn described(meaning: &str, d: usize, reference_c: f64) -> String {
+    let at = celsius(reference_c);
+    match d {
+        0 => format!("{meaning}: its value at T_ref = {at} °C (a_0)"),
+        1 => format!("{meaning}: its change per kelvin at T_ref = {at} °C (a_1)"),
+        _ => format!("{meaning}: the coefficient of (T − {at} °C)^{d} (a_{d})"),
+    }
 }
 
-/// `d` as its page shows it.
-pub fn page(d: &ThermalDoc) -> Page<'_> {
-    let m = &d.thermal;
-    let terms: Vec<String> = m.coefficients.iter().map(|(t, _)| t.to_string()).collect();
-    let at_ref = |t: &str| {
-        let c = m.coefficients.iter().find(|(x, _)| x.to_string() == t);
-        c.map(|(_, p)| (p.coefficients[0], p.std_uncertainties[0]))
-    };
-    Page {
+/// Every polynomial's `a_d`, coefficient by coefficient in the model's
+/// order, lowest degree first.
+pub fn quantities(d: &ThermalDoc) -> Vec<Quantity> {
+    let coverage = d.coverage;
+    let mut out = Vec::new();
+    for (term, p) in d.thermal.coefficients.iter() {
+        let dof = (p.inflation > 1.0).then_some(p.dof as u64);
+        let at = coverage.at(dof);
+        for (j, (&a, &u)) in p.coefficients.iter().zip(&p.std_uncertainties).enumerate() {
+            let unit = format!("{}{}", term_unit(term, &d.unit), kelvin(j));
+            out.push(Quantity {
+                name: format!("{}_a{j}", term.name()),
+                meaning: described(term_meaning(term), j, p.reference_c),
+                value: a,
+                std_error: Some(u),
+                expanded: Some(at.factor * u),
+                covered: Some(Covered {
+                    combined: u,
+                    effective_dof: Some(dof),
+                    k: at.factor,
+                    p: at.probability,
+                }),
+                dcc_unit: unit.clone(),
+                unit,
+                per_kelvin: j as i32,
+                limited: None,
+                fixed: None,
+            });
+        }
+    }
+    out
+}
+
+/// The DCC's administrative data of `d`.
+pub fn admin(d: &ThermalDoc) -> Admin<'_> {
+    Admin {
         id: d.id,
         sensor_id: &d.sensor_id,
-        title: "Temperature model",
-        noun: "temperature model",
-        verdict: Some(
-            html! { @if let Some(dec) = &d.decision { (badge(dec.verdict.as_str(), dec.verdict.as_str())) } },
-        ),
-        supersedes: d.supersedes.as_ref(),
+        item: "Accelerometer",
         performed_at: &d.performed_at,
-        station_id: d.station_id.as_deref(),
-        received_at: &d.received_at,
-        facts: html! {
-            div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
-            div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
-            div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
-            div { dt { "Degrees" } dd { (m.selection) } }
-            @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
-            div { dt { "Certificate" } dd { "not issued for a temperature model yet" } }
+        item_received_at: None,
+        item_condition: None,
+        supersedes: d.supersedes.as_ref(),
+        standards: &d.standards,
+        judged: d.decision.as_ref().map(|dec| {
+            Judged::of(
+                rule(dec),
+                dec.verdict.as_str(),
+                dec.terms
+                    .iter()
+                    .map(|(_, t)| (t.worst.verdict.as_str(), t.worst.value, t.min, t.max)),
+            )
+        }),
+        due_at: d.due_at.as_deref(),
+    }
+}
+
+/// The decision rule's wire name.
+fn rule(dec: &ThermalDecision) -> &'static str {
+    match dec.rule {
+        accelcal_core::decision::Rule::Simple => "simple",
+        accelcal_core::decision::Rule::Guarded => "guarded",
+    }
+}
+
+/// What the fit did, in words: set points, weights, degree and inflation.
+fn fitted(d: &ThermalDoc) -> String {
+    let m = &d.thermal;
+    format!(
+        "Tumble tests at {} temperature set points from {} to {} °C ({} runs; runs within {} K \
+         of a set point belong to it): each set point identified by least squares per run and \
+         fused by batch estimation on its own. Each coefficient's polynomial about T_ref = {} °C \
+         fitted to the set points' fused values by weighted least squares (weights 1/u², u the \
+         set point's standard error), its degree chosen by partial F tests at 1 % ({}), its \
+         covariance scaled by max(1, χ²/ν) when the set points scatter more than their standard \
+         errors say. The model is valid from T_min to T_max only. Read at a temperature T, a \
+         coefficient's standard uncertainty is √(vᵀ C v), v_d = (T − T_ref)^d, through the \
+         polynomial's covariance C{}.",
+        m.set_points.len(),
+        celsius(d.range_c[0]),
+        celsius(d.range_c[1]),
+        d.runs,
+        m.tolerance_k,
+        celsius(d.reference_c),
+        m.selection,
+        match m.thermometer_std_c {
+            Some(u) => format!(
+                ", combined with the thermometer's u_T = {u} K times the slope |dc/dT| there"
+            ),
+            None => String::new(),
+        }
+    )
+}
+
+/// Model `d` as its certificate (in context `c`) and DCC read it.
+pub fn document<'a>(d: &'a ThermalDoc, c: &Context) -> Document<'a> {
+    let m = &d.thermal;
+    let facts = html! {
+        div { dt { "Sensor" } dd { strong { (d.sensor_id) } " (model over temperature)" } }
+        div { dt { "Station" } dd { (d.station_id.as_deref().unwrap_or("—")) } }
+        div { dt { "Place of calibration" } dd { (c.laboratory.address.as_deref().unwrap_or("the laboratory's (no address configured)")) } }
+        div { dt { "Performed" } dd { (when(&d.performed_at)) } }
+        div { dt { "Submitted to accelcal" } dd { (when(&d.received_at)) } }
+        div { dt { "Output unit" } dd { (d.unit) } }
+        div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
+        div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
+        @if let Some(u) = m.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K" } } }
+    };
+    let caption = html! {
+        "Each coefficient's polynomial c(T) = Σ a_d (T − " (celsius(d.reference_c)) " °C)^d, valid from "
+        (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C: each a_d rounded to its expanded "
+        "uncertainty's second significant digit, with u"
+        sub { "c" } " (the polynomial's covariance), ν" sub { "eff" } ", k and p. The a_d are "
+        "correlated: read the model at a temperature with its covariance (the calibration's JSON)"
+    };
+    let after_results = html! {
+        p { "At the set points, each identified and fused on its own (standard errors; temperatures as read):" }
+        (set_points_table(d))
+    };
+    let conformity = d.decision.as_ref().map(|dec| {
+        html! {
+            p { "Decision rule: " (rule(dec)) "; every limited coefficient judged at each set point and across the "
+                "range with its expanded uncertainty there; its worst stated." }
+            (decision_table(dec))
+        }
+    });
+    Document {
+        admin: admin(d),
+        running: format!("{} (temperature model)", d.sensor_id),
+        quantities: quantities(d),
+        printed: Printed {
+            facts,
+            before_method: html! {},
+            method: html! { (fitted(d)) " Each set point follows " (PAPER) "." },
+            label: "Temperature model",
+            caption,
+            column: Column::Term,
+            after_results,
+            conformity,
+            as_found: None,
+            before_traceability: standards(&d.standards),
+            computed_by: None,
         },
-        downloads: None,
-        certified: false,
-        sections: html! {
-            @if let Some(dec) = &d.decision {
-                h2 { "Decision" }
-                div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #thermal-decision .numbers {
-                    caption { "Each limited coefficient at every set point and across the range ("
-                        (format!("{:?}", dec.rule).to_lowercase()) " rule): its worst" }
-                    thead { tr {
-                        th scope="col" { "term" } th scope="col" { "verdict" } th scope="col" { "at, °C" }
-                        th scope="col" { "value" } th scope="col" { "U" } th scope="col" { "k" }
-                        th scope="col" { "min" } th scope="col" { "max" }
-                    } }
-                    tbody {
-                        @for (t, j) in dec.terms.iter() {
-                            tr {
-                                th scope="row" { (t.to_string()) }
-                                td { (badge(j.worst.verdict.as_str(), j.worst.verdict.as_str())) }
-                                td.num { (celsius(j.worst.temperature_c)) }
-                                td.num { (num(j.worst.value)) }
-                                td.num { (unc(j.worst.expanded)) }
-                                td.num { (num(j.worst.coverage_factor)) }
-                                td.num { (j.min.map_or("—".into(), num)) }
-                                td.num { (j.max.map_or("—".into(), num)) }
-                            }
-                        }
-                    }
-                } }
-            }
-            h2 { "Coefficients at T_ref" }
-            div.table-wrap tabindex="0" role="region" aria-label="Coefficients at T_ref" { table #thermal-at-reference .numbers {
-                caption { "c(T_ref) = a_0, in " (d.unit) " (per g for the scale terms), with standard uncertainty u" }
-                thead { tr { th scope="col" { "term" } th scope="col" { "c(T_ref)" } th scope="col" { "u" } } }
-                tbody {
-                    @for t in &terms {
-                        @if let Some((c, u)) = at_ref(t) {
-                            tr { th scope="row" { (t) } td.num { (num(c)) } td.num { (unc(u)) } }
-                        }
-                    }
-                }
-            } }
-            h2 { "Polynomials" }
-            div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
-                caption { "c(T) = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
-                thead { tr {
-                    th scope="col" { "term" } th scope="col" { "degree" }
-                    @for d in 0..=3 { th scope="col" { "a_" (d) } th scope="col" { "u" } }
-                    th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
-                } }
-                tbody {
-                    @for (t, p) in m.coefficients.iter() {
-                        tr {
-                            th scope="row" { (t.to_string()) }
-                            td.num { (p.degree) }
-                            @for d in 0..=3 {
-                                td.num { (p.coefficients.get(d).map_or("—".into(), |a| num(*a))) }
-                                td.num { (p.std_uncertainties.get(d).map_or("—".into(), |u| unc(*u))) }
-                            }
-                            td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
-                            td.num { (num(p.inflation)) }
-                        }
-                    }
-                }
-            } }
-            h2 { "Set points" }
-            div.table-wrap tabindex="0" role="region" aria-label="Set points" { table #thermal-set-points .numbers {
-                caption { "Each set point identified and fused: its coefficients with standard errors" }
-                thead { tr {
-                    th scope="col" { "T, °C" } th scope="col" { "runs" }
-                    @for t in &terms { th scope="col" { (t) } th scope="col" { "u" } }
-                } }
-                @let notation: Vec<Notation> = terms.iter().map(|t| Notation::of(
-                    m.set_points.iter().filter_map(|s| s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v))
-                )).collect();
-                tbody {
-                    @for s in &m.set_points {
-                        tr {
-                            th scope="row" { (celsius(s.temperature_c)) }
-                            td.num { (s.runs.len()) }
-                            @for (k, t) in terms.iter().enumerate() {
-                                @let value = s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
-                                @let error = s.std_errors.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
-                                td.num { (value.map_or("—".into(), |v| notation[k].num(v))) }
-                                td.num { (error.map_or("—".into(), unc)) }
-                            }
-                        }
-                    }
-                }
-            } }
-        },
+        dcc: dcc_text(d),
+    }
+}
+
+/// The DCC measurement result's texts of model `d`.
+fn dcc_text(d: &ThermalDoc) -> DccText {
+    DccText {
+        name: "Static model of the accelerometer over temperature",
+        description: format!(
+            "Each coefficient c of the static model, output in {}, as a polynomial in temperature \
+             c(T) = Σ a_d (T − T_ref)^d about T_ref = {} °C, valid from {} to {} °C only. a_d is \
+             in the coefficient's unit per K^d, the specific force a ratio (unit one); labels \
+             <term>_a<d>. The a_d of one coefficient are correlated; their covariance is stated \
+             with the calibration's result. Values are rounded to the second significant digit of \
+             their expanded uncertainty.",
+            d.unit,
+            celsius(d.reference_c),
+            celsius(d.range_c[0]),
+            celsius(d.range_c[1]),
+        ),
+        method_name: "Tumble tests at temperature set points, each by least squares per run and \
+                      batch-estimation fusion; each coefficient's polynomial by weighted least \
+                      squares",
+        method: fitted(d),
+        reference: Some(PAPER),
+        temperatures: Some(
+            d.thermal
+                .set_points
+                .iter()
+                .map(|s| s.temperature_c)
+                .collect(),
+        ),
+        reference_c: Some(d.reference_c),
+        unit: d.unit.clone(),
+        results_name: "Polynomial coefficients a_d of each coefficient over temperature",
     }
 }

@@ -84,6 +84,7 @@ pub fn quantities(d: &TriadDoc) -> Vec<Quantity> {
                     max: j.max,
                 })
             }),
+            per_kelvin: 0,
             fixed: (matrix == "S" && !known && FIXED_BY_CONVENTION.contains(&(m, k)))
                 .then_some("by the frame convention"),
             name,
@@ -288,6 +289,7 @@ fn dcc_text(d: &TriadDoc) -> DccText {
         method,
         reference: known.then_some(PAPER),
         temperatures: None,
+        reference_c: None,
         unit: d.unit.clone(),
         results_name: "Bias b and scale-and-misalignment matrix S",
     }

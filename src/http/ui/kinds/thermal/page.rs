@@ -1,0 +1,152 @@
+//! A temperature model on its calibration page (issue 45): its range and
+//! reference, every coefficient at `T_ref`, each set point's fused
+//! coefficients, and every polynomial `c(T) = Σ a_d (T − T_ref)^d` with
+//! the standard uncertainties of its `a_d`, its degree and how it was
+//! chosen, `χ²/ν` and the covariance's inflation; the decision's and the
+//! set points' tables are the certificate's too.
+
+use maud::{Markup, html};
+
+use crate::domain::thermal::decision::ThermalDecision;
+use crate::http::ui::badge;
+use crate::http::ui::document::Page;
+use crate::http::ui::format::{Notation, num, unc};
+use crate::http::ui::thermal_result::ThermalDoc;
+
+/// A temperature to 0.01 K, as the page and certificate print it.
+pub fn celsius(t: f64) -> String {
+    format!("{t:.2}")
+}
+
+/// `d` as its page shows it.
+pub fn page(d: &ThermalDoc) -> Page<'_> {
+    let m = &d.thermal;
+    Page {
+        id: d.id,
+        sensor_id: &d.sensor_id,
+        title: "Temperature model",
+        noun: "temperature model",
+        verdict: Some(
+            html! { @if let Some(dec) = &d.decision { (badge(dec.verdict.as_str(), dec.verdict.as_str())) } },
+        ),
+        supersedes: d.supersedes.as_ref(),
+        performed_at: &d.performed_at,
+        station_id: d.station_id.as_deref(),
+        received_at: &d.received_at,
+        facts: html! {
+            div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
+            div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
+            div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
+            div { dt { "Degrees" } dd { (m.selection) } }
+            @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
+            @if let Some(u) = m.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every coefficient read at a temperature" } } }
+        },
+        downloads: None,
+        certified: true,
+        sections: html! {
+            @if let Some(dec) = &d.decision {
+                h2 { "Decision" }
+                (decision_table(dec))
+            }
+            h2 { "Coefficients at T_ref" }
+            div.table-wrap tabindex="0" role="region" aria-label="Coefficients at T_ref" { table #thermal-at-reference .numbers {
+                caption { "c(T_ref) = a_0, in " (d.unit) " (per g for the scale terms), with standard uncertainty u (the thermometer's term included, when one was named)" }
+                thead { tr { th scope="col" { "term" } th scope="col" { "c(T_ref)" } th scope="col" { "u" } } }
+                tbody {
+                    @for (t, c) in d.coefficients.iter() {
+                        tr { th scope="row" { (t.to_string()) } td.num { (num(*c)) }
+                            td.num { (d.std_errors.get(t).map_or("—".into(), |u| unc(*u))) } }
+                    }
+                }
+            } }
+            h2 { "Polynomials" }
+            div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
+                caption { "c(T) = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
+                thead { tr {
+                    th scope="col" { "term" } th scope="col" { "degree" }
+                    @for d in 0..=3 { th scope="col" { "a_" (d) } th scope="col" { "u" } }
+                    th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
+                } }
+                tbody {
+                    @for (t, p) in m.coefficients.iter() {
+                        tr {
+                            th scope="row" { (t.to_string()) }
+                            td.num { (p.degree) }
+                            @for d in 0..=3 {
+                                td.num { (p.coefficients.get(d).map_or("—".into(), |a| num(*a))) }
+                                td.num { (p.std_uncertainties.get(d).map_or("—".into(), |u| unc(*u))) }
+                            }
+                            td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
+                            td.num { (num(p.inflation)) }
+                        }
+                    }
+                }
+            } }
+            h2 { "Set points" }
+            (set_points_table(d))
+        },
+    }
+}
+
+/// The decision's table: each limited coefficient's worst judgement, with
+/// where.
+pub fn decision_table(dec: &ThermalDecision) -> Markup {
+    html! {
+        div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #thermal-decision .numbers {
+            caption { "Each limited coefficient at every set point and across the range ("
+                (format!("{:?}", dec.rule).to_lowercase()) " rule): its worst" }
+            thead { tr {
+                th scope="col" { "term" } th scope="col" { "verdict" } th scope="col" { "at, °C" }
+                th scope="col" { "value" } th scope="col" { "U" } th scope="col" { "k" }
+                th scope="col" { "min" } th scope="col" { "max" }
+            } }
+            tbody {
+                @for (t, j) in dec.terms.iter() {
+                    tr {
+                        th scope="row" { (t.to_string()) }
+                        td { (badge(j.worst.verdict.as_str(), j.worst.verdict.as_str())) }
+                        td.num { (celsius(j.worst.temperature_c)) }
+                        td.num { (num(j.worst.value)) }
+                        td.num { (unc(j.worst.expanded)) }
+                        td.num { (num(j.worst.coverage_factor)) }
+                        td.num { (j.min.map_or("—".into(), num)) }
+                        td.num { (j.max.map_or("—".into(), num)) }
+                    }
+                }
+            }
+        } }
+    }
+}
+
+/// The set points' table: each set point's fused coefficients with their
+/// standard errors.
+pub fn set_points_table(d: &ThermalDoc) -> Markup {
+    let m = &d.thermal;
+    let terms: Vec<String> = m.coefficients.iter().map(|(t, _)| t.to_string()).collect();
+    html! {
+        div.table-wrap tabindex="0" role="region" aria-label="Set points" { table #thermal-set-points .numbers {
+            caption { "Each set point identified and fused: its coefficients with standard errors" }
+            thead { tr {
+                th scope="col" { "T, °C" } th scope="col" { "runs" }
+                @for t in &terms { th scope="col" { (t) } th scope="col" { "u" } }
+            } }
+            @let notation: Vec<Notation> = terms.iter().map(|t| Notation::of(
+                m.set_points.iter().filter_map(|s| s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v))
+            )).collect();
+            tbody {
+                @for s in &m.set_points {
+                    tr {
+                        th scope="row" { (celsius(s.temperature_c)) }
+                        td.num { (s.runs.len()) }
+                        @for (k, t) in terms.iter().enumerate() {
+                            @let value = s.coefficients.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
+                            @let error = s.std_errors.iter().find(|(x, _)| x.to_string() == *t).map(|(_, v)| *v);
+                            td.num { (value.map_or("—".into(), |v| notation[k].num(v))) }
+                            td.num { (error.map_or("—".into(), unc)) }
+                        }
+                    }
+                }
+            }
+        } }
+    }
+}
