@@ -8,6 +8,12 @@
 //! and compensation at a temperature. A triad's `b` and `S` likewise, not
 //! stored yet.
 //!
+//! **From stored calibrations.** A JSON body naming stored single-axis
+//! calibrations of the sensor (`calibrations`: their ids) is read by
+//! [`combined`]: their stored submissions make one, fitted as one sent
+//! whole; the body is what is stored, and the model names them
+//! (`from_calibrations`).
+//!
 //! **Standards.** The stand, thermometer and gravity value a submission
 //! names are resolved as a single axis's are ([`resolve_standards`]): in
 //! calibration and in service when the test was performed, recorded as
@@ -25,6 +31,8 @@ use bytes::Bytes;
 use serde::Serialize;
 use uuid::Uuid;
 
+mod combined;
+
 use super::single_axis::resolve_standards;
 use super::standards::Resolved;
 use super::subject::{in_force, station};
@@ -34,7 +42,8 @@ use crate::domain::field::Loc;
 use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
 use crate::domain::standards::UsedStandard;
-use crate::domain::submission::evaluate;
+use crate::domain::submission::{Media, Submission, evaluate};
+use crate::domain::thermal::combine::FromCalibrations;
 use crate::domain::thermal::decision::{ThermalDecision, decide_model};
 use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
 use crate::domain::timestamp::Timestamp;
@@ -99,10 +108,67 @@ pub struct StoredThermal {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     #[schema(value_type = Vec<Object>)]
     pub held_by: Vec<HeldBy>,
+    /// The stored calibrations it was fitted from, in the order named
+    /// (absent for runs sent whole).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub from_calibrations: Vec<Uuid>,
     /// The model: the set points and every coefficient's polynomial (with
     /// the thermometer's standard uncertainty, when one was named).
     #[schema(value_type = Object)]
     pub thermal: ThermalModel,
+}
+
+/// A model's input read: the submission fitted, the station (checked
+/// against the token's) and the calibrations it was combined from (none
+/// for runs sent whole).
+struct Read {
+    sub: Submission,
+    station_id: Option<String>,
+    from: Vec<Uuid>,
+    thermal: ThermalModel,
+}
+
+/// `upload` read for `principal` at `received_at` and fitted with `fit`:
+/// runs sent whole (evaluated on the compute pool, their standards
+/// resolved), or a JSON body naming stored calibrations
+/// ([`combined::read`]); the thermometer's uncertainty kept in the model.
+async fn read(
+    lab: &Lab,
+    principal: &Principal,
+    upload: Upload,
+    received_at: Timestamp,
+    fit: Fit,
+) -> Result<Read, Error> {
+    let size = upload.bytes.len();
+    let (sub, station_id, from) =
+        if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) {
+            combined::read(lab, principal, &upload.bytes).await?
+        } else {
+            let who = principal.clone();
+            let (mut e, station_id) = lab
+                .compute_for(size, move || {
+                    let e = evaluate(upload.media, &upload.bytes, received_at)?;
+                    let station_id = station(&who, e.submission.station_id.as_deref())?;
+                    Ok::<_, Error>((e, station_id))
+                })
+                .await??;
+            let performed_at = e.submission.performed_at.unwrap_or(received_at);
+            resolve_standards(lab, &mut e, performed_at).await?;
+            (e.submission, station_id, Vec::new())
+        };
+    let (sub, mut thermal) = lab
+        .compute_for(size, move || {
+            let thermal = model(&sub, &fit)?;
+            Ok::<_, Error>((sub, thermal))
+        })
+        .await??;
+    thermal.thermometer_std_c = thermometer(&sub.standards_used);
+    Ok(Read {
+        sub,
+        station_id,
+        from,
+        thermal,
+    })
 }
 
 /// The temperature model of `upload` for `principal`, its runs grouped
@@ -116,35 +182,24 @@ pub async fn identify(
     upload: Upload,
     fit: Fit,
 ) -> Result<ThermalModel, Error> {
-    let who = principal.clone();
-    let now = Timestamp::now();
-    let (mut e, mut thermal) = lab
-        .compute_for(upload.bytes.len(), move || {
-            let e = evaluate(upload.media, &upload.bytes, now)?;
-            station(&who, e.submission.station_id.as_deref())?;
-            if e.submission.sensor_type.is_some() {
-                return Err(Error::invalid(
-                    Loc::Root.key("sensor_type"),
-                    "a sensor type judges a temperature model when it is stored (POST \
-                     /v1/calibrations/thermal): omit it here",
-                ));
-            }
-            let thermal = model(&e.submission, &fit)?;
-            Ok::<_, Error>((e, thermal))
-        })
-        .await??;
-    let performed_at = e.submission.performed_at.unwrap_or(now);
-    resolve_standards(lab, &mut e, performed_at).await?;
-    thermal.thermometer_std_c = thermometer(&e.submission.standards_used);
-    Ok(thermal)
+    let r = read(lab, principal, upload, Timestamp::now(), fit).await?;
+    if r.sub.sensor_type.is_some() {
+        return Err(Error::invalid(
+            Loc::Root.key("sensor_type"),
+            "a sensor type judges a temperature model when it is stored (POST \
+             /v1/calibrations/thermal): omit it here",
+        ));
+    }
+    Ok(r.thermal)
 }
 
-/// The standard uncertainty of the thermometer among `used`, if one was
-/// named.
+/// The largest standard uncertainty of the thermometers among `used`, if
+/// any was named (a model combined from calibrations may have several).
 fn thermometer(used: &[UsedStandard]) -> Option<f64> {
     used.iter()
-        .find(|u| u.role == "thermometer")
-        .and_then(|u| u.parameters.temperature_std_c)
+        .filter(|u| u.role == "thermometer")
+        .filter_map(|u| u.parameters.temperature_std_c)
+        .reduce(f64::max)
 }
 
 /// The temperature model of the triad `upload`, its runs grouped within
@@ -188,19 +243,13 @@ pub async fn assess(
     fit: Fit,
 ) -> Result<Assessed, Error> {
     let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
-    let who = principal.clone();
-    let (mut e, station_id, mut thermal) = lab
-        .compute_for(upload.bytes.len(), move || {
-            let e = evaluate(upload.media, &upload.bytes, received_at)?;
-            let station_id = station(&who, e.submission.station_id.as_deref())?;
-            let thermal = model(&e.submission, &fit)?;
-            Ok::<_, Error>((e, station_id, thermal))
-        })
-        .await??;
-    let performed_at = e.submission.performed_at.unwrap_or(received_at);
-    resolve_standards(lab, &mut e, performed_at).await?;
-    thermal.thermometer_std_c = thermometer(&e.submission.standards_used);
-    let sub = &e.submission;
+    let Read {
+        sub,
+        station_id,
+        from,
+        thermal,
+    } = read(lab, principal, upload, received_at, fit).await?;
+    let performed_at = sub.performed_at.unwrap_or(received_at);
     let subject = in_force(
         lab,
         principal,
@@ -240,6 +289,7 @@ pub async fn assess(
         coverage: crate::domain::sensor_types::coverage(subject.sensor_type.as_ref()),
         standards: sub.standards_used.clone(),
         held_by: sub.held_by.clone(),
+        from_calibrations: from,
         thermal,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {

@@ -415,6 +415,7 @@ pub fn file_name(format: Format) -> &'static str {
 
 mod ardupilot;
 mod at;
+pub mod combine;
 pub mod decision;
 pub mod firmware;
 mod px4;

@@ -74,18 +74,22 @@ pub async fn submit(
     operation_id = "submitThermalCalibration",
     summary = "Fit a single axis's coefficients over temperature and store the model.",
     description = "The body of `POST /v1/calibrations` (JSON or CSV), each run with its \
-        `temperature_c`, and the fit's parameters of `POST /v1/identify/thermal`. The runs are \
+        `temperature_c` — or a JSON body naming stored single-axis calibrations of the sensor \
+        by id (`calibrations`), each tumbled at its own temperature, whose runs are then fitted \
+        as one submission and whose ids the model keeps (`from_calibrations`) — and the fit's \
+        parameters of `POST /v1/identify/thermal`. The runs are \
         grouped into set points, each identified and fused, and every coefficient's polynomial \
         fitted; the model is stored as one calibration of the sensor whose `coefficients` are \
         the model at `T_ref`: history, stability, review and withdrawal follow, and \
         `GET /v1/sensors/{sensor_id}/coefficients?temperature_c=` and `/compensate` with \
         `temperature_c` evaluate it within its range. The sensor type in force (named, or the \
         sensor's) judges every limited coefficient at every set point and across the range \
-        (`decision`, its worst the verdict). Reference standards are refused (a temperature \
-        model is not budgeted with them yet); its certificate is not issued yet.",
+        (`decision`, its worst the verdict). The standards named are resolved and recorded as \
+        for any calibration; a thermometer's `temperature_std_c` enters every coefficient read \
+        at a temperature as u_T · |dc/dT|. Its certificate and DCC list every polynomial's a_d.",
     params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
     request_body(content(
-        (super::openapi::SubmissionSchema = "application/json"),
+        (super::openapi::ThermalBodySchema = "application/json"),
         (super::openapi::RawBodySchema = "text/csv"),
     )),
     responses(

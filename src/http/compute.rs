@@ -73,10 +73,11 @@ pub async fn identify(
         squares on the set points' fused estimates (weights 1/se², covariance inflated by \
         max(1, χ²/ν)), its degree chosen by backward elimination at 1 % unless `degree` is \
         given. Too few set points, too small a span or an ill-conditioned design are refused \
-        with what to add.",
+        with what to add. The runs may instead be those of stored single-axis calibrations of \
+        the sensor, named by id (`calibrations`), each tumbled at its own temperature.",
     params(crate::domain::thermal::ThermalParams),
     request_body(content(
-        (super::openapi::SubmissionSchema = "application/json"),
+        (super::openapi::ThermalBodySchema = "application/json"),
         (String = "text/csv"),
     )),
     responses(

@@ -39,6 +39,7 @@ mod standards;
 mod storage;
 mod thermal;
 mod thermal_certificate;
+mod thermal_combined;
 mod thermal_export;
 mod thermal_standards;
 mod thermal_stored;

@@ -1,9 +1,10 @@
-//! Schemas of a single axis's and a triad's temperature models (`POST
-//! /v1/identify/thermal`, `/v1/identify/thermal/triad`), whose polynomial
-//! is a type of the pure core.
+//! Schemas of a temperature model's body and of a single axis's and a
+//! triad's temperature models (`POST /v1/identify/thermal`,
+//! `/v1/identify/thermal/triad`), whose polynomial is a type of the pure
+//! core.
 
 use utoipa::openapi::RefOr;
-use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, Schema, Type};
+use utoipa::openapi::schema::{ArrayBuilder, ObjectBuilder, OneOfBuilder, Schema, Type};
 use utoipa::{PartialSchema, ToSchema};
 
 use super::schemas::reference;
@@ -58,6 +59,9 @@ marker_schema!(
             .required("coefficients").required("std_errors")))
         .property("coefficients", ObjectBuilder::new()
             .additional_properties(Some(reference("Polynomial"))))
+        .property("thermometer_std_c", of_type(Type::Number).minimum(Some(0.0))
+            .description(Some("The named thermometer's standard uncertainty, K: a coefficient read \
+                at a temperature adds u_T · |dc/dT| to its budget. Absent without one.")))
         .required("sensor_id").required("unit").required("tolerance_k").required("selection")
         .required("set_points").required("coefficients")
         .build()
@@ -104,4 +108,16 @@ marker_schema!(
         .required("set_points").required("b").required("S")
         .build()
         .into()
+);
+
+marker_schema!(
+    /// A temperature model's JSON body: runs sent whole (each with its
+    /// `temperature_c`), or stored calibrations named by id.
+    ThermalBodySchema => RefOr::T(Schema::OneOf(OneOfBuilder::new()
+        .description(Some("A single-axis submission whose runs carry their temperatures, or a \
+            body naming two to 64 stored single-axis calibrations of the sensor, each tumbled \
+            at its own temperature (`calibrations`: their ids)."))
+        .item(reference("Submission"))
+        .item(reference("FromCalibrations"))
+        .build()))
 );

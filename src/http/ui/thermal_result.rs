@@ -55,6 +55,10 @@ pub struct ThermalDoc {
     /// were resolved).
     #[serde(default)]
     pub standards: Vec<UsedStandard>,
+    /// The stored calibrations it was fitted from (none for runs sent
+    /// whole).
+    #[serde(default)]
+    pub from_calibrations: Vec<uuid::Uuid>,
     /// The model.
     pub thermal: ThermalModel,
 }

@@ -39,6 +39,15 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
             div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
             div { dt { "Degrees" } dd { (m.selection) } }
             @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
+            @if !d.from_calibrations.is_empty() {
+                div { dt { "Fitted from" } dd {
+                    @for (i, c) in d.from_calibrations.iter().enumerate() {
+                        @if i > 0 { ", " }
+                        a href={"/ui/calibrations/" (c)} { code { (c.to_string().get(..8).unwrap_or_default()) } }
+                    }
+                    " (stored calibrations, one per set point)"
+                } }
+            }
             @if let Some(u) = m.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every coefficient read at a temperature" } } }
         },
         downloads: None,

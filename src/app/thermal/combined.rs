@@ -1,0 +1,130 @@
+//! A temperature model's body naming stored calibrations, read (issue 45
+//! item 1): each named calibration looked up — of the sensor named, a
+//! single axis, in a state that counts — and its stored submission read
+//! again on the compute pool, performed when it was; together they make
+//! one submission ([`combine`]), to which the model is fitted as to one
+//! sent whole. Each refusal names the calibration (`/calibrations/<i>`).
+
+use bytes::Bytes;
+use uuid::Uuid;
+
+use super::super::subject::station;
+use super::super::{Error, Lab, Upload};
+use crate::domain::auth::Principal;
+use crate::domain::field::Loc;
+use crate::domain::review::Basis;
+use crate::domain::standards::UsedStandard;
+use crate::domain::submission::{Submission, evaluate};
+use crate::domain::text::echo;
+use crate::domain::thermal::combine::{Constituent, FromCalibrations, combine};
+use crate::domain::timestamp::Timestamp;
+use crate::domain::typed;
+
+/// What a named calibration holds for a model: its id, when it was
+/// performed, its stored submission and its stored result.
+struct Stored {
+    id: Uuid,
+    performed_at: Timestamp,
+    content_type: String,
+    submission: Bytes,
+    result: Option<Bytes>,
+}
+
+/// The submission the calibrations named in the JSON body `json` make for
+/// `principal`, the station it names (checked against the token's) and
+/// the ids, in the order named.
+pub async fn read(
+    lab: &Lab,
+    principal: &Principal,
+    json: &[u8],
+) -> Result<(Submission, Option<String>, Vec<Uuid>), Error> {
+    let body: FromCalibrations = typed::from_json(json)?;
+    let ids = body.check()?;
+    let station_id = station(principal, body.station_id.as_deref())?;
+    let root = Loc::Root;
+    let named = root.key("calibrations");
+    let mut stored = Vec::with_capacity(ids.len());
+    for (i, &id) in ids.iter().enumerate() {
+        let refuse = |why: String| Error::invalid(named.index(i), why);
+        let Some(c) = lab.store.calibration_summary(id).await? else {
+            return Err(refuse(format!("no calibration with id {id}")));
+        };
+        if c.sensor_id != body.sensor_id {
+            return Err(refuse(format!(
+                "calibration {id} is of sensor `{}`, not `{}`",
+                echo(&c.sensor_id),
+                echo(&body.sensor_id)
+            )));
+        }
+        if c.triad.is_some() || c.thermal.is_some() {
+            let what = if c.triad.is_some() {
+                "a triad's"
+            } else {
+                "a temperature model"
+            };
+            return Err(refuse(format!(
+                "calibration {id} is {what}: a model is fitted to single-axis calibrations"
+            )));
+        }
+        if !c.state.counts(Basis::NotRejected) {
+            return Err(refuse(format!(
+                "calibration {id} is {}: only calibrations that count (submitted, under review \
+                 or approved) make a model; name what replaced it",
+                c.state.as_str()
+            )));
+        }
+        let Some(s) = lab.store.submission(id).await? else {
+            tracing::error!(calibration_id = %id, "a stored calibration has no submission");
+            return Err(Error::Internal);
+        };
+        stored.push(Stored {
+            id,
+            performed_at: c.performed_at,
+            content_type: s.content_type,
+            submission: s.body,
+            result: lab.store.calibration_result(id).await?,
+        });
+    }
+    let size = stored.iter().map(|s| s.submission.len()).sum();
+    let (sensor_id, station) = (body.sensor_id, station_id.clone());
+    let sub = lab
+        .compute_for(size, move || -> Result<Submission, Error> {
+            let mut parts = Vec::with_capacity(stored.len());
+            for (i, s) in stored.into_iter().enumerate() {
+                parts.push(constituent(i, s)?);
+            }
+            Ok(combine(&sensor_id, station, parts)?)
+        })
+        .await??;
+    Ok((sub, station_id, ids))
+}
+
+/// The `i`th calibration named, read again.
+fn constituent(i: usize, s: Stored) -> Result<Constituent, Error> {
+    #[derive(serde::Deserialize)]
+    struct Used {
+        #[serde(default)]
+        standards: Vec<UsedStandard>,
+    }
+    let upload = Upload::stored(s.content_type, s.submission);
+    let id = s.id;
+    let mut submission = evaluate(upload.media, &upload.bytes, s.performed_at)
+        .map_err(|e| {
+            Error::invalid(
+                Loc::Root.key("calibrations").index(i),
+                format!("calibration {id}'s submission does not read again: {e}"),
+            )
+        })?
+        .submission;
+    submission.performed_at = Some(s.performed_at);
+    let standards = s
+        .result
+        .and_then(|r| serde_json::from_slice::<Used>(&r).ok())
+        .map(|u| u.standards)
+        .unwrap_or_default();
+    Ok(Constituent {
+        id,
+        submission,
+        standards,
+    })
+}

@@ -1,0 +1,208 @@
+//! A temperature model from stored calibrations named by id (issue 45
+//! item 1), on both engines: five single-axis calibrations of one sensor,
+//! each tumbled at its own chamber set point, make the model that their
+//! runs sent whole in one body make — the same set points and polynomials
+//! to the last bit, computed here by sending that body — stored with the
+//! ids it came from, performed when the last was, and fitted again from
+//! them on reprocessing; every calibration that cannot take part is
+//! refused naming it.
+
+use reqwest::StatusCode;
+use rstest::rstest;
+use serde_json::{Value, json};
+
+use accelcal::domain::timestamp::Timestamp;
+use accelcal_testkit::Engine::{Postgres, Sqlite};
+use accelcal_testkit::*;
+
+use crate::thermal::{CHAMBER, body};
+
+fn ago(days: i64) -> String {
+    Timestamp::now().plus_seconds(-days * 86_400).to_string()
+}
+
+/// The single-axis body of `sensor` at set point `t`, performed `days` ago.
+fn at(sensor: &str, t: f64, days: i64) -> Value {
+    let mut b = body(&[t]);
+    b["sensor_id"] = json!(sensor);
+    b["performed_at"] = json!(ago(days));
+    b
+}
+
+#[rstest]
+#[tokio::test]
+async fn a_model_from_stored_calibrations_is_the_model_of_their_runs(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let mut ids = Vec::new();
+    let mut whole = body(&[]);
+    whole["sensor_id"] = json!("MEMS-C");
+    for (s, &t) in CHAMBER.iter().enumerate() {
+        let b = at("MEMS-C", t, 5 - s as i64);
+        let stored = app.submit(ADMIN, &b).await;
+        ids.push(stored["id"].as_str().unwrap().to_owned());
+        for run in b["runs"].as_array().unwrap() {
+            whole["runs"].as_array_mut().unwrap().push(run.clone());
+        }
+    }
+    let whole_model: Value = app
+        .post("/v1/identify/thermal", ADMIN, &whole)
+        .await
+        .json()
+        .await
+        .unwrap();
+    let named = json!({"sensor_id": "MEMS-C", "calibrations": ids});
+    let res = app.post("/v1/identify/thermal", ADMIN, &named).await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let combined: Value = res.json().await.unwrap();
+    assert_eq!(combined, whole_model);
+    assert_eq!(combined["set_points"].as_array().unwrap().len(), 5);
+
+    let res = app.post("/v1/calibrations/thermal", ADMIN, &named).await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    let stored: Value = res.json().await.unwrap();
+    crate::conforms_to("StoredThermal", &stored);
+    assert_eq!(stored["thermal"], whole_model);
+    assert_eq!(stored["from_calibrations"], json!(ids));
+    assert_eq!(stored["runs"], 40);
+    // Performed when the last of them was (a day ago).
+    let last = app
+        .get_json(&format!("/v1/calibrations/{}", ids[4]), ADMIN)
+        .await;
+    assert_eq!(stored["performed_at"], last["performed_at"]);
+    // The body stored is the one sent; reprocessing reads the calibrations
+    // again and fits the same model.
+    let id = stored["id"].as_str().unwrap();
+    let res = app
+        .get(&format!("/v1/calibrations/{id}/submission"), ADMIN)
+        .await;
+    assert_eq!(res.json::<Value>().await.unwrap(), named);
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{id}/reprocess"),
+            ADMIN,
+            &json!({}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+    let r: Value = res.json().await.unwrap();
+    let again = app
+        .get_json(
+            &format!(
+                "/v1/calibrations/{}",
+                r["replacement_id"].as_str().unwrap_or(id)
+            ),
+            ADMIN,
+        )
+        .await;
+    assert_eq!(again["thermal"], whole_model);
+    // The page names where the model came from.
+    let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
+    let html = crate::ui::page(&app, &format!("/ui/calibrations/{id}"), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
+    assert!(
+        html.contains(&format!("/ui/calibrations/{}", ids[0])),
+        "links its calibrations"
+    );
+}
+
+#[tokio::test]
+async fn calibrations_that_cannot_make_a_model_are_refused_by_name() {
+    let app = TestApp::spawn(Sqlite).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let mut ids = Vec::new();
+    for (s, &t) in CHAMBER.iter().enumerate() {
+        let stored = app.submit(ADMIN, &at("MEMS-R", t, 5 - s as i64)).await;
+        ids.push(stored["id"].as_str().unwrap().to_owned());
+    }
+    let other = app.submit(ADMIN, &at("OTHER", 20.0, 1)).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let mut milliamps = at("MEMS-R", 25.0, 1);
+    milliamps["unit"] = json!("mA");
+    let milliamps = app.submit(ADMIN, &milliamps).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let mut cold = at("MEMS-R", -5.0, 1);
+    for run in cold["runs"].as_array_mut().unwrap() {
+        run.as_object_mut().unwrap().remove("temperature_c");
+    }
+    let cold = app.submit(ADMIN, &cold).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{}/review", ids[2]),
+            &rita,
+            &json!({"decision": "reject", "comment": "chamber door open"}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+
+    let refused = |calibrations: Value| {
+        let app = &app;
+        async move {
+            let named = json!({"sensor_id": "MEMS-R", "calibrations": calibrations});
+            problem(
+                app.post("/v1/calibrations/thermal", ADMIN, &named).await,
+                StatusCode::UNPROCESSABLE_ENTITY,
+            )
+            .await
+        }
+    };
+    let unknown = "01a22583-0000-7000-8000-000000000000";
+    for (calibrations, pointer, says) in [
+        (
+            json!([ids[0], unknown]),
+            "/calibrations/1",
+            "no calibration",
+        ),
+        (
+            json!([other, ids[0]]),
+            "/calibrations/0",
+            "of sensor `OTHER`",
+        ),
+        (json!([ids[0], ids[0]]), "/calibrations/1", "again"),
+        (json!([ids[0], "x"]), "/calibrations/1", "a UUID"),
+        (json!([ids[0]]), "/calibrations", "2 to 64"),
+        (json!([ids[0], ids[2]]), "/calibrations/1", "is rejected"),
+        (json!([ids[0], milliamps]), "/calibrations/1", "unit (mA)"),
+        (json!([ids[0], cold]), "/calibrations/1", "no temperature_c"),
+    ] {
+        let p = refused(calibrations.clone()).await;
+        assert_eq!(pointers(&p), [pointer], "{calibrations}: {p}");
+        assert!(
+            p["errors"][0]["detail"].as_str().unwrap().contains(says),
+            "{calibrations}: {p}"
+        );
+    }
+    // Set points too close together: the fit's own refusal.
+    let near = app.submit(ADMIN, &at("MEMS-R", -15.0, 1)).await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
+    let p = refused(json!([ids[0], near])).await;
+    assert!(p.to_string().contains("less than the 10 K"), "{p}");
+    // An unknown member is named.
+    let p = problem(
+        app.post(
+            "/v1/calibrations/thermal",
+            ADMIN,
+            &json!({"sensor_id": "MEMS-R", "calibrations": [ids[0], ids[1]], "runs": []}),
+        )
+        .await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/runs"], "{p}");
+    // Nothing was stored for the sensor but its calibrations.
+    let history = app.get_json("/v1/sensors/MEMS-R/calibrations", ADMIN).await;
+    assert_eq!(history["items"].as_array().unwrap().len(), 8, "{history}");
+}
