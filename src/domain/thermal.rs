@@ -13,7 +13,7 @@ use accelcal_core::thermal::{
 use accelcal_core::{Run, TermMap, TumbleTest};
 use serde::{Deserialize, Serialize};
 
-use super::field::Invalid;
+use super::field::{Errors, Invalid};
 use super::submission::Submission;
 use super::triad_export::Format;
 
@@ -208,6 +208,7 @@ pub struct ThermalModel {
 /// The temperature model of `submission` (module doc), fitted with `fit`.
 pub fn model(submission: &Submission, fit: &Fit) -> Result<ThermalModel, Invalid> {
     let (tolerance_k, options) = (fit.tolerance_k, &fit.options);
+    held(&submission.position_temperatures_c, tolerance_k)?;
     let (groups, at, options) =
         grouped(submission.temperatures_c.as_deref(), tolerance_k, options)?;
     let test = &submission.test;
@@ -271,6 +272,31 @@ pub fn model(submission: &Submission, fit: &Fit) -> Result<ThermalModel, Invalid
         coefficients: TermMap(coefficients),
         thermometer_std_c: None,
     })
+}
+
+/// Checks that no run whose temperature was given per position drifted
+/// across its positions by more than `tolerance_k`: a run is one set
+/// point's, identified with one set of coefficients, and enters the fit
+/// at its positions' mean temperature.
+fn held(per_position: &[Option<Vec<f64>>], tolerance_k: f64) -> Result<(), Invalid> {
+    let mut errors = Errors::default();
+    for (j, ts) in per_position.iter().enumerate() {
+        let Some(ts) = ts else { continue };
+        let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = ts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if hi - lo > tolerance_k {
+            errors.add(
+                format!("/runs/{j}/temperature_c"),
+                format!(
+                    "drifted {:.3} K across its positions ({lo} to {hi} °C), more than the set \
+                     points' tolerance of {tolerance_k} K: a run must hold its set point; repeat \
+                     it once the chamber has settled (or widen tolerance_k)",
+                    hi - lo
+                ),
+            );
+        }
+    }
+    errors.finish(|| ())
 }
 
 /// The runs at `temperatures` (every run's, or `None`) grouped within

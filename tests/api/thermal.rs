@@ -371,3 +371,63 @@ async fn what_cannot_make_a_sane_polynomial_is_refused_naming_what_to_add() {
         );
     }
 }
+
+/// A chamber that drifts during a run (item 1): a run's temperature given
+/// per position enters the fit at the positions' mean — the model equals
+/// the one of the same runs each given that mean, computed here — and is
+/// kept as a single axis's run temperature too; a run that drifted more
+/// than the set points' tolerance is refused, naming it.
+#[tokio::test]
+async fn a_drifting_chamber_gives_a_temperature_per_position() {
+    let app = TestApp::spawn(Sqlite).await;
+    let mut drifting = body(&CHAMBER);
+    let mut means = drifting.clone();
+    let runs = drifting["runs"].as_array_mut().unwrap();
+    for (j, run) in runs.iter_mut().enumerate() {
+        let t = f(&run["temperature_c"]);
+        let each = [t - 0.1, t, t + 0.1, t + 0.3];
+        run["temperature_c"] = json!(each);
+        means["runs"][j]["temperature_c"] = json!(each.iter().sum::<f64>() / 4.0);
+    }
+    let fit = |b: Value| {
+        let app = &app;
+        async move {
+            let res = app.post("/v1/identify/thermal", ADMIN, &b).await;
+            assert_eq!(res.status(), StatusCode::OK);
+            res.json::<Value>().await.unwrap()
+        }
+    };
+    let (per_position, by_mean) = (fit(drifting.clone()).await, fit(means.clone()).await);
+    assert_eq!(per_position, by_mean);
+    assert!((f(&per_position["set_points"][0]["temperature_c"]) + 19.925).abs() < 0.03);
+
+    // As a single axis's calibration: the run's temperature is the mean.
+    let mut one = drifting.clone();
+    one["runs"] = json!(drifting["runs"].as_array().unwrap()[..8]);
+    let stored = app.submit(ADMIN, &one).await;
+    assert_eq!(
+        stored["temperatures_c"],
+        json!(
+            means["runs"].as_array().unwrap()[..8]
+                .iter()
+                .map(|r| r["temperature_c"].clone())
+                .collect::<Vec<_>>()
+        )
+    );
+
+    // 0.6 K across one run's positions, more than 0.5 K: refused.
+    let t = f(&means["runs"][3]["temperature_c"]);
+    drifting["runs"][3]["temperature_c"] = json!([t, t + 0.2, t + 0.4, t + 0.6]);
+    let p = problem(
+        app.post("/v1/identify/thermal", ADMIN, &drifting).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await;
+    assert_eq!(pointers(&p), ["/runs/3/temperature_c"], "{p}");
+    assert!(p.to_string().contains("drifted 0.600 K"), "{p}");
+    // Allowed by a wider tolerance.
+    let res = app
+        .post("/v1/identify/thermal?tolerance_k=1", ADMIN, &drifting)
+        .await;
+    assert_eq!(res.status(), StatusCode::OK);
+}

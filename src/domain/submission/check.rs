@@ -323,12 +323,14 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
     };
     let runs_at = root.key("runs");
     let mut temperatures: Vec<Option<f64>> = Vec::new();
+    let mut position_temperatures: Vec<Option<Vec<f64>>> = Vec::new();
     let runs: Option<Vec<Run>> = match runs {
         Slot::Value(rs) => {
             let mut out = Vec::with_capacity(rs.len());
             for (j, r) in rs.into_iter().enumerate() {
                 let Some(r) = r else { continue };
                 temperatures.push(r.temperature_c);
+                position_temperatures.push(r.position_temperatures_c.clone());
                 match n_positions {
                     Some(n) if n != r.readings.len() => errors.add(
                         runs_at.index(j).key("readings"),
@@ -452,6 +454,11 @@ pub fn check(draft: Draft, now: Timestamp) -> Result<(Submission, Hints), Invali
             _ => None,
         },
         temperatures_c,
+        position_temperatures_c: if position_temperatures.iter().any(Option::is_some) {
+            position_temperatures
+        } else {
+            Vec::new()
+        },
         test,
     };
     Ok((submission, hints))

@@ -47,8 +47,12 @@ pub struct PositionDraft {
 pub struct RunDraft {
     /// `readings[i]`: the samples at position `i`, or their summary.
     pub readings: Vec<Reading>,
-    /// The temperature the run was made at, °C.
+    /// The temperature the run was made at, °C (the mean of its
+    /// positions' when given per position).
     pub temperature_c: Option<f64>,
+    /// Its temperature at each position, °C, when given so (a chamber
+    /// that drifts during a run).
+    pub position_temperatures_c: Option<Vec<f64>>,
 }
 
 /// The tumble stand as given.

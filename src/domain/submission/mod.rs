@@ -128,8 +128,12 @@ pub struct Submission {
     /// The nonconformities of those standards that hold the test (performed
     /// in their windows), once resolved: it is stored under review.
     pub held_by: Vec<crate::domain::nonconformity::HeldBy>,
-    /// Each run's temperature (°C), when the runs give them (all or none).
+    /// Each run's temperature (°C), when the runs give them (all or none):
+    /// the mean of its positions' when given per position.
     pub temperatures_c: Option<Vec<f64>>,
+    /// Each run's temperature at every position, when some run gives them
+    /// so (`None` for a run that gives one); empty otherwise.
+    pub position_temperatures_c: Vec<Option<Vec<f64>>>,
     /// The tumble test handed to the core.
     pub test: TumbleTest,
 }

@@ -137,6 +137,7 @@ pub fn combine(
     let mut errors = Errors::default();
     let mut runs = Vec::new();
     let mut temperatures = Vec::new();
+    let mut per_position: Vec<Option<Vec<f64>>> = Vec::new();
     let mut standards: Vec<UsedStandard> = Vec::new();
     for (i, p) in parts.iter().enumerate() {
         let s = &p.submission;
@@ -173,6 +174,11 @@ pub fn combine(
             ),
         }
         runs.extend_from_slice(s.test.runs());
+        if s.position_temperatures_c.is_empty() {
+            per_position.extend(s.test.runs().iter().map(|_| None));
+        } else {
+            per_position.extend_from_slice(&s.position_temperatures_c);
+        }
         for u in &p.standards {
             let known = standards.iter().any(|k| {
                 (&k.role, &k.standard_id, &k.certificate.number)
@@ -216,6 +222,11 @@ pub fn combine(
         standards_used: standards,
         held_by: Vec::new(),
         temperatures_c: Some(temperatures),
+        position_temperatures_c: if per_position.iter().any(Option::is_some) {
+            per_position
+        } else {
+            Vec::new()
+        },
         test,
     })
 }

@@ -94,14 +94,22 @@ marker_schema!(
         .build()))
 );
 
+/// A plausible temperature, °C.
+fn celsius() -> ObjectBuilder {
+    of_type(Type::Number)
+        .minimum(Some(*TEMPERATURE_C.start()))
+        .maximum(Some(*TEMPERATURE_C.end()))
+}
+
 marker_schema!(
     /// One run's readings.
     RunInSchema => closed(ObjectBuilder::new())
-        .property("temperature_c", ObjectBuilder::new()
-            .schema_type(SchemaType::from_iter([Type::Number, Type::Null]))
-            .description(Some("The run's temperature, °C; give it for every run or none."))
-            .minimum(Some(*TEMPERATURE_C.start()))
-            .maximum(Some(*TEMPERATURE_C.end())))
+        .property("temperature_c", RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
+            .description(Some("The run's temperature, °C, or one per position (a chamber that \
+                drifts; the run's is their mean); give it for every run or none."))
+            .item(celsius().schema_type(SchemaType::from_iter([Type::Number, Type::Null])))
+            .item(array(celsius()).min_items(Some(1)).max_items(Some(MAX_POSITIONS)))
+            .build())))
         .property(
             "readings",
             array(reference("ReadingIn"))

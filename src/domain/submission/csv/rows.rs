@@ -478,6 +478,7 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                 Some(RunDraft {
                     readings,
                     temperature_c,
+                    position_temperatures_c: None,
                 })
             })
             .collect(),

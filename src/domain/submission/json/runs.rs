@@ -71,6 +71,7 @@ impl<'de> Node<'de> for RunNode<'_> {
         const KEYS: [&str; 2] = ["readings", "temperature_c"];
         let mut readings = None;
         let mut temperature_c = None;
+        let mut each = None;
         let mut seen = [false; 2];
         let mut ok = true;
         while let Some(key) = map.next_key::<String>()? {
@@ -101,13 +102,32 @@ impl<'de> Node<'de> for RunNode<'_> {
                 };
                 readings = Some(map.next_value_seed(Seed(node))?);
             } else {
-                let v = map.next_value_seed(Seed(Any))?;
-                if v != Scalar::Null {
-                    match keep(self.errors, at, temperature(&v)) {
-                        Some(t) => temperature_c = Some(t),
-                        None => ok = false,
-                    }
+                let node = RunTemperature {
+                    errors: &mut *self.errors,
+                    at,
+                };
+                match map.next_value_seed(Seed(node))? {
+                    Temperatures::Null => {}
+                    Temperatures::One(t) => temperature_c = Some(t),
+                    Temperatures::Each(ts) => each = Some(ts),
+                    Temperatures::Invalid => ok = false,
                 }
+            }
+        }
+        // One temperature per position: the run's is their mean.
+        if let (Some(ts), Some(Some(r))) = (&each, &readings) {
+            if ts.len() == r.len() {
+                temperature_c = Some(ts.iter().sum::<f64>() / ts.len() as f64);
+            } else {
+                self.errors.add(
+                    self.at.key("temperature_c"),
+                    format!(
+                        "must be the run's temperature or one per position ({}), not {}",
+                        r.len(),
+                        ts.len()
+                    ),
+                );
+                ok = false;
             }
         }
         match readings {
@@ -118,9 +138,63 @@ impl<'de> Node<'de> for RunNode<'_> {
             Some(Some(readings)) if ok => Ok(Some(RunDraft {
                 readings,
                 temperature_c,
+                position_temperatures_c: each,
             })),
             Some(_) => Ok(None),
         }
+    }
+}
+
+/// A run's `temperature_c` as read.
+enum Temperatures {
+    /// Absent or `null`.
+    Null,
+    /// The run's.
+    One(f64),
+    /// One per position.
+    Each(Vec<f64>),
+    /// Wrong (recorded).
+    Invalid,
+}
+
+/// `temperature_c`: the run's, or one per position (a chamber that drifts
+/// during the run), each a plausible temperature in °C.
+struct RunTemperature<'a> {
+    errors: &'a mut Errors,
+    at: Loc<'a>,
+}
+
+impl<'de> Node<'de> for RunTemperature<'_> {
+    type Out = Temperatures;
+    fn scalar(self, v: Scalar) -> Self::Out {
+        if v == Scalar::Null {
+            return Temperatures::Null;
+        }
+        match keep(self.errors, self.at, temperature(&v)) {
+            Some(t) => Temperatures::One(t),
+            None => Temperatures::Invalid,
+        }
+    }
+    fn seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Self::Out, A::Error> {
+        let at = self.at;
+        let mut wrong = false;
+        let read = elements(
+            seq,
+            self.errors,
+            at,
+            (1, MAX_POSITIONS),
+            |errors, i, seq| {
+                Ok(seq.next_element_seed(Seed(Any))?.map(|v| {
+                    let t = keep(errors, at.index(i), temperature(&v));
+                    wrong |= t.is_none();
+                    t
+                }))
+            },
+        )?;
+        Ok(match read {
+            Some(ts) if !wrong => Temperatures::Each(ts),
+            _ => Temperatures::Invalid,
+        })
     }
 }
 

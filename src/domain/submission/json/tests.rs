@@ -328,3 +328,41 @@ fn summarised_samples_are_not_counted_against_the_limits() {
         MAX_SUMMARY_COUNT
     );
 }
+
+#[test]
+fn a_run_gives_its_temperature_or_one_per_position() {
+    let d = no_problem(
+        br#"{"runs": [{"readings": [[1], [2], [3], [4]], "temperature_c": [20, 20.5, 21, 21.5]},
+                      {"readings": [[1], [2], [3], [4]], "temperature_c": 30}]}"#,
+    );
+    let Slot::Value(runs) = d.runs else {
+        panic!("{:?}", d.runs)
+    };
+    let drifting = runs[0].as_ref().unwrap();
+    assert_eq!(drifting.temperature_c, Some(20.75), "their mean");
+    assert_eq!(
+        drifting.position_temperatures_c,
+        Some(vec![20.0, 20.5, 21.0, 21.5])
+    );
+    let steady = runs[1].as_ref().unwrap();
+    assert_eq!(
+        (steady.temperature_c, &steady.position_temperatures_c),
+        (Some(30.0), &None)
+    );
+    one_problem(
+        br#"{"runs": [{"readings": [[1], [2]], "temperature_c": [20, 21, 22]}]}"#,
+        "/runs/0/temperature_c",
+        "must be the run's temperature or one per position (2), not 3",
+    );
+    let d =
+        read(br#"{"runs": [{"readings": [[1], [2]], "temperature_c": [20, 294.15]}]}"#).unwrap();
+    let inv = d.errors.into_invalid();
+    assert_eq!(inv.errors.len(), 1, "{inv:?}");
+    assert_eq!(inv.errors[0].pointer, "/runs/0/temperature_c/1");
+    assert!(inv.errors[0].detail.contains("looks like kelvin"));
+    one_problem(
+        br#"{"runs": [{"readings": [[1]], "temperature_c": []}]}"#,
+        "/runs/0/temperature_c",
+        "must not be empty",
+    );
+}
