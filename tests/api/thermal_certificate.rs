@@ -8,7 +8,6 @@
 //! covariance; 2 otherwise), and the valid range and `T_ref` as the influence condition.
 
 use reqwest::StatusCode;
-use reqwest::header::ACCEPT;
 use rstest::rstest;
 use serde_json::{Value, json};
 
@@ -132,14 +131,7 @@ async fn an_approved_model_is_certified_with_its_polynomials(
 
     // The DCC: each a_d in its unit per K^d, rounded to U, with k from the
     // GUM's table.
-    let res = app
-        .client
-        .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
-        .bearer_auth(ADMIN)
-        .header(ACCEPT, "application/xml")
-        .send()
-        .await
-        .unwrap();
+    let res = crate::dcc::dcc(&app, &id, ADMIN).await;
     assert_eq!(res.status(), StatusCode::OK);
     let xml = res.text().await.unwrap();
     let doc = roxmltree::Document::parse(&xml).unwrap();
@@ -201,13 +193,6 @@ async fn an_approved_model_is_certified_with_its_polynomials(
     assert!(xml.contains("Temperature range of the model"));
     assert!(xml.contains("Statement of conformity"));
     // Issued: the same bytes again.
-    let again = app
-        .client
-        .get(app.url(&format!("/v1/calibrations/{id}/certificate")))
-        .bearer_auth(ADMIN)
-        .header(ACCEPT, "application/xml")
-        .send()
-        .await
-        .unwrap();
+    let again = crate::dcc::dcc(&app, &id, ADMIN).await;
     assert_eq!(again.text().await.unwrap(), xml);
 }

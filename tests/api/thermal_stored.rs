@@ -19,7 +19,7 @@ use accelcal_testkit::*;
 use crate::thermal::{CHAMBER, body, f};
 
 /// `(c(t), u(c(t)))` of the polynomial `p` (a stored model's JSON).
-fn evaluated(p: &Value, t: f64) -> (f64, f64) {
+pub(crate) fn evaluated(p: &Value, t: f64) -> (f64, f64) {
     let x = t - f(&p["reference_c"]);
     let a: Vec<f64> = p["coefficients"]
         .as_array()
