@@ -16,7 +16,11 @@
 #   fit                 POST /v1/identify/thermal with examples/thermal-chamber.json
 #                       (40 runs, five set points);
 #   fit-triad           POST /v1/identify/thermal/triad with
-#                       examples/thermal-triad.json (50 six-face runs).
+#                       examples/thermal-triad.json (50 six-face runs);
+#   triad@33            POST /v1/sensors/IMU-TC-3/compensate, 100 triples at
+#                       33 °C (examples/thermal-triad.json stored as a
+#                       triad's model; builds that store one);
+#   triad-coefficients@33  GET /v1/sensors/IMU-TC-3/coefficients?temperature_c=33.
 #
 # Prints a Markdown table (req/s, p99 ms) for BENCHMARKS.md; every answer
 # must be a 2xx. Measures, never judges.
@@ -44,9 +48,13 @@ outputs = [-1.216 + 0.024 * k for k in range(100)]
 json.dump({"outputs": outputs}, open(f"{w}/compensate.json", "w"))
 json.dump({"outputs": outputs, "temperature_c": 33.0}, open(f"{w}/at33.json", "w"))
 json.dump({"outputs": outputs, "temperature_c": [-19 + 0.78 * k for k in range(100)]}, open(f"{w}/at100.json", "w"))
+triples = [[0.3 + 0.01 * k, -0.1, 9.7 - 0.02 * k] for k in range(100)]
+json.dump({"outputs": triples, "temperature_c": 33.0}, open(f"{w}/triad33.json", "w"))
 PY
 post /v1/calibrations "$WORK/plain.json"
 post /v1/calibrations/thermal examples/thermal-chamber.json
+TRIAD=""
+if post /v1/calibrations/thermal/triad examples/thermal-triad.json; then TRIAD=1; fi
 cat >"$WORK/leg.lua" <<'LUA'
 function init(args)
   wrk.headers["Authorization"] = "Bearer " .. os.getenv("ACCELCAL_ADMIN_TOKEN")
@@ -76,3 +84,7 @@ leg coefficients@33 "/v1/sensors/MEMS-TC-7/coefficients?temperature_c=33" ""
 leg identify /v1/identify examples/paper-table1.json
 leg fit /v1/identify/thermal examples/thermal-chamber.json
 leg fit-triad /v1/identify/thermal/triad examples/thermal-triad.json
+if [ -n "$TRIAD" ]; then
+  leg triad@33 /v1/sensors/IMU-TC-3/compensate "$WORK/triad33.json"
+  leg triad-coefficients@33 "/v1/sensors/IMU-TC-3/coefficients?temperature_c=33" ""
+fi

@@ -2,7 +2,9 @@
 """Writes examples/thermal-triad.json: a MEMS accelerometer triad tumbled
 through its six faces in a thermal chamber at five set points (-20, 0, 20,
 40, 60 C), as a station sends it to POST /v1/identify/thermal/triad (add
-?export=px4 for PX4's thermal parameters).
+?export=px4 for PX4's thermal parameters) or stores it with
+POST /v1/calibrations/thermal/triad (then compensated at a temperature and
+exported from the record: docs/users.md, "A worked example").
 
 The triad (outputs in m/s2, u = b(T) + S(T) g, g in g) about T0 = 20 C:
   b(T) = (0.183, -0.127, 0.342) + (1.6e-3, -0.9e-3, 2.4e-3) (T - T0)

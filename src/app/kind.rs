@@ -21,6 +21,8 @@ pub enum Kind {
     Triad,
     /// A single axis's static model over temperature, fitted so.
     Thermal(Fit),
+    /// A triad's `b` and `S` over temperature, fitted so.
+    ThermalTriad(Fit),
 }
 
 impl Kind {
@@ -28,6 +30,9 @@ impl Kind {
     /// A temperature model is fitted again as it was: with the parameters
     /// it was fitted with (which were checked when it was).
     pub fn of(c: &CalibrationSummary) -> Kind {
+        if let Some(t) = &c.thermal_triad {
+            return Kind::ThermalTriad(t.fitted_with.checked().unwrap_or_default());
+        }
         if c.triad.is_some() {
             return Kind::Triad;
         }
@@ -59,6 +64,10 @@ impl Kind {
             Kind::Triad => triad::assess(lab, principal, upload, received_at, id, supersedes).await,
             Kind::Thermal(fit) => {
                 thermal::assess(lab, principal, upload, received_at, id, supersedes, fit).await
+            }
+            Kind::ThermalTriad(fit) => {
+                thermal::triad::assess(lab, principal, upload, received_at, id, supersedes, fit)
+                    .await
             }
         }
     }

@@ -14,7 +14,7 @@ use super::{Assessed, Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::metrology::{Previous, assess_calibration};
 use crate::domain::review::Supersedes;
-use crate::domain::submission::{Evaluated, ResultView, evaluate};
+use crate::domain::submission::{Evaluated, ResultView, StandardsIn, Submission, evaluate};
 use crate::domain::timestamp::Timestamp;
 use crate::store::NewCalibration;
 
@@ -24,22 +24,26 @@ use crate::store::NewCalibration;
 /// stand. Temperature models resolve theirs so too.
 pub(super) async fn resolve_standards(
     lab: &Lab,
-    e: &mut Evaluated,
+    sub: &mut Submission,
     performed_at: Timestamp,
 ) -> Result<(), Error> {
-    let Some(named) = e.submission.standards.clone() else {
+    let Some(named) = &sub.standards else {
         return Ok(());
     };
-    let roles = [
+    let r = resolve(lab, &roles(named), performed_at).await?;
+    sub.stand = Some(r.stand);
+    sub.standards_used = r.used;
+    sub.held_by = r.held_by;
+    Ok(())
+}
+
+/// The standards `named` by role, as [`resolve`] takes them.
+pub(super) fn roles(named: &StandardsIn) -> [(&'static str, Option<String>); 3] {
+    [
         ("stand", Some(named.stand.clone())),
         ("thermometer", named.thermometer.clone()),
         ("gravity", named.gravity.clone()),
-    ];
-    let r = resolve(lab, &roles, performed_at).await?;
-    e.submission.stand = Some(r.stand);
-    e.submission.standards_used = r.used;
-    e.submission.held_by = r.held_by;
-    Ok(())
+    ]
 }
 
 /// Evaluates `upload` for `principal`; with `id`, also builds the record
@@ -76,7 +80,7 @@ pub async fn assess(
     )
     .await?;
     let performed_at = evaluated.submission.performed_at.unwrap_or(received_at);
-    resolve_standards(lab, &mut evaluated, performed_at).await?;
+    resolve_standards(lab, &mut evaluated.submission, performed_at).await?;
     let previous = subject
         .previous(lab, performed_at)
         .await?
@@ -128,6 +132,7 @@ pub async fn assess(
             expanded: Some(metrology.uncertainty.expanded()),
             triad: None,
             thermal: None,
+            thermal_triad: None,
             standards: Resolved::uses(&e.submission.standards_used),
         });
         Ok(Assessed {

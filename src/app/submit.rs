@@ -112,10 +112,11 @@ async fn store(
         rec.verdict,
         rec.result.clone(),
     );
-    let kind = match (&rec.triad, &rec.thermal) {
-        (Some(_), _) => "triad",
-        (None, Some(_)) => "thermal",
-        (None, None) => "single-axis",
+    let kind = match (&rec.triad, &rec.thermal, &rec.thermal_triad) {
+        (Some(_), _, Some(_)) => "thermal-triad",
+        (Some(_), _, None) => "triad",
+        (None, Some(_), _) => "thermal",
+        (None, None, _) => "single-axis",
     };
     let stored = lab.store.insert_calibration(rec, key).await?;
     if let Some(g) = guard {

@@ -32,8 +32,9 @@ use serde::Serialize;
 use uuid::Uuid;
 
 mod combined;
+pub mod triad;
 
-use super::single_axis::resolve_standards;
+use super::single_axis::{resolve_standards, roles};
 use super::standards::Resolved;
 use super::subject::{in_force, station};
 use super::{Assessed, Error, Lab, Upload};
@@ -128,10 +129,18 @@ struct Read {
     thermal: ThermalModel,
 }
 
+/// What the compute pool makes of a model's body first: runs sent whole,
+/// evaluated and fitted; or a body naming stored calibrations.
+enum First {
+    Whole(Box<Submission>, Option<String>, Box<ThermalModel>),
+    Named(Bytes),
+}
+
 /// `upload` read for `principal` at `received_at` and fitted with `fit`:
-/// runs sent whole (evaluated on the compute pool, their standards
-/// resolved), or a JSON body naming stored calibrations
-/// ([`combined::read`]); the thermometer's uncertainty kept in the model.
+/// runs sent whole (evaluated and fitted in one pass on the compute pool,
+/// then their standards resolved), or a JSON body naming stored
+/// calibrations ([`combined::read`]); the thermometer's uncertainty kept
+/// in the model.
 async fn read(
     lab: &Lab,
     principal: &Principal,
@@ -140,28 +149,48 @@ async fn read(
     fit: Fit,
 ) -> Result<Read, Error> {
     let size = upload.bytes.len();
-    let (sub, station_id, from) =
-        if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) {
-            combined::read(lab, principal, &upload.bytes).await?
-        } else {
-            let who = principal.clone();
-            let (mut e, station_id) = lab
-                .compute_for(size, move || {
-                    let e = evaluate(upload.media, &upload.bytes, received_at)?;
-                    let station_id = station(&who, e.submission.station_id.as_deref())?;
-                    Ok::<_, Error>((e, station_id))
-                })
-                .await??;
-            let performed_at = e.submission.performed_at.unwrap_or(received_at);
-            resolve_standards(lab, &mut e, performed_at).await?;
-            (e.submission, station_id, Vec::new())
-        };
-    let (sub, mut thermal) = lab
+    let who = principal.clone();
+    let first = lab
         .compute_for(size, move || {
-            let thermal = model(&sub, &fit)?;
-            Ok::<_, Error>((sub, thermal))
+            // Runs sent whole are read first; only a body they are not is
+            // looked at for `calibrations` (a second parse costs a fit
+            // route a sixth of its throughput).
+            let e = match evaluate(upload.media, &upload.bytes, received_at) {
+                Ok(e) => e,
+                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
+                    return Ok(First::Named(upload.bytes));
+                }
+                Err(refused) => return Err(refused.into()),
+            };
+            let station_id = station(&who, e.submission.station_id.as_deref())?;
+            let thermal = model(&e.submission, &fit)?;
+            // The whole submission's own identification is dropped here,
+            // on the thread that made it (freed elsewhere it costs a
+            // tenth of the route's CPU).
+            Ok::<_, Error>(First::Whole(
+                Box::new(e.submission),
+                station_id,
+                Box::new(thermal),
+            ))
         })
         .await??;
+    let (sub, station_id, from, mut thermal) = match first {
+        First::Whole(mut sub, station_id, thermal) => {
+            let performed_at = sub.performed_at.unwrap_or(received_at);
+            resolve_standards(lab, &mut sub, performed_at).await?;
+            (*sub, station_id, Vec::new(), *thermal)
+        }
+        First::Named(bytes) => {
+            let (sub, station_id, from) = combined::read(lab, principal, &bytes).await?;
+            let (sub, thermal) = lab
+                .compute_for(size, move || {
+                    let thermal = model(&sub, &fit)?;
+                    Ok::<_, Error>((sub, thermal))
+                })
+                .await??;
+            (sub, station_id, from, thermal)
+        }
+    };
     thermal.thermometer_std_c = thermometer(&sub.standards_used);
     Ok(Read {
         sub,
@@ -182,15 +211,50 @@ pub async fn identify(
     upload: Upload,
     fit: Fit,
 ) -> Result<ThermalModel, Error> {
-    let r = read(lab, principal, upload, Timestamp::now(), fit).await?;
-    if r.sub.sensor_type.is_some() {
-        return Err(Error::invalid(
+    let refuse_type = || {
+        Error::invalid(
             Loc::Root.key("sensor_type"),
             "a sensor type judges a temperature model when it is stored (POST \
              /v1/calibrations/thermal): omit it here",
-        ));
+        )
+    };
+    let now = Timestamp::now();
+    let who = principal.clone();
+    // Runs sent whole are fitted in one pass on the compute pool, and only
+    // the model and the standards named leave it (the submission freed
+    // where it was made: freed elsewhere it costs a tenth of the route's
+    // CPU); a body naming calibrations is read as [`read`] reads it.
+    let whole = lab
+        .compute_for(upload.bytes.len(), move || {
+            let e = match evaluate(upload.media, &upload.bytes, now) {
+                Ok(e) => e,
+                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
+                    return Ok(Err(upload));
+                }
+                Err(refused) => return Err(refused.into()),
+            };
+            station(&who, e.submission.station_id.as_deref())?;
+            if e.submission.sensor_type.is_some() {
+                return Err(refuse_type());
+            }
+            let thermal = model(&e.submission, &fit)?;
+            let performed_at = e.submission.performed_at.unwrap_or(now);
+            Ok::<_, Error>(Ok((thermal, e.submission.standards, performed_at)))
+        })
+        .await??;
+    match whole {
+        Ok((mut thermal, named, performed_at)) => {
+            if let Some(named) = named {
+                let used = super::standards::resolve(lab, &roles(&named), performed_at).await?;
+                thermal.thermometer_std_c = thermometer(&used.used);
+            }
+            Ok(thermal)
+        }
+        Err(upload) => {
+            let r = read(lab, principal, upload, now, fit).await?;
+            Ok(r.thermal)
+        }
     }
-    Ok(r.thermal)
 }
 
 /// The largest standard uncertainty of the thermometers among `used`, if
@@ -202,15 +266,13 @@ fn thermometer(used: &[UsedStandard]) -> Option<f64> {
         .reduce(f64::max)
 }
 
-/// The temperature model of the triad `upload`, its runs grouped within
-/// `tolerance_k` and each element's polynomial fitted with `options`; as
-/// for a single axis, a sensor type or reference standards are refused
-/// rather than ignored.
+/// The temperature model of the triad `upload` fitted with `fit` (its
+/// parameters kept in it); as for a single axis, a sensor type or
+/// reference standards are refused rather than ignored.
 pub async fn identify_triad(
     lab: &Lab,
     upload: Upload,
-    tolerance_k: f64,
-    options: accelcal_core::thermal::Options,
+    fit: Fit,
 ) -> Result<TriadThermalModel, Error> {
     lab.compute_for(
         upload.bytes.len(),
@@ -222,7 +284,9 @@ pub async fn identify_triad(
             if !sub.standards.is_empty() {
                 return Err(not_yet("standards", "the reference standards' budget"));
             }
-            Ok(triad_model(&sub, tolerance_k, &options)?)
+            let mut model = triad_model(&sub, fit.tolerance_k, &fit.options)?;
+            model.fitted_with = fit.params;
+            Ok(model)
         },
     )
     .await?
@@ -319,6 +383,7 @@ pub async fn assess(
         triad: None,
         standards: Resolved::uses(&view.standards),
         thermal: Some(view.thermal),
+        thermal_triad: None,
     };
     Ok(Assessed {
         sensor_id: record.sensor_id.clone(),

@@ -291,6 +291,7 @@ pub async fn assess(
         expanded: None,
         triad: Some(elements(&result)),
         thermal: None,
+        thermal_triad: None,
         standards: uses,
     };
     let view = StoredTriad {

@@ -376,3 +376,11 @@ pub fn gravity_rel_std() -> ObjectBuilder {
 pub fn temperature_std_c() -> ObjectBuilder {
     optional_number(0.0, MAX_TEMPERATURE_STD_C)
 }
+
+/// A plausible temperature, °C.
+pub fn celsius() -> ObjectBuilder {
+    let range = super::limits::TEMPERATURE_C;
+    of_type(Type::Number)
+        .minimum(Some(*range.start()))
+        .maximum(Some(*range.end()))
+}

@@ -449,7 +449,30 @@ mod triad;
 
 pub use ardupilot::ardupilot;
 pub use px4::px4;
-pub use triad::{TriadSetPoint, TriadThermalModel, triad_model};
+pub use triad::{TriadAt, TriadSetPoint, TriadThermalModel, triad_model};
+
+/// A stored temperature model of either kind, as the `thermal` column
+/// holds it: a triad's has `b` and `S` where a single axis's has
+/// `coefficients`.
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+pub enum AnyModel {
+    /// A triad's.
+    Triad(Box<TriadThermalModel>),
+    /// A single axis's.
+    Axis(Box<ThermalModel>),
+}
+
+impl AnyModel {
+    /// The column `m` as the summary's two fields.
+    pub fn split(m: Option<AnyModel>) -> (Option<ThermalModel>, Option<TriadThermalModel>) {
+        match m {
+            Some(AnyModel::Axis(a)) => (Some(*a), None),
+            Some(AnyModel::Triad(t)) => (None, Some(*t)),
+            None => (None, None),
+        }
+    }
+}
 
 #[cfg(test)]
 mod tests;

@@ -18,6 +18,7 @@ use super::lookup::{latest_id, sensor};
 use super::problem::{Kind, Problem};
 use super::query::Params;
 use super::rendered::{APPLICATION_JSON, ById};
+use crate::app::thermal::triad::elements_at;
 use crate::domain::auth::{Principal, Role};
 use crate::domain::compensate::{
     CompensateRequest, Compensated, TemperatureUsed, Temperatures, no_model, outside_range,
@@ -28,6 +29,8 @@ use crate::domain::text::echo;
 use crate::domain::timestamp::Timestamp;
 use crate::domain::usability::Usability;
 use crate::store::CalibrationSummary;
+
+mod temperature;
 
 /// What a control system loads: the fused coefficients of one calibration,
 /// and whether to use them.
@@ -76,10 +79,11 @@ impl Coefficients {
     /// The coefficients of `summary`, judged at `now`, served on `basis`
     /// (which it counts on: it is the sensor's latest on it).
     fn of(summary: CalibrationSummary, now: Timestamp, basis: Basis) -> Self {
-        let temperature = summary
-            .thermal
-            .as_ref()
-            .map(|m| TemperatureUsed::of(m, Temperatures::One(m.reference_c())));
+        let temperature = match (&summary.thermal, &summary.thermal_triad) {
+            (Some(m), _) => Some(TemperatureUsed::of(m, Temperatures::One(m.reference_c()))),
+            (None, Some(m)) => Some(TemperatureUsed::of(m, Temperatures::One(m.reference_c()))),
+            (None, None) => None,
+        };
         Coefficients {
             temperature,
             sensor_id: summary.sensor_id,
@@ -142,55 +146,6 @@ pub struct CoefficientsQuery {
     /// `true`: evaluate a temperature model outside its range too (the
     /// answer says `extrapolated` and by how many kelvin); default false.
     allow_extrapolation: Option<bool>,
-}
-
-/// The coefficients of `sensor_id`'s latest calibration, a temperature
-/// model, evaluated at `t` °C (extrapolated only when `allow`).
-async fn at_temperature(
-    state: &AppState,
-    sensor_id: &str,
-    t: f64,
-    allow: bool,
-    usable: bool,
-) -> Result<Response, Problem> {
-    let limits = crate::domain::limits::TEMPERATURE_C;
-    if !limits.contains(&t) {
-        return Err(Problem::bad_parameter(
-            "temperature_c",
-            format!(
-                "must be a temperature from {} to {} °C",
-                limits.start(),
-                limits.end()
-            ),
-        ));
-    }
-    let now = Timestamp::now();
-    let basis = state.web.basis;
-    let latest = if basis == Basis::ApprovedOnly {
-        latest_approved(state, sensor_id).await?
-    } else {
-        sensor(state, sensor_id).await?.latest
-    };
-    if usable {
-        let usability =
-            Usability::of(latest.verdict, latest.due_at, now).in_state(latest.state, basis);
-        refuse_unusable(&latest, &usability)?;
-    }
-    let refused = |detail: String| {
-        Problem::new(Kind::Validation, format!("temperature_c {detail}")).naming("temperature_c")
-    };
-    let Some(model) = latest.thermal.clone() else {
-        return Err(refused(no_model(latest.id)));
-    };
-    let at = model.at(t);
-    if at.outside_k > 0.0 && !allow {
-        return Err(refused(outside_range(t, at.outside_k, &model, latest.id)));
-    }
-    let mut c = Coefficients::of(latest, now, basis);
-    c.coefficients = at.coefficients;
-    c.std_errors = at.std_errors;
-    c.temperature = Some(TemperatureUsed::of(&model, Temperatures::One(t)));
-    Ok(Json(c).into_response())
 }
 
 /// The 409 for coefficients of `summary` whose usability is `u`.
@@ -266,7 +221,7 @@ pub async fn coefficients(
     .usable()?;
     if let Some(t) = query.temperature_c {
         let allow = query.allow_extrapolation.unwrap_or(false);
-        return at_temperature(&state, &sensor_id, t, allow, usable).await;
+        return temperature::at_temperature(&state, &sensor_id, t, allow, usable).await;
     }
     let now = Timestamp::now();
     if state.web.basis == Basis::ApprovedOnly {
@@ -417,23 +372,30 @@ pub async fn compensate(
     if usable {
         refuse_unusable(&summary, &usability)?;
     }
-    if request.temperature_c.is_some() && summary.thermal.is_none() {
+    if request.temperature_c.is_some()
+        && summary.thermal.is_none()
+        && summary.thermal_triad.is_none()
+    {
         return Err(Problem::validation(Invalid::one(
             "/temperature_c",
             no_model(summary.id),
         )));
     }
-    let (a_i, g, temperature) = match (&summary.triad, &summary.thermal) {
-        (Some(t), _) => (
+    let (a_i, g, temperature) = match (&summary.triad, &summary.thermal, &summary.thermal_triad) {
+        (Some(_), _, Some(model)) => {
+            let (g, used) = request.compensate_triad_at(model, summary.id)?;
+            (None, Some(g), Some(used))
+        }
+        (Some(t), _, None) => (
             None,
             Some(request.compensate_triad(&t.model(), summary.id)?),
             None,
         ),
-        (None, Some(model)) => {
+        (None, Some(model), _) => {
             let (a_i, used) = request.compensate_at(model, summary.id)?;
             (Some(a_i), None, Some(used))
         }
-        (None, None) => (
+        (None, None, _) => (
             Some(request.compensate(&summary.coefficients, summary.id)?),
             None,
             None,

@@ -10,13 +10,12 @@ use axum::response::{IntoResponse, Response};
 use super::AppState;
 use super::auth::require;
 use super::body::Body;
-use super::problem::{Kind, Problem};
+use super::problem::Problem;
 use super::query::Params;
 use crate::app::{single_axis, thermal};
 use crate::domain::auth::{Principal, Role};
 use crate::domain::fuse::FuseRequest;
-use crate::domain::thermal::firmware::ThermalExportError;
-use crate::domain::thermal::{ThermalModel, ThermalParams, export as model_file, file_name};
+use crate::domain::thermal::{ThermalModel, ThermalParams};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad_export::Format;
 
@@ -151,7 +150,7 @@ pub async fn identify_thermal_triad(
     let fit = params
         .checked()
         .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
-    let model = thermal::identify_triad(&state.lab, body, fit.tolerance_k, fit.options).await?;
+    let model = thermal::identify_triad(&state.lab, body, fit).await?;
     let Some(format) = format else {
         return Ok(Json(model).into_response());
     };
@@ -160,17 +159,7 @@ pub async fn identify_thermal_triad(
         model.sensor_id.as_deref().unwrap_or("(no sensor_id)"),
         env!("CARGO_PKG_VERSION")
     );
-    let file = model_file(&model, format, &source).map_err(|e| match e {
-        ThermalExportError::Unit(e) => {
-            Problem::validation(crate::domain::field::Invalid::one("/unit", e.to_string()))
-        }
-        e @ ThermalExportError::NotCarried { .. } => Problem::new(Kind::NotCarried, e.to_string()),
-    })?;
-    Ok(super::firmware::attachment(
-        file,
-        format.media_type(),
-        file_name(format),
-    ))
+    super::firmware::thermal_file(&model, format, &source)
 }
 
 /// The query `POST /v1/identify/thermal/triad` adds to the fit's.

@@ -1,6 +1,7 @@
 //! A stored or computed triad as the file firmware loads (`json`, `c`,
 //! `px4`, `ardupilot`): what the export route, the identify route's
-//! `?export=` and the triad page's downloads answer.
+//! `?export=` and the triad page's downloads answer — for a triad's
+//! temperature model, its thermal parameters ([`thermal_file`]).
 
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
@@ -59,6 +60,26 @@ pub fn file(e: &Exported<'_>, format: Format) -> Result<Response, Problem> {
     Ok(attachment(file, format.media_type(), format.file_name()))
 }
 
+/// The triad's temperature `model` as a file in `format`, described by
+/// `source`: outputs PX4 or ArduPilot cannot take are a 422 naming
+/// `/unit`, a scale factor they cannot carry a 409 `not-carried`.
+pub fn thermal_file(
+    model: &crate::domain::thermal::TriadThermalModel,
+    format: Format,
+    source: &str,
+) -> Result<Response, Problem> {
+    use crate::domain::thermal::firmware::ThermalExportError;
+    let file = crate::domain::thermal::export(model, format, source).map_err(|e| match e {
+        ThermalExportError::Unit(e) => Problem::validation(Invalid::one("/unit", e.to_string())),
+        e @ ThermalExportError::NotCarried { .. } => Problem::new(Kind::NotCarried, e.to_string()),
+    })?;
+    Ok(attachment(
+        file,
+        format.media_type(),
+        crate::domain::thermal::file_name(format),
+    ))
+}
+
 /// `body` answered as a download of type `media` named `name`.
 pub fn attachment(body: String, media: &'static str, name: &'static str) -> Response {
     let mut res = body.into_response();
@@ -107,6 +128,10 @@ pub async fn exported(state: &AppState, id: Uuid, format: &str) -> Result<Respon
         c.state.as_str(),
         env!("CARGO_PKG_VERSION")
     );
+    // A temperature model exports its polynomials, not one temperature's.
+    if let Some(model) = &c.thermal_triad {
+        return thermal_file(model, format, &format!("temperature model of {source}"));
+    }
     file(
         &Exported {
             unit: &c.unit,

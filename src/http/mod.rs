@@ -334,6 +334,7 @@ pub fn api_routes() -> OpenApiRouter<AppState> {
     OpenApiRouter::default()
         .routes(routes!(calibrations::submit))
         .routes(routes!(calibrations::submit_thermal))
+        .routes(routes!(triads::submit_thermal))
         .routes(routes!(calibrations::get))
         .routes(routes!(calibrations::certificate))
         .routes(routes!(calibrations::submission))

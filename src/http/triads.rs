@@ -1,7 +1,8 @@
 //! Stored triad calibrations (issue 30): `POST /v1/calibrations/triad`
 //! stores a triad as the triad kind computes it ([`crate::app::triad`]),
-//! and `GET /v1/calibrations/{id}/export` answers a stored triad in the form
-//! firmware loads ([`super::firmware`]).
+//! `POST /v1/calibrations/thermal/triad` a triad's temperature model
+//! ([`crate::app::thermal::triad`]), and `GET /v1/calibrations/{id}/export`
+//! answers a stored triad in the form firmware loads ([`super::firmware`]).
 
 use axum::extract::{Path, State};
 use axum::http::HeaderMap;
@@ -18,6 +19,68 @@ use super::stored::{created, idempotency_key};
 use super::{AppState, path_id};
 use crate::app::{Kind, submit};
 use crate::domain::auth::{Principal, Role};
+
+/// `POST /v1/calibrations/thermal/triad`: a triad tumbled at several
+/// temperatures, its model fitted and stored as one calibration of the
+/// triad; with an `Idempotency-Key`, at most once per key.
+#[utoipa::path(
+    post,
+    path = "/v1/calibrations/thermal/triad",
+    tag = "calibrations",
+    operation_id = "submitThermalTriad",
+    summary = "Fit a triad's b and S over temperature and store the model.",
+    description = "The body of `POST /v1/identify/thermal/triad` (known `orientations`, every \
+        run with its `temperature_c`) with `sensor_id`, and the same fit parameters. Stored as \
+        one calibration of the triad whose elements (`elements`: b, S, T = S⁻¹) are the model \
+        at `T_ref`: history, stability and the coefficients without a temperature serve them; \
+        `GET /v1/sensors/{sensor_id}/coefficients?temperature_c=` and `/compensate` with \
+        `temperature_c` evaluate the model within its range, and \
+        `GET /v1/calibrations/{id}/export` answers its thermal parameters (PX4's `TC_A0_*`, \
+        ArduPilot's `INS_TCAL1_*`, a C header, the model). Not yet: a sensor type's decision \
+        and reference standards (refused, and a typed sensor's model with them), and its \
+        certificate (409 `wrong-kind`).",
+    params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
+    request_body(content((crate::domain::triad::TriadBody = "application/json"), (String = "text/csv"))),
+    responses(
+        (status = 201, description = "Stored (or, for a retried Idempotency-Key, stored before).",
+            body = crate::app::thermal::triad::StoredThermalTriad,
+            headers(
+                ("Location" = String, description = "The calibration's URL."),
+                ("Idempotent-Replayed" = String, description = "`true` when this answer replays an earlier request with the same key."),
+            ),
+            links(
+                ("GetCalibration" = (operation_id = "getCalibration", parameters(("id" = "$response.body#/id")))),
+                ("ExportCalibration" = (operation_id = "exportCalibration", parameters(("id" = "$response.body#/id")))),
+            )),
+        (status = 403, response = super::openapi::Forbidden),
+        (status = 409, response = super::openapi::WrongKind),
+        (status = 413, response = super::openapi::TooLarge),
+        super::openapi::Always,
+        super::openapi::BodyProblems,
+    )
+)]
+pub async fn submit_thermal(
+    State(state): State<AppState>,
+    principal: Principal,
+    headers: HeaderMap,
+    Params(params): Params<crate::domain::thermal::ThermalParams>,
+    body: Body,
+) -> Result<Response, Problem> {
+    require(&principal, Role::Station)?;
+    let fit = params
+        .checked()
+        .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
+    let fitted_with = serde_json::to_string(&fit.params).map_err(|_| Problem::internal())?;
+    let key = idempotency_key(
+        &headers,
+        &principal,
+        &body,
+        Some(&format!("thermal-triad {fitted_with}")),
+    )?;
+    let submitted =
+        submit::submit(&state.lab, &principal, body, key, Kind::ThermalTriad(fit)).await?;
+    Ok(created(submitted))
+}
 
 /// `POST /v1/calibrations/triad`: check, compute, store durably, answer 201;
 /// with an `Idempotency-Key`, at most once per key.

@@ -14,7 +14,7 @@ use crate::domain::nonconformity::{
 };
 use crate::domain::review::{Basis, Refusal, Signature, State};
 use crate::domain::status::Status;
-use crate::domain::thermal::ThermalModel;
+use crate::domain::thermal::{ThermalModel, TriadThermalModel};
 use crate::domain::timestamp::Timestamp;
 
 /// Everything stored for one calibration, written in one transaction.
@@ -64,6 +64,10 @@ pub struct NewCalibration {
     /// A single axis's temperature model, when it is one (issue 45): its
     /// `coefficients` are then the model at `T_ref`.
     pub thermal: Option<ThermalModel>,
+    /// A triad's temperature model, when it is one: its `triad` elements
+    /// are then the model at `T_ref`. Kept in the same column as a single
+    /// axis's ([`NewCalibration::thermal_json`]).
+    pub thermal_triad: Option<TriadThermalModel>,
     /// The reference standards the test used, each with the calibration
     /// date of its certificate in force when it was performed: what the
     /// store judges against the standards' nonconformities in the
@@ -142,17 +146,28 @@ impl NewCalibration {
         {
             return Err(StoreError::Refused(format!("the triad's `{name}` is {v}")));
         }
-        if let Some((name, v)) = self
-            .thermal
+        let axis = self.thermal.iter().flat_map(ThermalModel::numbers);
+        let triad = self
+            .thermal_triad
             .iter()
-            .flat_map(ThermalModel::numbers)
-            .find(|(_, v)| !v.is_finite())
-        {
+            .flat_map(TriadThermalModel::numbers);
+        if let Some((name, v)) = axis.chain(triad).find(|(_, v)| !v.is_finite()) {
             return Err(StoreError::Refused(format!(
                 "the temperature model's `{name}` is {v}"
             )));
         }
         Ok(())
+    }
+
+    /// The `thermal` column: a single axis's or a triad's temperature
+    /// model, as JSON (read back by [`crate::domain::thermal::AnyModel`]).
+    pub fn thermal_json(&self) -> Result<Option<String>, StoreError> {
+        match (&self.thermal, &self.thermal_triad) {
+            (Some(m), _) => serde_json::to_string(m).map(Some),
+            (None, Some(t)) => serde_json::to_string(t).map(Some),
+            (None, None) => Ok(None),
+        }
+        .map_err(|e| StoreError::Refused(e.to_string()))
     }
 }
 
@@ -176,6 +191,7 @@ impl From<&NewCalibration> for CalibrationSummary {
             expanded: n.expanded.clone(),
             triad: n.triad.clone(),
             thermal: n.thermal.clone(),
+            thermal_triad: n.thermal_triad.clone(),
             state: State::Submitted,
         }
     }
@@ -238,6 +254,10 @@ pub struct CalibrationSummary {
     /// in lists.
     #[serde(skip)]
     pub thermal: Option<ThermalModel>,
+    /// A triad's temperature model, when it is one (its `triad` elements
+    /// are the model at `T_ref`); likewise not in lists.
+    #[serde(skip)]
+    pub thermal_triad: Option<TriadThermalModel>,
     /// Where it stands: `submitted`, `approved`, `rejected` or `withdrawn`
     /// (only the first two count).
     pub state: State,
@@ -279,35 +299,6 @@ impl CalibrationSummary {
                     std_error: Some(self.std_errors.get(t).copied().unwrap_or(0.0)),
                 })
                 .collect(),
-        }
-    }
-}
-
-#[cfg(test)]
-impl CalibrationSummary {
-    /// A minimal summary for tests: sensor `sensor`, model `k0 + ki`, one
-    /// run, performed and received at 2026-01-01, standard errors zero.
-    pub(crate) fn for_test(id: u128, sensor: &str, k0: f64, ki: f64) -> Self {
-        use accelcal_core::Term;
-        let at = Timestamp::parse("2026-01-01T00:00:00Z").expect("a valid timestamp");
-        Self {
-            id: Uuid::from_u128(id),
-            sensor_id: sensor.into(),
-            station_id: None,
-            performed_at: at,
-            received_at: at,
-            unit: "mA".into(),
-            model: Model::new(vec![Term::K0, Term::Ki]).expect("a valid model"),
-            runs: 1,
-            coefficients: TermMap(vec![(Term::K0, k0), (Term::Ki, ki)]),
-            std_errors: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0)]),
-            sensor_type: None,
-            verdict: None,
-            due_at: None,
-            expanded: None,
-            triad: None,
-            thermal: None,
-            state: State::Submitted,
         }
     }
 }
@@ -457,26 +448,6 @@ impl SensorSummary {
     /// back-dated submission, or the approved-only basis).
     pub fn previous_before(&self, before: Timestamp, basis: Basis) -> Option<&CalibrationSummary> {
         (basis == Basis::NotRejected && self.latest.performed_at < before).then_some(&self.latest)
-    }
-}
-
-#[cfg(test)]
-impl SensorSummary {
-    /// A sensor for tests: one calibration,
-    /// [`CalibrationSummary::for_test`]`(7, sensor, 0.0, 1.0)`, untyped.
-    pub(crate) fn for_test(sensor: &str) -> Self {
-        let latest = CalibrationSummary::for_test(7, sensor, 0.0, 1.0);
-        SensorSummary {
-            sensor_id: sensor.into(),
-            calibration_count: 1,
-            first_performed_at: latest.performed_at,
-            latest_performed_at: latest.performed_at,
-            sensor_type: None,
-            latest_verdict: None,
-            due_at: None,
-            status: Status::Unknown,
-            latest,
-        }
     }
 }
 

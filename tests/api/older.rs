@@ -64,6 +64,7 @@ pub async fn store_by_an_older_method(
                 )),
                 triad: None,
                 thermal: None,
+                thermal_triad: None,
                 standards: Vec::new(),
             },
             None,

@@ -1387,6 +1387,7 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
                 expanded: None,
                 triad: Some(elements),
                 thermal: None,
+                thermal_triad: None,
                 standards: Vec::new(),
             },
             None,

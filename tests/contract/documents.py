@@ -1,10 +1,10 @@
 """Each kind's stored result document, read back by GET /v1/calibrations/{id},
 checked against that operation's 200 response schema in openapi.yaml (a oneOf
 of the kinds: exactly one must match): a single axis (the paper's Table 1), a
-triad (examples/triad-recording.json) and a temperature model
-(examples/thermal-chamber.json). Schemathesis rarely stores the last two (its
-bodies carry no temperatures, its triads seldom calibrate), so they are
-stored here. Usage: documents.py BASE_URL TOKEN
+triad (examples/triad-recording.json), a temperature model
+(examples/thermal-chamber.json) and a triad's (examples/thermal-triad.json).
+Schemathesis rarely stores the last three (its bodies carry no temperatures,
+its triads seldom calibrate), so they are stored here. Usage: documents.py BASE_URL TOKEN
 """
 import json
 import sys
@@ -30,7 +30,8 @@ def call(method, path, body=None):
 failed = False
 for route, example in [("/v1/calibrations", "examples/paper-table1.json"),
                        ("/v1/calibrations/triad", "examples/triad-recording.json"),
-                       ("/v1/calibrations/thermal", "examples/thermal-chamber.json")]:
+                       ("/v1/calibrations/thermal", "examples/thermal-chamber.json"),
+                       ("/v1/calibrations/thermal/triad", "examples/thermal-triad.json")]:
     stored = call("POST", route, open(example, "rb").read())
     doc = call("GET", f"/v1/calibrations/{stored['id']}")
     errors = [str(e) for e in validator.iter_errors(doc)]

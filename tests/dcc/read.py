@@ -2,8 +2,9 @@
 
 Against a running accelcal (BASE, admin token in ACCELCAL_ADMIN_TOKEN, the
 laboratory configured): approves a single-axis calibration (the paper's
-Table 1), a triad (examples/triad-recording.json) and a temperature model
-(examples/thermal-chamber.json, its a_d in units per K^d) whose free text is
+Table 1), a triad (examples/triad-recording.json), a temperature model
+(examples/thermal-chamber.json, its a_d in units per K^d) and a triad's
+(examples/thermal-triad.json) whose free text is
 hostile but accepted, fetches their Digital Calibration Certificates, and
 reads each with dcc-json-toolkit's content validation (ISO dates, D-SI
 units, quantity tables) and every si:unit with dsiUnits. The text must come
@@ -63,7 +64,7 @@ def main():
                     {"role": "reviewer", "holder": "Rita " + HOSTILE})["token"]
     call("PUT", "/v1/customers/ACME", ADMIN,
          {"name": "Acme " + HOSTILE, "address": HOSTILE, "due_date_agreed": True})
-    for sensor in ["PAPER-2005", "IMU-DEMO-1", "MEMS-TC-7"]:
+    for sensor in ["PAPER-2005", "IMU-DEMO-1", "MEMS-TC-7", "IMU-TC-3"]:
         call("PUT", f"/v1/sensors/{sensor}/item", ADMIN,
              {"manufacturer": HOSTILE, "model": HOSTILE, "serial": HOSTILE, "customer": "ACME"})
     stand = json.load(open("examples/standard-stand.json"))
@@ -83,6 +84,9 @@ def main():
         "single-axis": approved("/v1/calibrations", single, reviewer, HOSTILE),
         "triad": approved("/v1/calibrations/triad", triad, reviewer, HOSTILE),
         "temperature model": approved("/v1/calibrations/thermal", thermal, reviewer, HOSTILE),
+        "triad temperature model": approved("/v1/calibrations/thermal/triad",
+                                            json.load(open("examples/thermal-triad.json")),
+                                            reviewer, HOSTILE),
     }
     findings = []
     for kind, id_ in ids.items():

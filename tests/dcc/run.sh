@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # accelcal's Digital Calibration Certificates read by PTB's own libraries:
 # starts accelcal (laboratory configured) on a fresh SQLite database, and
-# tests/dcc/read.py approves a single-axis calibration, a triad and a
-# temperature model whose free text is hostile (markup, `]]>`, quotes,
-# astral and combining characters), then reads their DCCs with
-# dcc-json-toolkit's content validation and every si:unit with dsiUnits. Needs the packages in
-# tests/dcc/requirements.txt (.ci/run installs them in its venv).
+# tests/dcc/read.py approves a single-axis calibration, a triad and the
+# temperature models of both whose free text is hostile (markup, `]]>`,
+# quotes, astral and combining characters), then reads their DCCs with
+# dcc-json-toolkit's content validation and every si:unit with dsiUnits.
+# Needs the packages in tests/dcc/requirements.txt (.ci/run installs them
+# in its venv).
 # Usage: tests/dcc/run.sh [path/to/accelcal]
 set -euo pipefail
 BIN=$(realpath "${1:-$(dirname "$0")/../../target/debug/accelcal}")

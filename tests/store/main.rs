@@ -70,6 +70,7 @@ fn calibration(sensor: &str, performed_at: &str) -> NewCalibration {
         expanded: Some(TermMap(vec![(Term::K0, 2e-6), (Term::Ki, 4e-6)])),
         triad: None,
         thermal: None,
+        thermal_triad: None,
         standards: Vec::new(),
     }
 }

@@ -188,7 +188,24 @@ async fn postgres_replicas_starting_together_migrate_once() {
         .iter()
         .map(|r| r.get(0))
         .collect();
-    assert_eq!(versions, (1..=17).collect::<Vec<_>>());
+    assert_eq!(versions, (1..=18).collect::<Vec<_>>());
+    // Version 18: a triad's model in the same column, the check admitting
+    // either shape (tests/api/thermal_triad_stored.rs stores one).
+    let check: String = c
+        .query_one(
+            "SELECT pg_get_constraintdef(oid) FROM pg_constraint \
+             WHERE conname = 'a temperature model must be an object'",
+            &[],
+        )
+        .await
+        .unwrap()
+        .get(0);
+    for part in ["'coefficients'", "'b'", "'S'", "'set_points'"] {
+        assert!(
+            check.contains(part),
+            "version 18's check lacks {part}: {check}"
+        );
+    }
     // Version 17: a calibration's temperature model, checked an object.
     let thermal = c
         .query(

@@ -148,11 +148,12 @@ try {
   }
   const triad = await must(201, api('POST', '/v1/calibrations/triad', { body: fs.readFileSync('examples/triad-recording.json') }), 'triad');
   const thermal = await must(201, api('POST', '/v1/calibrations/thermal', { body: fs.readFileSync('examples/thermal-chamber.json') }), 'temperature model');
+  const thermalTriad = await must(201, api('POST', '/v1/calibrations/thermal/triad', { body: fs.readFileSync('examples/thermal-triad.json') }), 'triad temperature model');
   const history = (await must(200, api('GET', '/v1/sensors/SYN-001/calibrations?limit=500'), 'history')).items;
   const stability = await must(200, api('GET', '/v1/sensors/SYN-001/stability'), 'stability');
   const sensors = (await must(200, api('GET', '/v1/sensors'), 'sensors')).items;
   assert.equal(history.length, 12);
-  ok('seeded: the paper, its recalibration, twelve synthetic calibrations, a triad and a temperature model');
+  ok('seeded: the paper, its recalibration, twelve synthetic calibrations, a triad, a temperature model and a triad\'s');
 
   // ------------------------------------------------------------ sign in
   const context = await newContext({ viewport: { width: 1280, height: 900 } });
@@ -343,6 +344,15 @@ try {
   assert.ok(Math.abs(num(a1) - k0.coefficients[1]) <= num(a1U) / 20, `k0_a1 on the certificate: ${a1} is not ${k0.coefficients[1]} to U/20`);
   assert.equal(await page.$$eval('#thermal-set-points tbody tr', (trs) => trs.length), 5, 'the certificate lists the set points');
   ok('temperature model: the page shows its polynomials and set points as stored and links its certificate, which lists every a_d rounded to its U and the set points');
+  await page.goto(`/ui/calibrations/${thermalTriad.id}`);
+  assert.match(await page.textContent('h1'), /Triad temperature model of IMU-TC-3/);
+  const elementRows = await page.$$eval('#thermal-polynomials tbody tr', (trs) => trs.map((tr) => [tr.querySelector('th').textContent, tr.querySelectorAll('td')[1].textContent]));
+  assert.deepEqual(elementRows.map((r) => r[0]), ['b_x', 'b_y', 'b_z', 'S_xx', 'S_xy', 'S_xz', 'S_yx', 'S_yy', 'S_yz', 'S_zx', 'S_zy', 'S_zz'], 'one polynomial per element');
+  close(num(elementRows[0][1]), thermalTriad.thermal.b[0].coefficients[0], 1e-3, 'a_0 of b_x on the page');
+  const header = await page.request.get(`/ui/calibrations/${thermalTriad.id}/export/c`);
+  assert.equal(header.status(), 200);
+  assert.match(await header.text(), /ACCELCAL_B_POLY/);
+  ok('triad temperature model: the page shows every element\'s polynomial as stored and offers the model\'s firmware files');
 
   // ---------------------------------- accessibility and screenshots
   const pages = {
@@ -355,6 +365,8 @@ try {
     triadSensor: '/ui/sensors/IMU-DEMO-1',
     thermal: `/ui/calibrations/${thermal.id}`,
     thermalCertificate: `/ui/calibrations/${thermal.id}/certificate`,
+    thermalTriad: `/ui/calibrations/${thermalTriad.id}`,
+    thermalTriadCertificate: `/ui/calibrations/${thermalTriad.id}/certificate`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

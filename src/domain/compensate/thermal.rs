@@ -9,13 +9,14 @@ use std::collections::HashMap;
 use std::fmt;
 
 use accelcal_core::Compensator;
+use accelcal_core::triad::Triad;
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::{Deserialize, Serialize};
 use uuid::Uuid;
 
 use super::super::field::{Errors, Invalid, Loc};
 use super::super::limits::TEMPERATURE_C;
-use super::super::thermal::ThermalModel;
+use super::super::thermal::{ThermalModel, TriadThermalModel};
 use super::{CompensateRequest, Outputs};
 
 /// The sensor's temperature, °C: one for every output, or one each.
@@ -140,10 +141,43 @@ pub struct TemperatureUsed {
     pub thermometer_std_c: Option<f64>,
 }
 
+/// Where a temperature model of either kind holds: its `T_ref`, its valid
+/// range and the thermometer in its budget.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Span {
+    /// `T_ref`, °C.
+    pub reference_c: f64,
+    /// `[T_min, T_max]`, °C.
+    pub range_c: [f64; 2],
+    /// The thermometer's standard uncertainty, K, when one is budgeted.
+    pub thermometer_std_c: Option<f64>,
+}
+
+impl From<&ThermalModel> for Span {
+    fn from(m: &ThermalModel) -> Self {
+        Span {
+            reference_c: m.reference_c(),
+            range_c: m.range_c(),
+            thermometer_std_c: m.thermometer_std_c,
+        }
+    }
+}
+
+impl From<&TriadThermalModel> for Span {
+    fn from(m: &TriadThermalModel) -> Self {
+        Span {
+            reference_c: m.reference_c(),
+            range_c: m.range_c(),
+            thermometer_std_c: None,
+        }
+    }
+}
+
 impl TemperatureUsed {
-    /// `model` read at `temperatures`.
-    pub fn of(model: &ThermalModel, temperatures: Temperatures) -> Self {
-        let [lo, hi] = model.range_c();
+    /// A model spanning `span` read at `temperatures`.
+    pub fn of(span: impl Into<Span>, temperatures: Temperatures) -> Self {
+        let span = span.into();
+        let [lo, hi] = span.range_c;
         let outside = temperatures
             .values()
             .iter()
@@ -151,11 +185,11 @@ impl TemperatureUsed {
             .fold(0.0, f64::max);
         TemperatureUsed {
             temperature_c: temperatures,
-            reference_c: model.reference_c(),
+            reference_c: span.reference_c,
             range_c: [lo, hi],
             extrapolated: outside > 0.0,
             extrapolated_k: outside,
-            thermometer_std_c: model.thermometer_std_c,
+            thermometer_std_c: span.thermometer_std_c,
         }
     }
 }
@@ -170,10 +204,10 @@ pub fn no_model(id: Uuid) -> String {
     )
 }
 
-/// Why `t` is refused: `outside` K outside `model`'s range, for
-/// calibration `id`.
-pub fn outside_range(t: f64, outside: f64, model: &ThermalModel, id: Uuid) -> String {
-    let [lo, hi] = model.range_c();
+/// Why `t` is refused: `outside` K outside the range of a model spanning
+/// `span`, for calibration `id`.
+pub fn outside_range(t: f64, outside: f64, span: impl Into<Span>, id: Uuid) -> String {
+    let [lo, hi] = span.into().range_c;
     format!(
         "is {t} °C, {outside:.3} K outside the range of calibration {id}'s temperature model \
          ({lo:.2} to {hi:.2} °C, its set points' span); allow_extrapolation: true uses its \
@@ -247,5 +281,67 @@ impl CompensateRequest {
         }
         let a_i = errors.finish(|| a_i)?;
         Ok((a_i, TemperatureUsed::of(model, temperatures.clone())))
+    }
+}
+
+impl CompensateRequest {
+    /// The specific force `g = S(T)⁻¹ (u − b(T))` for every triple of
+    /// outputs with the triad's temperature model `model` of calibration
+    /// `id`, each output's `b` and `S` evaluated at its temperature; and the
+    /// temperature used.
+    pub fn compensate_triad_at(
+        &self,
+        model: &TriadThermalModel,
+        id: Uuid,
+    ) -> Result<(Vec<[f64; 3]>, TemperatureUsed), Invalid> {
+        let root = Loc::Root;
+        let [lo, hi] = model.range_c();
+        let Some(temperatures) = &self.temperature_c else {
+            return Err(Invalid::one(
+                root.key("temperature_c"),
+                format!(
+                    "is required: calibration {id} is a triad's temperature model, valid from \
+                     {lo:.2} to {hi:.2} °C; give the triad's temperature, one for every output \
+                     or one per output"
+                ),
+            ));
+        };
+        let Outputs::Triad(outputs) = &self.outputs else {
+            return Err(Invalid::one(
+                root.key("outputs"),
+                format!(
+                    "calibration {id} is a triad's: give each output as a triple [u_x, u_y, u_z]"
+                ),
+            ));
+        };
+        let mut errors = Errors::default();
+        for (at, t) in temperatures.values() {
+            let outside = (lo - t).max(t - hi).max(0.0);
+            if outside > 0.0 && !self.allow_extrapolation {
+                errors.add(at, outside_range(t, outside, model, id));
+            }
+        }
+        errors.finish(|| ())?;
+        let mut errors = Errors::default();
+        // One triad per distinct temperature.
+        let mut by_temperature: HashMap<u64, Triad> = HashMap::new();
+        let outputs_at = root.key("outputs");
+        let mut g = Vec::with_capacity(outputs.len());
+        for (k, u) in outputs.iter().enumerate() {
+            let t = temperatures.of(k);
+            let triad = by_temperature.entry(t.to_bits()).or_insert_with(|| {
+                let at = model.at(t);
+                Triad::linear(at.b, at.s)
+            });
+            g.push(triad.compensate(*u).unwrap_or_else(|e| {
+                errors.add(
+                    outputs_at.index(k),
+                    format!("calibration {id} at {t} °C cannot compensate it: {e}"),
+                );
+                [0.0; 3]
+            }));
+        }
+        let g = errors.finish(|| g)?;
+        Ok((g, TemperatureUsed::of(model, temperatures.clone())))
     }
 }

@@ -11,14 +11,14 @@
 
 use accelcal_core::thermal::{Options, Point, Polynomial};
 use accelcal_core::triad::{AXES, TriadRun, TriadTest};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 use super::super::field::Invalid;
 use super::super::triad::{Form, TriadSubmission};
-use super::{fitted, grouped, list, round, selection};
+use super::{ThermalParams, fitted, grouped, list, round, selection};
 
 /// One set point of a triad, calibrated and fused.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TriadSetPoint {
     /// The mean of its runs' temperatures, °C.
     pub temperature_c: f64,
@@ -40,7 +40,7 @@ pub struct TriadSetPoint {
 }
 
 /// A triad's temperature model.
-#[derive(Clone, Debug, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct TriadThermalModel {
     /// The triad's id, when given.
     pub sensor_id: Option<String>,
@@ -50,6 +50,10 @@ pub struct TriadThermalModel {
     pub tolerance_k: f64,
     /// How each degree was chosen (`backward`, `forward`), or `fixed`.
     pub selection: String,
+    /// The parameters it was fitted with, as asked (what a reprocessing
+    /// of a stored model fits with again).
+    #[serde(default)]
+    pub fitted_with: ThermalParams,
     /// The set points, coolest first.
     pub set_points: Vec<TriadSetPoint>,
     /// Each element of `b`'s polynomial, its `a_d` in the outputs' unit
@@ -147,8 +151,89 @@ pub fn triad_model(
         unit: sub.unit.clone(),
         tolerance_k,
         selection: selection(&options),
+        fitted_with: ThermalParams::default(),
         set_points,
         b: b.try_into().expect("three"),
         s,
     })
+}
+
+/// A triad's model read at one temperature: every element of `b` and `S`
+/// with its standard uncertainty `√(vᵀ C v)` through its polynomial's
+/// covariance, and how far outside the valid range.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TriadAt {
+    /// `b(T)`.
+    pub b: [f64; 3],
+    /// Their standard uncertainties.
+    pub b_std_errors: [f64; 3],
+    /// `S(T)`, rows by axis.
+    pub s: [[f64; 3]; 3],
+    /// Their standard uncertainties.
+    pub s_std_errors: [[f64; 3]; 3],
+    /// How far outside the valid range, K (0 within).
+    pub outside_k: f64,
+}
+
+impl TriadThermalModel {
+    /// `T_ref`, °C (every element's: the set points are one).
+    pub fn reference_c(&self) -> f64 {
+        self.b[0].reference_c
+    }
+
+    /// The valid range `[T_min, T_max]`, °C: the set points' span.
+    pub fn range_c(&self) -> [f64; 2] {
+        self.b[0].range_c
+    }
+
+    /// Every element at `temperature_c`.
+    pub fn at(&self, temperature_c: f64) -> TriadAt {
+        let b = self.b.each_ref().map(|p| p.at(temperature_c));
+        let s = self
+            .s
+            .each_ref()
+            .map(|row| row.each_ref().map(|p| p.at(temperature_c)));
+        TriadAt {
+            b: b.map(|(v, _)| v),
+            b_std_errors: b.map(|(_, u)| u),
+            s: s.map(|row| row.map(|(v, _)| v)),
+            s_std_errors: s.map(|row| row.map(|(_, u)| u)),
+            outside_k: self.b[0].outside_k(temperature_c),
+        }
+    }
+
+    /// Every polynomial, named (`b_x`, `S_xy`), `b` first and `S` by rows.
+    pub fn polynomials(&self) -> impl Iterator<Item = (String, &Polynomial)> {
+        let b = AXES.iter().zip(&self.b).map(|(m, p)| (format!("b_{m}"), p));
+        let s = AXES.iter().zip(&self.s).flat_map(|(m, row)| {
+            AXES.iter()
+                .zip(row)
+                .map(move |(n, p)| (format!("S_{m}{n}"), p))
+        });
+        b.chain(s)
+    }
+
+    /// Every number it holds, named: what must be finite to be stored.
+    pub fn numbers(&self) -> impl Iterator<Item = (String, f64)> + '_ {
+        let set_points = self.set_points.iter().enumerate().flat_map(|(k, p)| {
+            let values = std::iter::once(p.temperature_c)
+                .chain(p.b)
+                .chain(p.b_std_errors)
+                .chain(p.s.into_iter().flatten())
+                .chain(p.s_std_errors.into_iter().flatten());
+            values.map(move |v| (format!("set_points[{k}]"), v))
+        });
+        let polynomials = self.polynomials().flat_map(|(name, p)| {
+            p.coefficients
+                .iter()
+                .chain(&p.std_uncertainties)
+                .chain(p.covariance.iter().flatten())
+                .chain(&p.range_c)
+                .chain([&p.reference_c, &p.chi2, &p.inflation])
+                .map(move |v| (name.clone(), *v))
+        });
+        set_points
+            .chain(polynomials)
+            .chain([("tolerance_k".to_owned(), self.tolerance_k)])
+    }
 }

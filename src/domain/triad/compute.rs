@@ -13,7 +13,7 @@ pub(super) fn skew(s: &[[f64; 3]; 3], m: usize, n: usize) -> f64 {
 
 /// `T = S⁻¹`, column `k` being the compensation of `b + e_k` (refused when
 /// `S` is singular to working precision, as compensation is).
-pub(super) fn invert(triad: &Triad) -> Option<[[f64; 3]; 3]> {
+pub fn invert(triad: &Triad) -> Option<[[f64; 3]; 3]> {
     let triad = &Triad::linear(triad.bias, triad.matrix);
     let mut t = [[0.0; 3]; 3];
     for k in 0..3 {

@@ -94,21 +94,14 @@ marker_schema!(
         .build()))
 );
 
-/// A plausible temperature, °C.
-fn celsius() -> ObjectBuilder {
-    of_type(Type::Number)
-        .minimum(Some(*TEMPERATURE_C.start()))
-        .maximum(Some(*TEMPERATURE_C.end()))
-}
-
 marker_schema!(
     /// One run's readings.
     RunInSchema => closed(ObjectBuilder::new())
         .property("temperature_c", RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
             .description(Some("The run's temperature, °C, or one per position (a chamber that \
                 drifts; the run's is their mean); give it for every run or none."))
-            .item(celsius().schema_type(SchemaType::from_iter([Type::Number, Type::Null])))
-            .item(array(celsius()).min_items(Some(1)).max_items(Some(MAX_POSITIONS)))
+            .item(crate::domain::schema::celsius().schema_type(SchemaType::from_iter([Type::Number, Type::Null])))
+            .item(array(crate::domain::schema::celsius()).min_items(Some(1)).max_items(Some(MAX_POSITIONS)))
             .build())))
         .property(
             "readings",
@@ -549,11 +542,13 @@ marker_schema!(
 
 marker_schema!(
     /// A stored calibration's result document: single-axis, a triad's
-    /// (`kind: triad`) or a temperature model's (`kind: thermal`).
+    /// (`kind: triad`), a temperature model's (`kind: thermal`) or a
+    /// triad's temperature model's (`kind: thermal_triad`).
     StoredResultSchema => RefOr::T(Schema::OneOf(utoipa::openapi::schema::OneOfBuilder::new()
         .item(reference("StoredCalibration"))
         .item(reference("StoredTriad"))
         .item(reference("StoredThermal"))
+        .item(reference("StoredThermalTriad"))
         .build()))
 );
 

@@ -59,6 +59,7 @@ marker_schema!(
             .required("coefficients").required("std_errors")))
         .property("coefficients", ObjectBuilder::new()
             .additional_properties(Some(reference("Polynomial"))))
+        .property("fitted_with", fitted_with())
         .property("thermometer_std_c", of_type(Type::Number).minimum(Some(0.0))
             .description(Some("The named thermometer's standard uncertainty, K: a coefficient read \
                 at a temperature adds u_T · |dc/dT| to its budget. Absent without one.")))
@@ -67,6 +68,16 @@ marker_schema!(
         .build()
         .into()
 );
+
+/// The fit's parameters as they were asked (query parameters of the
+/// route; those not given absent).
+fn fitted_with() -> ObjectBuilder {
+    ObjectBuilder::new().description(Some(
+        "The fit's parameters as asked (`tolerance_k`, `reference_c`, `degree`, `selection`, \
+         `min_span_k`, `max_condition`; those not given absent): what a reprocessing of the \
+         stored model fits with again.",
+    ))
+}
 
 fn triple(items: RefOr<Schema>) -> ArrayBuilder {
     ArrayBuilder::new()
@@ -102,6 +113,7 @@ marker_schema!(
             .property("S_std_errors", triple(triple(of_type(Type::Number).into()).into()))
             .required("temperature_c").required("runs").required("batches")
             .required("b").required("b_std_errors").required("S").required("S_std_errors")))
+        .property("fitted_with", fitted_with())
         .property("b", polynomials())
         .property("S", triple(polynomials().into()))
         .required("sensor_id").required("unit").required("tolerance_k").required("selection")

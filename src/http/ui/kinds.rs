@@ -19,6 +19,7 @@ pub fn document<'a>(d: &'a StoredDoc, c: &Context) -> Document<'a> {
         StoredDoc::Axis(d) => single_axis::document(d, c),
         StoredDoc::Triad(d) => triad::document(d, c),
         StoredDoc::Thermal(d) => thermal::document(d, c),
+        StoredDoc::ThermalTriad(d) => thermal::triad::document(d, c),
     }
 }
 
@@ -28,5 +29,6 @@ pub fn page(d: &StoredDoc) -> Page<'_> {
         StoredDoc::Axis(d) => single_axis::page::page(d),
         StoredDoc::Triad(d) => triad::page::page(d),
         StoredDoc::Thermal(d) => thermal::page::page(d),
+        StoredDoc::ThermalTriad(d) => thermal::triad::page(d),
     }
 }

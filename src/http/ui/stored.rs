@@ -16,6 +16,8 @@ pub enum StoredDoc {
     Triad(Box<super::triad_result::TriadDoc>),
     /// A temperature model's.
     Thermal(Box<super::thermal_result::ThermalDoc>),
+    /// A triad's temperature model's.
+    ThermalTriad(Box<super::thermal_result::ThermalTriadDoc>),
 }
 
 impl StoredDoc {
@@ -25,6 +27,7 @@ impl StoredDoc {
             StoredDoc::Axis(d) => d.id,
             StoredDoc::Triad(d) => d.id,
             StoredDoc::Thermal(d) => d.id,
+            StoredDoc::ThermalTriad(d) => d.id,
         }
     }
 
@@ -34,6 +37,7 @@ impl StoredDoc {
             StoredDoc::Axis(d) => &d.sensor_id,
             StoredDoc::Triad(d) => &d.sensor_id,
             StoredDoc::Thermal(d) => &d.sensor_id,
+            StoredDoc::ThermalTriad(d) => &d.sensor_id,
         }
     }
 }
@@ -65,6 +69,9 @@ pub async fn load_stored(state: &AppState, raw_id: &str) -> Result<StoredDoc, Pr
 fn read(id: uuid::Uuid, bytes: &[u8]) -> Result<StoredDoc, Problem> {
     let read = match kind(bytes).as_deref() {
         Some("thermal") => serde_json::from_slice(bytes).map(|d| StoredDoc::Thermal(Box::new(d))),
+        Some("thermal_triad") => {
+            serde_json::from_slice(bytes).map(|d| StoredDoc::ThermalTriad(Box::new(d)))
+        }
         Some("triad") => serde_json::from_slice(bytes).map(|d| StoredDoc::Triad(Box::new(d))),
         _ => serde_json::from_slice(bytes).map(|d| StoredDoc::Axis(Box::new(d))),
     };

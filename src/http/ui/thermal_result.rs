@@ -1,5 +1,6 @@
 //! A stored temperature model's result document as the pages and
-//! documents read it (the `StoredThermal` the service wrote, issue 45):
+//! documents read it (the `StoredThermal` and `StoredThermalTriad` the
+//! service wrote, issue 45):
 //! read apart from the kind's rendering so that reading a stored result
 //! depends on no renderer.
 
@@ -9,8 +10,8 @@ use serde::Deserialize;
 
 use crate::domain::review::Supersedes;
 use crate::domain::standards::UsedStandard;
-use crate::domain::thermal::ThermalModel;
 use crate::domain::thermal::decision::ThermalDecision;
+use crate::domain::thermal::{ThermalModel, TriadThermalModel};
 
 /// A stored temperature model's result document, as its page and
 /// documents read it.
@@ -61,4 +62,34 @@ pub struct ThermalDoc {
     pub from_calibrations: Vec<uuid::Uuid>,
     /// The model.
     pub thermal: ThermalModel,
+}
+
+/// A stored triad's temperature model's result document, as its page and
+/// documents read it.
+#[derive(Debug, Deserialize)]
+pub struct ThermalTriadDoc {
+    /// The calibration.
+    pub id: uuid::Uuid,
+    /// Its triad.
+    pub sensor_id: String,
+    /// The station.
+    pub station_id: Option<String>,
+    /// When performed (RFC 3339).
+    pub performed_at: String,
+    /// When received (RFC 3339).
+    pub received_at: String,
+    /// The calibration it supersedes.
+    pub supersedes: Option<Supersedes>,
+    /// The outputs' unit.
+    pub unit: String,
+    /// The runs submitted.
+    pub runs: usize,
+    /// `T_ref`, °C.
+    pub reference_c: f64,
+    /// The valid range, °C.
+    pub range_c: [f64; 2],
+    /// Its elements at `T_ref`.
+    pub elements: crate::store::TriadElements,
+    /// The model.
+    pub thermal: TriadThermalModel,
 }

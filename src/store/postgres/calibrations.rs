@@ -75,7 +75,7 @@ impl Row {
             std_errors: json(&n.std_errors)?,
             expanded: n.expanded.as_ref().map(json).transpose()?,
             triad: n.triad.as_ref().map(json).transpose()?,
-            thermal: n.thermal.as_ref().map(json).transpose()?,
+            thermal: n.thermal_json()?,
             runs: i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?,
             n,
         })

@@ -28,6 +28,7 @@ const MIGRATIONS: &[&str] = &[
     include_str!("migrations/0015_audit_sealed.sql"),
     include_str!("migrations/0016_webhooks.sql"),
     include_str!("migrations/0017_thermal.sql"),
+    include_str!("migrations/0018_thermal_triad.sql"),
 ];
 
 /// The advisory lock key of migrations ("accelcal" in ASCII).

@@ -71,6 +71,9 @@ pub const SUMMARY_COLUMNS: &str = concat!(
 
 /// A calibration summary from a row holding [`SUMMARY_COLUMNS`].
 pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
+    let (thermal, thermal_triad) = crate::domain::thermal::AnyModel::split(optional_json::<
+        crate::domain::thermal::AnyModel,
+    >(row, "thermal")?);
     Ok(CalibrationSummary {
         id: get(row, "id")?,
         sensor_id: get(row, "sensor_id")?,
@@ -87,7 +90,8 @@ pub fn summary(row: &Row) -> Result<CalibrationSummary, StoreError> {
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
         triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
-        thermal: optional_json::<crate::domain::thermal::ThermalModel>(row, "thermal")?,
+        thermal,
+        thermal_triad,
         state: state(row)?,
     })
 }
@@ -127,6 +131,7 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
         expanded: s.expanded,
         triad: s.triad,
         thermal: s.thermal,
+        thermal_triad: s.thermal_triad,
         standards: Vec::new(),
     })
 }

@@ -3,6 +3,54 @@
 use super::*;
 use crate::domain::status::Status;
 
+impl CalibrationSummary {
+    /// A minimal summary for tests: sensor `sensor`, model `k0 + ki`, one
+    /// run, performed and received at 2026-01-01, standard errors zero.
+    pub(crate) fn for_test(id: u128, sensor: &str, k0: f64, ki: f64) -> Self {
+        use accelcal_core::Term;
+        let at = Timestamp::parse("2026-01-01T00:00:00Z").expect("a valid timestamp");
+        Self {
+            id: Uuid::from_u128(id),
+            sensor_id: sensor.into(),
+            station_id: None,
+            performed_at: at,
+            received_at: at,
+            unit: "mA".into(),
+            model: Model::new(vec![Term::K0, Term::Ki]).expect("a valid model"),
+            runs: 1,
+            coefficients: TermMap(vec![(Term::K0, k0), (Term::Ki, ki)]),
+            std_errors: TermMap(vec![(Term::K0, 0.0), (Term::Ki, 0.0)]),
+            sensor_type: None,
+            verdict: None,
+            due_at: None,
+            expanded: None,
+            triad: None,
+            thermal: None,
+            thermal_triad: None,
+            state: State::Submitted,
+        }
+    }
+}
+
+impl SensorSummary {
+    /// A sensor for tests: one calibration,
+    /// [`CalibrationSummary::for_test`]`(7, sensor, 0.0, 1.0)`, untyped.
+    pub(crate) fn for_test(sensor: &str) -> Self {
+        let latest = CalibrationSummary::for_test(7, sensor, 0.0, 1.0);
+        SensorSummary {
+            sensor_id: sensor.into(),
+            calibration_count: 1,
+            first_performed_at: latest.performed_at,
+            latest_performed_at: latest.performed_at,
+            sensor_type: None,
+            latest_verdict: None,
+            due_at: None,
+            status: Status::Unknown,
+            latest,
+        }
+    }
+}
+
 fn ts(s: &str) -> Timestamp {
     Timestamp::parse(s).unwrap()
 }
@@ -56,6 +104,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         received_at: ts("2026-01-02T00:00:00Z"),
         triad: Some(elements()),
         thermal: None,
+        thermal_triad: None,
         ..cal(9, "2026-01-01T00:00:00Z")
     };
     let n = NewCalibration {
@@ -80,6 +129,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         expanded: c.expanded.clone(),
         triad: c.triad.clone(),
         thermal: c.thermal.clone(),
+        thermal_triad: c.thermal_triad.clone(),
         standards: Vec::new(),
     };
     assert_eq!(CalibrationSummary::from(&n), c);
@@ -171,6 +221,7 @@ fn a_triads_numbers_are_named_and_must_be_finite() {
             expanded: None,
             triad: None,
             thermal: None,
+            thermal_triad: None,
             standards: Vec::new(),
         }
     };

@@ -136,7 +136,7 @@ pub(super) fn insert(
             n.due_at.map(|t| t.to_string()),
             n.expanded.as_ref().map(json).transpose()?,
             n.triad.as_ref().map(json).transpose()?,
-            n.thermal.as_ref().map(json).transpose()?
+            n.thermal_json()?
         ],
     )?;
     if let Some(k) = key {

@@ -97,6 +97,9 @@ fn verdict(row: &Row<'_>, column: &str) -> Result<Option<Verdict>, StoreError> {
 
 /// A calibration summary from a row holding [`SUMMARY_COLUMNS`].
 pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
+    let (thermal, thermal_triad) = crate::domain::thermal::AnyModel::split(optional_json::<
+        crate::domain::thermal::AnyModel,
+    >(row, "thermal")?);
     Ok(CalibrationSummary {
         id: uuid(row, "id")?,
         sensor_id: get(row, "sensor_id")?,
@@ -113,7 +116,8 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
         triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
-        thermal: optional_json::<crate::domain::thermal::ThermalModel>(row, "thermal")?,
+        thermal,
+        thermal_triad,
         state: state(row)?,
     })
 }
@@ -154,6 +158,7 @@ pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError>
         expanded: s.expanded,
         triad: s.triad,
         thermal: s.thermal,
+        thermal_triad: s.thermal_triad,
         standards: Vec::new(),
     })
 }

@@ -72,6 +72,8 @@ fn columns(n: &NewCalibration) -> Value {
     // there is one: every digest recorded before it stays the same.
     if let (Some(t), Some(map)) = (&n.thermal, v.as_object_mut()) {
         map.insert("thermal".to_owned(), serde_json::json!(t));
+    } else if let (Some(t), Some(map)) = (&n.thermal_triad, v.as_object_mut()) {
+        map.insert("thermal".to_owned(), serde_json::json!(t));
     }
     v
 }

@@ -23,7 +23,10 @@
 //! named.
 
 pub mod page;
+pub mod triad;
 
+use accelcal_core::coverage::Coverage;
+use accelcal_core::thermal::Polynomial;
 use maud::html;
 
 use crate::domain::thermal::decision::ThermalDecision;
@@ -54,16 +57,28 @@ fn described(meaning: &str, d: usize, reference_c: f64) -> String {
 /// Every polynomial's `a_d`, coefficient by coefficient in the model's
 /// order, lowest degree first.
 pub fn quantities(d: &ThermalDoc) -> Vec<Quantity> {
-    let coverage = d.coverage;
+    let each = d.thermal.coefficients.iter().map(|(term, p)| {
+        let (name, meaning) = (term.name().to_owned(), term_meaning(term).to_owned());
+        (name, meaning, term_unit(term, &d.unit), p)
+    });
+    polynomials(each, d.coverage)
+}
+
+/// The `a_d` of each `(name, meaning, unit, polynomial)`, lowest degree
+/// first, expanded at `coverage` (module doc).
+pub fn polynomials<'a>(
+    each: impl Iterator<Item = (String, String, String, &'a Polynomial)>,
+    coverage: Coverage,
+) -> Vec<Quantity> {
     let mut out = Vec::new();
-    for (term, p) in d.thermal.coefficients.iter() {
+    for (name, meaning, unit, p) in each {
         let dof = (p.inflation > 1.0).then_some(p.dof as u64);
         let at = coverage.at(dof);
         for (j, (&a, &u)) in p.coefficients.iter().zip(&p.std_uncertainties).enumerate() {
-            let unit = format!("{}{}", term_unit(term, &d.unit), kelvin(j));
+            let unit = format!("{unit}{}", kelvin(j));
             out.push(Quantity {
-                name: format!("{}_a{j}", term.name()),
-                meaning: described(term_meaning(term), j, p.reference_c),
+                name: format!("{name}_a{j}"),
+                meaning: described(&meaning, j, p.reference_c),
                 value: a,
                 std_error: Some(u),
                 expanded: Some(at.factor * u),

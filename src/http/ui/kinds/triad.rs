@@ -29,7 +29,7 @@ use crate::http::ui::triad_result::TriadDoc;
 use crate::store::AXES;
 
 /// What element `matrix` of axis `m` (column `k` for `S`) is.
-fn meaning(matrix: &str, m: usize, k: usize) -> String {
+pub fn meaning(matrix: &str, m: usize, k: usize) -> String {
     let axis = AXES[m];
     match matrix {
         "b" => format!("bias of the {axis} axis"),
