@@ -78,24 +78,7 @@ async fn a_model_from_stored_calibrations_is_the_model_of_their_runs(
         .get(&format!("/v1/calibrations/{id}/submission"), ADMIN)
         .await;
     assert_eq!(res.json::<Value>().await.unwrap(), named);
-    let res = app
-        .post(
-            &format!("/v1/calibrations/{id}/reprocess"),
-            ADMIN,
-            &json!({}),
-        )
-        .await;
-    assert_eq!(res.status(), StatusCode::OK);
-    let r: Value = res.json().await.unwrap();
-    let again = app
-        .get_json(
-            &format!(
-                "/v1/calibrations/{}",
-                r["replacement_id"].as_str().unwrap_or(id)
-            ),
-            ADMIN,
-        )
-        .await;
+    let again = crate::thermal_stored::reprocessed(&app, id).await;
     assert_eq!(again["thermal"], whole_model);
     // The page names where the model came from.
     let (session, _) = crate::ui::sign_in(&app, ADMIN).await;

@@ -42,6 +42,23 @@ pub(crate) fn evaluated(p: &Value, t: f64) -> (f64, f64) {
     (value, var.sqrt())
 }
 
+/// The result document calibration `id` has once reprocessed (its
+/// replacement's, or its own when the reprocessing changed nothing).
+pub(crate) async fn reprocessed(app: &TestApp, id: &str) -> Value {
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{id}/reprocess"),
+            ADMIN,
+            &json!({}),
+        )
+        .await;
+    let status = res.status();
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(status, StatusCode::OK, "{r}");
+    let id = r["replacement_id"].as_str().unwrap_or(id);
+    app.get_json(&format!("/v1/calibrations/{id}"), ADMIN).await
+}
+
 fn near(got: f64, want: f64, what: &str) {
     assert!(
         (got - want).abs() <= 1e-12 * want.abs().max(1e-9),
@@ -287,25 +304,7 @@ async fn a_stored_model_serves_its_coefficients_and_compensation_at_a_temperatur
 
     // Reprocessing fits the same model again, with the parameters it was
     // fitted with.
-    let res = app
-        .post(
-            &format!("/v1/calibrations/{id}/reprocess"),
-            ADMIN,
-            &json!({}),
-        )
-        .await;
-    let status = res.status();
-    let r: Value = res.json().await.unwrap();
-    assert_eq!(status, StatusCode::OK, "{r}");
-    let again = app
-        .get_json(
-            &format!(
-                "/v1/calibrations/{}",
-                r["replacement_id"].as_str().unwrap_or(&id)
-            ),
-            ADMIN,
-        )
-        .await;
+    let again = reprocessed(&app, &id).await;
     assert_eq!(again["thermal"]["coefficients"], fitted["coefficients"]);
 
     // And the trail vouches for the rows, the model's included.

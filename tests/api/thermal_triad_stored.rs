@@ -209,25 +209,7 @@ async fn a_stored_triad_model_is_read_and_compensates_at_a_temperature(
     }
 
     // Reprocessing fits the same model again.
-    let res = app
-        .post(
-            &format!("/v1/calibrations/{id}/reprocess"),
-            ADMIN,
-            &json!({}),
-        )
-        .await;
-    let status = res.status();
-    let r: Value = res.json().await.unwrap();
-    assert_eq!(status, StatusCode::OK, "{r}");
-    let again = app
-        .get_json(
-            &format!(
-                "/v1/calibrations/{}",
-                r["replacement_id"].as_str().unwrap_or(&id)
-            ),
-            ADMIN,
-        )
-        .await;
+    let again = crate::thermal_stored::reprocessed(&app, &id).await;
     assert_eq!(again["thermal"], fitted);
     drop(db);
 }

@@ -5,6 +5,7 @@
 //! chosen, `χ²/ν` and the covariance's inflation; the decision's and the
 //! set points' tables are the certificate's too.
 
+use accelcal_core::thermal::Polynomial;
 use maud::{Markup, html};
 
 use crate::domain::thermal::decision::ThermalDecision;
@@ -69,31 +70,44 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
                 }
             } }
             h2 { "Polynomials" }
-            div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
-                caption { "c(T) = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
-                thead { tr {
-                    th scope="col" { "term" } th scope="col" { "degree" }
-                    @for d in 0..=3 { th scope="col" { "a_" (d) } th scope="col" { "u" } }
-                    th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
-                } }
-                tbody {
-                    @for (t, p) in m.coefficients.iter() {
-                        tr {
-                            th scope="row" { (t.to_string()) }
-                            td.num { (p.degree) }
-                            @for d in 0..=3 {
-                                td.num { (p.coefficients.get(d).map_or("—".into(), |a| num(*a))) }
-                                td.num { (p.std_uncertainties.get(d).map_or("—".into(), |u| unc(*u))) }
-                            }
-                            td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
-                            td.num { (num(p.inflation)) }
-                        }
-                    }
-                }
-            } }
+            (polynomials_table("term", "c(T)", m.coefficients.iter().map(|(t, p)| (t.to_string(), p))))
             h2 { "Set points" }
             (set_points_table(d))
         },
+    }
+}
+
+/// The polynomials' table: each `(name, polynomial)`'s degree, its `a_d`
+/// with their standard uncertainties, `χ²/ν` and the inflation; `column`
+/// names the rows (`term`, `element`), `what` the function (`c(T)`).
+pub fn polynomials_table<'a>(
+    column: &str,
+    what: &str,
+    rows: impl Iterator<Item = (String, &'a Polynomial)>,
+) -> Markup {
+    html! {
+        div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
+            caption { (what) " = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
+            thead { tr {
+                th scope="col" { (column) } th scope="col" { "degree" }
+                @for d in 0..=3 { th scope="col" { "a_" (d) } th scope="col" { "u" } }
+                th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
+            } }
+            tbody {
+                @for (name, p) in rows {
+                    tr {
+                        th scope="row" { (name) }
+                        td.num { (p.degree) }
+                        @for d in 0..=3 {
+                            td.num { (p.coefficients.get(d).map_or("—".into(), |a| num(*a))) }
+                            td.num { (p.std_uncertainties.get(d).map_or("—".into(), |u| unc(*u))) }
+                        }
+                        td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
+                        td.num { (num(p.inflation)) }
+                    }
+                }
+            }
+        } }
     }
 }
 

@@ -9,7 +9,7 @@
 use accelcal_core::coverage::Coverage;
 use maud::{Markup, html};
 
-use super::page::celsius;
+use super::page::{celsius, polynomials_table};
 use super::polynomials;
 use crate::http::ui::certificate::{Context, PAPER, standards};
 use crate::http::ui::document::{Admin, Column, DccText, Document, Page, Printed, Quantity};
@@ -129,28 +129,7 @@ pub fn page(d: &ThermalTriadDoc) -> Page<'_> {
                 }
             } }
             h2 { "Polynomials" }
-            div.table-wrap tabindex="0" role="region" aria-label="Polynomials" { table #thermal-polynomials .numbers {
-                caption { "e(T) = Σ a_d (T − T_ref)^d, a_d per K^d, with standard uncertainties u(a_d)" }
-                thead { tr {
-                    th scope="col" { "element" } th scope="col" { "degree" }
-                    @for k in 0..=3 { th scope="col" { "a_" (k) } th scope="col" { "u" } }
-                    th scope="col" { "χ²/ν" } th scope="col" { "inflation" }
-                } }
-                tbody {
-                    @for (name, p) in m.polynomials() {
-                        tr {
-                            th scope="row" { (name) }
-                            td.num { (p.degree) }
-                            @for k in 0..=3 {
-                                td.num { (p.coefficients.get(k).map_or("—".into(), |a| num(*a))) }
-                                td.num { (p.std_uncertainties.get(k).map_or("—".into(), |u| unc(*u))) }
-                            }
-                            td.num { @if p.dof > 0 { (num(p.chi2 / p.dof as f64)) } @else { "—" } }
-                            td.num { (num(p.inflation)) }
-                        }
-                    }
-                }
-            } }
+            (polynomials_table("element", "e(T)", m.polynomials()))
             h2 { "Set points" }
             (set_points_table(d))
         },
