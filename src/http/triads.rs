@@ -155,7 +155,11 @@ pub struct ExportQuery {
         an off-diagonal term of T above 1 % of its row's diagonal is refused (422), a smaller \
         one named in the file; both need outputs in m/s² or g. A calibration that no longer \
         counts (rejected, withdrawn, superseded) is not exported (409); a single-axis one has \
-        no export (409 `wrong-kind`).",
+        no export (409 `wrong-kind`). A triad's temperature model (`POST \
+        /v1/calibrations/thermal/triad`) exports its polynomials instead: PX4's `TC_A0_*`, \
+        ArduPilot's `INS_TCAL1_*`, a C header of every polynomial, or the model — PX4 and \
+        ArduPilot refused with 409 `not-carried` when an element of S changes over the range by \
+        more than its expanded uncertainty.",
     params(super::openapi::CalibrationIdPath, ExportQuery),
     responses(
         (status = 200, description = "The file, named for download.",
