@@ -23,7 +23,9 @@
 //! * The first other line is the header. Columns, in any order: `run` (or
 //!   `test`), the position as `angle_deg` or as `a_i`, `a_p`, `a_o` (or
 //!   both), optional `label`, optional `direction` (informational),
-//!   optional `temperature_c` (the run's, the same on each of its rows), and
+//!   optional `temperature_c` (the run's, the same on each of its rows, or
+//!   one per position for a chamber that drifts: the same on each row of a
+//!   position, the run's then their mean), and
 //!   `output` (or `mean`, `std`, `count`). Fields may be double-quoted, with `""` for a quote and line
 //!   breaks inside quotes.
 //! * After the header every line is data: a run named `#1` or a label

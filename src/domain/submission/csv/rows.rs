@@ -235,9 +235,8 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
     let mut first_line: Vec<usize> = Vec::new();
     let mut position_index: HashMap<String, u32> = HashMap::new();
     let mut run_names: Vec<String> = Vec::new();
-    let mut run_temperatures: Vec<Option<f64>> = Vec::new();
-    // Whether a run's temperature has been read from one of its rows.
-    let mut run_has_rows: Vec<bool> = Vec::new();
+    // Each cell's (run × position) temperature, as its first row gave it.
+    let mut cell_temperatures: HashMap<(u32, u32), Option<f64>> = HashMap::new();
     let mut run_index: HashMap<String, u32> = HashMap::new();
     let mut cell_counts: HashMap<(u32, u32), usize> = HashMap::new();
     let mut samples: Vec<Sample> = Vec::new();
@@ -347,8 +346,6 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                     return;
                 }
                 run_names.push(run.to_owned());
-                run_temperatures.push(None);
-                run_has_rows.push(false);
                 run_index.insert(run.to_owned(), run_names.len() as u32 - 1);
                 run_names.len() as u32 - 1
             }
@@ -366,19 +363,26 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
                     }
                 }
             };
-            let slot = &mut run_temperatures[run as usize];
-            if std::mem::replace(&mut run_has_rows[run as usize], true) && *slot != t {
-                at_line(
-                    &mut draft.errors,
-                    line,
-                    format!(
-                        "`temperature_c` differs within run `{}`",
-                        echo(&run_names[run as usize])
-                    ),
-                );
-                continue;
+            // One temperature a position: a run's may differ between its
+            // positions (a chamber that drifts), not within one.
+            match cell_temperatures.entry((run, position)) {
+                std::collections::hash_map::Entry::Occupied(e) if *e.get() != t => {
+                    at_line(
+                        &mut draft.errors,
+                        line,
+                        format!(
+                            "`temperature_c` differs within run `{}` at one position: give the \
+                             run's temperature, or one per position",
+                            echo(&run_names[run as usize])
+                        ),
+                    );
+                    continue;
+                }
+                std::collections::hash_map::Entry::Occupied(_) => {}
+                std::collections::hash_map::Entry::Vacant(e) => {
+                    e.insert(t);
+                }
             }
-            *slot = t;
         }
         let count = cell_counts.entry((run, position)).or_default();
         *count += 1;
@@ -470,19 +474,47 @@ pub fn rows(text: &str, header_line: usize, draft: &mut Draft) {
             }
         }
     }
+    let mut drafts = Vec::with_capacity(runs.len());
+    for (r, readings) in runs.into_iter().enumerate() {
+        let each: Vec<Option<f64>> = (0..positions.len() as u32)
+            .map(|p| cell_temperatures.get(&(r as u32, p)).copied().flatten())
+            .collect();
+        let (temperature_c, position_temperatures_c) = match run_temperature(&each) {
+            Ok(t) => t,
+            Err(why) => {
+                draft.errors.add(
+                    Loc::Root,
+                    format!("CSV: run `{}` {why}", echo(&run_names[r])),
+                );
+                (None, None)
+            }
+        };
+        drafts.push(Some(RunDraft {
+            readings,
+            temperature_c,
+            position_temperatures_c,
+        }));
+    }
     draft.positions = Slot::Value(positions.into_iter().map(Some).collect());
-    draft.runs = Slot::Value(
-        runs.into_iter()
-            .zip(run_temperatures)
-            .map(|(readings, temperature_c)| {
-                Some(RunDraft {
-                    readings,
-                    temperature_c,
-                    position_temperatures_c: None,
-                })
-            })
-            .collect(),
-    );
+    draft.runs = Slot::Value(drafts);
+}
+
+/// A run's temperature from its positions' (`each`, none where a row gave
+/// none): the one they share, or, when they differ, their mean with each
+/// kept — every position then needs one.
+fn run_temperature(each: &[Option<f64>]) -> Result<(Option<f64>, Option<Vec<f64>>), String> {
+    let first = each.first().copied().flatten();
+    if each.iter().all(|t| *t == first) {
+        return Ok((first, None));
+    }
+    let Some(ts) = each.iter().copied().collect::<Option<Vec<f64>>>() else {
+        return Err(
+            "gives `temperature_c` at some positions and not at others: give the run's, or one \
+             per position"
+                .to_owned(),
+        );
+    };
+    Ok((Some(ts.iter().sum::<f64>() / ts.len() as f64), Some(ts)))
 }
 
 /// With three runs or more, a position that only one run has — among

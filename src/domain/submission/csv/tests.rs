@@ -199,9 +199,24 @@ fn temperatures_and_the_stand_come_from_columns_and_metadata() {
         .map(|r| r.as_ref().unwrap().temperature_c)
         .collect();
     assert_eq!(temps, [Some(20.0), Some(30.0)]);
-    let e = errors("run,angle_deg,temperature_c,output\n1,0,20,1\n1,90,21,2\n");
+    // One per position (a chamber that drifts): the run's is their mean.
+    let d = read(b"run,angle_deg,temperature_c,output\n1,0,20,1\n1,0,20,1.1\n1,90,21,2\n").unwrap();
+    assert!(d.errors.is_empty(), "{:?}", d.errors);
+    let Slot::Value(runs) = &d.runs else { panic!() };
+    let run = runs[0].as_ref().unwrap();
+    assert_eq!(
+        (run.temperature_c, &run.position_temperatures_c),
+        (Some(20.5), &Some(vec![20.0, 21.0]))
+    );
+    // Not within one position, nor at some positions only.
+    let e = errors("run,angle_deg,temperature_c,output\n1,0,20,1\n1,0,21,1.1\n1,90,21,2\n");
     assert!(
-        e[0].contains("CSV line 3: `temperature_c` differs within run `1`"),
+        e[0].contains("CSV line 3: `temperature_c` differs within run `1` at one position"),
+        "{e:?}"
+    );
+    let e = errors("run,angle_deg,temperature_c,output\n1,0,20,1\n1,90,,2\n");
+    assert!(
+        e[0].contains("at some positions and not at others"),
         "{e:?}"
     );
     let e = errors("run,angle_deg,temperature_c,output\n1,0,900,1\n");
