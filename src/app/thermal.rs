@@ -180,16 +180,7 @@ async fn read(
             resolve_standards(lab, &mut sub, performed_at).await?;
             (*sub, station_id, Vec::new(), *thermal)
         }
-        First::Named(bytes) => {
-            let (sub, station_id, from) = combined::read(lab, principal, &bytes).await?;
-            let (sub, thermal) = lab
-                .compute_for(size, move || {
-                    let thermal = model(&sub, &fit)?;
-                    Ok::<_, Error>((sub, thermal))
-                })
-                .await??;
-            (sub, station_id, from, thermal)
-        }
+        First::Named(bytes) => named(lab, principal, &bytes, fit).await?,
     };
     thermal.thermometer_std_c = thermometer(&sub.standards_used);
     Ok(Read {
@@ -198,6 +189,25 @@ async fn read(
         from,
         thermal,
     })
+}
+
+/// The JSON body `json` naming stored calibrations, read for `principal`
+/// ([`combined::read`]) and fitted with `fit` on the compute pool: the
+/// submission they make, the station, their ids and the model.
+async fn named(
+    lab: &Lab,
+    principal: &Principal,
+    json: &[u8],
+    fit: Fit,
+) -> Result<(Submission, Option<String>, Vec<Uuid>, ThermalModel), Error> {
+    let (sub, station_id, from) = combined::read(lab, principal, json).await?;
+    let (sub, thermal) = lab
+        .compute_for(json.len(), move || {
+            let thermal = model(&sub, &fit)?;
+            Ok::<_, Error>((sub, thermal))
+        })
+        .await??;
+    Ok((sub, station_id, from, thermal))
 }
 
 /// The temperature model of `upload` for `principal`, its runs grouped
@@ -229,7 +239,7 @@ pub async fn identify(
             let e = match evaluate(upload.media, &upload.bytes, now) {
                 Ok(e) => e,
                 Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
-                    return Ok(Err(upload));
+                    return Ok(Err(upload.bytes));
                 }
                 Err(refused) => return Err(refused.into()),
             };
@@ -250,9 +260,10 @@ pub async fn identify(
             }
             Ok(thermal)
         }
-        Err(upload) => {
-            let r = read(lab, principal, upload, now, fit).await?;
-            Ok(r.thermal)
+        Err(json) => {
+            let (sub, _, _, mut thermal) = named(lab, principal, &json, fit).await?;
+            thermal.thermometer_std_c = thermometer(&sub.standards_used);
+            Ok(thermal)
         }
     }
 }
