@@ -43,7 +43,7 @@ use crate::domain::field::Loc;
 use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
 use crate::domain::standards::UsedStandard;
-use crate::domain::submission::{Media, Submission, evaluate};
+use crate::domain::submission::{Media, Submission, evaluate, performed_when};
 use crate::domain::thermal::combine::FromCalibrations;
 use crate::domain::thermal::decision::{ThermalDecision, decide_model};
 use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
@@ -270,7 +270,7 @@ pub async fn identify(
 
 /// The largest standard uncertainty of the thermometers among `used`, if
 /// any was named (a model combined from calibrations may have several).
-fn thermometer(used: &[UsedStandard]) -> Option<f64> {
+pub(super) fn thermometer(used: &[UsedStandard]) -> Option<f64> {
     used.iter()
         .filter(|u| u.role == "thermometer")
         .filter_map(|u| u.parameters.temperature_std_c)
@@ -278,29 +278,45 @@ fn thermometer(used: &[UsedStandard]) -> Option<f64> {
 }
 
 /// The temperature model of the triad `upload` fitted with `fit` (its
-/// parameters kept in it); as for a single axis, a sensor type or
-/// reference standards are refused rather than ignored.
+/// parameters kept in it), the standards it names resolved — a
+/// thermometer's uncertainty enters its elements — as for a single axis;
+/// a sensor type is refused rather than ignored: a model is judged when
+/// it is stored.
 pub async fn identify_triad(
     lab: &Lab,
     upload: Upload,
     fit: Fit,
 ) -> Result<TriadThermalModel, Error> {
-    lab.compute_for(
-        upload.bytes.len(),
-        move || -> Result<TriadThermalModel, Error> {
+    let now = Timestamp::now();
+    let (mut model, named, performed_at) = lab
+        .compute_for(upload.bytes.len(), move || {
             let sub = super::triad::read(&upload)?;
             if sub.sensor_type.is_some() {
-                return Err(not_yet("sensor_type", "a sensor type's decision"));
+                return Err(Error::invalid(
+                    Loc::Root.key("sensor_type"),
+                    "a sensor type judges a triad's temperature model when it is stored (POST \
+                     /v1/calibrations/thermal/triad): omit it here",
+                ));
             }
-            if !sub.standards.is_empty() {
-                return Err(not_yet("standards", "the reference standards' budget"));
-            }
+            let performed_at = match sub.performed_at {
+                None => now,
+                Some(t) => performed_when(t, now)
+                    .map_err(|why| Error::invalid(Loc::Root.key("performed_at"), why))?,
+            };
             let mut model = triad_model(&sub, fit.tolerance_k, &fit.options)?;
             model.fitted_with = fit.params;
-            Ok(model)
-        },
-    )
-    .await?
+            Ok::<_, Error>((model, sub.standards, performed_at))
+        })
+        .await??;
+    if !named.is_empty() {
+        let roles: Vec<(&str, Option<String>)> = named
+            .into_iter()
+            .map(|(role, id)| (role, Some(id)))
+            .collect();
+        let used = super::standards::resolve(lab, &roles, performed_at).await?;
+        model.thermometer_std_c = thermometer(&used.used);
+    }
+    Ok(model)
 }
 
 /// `upload` assessed as a temperature model fitted with `fit`, to be
@@ -415,16 +431,4 @@ fn judged(
     }
     decide_model(thermal, t.decision_rule, &t.limits, t.coverage())
         .map_err(|term| t.missing_term(term).into())
-}
-
-/// The refusal of `key`, which names `what` a triad's temperature model
-/// (computed, not stored) does not apply yet.
-fn not_yet(key: &str, what: &str) -> Error {
-    Error::invalid(
-        Loc::Root.key(key),
-        format!(
-            "{what} is not applied to a triad's temperature model, which is computed and not \
-             stored yet: omit it"
-        ),
-    )
 }

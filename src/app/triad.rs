@@ -14,12 +14,14 @@ use utoipa::ToSchema;
 use uuid::Uuid;
 
 use super::standards::{Resolved, resolve};
-use super::subject::{in_force, station};
+use super::subject::{Subject, in_force, station};
 use super::{Assessed, Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
+use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
+use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Media, performed_when};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::{
@@ -178,29 +180,42 @@ pub async fn identify(lab: &Lab, upload: Upload) -> Result<TriadResult, Error> {
     .await?
 }
 
-/// A triad body computed as it is stored under `id` — checked, with the
-/// sensor type in force and its decision, the registered standards and as
-/// found against the previous triad — and its result document rendered
-/// once; with `supersedes`, the calibration it corrects is recorded in it.
-/// What `POST /v1/calibrations/triad`, superseding and reprocessing store.
-pub async fn assess(
+/// What storing a triad body — a triad's or a triad's temperature model
+/// — settles before it is computed: its sensor (required), the station
+/// (checked against the token's), when it was performed, the sensor type
+/// in force (named, or the sensor's; refused when its limits are in
+/// another unit) and the standards it names resolved there (the stand
+/// they make set in `sub`).
+pub(super) struct Preamble {
+    /// The triad.
+    pub sensor_id: String,
+    /// The submitting station, if known.
+    pub station_id: Option<String>,
+    /// When the test was performed.
+    pub performed_at: Timestamp,
+    /// The sensor as read, and the type in force.
+    pub subject: Subject,
+    /// The standards used, with the certificates in force.
+    pub used: Vec<UsedStandard>,
+    /// The nonconformities that hold the test.
+    pub held_by: Vec<HeldBy>,
+}
+
+/// The [`Preamble`] of storing `sub` for `principal` at `received_at`;
+/// `without` says why a sensor id is required (and where to compute
+/// without one).
+pub(super) async fn preamble(
     lab: &Lab,
     principal: &Principal,
-    upload: Upload,
+    sub: &mut TriadSubmission,
     received_at: Timestamp,
-    id: Uuid,
-    supersedes: Option<Supersedes>,
-) -> Result<Assessed, Error> {
-    let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
-    let size = upload.bytes.len();
-    let sub = lab.compute_for(size, move || read(&upload)).await??;
+    without: &str,
+) -> Result<Preamble, Error> {
     let root = Loc::Root;
-    let sensor_id = sub.sensor_id.clone().ok_or_else(|| {
-        Error::invalid(
-            root.key("sensor_id"),
-            "is required to store a triad (POST /v1/identify/triad computes one without)",
-        )
-    })?;
+    let sensor_id = sub
+        .sensor_id
+        .clone()
+        .ok_or_else(|| Error::invalid(root.key("sensor_id"), format!("is required {without}")))?;
     let station_id = station(principal, sub.station_id.as_deref())?;
     let performed_at = match sub.performed_at {
         None => received_at,
@@ -216,12 +231,13 @@ pub async fn assess(
         received_at,
     )
     .await?;
-    let sensor_type = subject.sensor_type.clone();
-    if let Some(refused) = sensor_type.as_ref().and_then(|t| t.unit_refusal(&sub.unit)) {
+    if let Some(refused) = subject
+        .sensor_type
+        .as_ref()
+        .and_then(|t| t.unit_refusal(&sub.unit))
+    {
         return Err(refused.into());
     }
-    let assigns_type = sub.sensor_type.is_some();
-    let mut sub = sub;
     let (used, held_by) = if sub.standards.is_empty() {
         (Vec::new(), Vec::new())
     } else {
@@ -234,6 +250,49 @@ pub async fn assess(
         sub.stand = r.stand.core();
         (r.used, r.held_by)
     };
+    Ok(Preamble {
+        sensor_id,
+        station_id,
+        performed_at,
+        subject,
+        used,
+        held_by,
+    })
+}
+
+/// A triad body computed as it is stored under `id` — checked, with the
+/// sensor type in force and its decision, the registered standards and as
+/// found against the previous triad — and its result document rendered
+/// once; with `supersedes`, the calibration it corrects is recorded in it.
+/// What `POST /v1/calibrations/triad`, superseding and reprocessing store.
+pub async fn assess(
+    lab: &Lab,
+    principal: &Principal,
+    upload: Upload,
+    received_at: Timestamp,
+    id: Uuid,
+    supersedes: Option<Supersedes>,
+) -> Result<Assessed, Error> {
+    let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
+    let size = upload.bytes.len();
+    let mut sub = lab.compute_for(size, move || read(&upload)).await??;
+    let Preamble {
+        sensor_id,
+        station_id,
+        performed_at,
+        subject,
+        used,
+        held_by,
+    } = preamble(
+        lab,
+        principal,
+        &mut sub,
+        received_at,
+        "to store a triad (POST /v1/identify/triad computes one without)",
+    )
+    .await?;
+    let sensor_type = subject.sensor_type.clone();
+    let assigns_type = sub.sensor_type.is_some();
     let uses = Resolved::uses(&used);
     let runs = match &sub.form {
         Form::Known { runs, .. } => runs.len(),

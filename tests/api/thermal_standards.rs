@@ -18,16 +18,16 @@ use accelcal_testkit::*;
 
 use crate::thermal::{CHAMBER, body, f};
 
-const DAY: i64 = 86_400;
+pub(crate) const DAY: i64 = 86_400;
 /// The thermometer's standard uncertainty, K.
 const U_T: f64 = 0.2;
 
-fn ago(seconds: i64) -> String {
+pub(crate) fn ago(seconds: i64) -> String {
     Timestamp::now().plus_seconds(-seconds).to_string()
 }
 
 /// A standard of `kind` calibrated 200 days ago, due in 300, with `extra`.
-fn standard(kind: &str, extra: Value) -> Value {
+pub(crate) fn standard(kind: &str, extra: Value) -> Value {
     let mut s = json!({
         "kind": kind,
         "description": format!("the lab's {kind}"),
@@ -44,7 +44,7 @@ fn standard(kind: &str, extra: Value) -> Value {
 
 /// `(c(t), √(vᵀ C v), c′(t))` of the polynomial `p` (a stored model's
 /// JSON): the slope `Σ d a_d x^(d−1)` by hand.
-fn read(p: &Value, t: f64) -> (f64, f64, f64) {
+pub(crate) fn read(p: &Value, t: f64) -> (f64, f64, f64) {
     let (value, u) = crate::thermal_stored::evaluated(p, t);
     let x = t - f(&p["reference_c"]);
     let a = p["coefficients"].as_array().unwrap();

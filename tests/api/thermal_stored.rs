@@ -443,7 +443,7 @@ async fn the_example_chamber_run_recovers_its_planted_model() {
 
 /// The guarded rule (ILAC-G8), written out here: pass inside the limits by
 /// `U`, fail outside them by `U`, conditional between.
-fn guarded(value: f64, u: f64, min: f64, max: f64) -> &'static str {
+pub(crate) fn guarded(value: f64, u: f64, min: f64, max: f64) -> &'static str {
     if value - u >= min && value + u <= max {
         "pass"
     } else if value + u < min || value - u > max {

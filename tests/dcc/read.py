@@ -78,14 +78,23 @@ def main():
                    "performed_at": "2026-06-01T08:00:00Z"})
     triad = json.load(open("examples/triad-recording.json"))
     triad["unit"] = "<&]]>\"𝔤'"  # at most 32 characters
+    thermometer = dict(stand, kind="thermometer", temperature_std_c=0.05)
+    del thermometer["angle_std_arcsec"]
+    call("PUT", "/v1/standards/TH-1", ADMIN, thermometer)
+    call("PUT", "/v1/sensor-types/IMU-TC", ADMIN,
+         {"label": HOSTILE, "unit": "m/s2", "decision_rule": "guarded", "interval_days": 365,
+          "limits": {"k0": {"min": -0.5, "max": 0.5}, "ki": {"min": 9.6, "max": 10.0}}})
+    thermal_triad = json.load(open("examples/thermal-triad.json"))
+    # Judged by a type, with a stand and a thermometer.
+    thermal_triad.update({"sensor_type": "IMU-TC", "performed_at": "2026-06-01T08:00:00Z",
+                          "standards": {"stand": "STAND-1", "thermometer": "TH-1"}})
     thermal = json.load(open("examples/thermal-chamber.json"))
     thermal.update({"standards": {"stand": "STAND-1"}, "performed_at": "2026-06-01T08:00:00Z"})
     ids = {
         "single-axis": approved("/v1/calibrations", single, reviewer, HOSTILE),
         "triad": approved("/v1/calibrations/triad", triad, reviewer, HOSTILE),
         "temperature model": approved("/v1/calibrations/thermal", thermal, reviewer, HOSTILE),
-        "triad temperature model": approved("/v1/calibrations/thermal/triad",
-                                            json.load(open("examples/thermal-triad.json")),
+        "triad temperature model": approved("/v1/calibrations/thermal/triad", thermal_triad,
                                             reviewer, HOSTILE),
     }
     findings = []
@@ -100,6 +109,9 @@ def main():
             line, col = e.position
             text = xml.decode().splitlines()[line - 1]
             sys.exit(f"{kind}: the DCC is not well-formed: {e}: …{text[max(col - 80, 0):col + 80]}…")
+        judged = [c.text for c in root.iter(f"{{{NS['dcc']}}}conformity")]
+        if kind == "triad temperature model" and judged != ["pass"]:
+            findings.append(f"{kind}: judged by IMU-TC, its DCC states conformity {judged}")
         customer = root.find("dcc:administrativeData/dcc:customer/dcc:name/dcc:content", NS)
         if customer is None or customer.text != "Acme " + HOSTILE:
             findings.append(f"{kind}: the customer's name did not come back as sent")

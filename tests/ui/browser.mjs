@@ -148,7 +148,12 @@ try {
   }
   const triad = await must(201, api('POST', '/v1/calibrations/triad', { body: fs.readFileSync('examples/triad-recording.json') }), 'triad');
   const thermal = await must(201, api('POST', '/v1/calibrations/thermal', { body: fs.readFileSync('examples/thermal-chamber.json') }), 'temperature model');
-  const thermalTriad = await must(201, api('POST', '/v1/calibrations/thermal/triad', { body: fs.readFileSync('examples/thermal-triad.json') }), 'triad temperature model');
+  await must(201, api('PUT', '/v1/sensor-types/IMU-TC', {
+    body: JSON.stringify({ label: 'MEMS IMU', unit: 'm/s2', limits: { k0: { min: -0.5, max: 0.5 }, ki: { min: 9.6, max: 10.0 }, kp: { min: -0.1, max: 0.1 } }, decision_rule: 'guarded', coverage_probability: 0.9545, interval_days: 365 }),
+  }), 'type IMU-TC');
+  const thermalTriad = await must(201, api('POST', '/v1/calibrations/thermal/triad', {
+    body: JSON.stringify({ ...JSON.parse(fs.readFileSync('examples/thermal-triad.json')), sensor_type: 'IMU-TC' }),
+  }), 'triad temperature model');
   const history = (await must(200, api('GET', '/v1/sensors/SYN-001/calibrations?limit=500'), 'history')).items;
   const stability = await must(200, api('GET', '/v1/sensors/SYN-001/stability'), 'stability');
   const sensors = (await must(200, api('GET', '/v1/sensors'), 'sensors')).items;
@@ -349,10 +354,12 @@ try {
   const elementRows = await page.$$eval('#thermal-polynomials tbody tr', (trs) => trs.map((tr) => [tr.querySelector('th').textContent, tr.querySelectorAll('td')[1].textContent]));
   assert.deepEqual(elementRows.map((r) => r[0]), ['b_x', 'b_y', 'b_z', 'S_xx', 'S_xy', 'S_xz', 'S_yx', 'S_yy', 'S_yz', 'S_zx', 'S_zy', 'S_zz'], 'one polynomial per element');
   close(num(elementRows[0][1]), thermalTriad.thermal.b[0].coefficients[0], 1e-3, 'a_0 of b_x on the page');
+  const judged = await page.$$eval('#thermal-decision tbody tr', (trs) => trs.map((tr) => [tr.querySelector('th').textContent, tr.querySelector('td').textContent.trim()]));
+  assert.deepEqual(judged, Object.entries(thermalTriad.decision.elements).map(([e, j]) => [e, j.worst.verdict]), 'the decision, element by element, as stored');
   const header = await page.request.get(`/ui/calibrations/${thermalTriad.id}/export/c`);
   assert.equal(header.status(), 200);
   assert.match(await header.text(), /ACCELCAL_B_POLY/);
-  ok('triad temperature model: the page shows every element\'s polynomial as stored and offers the model\'s firmware files');
+  ok('triad temperature model: the page shows every element\'s polynomial and its type\'s decision as stored and offers the model\'s firmware files');
 
   // ---------------------------------- accessibility and screenshots
   const pages = {

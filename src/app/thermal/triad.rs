@@ -1,27 +1,34 @@
-//! A triad's temperature model stored as a calibration (issue 45 items 1
-//! and 6), `POST /v1/calibrations/thermal/triad`: the triad body with
+//! A triad's temperature model stored as a calibration (issue 45 items 1,
+//! 4 and 6), `POST /v1/calibrations/thermal/triad`: the triad body with
 //! known orientations, every run with its temperature, fitted as
 //! `POST /v1/identify/thermal/triad` fits it, and stored as one
 //! calibration of the triad whose elements are the model at `T_ref`
 //! (`b = a_0` of each element's polynomial, `S` likewise, `T = S⁻¹`):
 //! history, stability and the coefficients without a temperature serve
 //! those; the coefficients and compensation at a temperature evaluate the
-//! model. Not applied yet, and refused rather than ignored: a sensor
-//! type's judgement (the body's, or one the sensor has) and reference
-//! standards; its certificate is not issued yet.
+//! model. What a stored triad settles first is settled alike
+//! ([`super::super::triad::preamble`]): the sensor type in force and the
+//! standards named — a thermometer's uncertainty enters every element read
+//! at a temperature, a nonconformity of any holds the model. The type
+//! judges every limited element at every set point and across the range
+//! ([`decide_triad_model`]), its coverage the certificate's.
 
 use accelcal_core::{Model, Term};
 use bytes::Bytes;
 use serde::Serialize;
 use uuid::Uuid;
 
-use super::super::subject::{in_force, station};
+use super::super::standards::Resolved;
+use super::super::triad::{Preamble, preamble};
 use super::super::{Assessed, Error, Lab, Upload};
-use super::not_yet;
+use super::thermometer;
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
+use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
-use crate::domain::submission::performed_when;
+use crate::domain::sensor_types::SensorType;
+use crate::domain::standards::UsedStandard;
+use crate::domain::thermal::decision::{TriadThermalDecision, decide_triad_model};
 use crate::domain::thermal::{Fit, TriadThermalModel, triad_model};
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::KNOWN_ORIENTATIONS;
@@ -59,7 +66,32 @@ pub struct StoredThermalTriad {
     /// uncertainties of `b` and `S`): what history, stability and the
     /// coefficients without a temperature serve.
     pub elements: TriadElements,
-    /// The model: the set points and every element's polynomial.
+    /// The sensor type it was judged by, if any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sensor_type: Option<String>,
+    /// Its judgement against that type's limits: every limited element at
+    /// every set point and across the range, its worst stated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    #[schema(value_type = Option<Object>)]
+    pub decision: Option<TriadThermalDecision>,
+    /// When the triad is next due: a judged model's performance date plus
+    /// its type's interval.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub due_at: Option<Timestamp>,
+    /// What its expanded uncertainties hold fixed — the sensor type's
+    /// coverage probability or factor, 95.45 % without one.
+    #[schema(value_type = Object)]
+    pub coverage: accelcal_core::coverage::Coverage,
+    /// The reference standards used, with the certificates in force.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub standards: Vec<UsedStandard>,
+    /// The nonconformities of those standards in whose windows the test
+    /// was performed: the model was stored held.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    #[schema(value_type = Vec<Object>)]
+    pub held_by: Vec<HeldBy>,
+    /// The model: the set points and every element's polynomial (with the
+    /// thermometer's standard uncertainty, when one was named).
     #[schema(value_type = Object)]
     pub thermal: TriadThermalModel,
 }
@@ -99,46 +131,40 @@ pub async fn assess(
     fit: Fit,
 ) -> Result<Assessed, Error> {
     let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
-    let (sub, thermal) = lab
+    let (mut sub, mut thermal) = lab
         .compute_for(upload.bytes.len(), move || {
             let sub = super::super::triad::read(&upload)?;
-            if sub.sensor_type.is_some() {
-                return Err(not_yet("sensor_type", "a sensor type's decision"));
-            }
-            if !sub.standards.is_empty() {
-                return Err(not_yet("standards", "the reference standards' budget"));
-            }
             let mut thermal = triad_model(&sub, fit.tolerance_k, &fit.options)?;
             thermal.fitted_with = fit.params;
             Ok::<_, Error>((sub, thermal))
         })
         .await??;
-    let root = Loc::Root;
-    let sensor_id = sub.sensor_id.clone().ok_or_else(|| {
-        Error::invalid(
-            root.key("sensor_id"),
-            "is required to store a triad's model (POST /v1/identify/thermal/triad fits one \
-             without)",
-        )
-    })?;
-    let station_id = station(principal, sub.station_id.as_deref())?;
-    let performed_at = match sub.performed_at {
-        None => received_at,
-        Some(t) => performed_when(t, received_at)
-            .map_err(|why| Error::invalid(root.key("performed_at"), why))?,
+    let Preamble {
+        sensor_id,
+        station_id,
+        performed_at,
+        subject,
+        used,
+        held_by,
+    } = preamble(
+        lab,
+        principal,
+        &mut sub,
+        received_at,
+        "to store a triad's model (POST /v1/identify/thermal/triad fits one without)",
+    )
+    .await?;
+    thermal.thermometer_std_c = thermometer(&used);
+    let sensor_type = subject.sensor_type;
+    let decision = match &sensor_type {
+        Some(t) if !t.limits.is_empty() => Some(judged(&thermal, t)?),
+        _ => None,
     };
-    let subject = in_force(lab, principal, &sensor_id, None, true, received_at).await?;
-    if let Some(t) = &subject.sensor_type {
-        return Err(Error::invalid(
-            root.key("sensor_type"),
-            format!(
-                "sensor `{sensor_id}` has type `{}`, whose limits a triad's temperature model \
-                 is not judged by yet: store the triad at one temperature (POST \
-                 /v1/calibrations/triad), or its model for a sensor without a type",
-                t.type_id
-            ),
-        ));
-    }
+    let due_at = sensor_type
+        .as_ref()
+        .filter(|_| decision.is_some())
+        .map(|t| performed_at.plus_seconds(i64::from(t.interval_days) * 86_400));
+    let root = Loc::Root;
     let elements = elements_at(&thermal, thermal.reference_c()).ok_or_else(|| {
         Error::invalid(
             root.key("runs"),
@@ -158,6 +184,12 @@ pub async fn assess(
         reference_c: thermal.reference_c(),
         range_c: thermal.range_c(),
         elements,
+        sensor_type: sensor_type.as_ref().map(|t| t.type_id.clone()),
+        decision,
+        due_at,
+        coverage: crate::domain::sensor_types::coverage(sensor_type.as_ref()),
+        standards: used,
+        held_by,
         thermal,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {
@@ -180,19 +212,34 @@ pub async fn assess(
         submission,
         content_type,
         submitted_by: principal.id.clone(),
-        sensor_type: None,
-        assigns_type: false,
-        verdict: None,
-        due_at: None,
+        sensor_type: view.sensor_type,
+        assigns_type: sub.sensor_type.is_some(),
+        verdict: view.decision.map(|d| d.verdict),
+        due_at,
         expanded: None,
+        standards: Resolved::uses(&view.standards),
         triad: Some(view.elements),
         thermal: None,
         thermal_triad: Some(view.thermal),
-        standards: Vec::new(),
     };
     Ok(Assessed {
         sensor_id,
         result,
         record: Some(record),
+    })
+}
+
+/// `thermal` judged by sensor type `t` ([`decide_triad_model`]); a limit
+/// on a term no axis models over temperature is refused, naming the type.
+fn judged(thermal: &TriadThermalModel, t: &SensorType) -> Result<TriadThermalDecision, Error> {
+    decide_triad_model(thermal, t.decision_rule, &t.limits, t.coverage()).map_err(|term| {
+        Error::invalid(
+            Loc::Root.key("sensor_type"),
+            format!(
+                "sensor type `{}` sets limits on `{term}`, which a triad's temperature model \
+                 does not model (each axis's k0, ki, kp, ko over temperature: b and S)",
+                t.type_id
+            ),
+        )
     })
 }

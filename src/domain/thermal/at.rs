@@ -45,6 +45,18 @@ pub fn stationary(p: &Polynomial) -> Vec<f64> {
         .collect()
 }
 
+/// Polynomial `p` at `temperature_c`: its value and standard uncertainty,
+/// with the term of a thermometer read to `thermometer_std_c` (module
+/// doc) — a single axis's coefficient or a triad's element alike.
+pub fn read(p: &Polynomial, temperature_c: f64, thermometer_std_c: Option<f64>) -> (f64, f64) {
+    let (value, u) = p.at(temperature_c);
+    let u = match thermometer_std_c {
+        Some(u_t) => u.hypot(u_t * p.slope(temperature_c)),
+        None => u,
+    };
+    (value, u)
+}
+
 /// The coefficients of a model at one temperature.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AtTemperature {
@@ -78,12 +90,7 @@ impl ThermalModel {
     /// Polynomial `p` of this model at `temperature_c`: its value and
     /// standard uncertainty, the thermometer's term included (module doc).
     pub fn read(&self, p: &Polynomial, temperature_c: f64) -> (f64, f64) {
-        let (value, u) = p.at(temperature_c);
-        let u = match self.thermometer_std_c {
-            Some(u_t) => u.hypot(u_t * p.slope(temperature_c)),
-            None => u,
-        };
-        (value, u)
+        read(p, temperature_c, self.thermometer_std_c)
     }
 
     /// Every coefficient at `temperature_c`.

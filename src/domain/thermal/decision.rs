@@ -22,6 +22,9 @@ use serde::{Deserialize, Serialize};
 use super::ThermalModel;
 use super::at::stationary;
 
+mod triad;
+pub use triad::{TriadThermalDecision, axis_model, decide_triad_model};
+
 /// Temperatures scanned across the range, ends included.
 pub const SCAN: usize = 401;
 

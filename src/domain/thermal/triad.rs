@@ -9,12 +9,14 @@
 //! elements share the set points, so their `T_ref` and range are one; each
 //! has its own degree.
 
+use accelcal_core::TermMap;
 use accelcal_core::thermal::{Options, Point, Polynomial};
 use accelcal_core::triad::{AXES, TriadRun, TriadTest};
 use serde::{Deserialize, Serialize};
 
 use super::super::field::Invalid;
 use super::super::triad::{Form, TriadSubmission};
+use super::at::read;
 use super::{ThermalParams, fitted, grouped, list, round, selection};
 
 /// One set point of a triad, calibrated and fused.
@@ -37,6 +39,12 @@ pub struct TriadSetPoint {
     /// Their standard errors.
     #[serde(rename = "S_std_errors")]
     pub s_std_errors: [[f64; 3]; 3],
+    /// Each axis's fused degrees of freedom by single-axis term (`k0` of
+    /// `b_m`, `ki`, `kp`, `ko` of row `m` of `S`), as a single axis states
+    /// them (an infinite ν left out): what a sensor type's decision takes
+    /// `k` at. None in a model stored before they were kept.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axes_dof: Option<[TermMap<f64>; 3]>,
 }
 
 /// A triad's temperature model.
@@ -63,6 +71,11 @@ pub struct TriadThermalModel {
     /// per g per K^d.
     #[serde(rename = "S")]
     pub s: [[Polynomial; 3]; 3],
+    /// The standard uncertainty of the named thermometer's reading, K: an
+    /// element read at a temperature adds `u_T · |de/dT|` to its budget
+    /// ([`TriadThermalModel::at`]). None when no thermometer was named.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermometer_std_c: Option<f64>,
 }
 
 /// The temperature model of the triad `sub` (module doc), its runs
@@ -117,6 +130,17 @@ pub fn triad_model(
             b_std_errors: cal.std_errors.bias,
             s: cal.fused.matrix,
             s_std_errors: cal.std_errors.matrix,
+            // An infinite ν (a batch variance of zero) is stated as none.
+            axes_dof: Some(cal.axes.each_ref().map(|a| {
+                TermMap(
+                    a.fused
+                        .dof
+                        .iter()
+                        .filter(|(_, d)| d.is_finite())
+                        .map(|(t, d)| (t, *d))
+                        .collect(),
+                )
+            })),
         });
     }
     let fit = |name: String, element: &dyn Fn(&TriadSetPoint) -> (f64, f64)| {
@@ -155,6 +179,7 @@ pub fn triad_model(
         set_points,
         b: b.try_into().expect("three"),
         s,
+        thermometer_std_c: None,
     })
 }
 
@@ -186,13 +211,12 @@ impl TriadThermalModel {
         self.b[0].range_c
     }
 
-    /// Every element at `temperature_c`.
+    /// Every element at `temperature_c`, the thermometer's term included
+    /// ([`super::at::read`]).
     pub fn at(&self, temperature_c: f64) -> TriadAt {
-        let b = self.b.each_ref().map(|p| p.at(temperature_c));
-        let s = self
-            .s
-            .each_ref()
-            .map(|row| row.each_ref().map(|p| p.at(temperature_c)));
+        let read = |p: &Polynomial| read(p, temperature_c, self.thermometer_std_c);
+        let b = self.b.each_ref().map(read);
+        let s = self.s.each_ref().map(|row| row.each_ref().map(read));
         TriadAt {
             b: b.map(|(v, _)| v),
             b_std_errors: b.map(|(_, u)| u),
@@ -235,5 +259,9 @@ impl TriadThermalModel {
         set_points
             .chain(polynomials)
             .chain([("tolerance_k".to_owned(), self.tolerance_k)])
+            .chain(
+                self.thermometer_std_c
+                    .map(|u| ("thermometer_std_c".to_owned(), u)),
+            )
     }
 }

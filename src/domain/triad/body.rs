@@ -74,9 +74,10 @@ pub struct TriadBody {
     #[serde(default)]
     pub sensor_type: Option<String>,
     /// Reference standards from the registry, by id: the `stand` (its
-    /// indexing error enters the budget instead of `stand`'s) and the local
-    /// `gravity` value; each must be in calibration when the test was
-    /// performed. Stored triads only.
+    /// indexing error enters the budget instead of `stand`'s), the
+    /// `thermometer` and the local `gravity` value; each must be in
+    /// calibration when the test was performed. Stored triads and triad
+    /// models only.
     #[serde(default)]
     pub standards: Option<TriadStandardsBody>,
     /// With `orientations`: give each axis its second-order term `kii`
@@ -93,6 +94,11 @@ pub struct TriadStandardsBody {
     /// The tumble stand or dividing head.
     #[serde(default)]
     pub stand: Option<String>,
+    /// The thermometer the run temperatures were read with: recorded, and
+    /// in a temperature model its reading's uncertainty enters every
+    /// element read at a temperature (`u_T · |de/dT|`).
+    #[serde(default)]
+    pub thermometer: Option<String>,
     /// The local gravity value.
     #[serde(default)]
     pub gravity: Option<String>,
@@ -213,7 +219,8 @@ pub struct TriadSubmission {
     /// one judges the triad (set by the caller), else the default
     /// probability.
     pub coverage: Coverage,
-    /// The reference standards named, by role (`stand`, `gravity`).
+    /// The reference standards named, by role (`stand`, `thermometer`,
+    /// `gravity`).
     pub standards: Vec<(&'static str, String)>,
 }
 

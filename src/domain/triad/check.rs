@@ -94,7 +94,11 @@ impl TriadBody {
         let mut standards = Vec::new();
         if let Some(named) = &self.standards {
             let standards_at = root.key("standards");
-            for (role, id) in [("stand", &named.stand), ("gravity", &named.gravity)] {
+            for (role, id) in [
+                ("stand", &named.stand),
+                ("thermometer", &named.thermometer),
+                ("gravity", &named.gravity),
+            ] {
                 if let Some(id) = id {
                     match check_str(id, MAX_ID_CHARS, Chars::Identifier) {
                         Ok(()) => standards.push((role, id.clone())),
@@ -110,10 +114,10 @@ impl TriadBody {
                      standard alone)",
                 );
             }
-            if named.stand.is_none() && named.gravity.is_none() {
+            if named.stand.is_none() && named.thermometer.is_none() && named.gravity.is_none() {
                 errors.add(
                     root.key("standards"),
-                    "must name a `stand`, a `gravity` or both",
+                    "must name a `stand`, a `thermometer`, a `gravity` or several",
                 );
             }
             if self.stand.is_some() {

@@ -344,7 +344,7 @@ pub struct TriadDecision {
 }
 
 /// The element name of axis `m`'s term in `slot` ([`row_terms`]).
-pub(super) fn element(m: usize, slot: Slot) -> String {
+pub fn element(m: usize, slot: Slot) -> String {
     match slot {
         Slot::B => format!("b_{}", AXES[m]),
         Slot::S(k) => format!("S_{}{}", AXES[m], AXES[k]),

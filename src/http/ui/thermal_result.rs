@@ -10,7 +10,7 @@ use serde::Deserialize;
 
 use crate::domain::review::Supersedes;
 use crate::domain::standards::UsedStandard;
-use crate::domain::thermal::decision::ThermalDecision;
+use crate::domain::thermal::decision::{ThermalDecision, TriadThermalDecision};
 use crate::domain::thermal::{ThermalModel, TriadThermalModel};
 
 /// A stored temperature model's result document, as its page and
@@ -90,6 +90,23 @@ pub struct ThermalTriadDoc {
     pub range_c: [f64; 2],
     /// Its elements at `T_ref`.
     pub elements: crate::store::TriadElements,
+    /// The sensor type it was judged by (none in a model stored before
+    /// triad models were judged).
+    #[serde(default)]
+    pub sensor_type: Option<String>,
+    /// Its judgement.
+    #[serde(default)]
+    pub decision: Option<TriadThermalDecision>,
+    /// When next due, when judged (RFC 3339).
+    #[serde(default)]
+    pub due_at: Option<String>,
+    /// What its expanded uncertainties hold fixed (95.45 % in a model
+    /// stored before it was stated, as then).
+    #[serde(default)]
+    pub coverage: Coverage,
+    /// The reference standards used.
+    #[serde(default)]
+    pub standards: Vec<UsedStandard>,
     /// The model.
     pub thermal: TriadThermalModel,
 }

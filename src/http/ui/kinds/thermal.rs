@@ -29,7 +29,6 @@ use accelcal_core::coverage::Coverage;
 use accelcal_core::thermal::Polynomial;
 use maud::html;
 
-use crate::domain::thermal::decision::ThermalDecision;
 use crate::http::ui::certificate::{Context, PAPER, standards};
 use crate::http::ui::document::{Admin, Column, DccText, Document, Judged, Printed, Quantity};
 use crate::http::ui::format::term_unit;
@@ -37,7 +36,7 @@ use crate::http::ui::kinds::single_axis::term_meaning;
 use crate::http::ui::result::Covered;
 use crate::http::ui::stored::when;
 use crate::http::ui::thermal_result::ThermalDoc;
-use page::{celsius, decision_table, set_points_table};
+use page::{celsius, rule_name, set_points_table, terms_table};
 
 /// `^d` as a unit's exponent is printed (`K`, `K²`, `K³`).
 fn kelvin(d: usize) -> &'static str {
@@ -112,7 +111,7 @@ pub fn admin(d: &ThermalDoc) -> Admin<'_> {
         standards: &d.standards,
         judged: d.decision.as_ref().map(|dec| {
             Judged::of(
-                rule(dec),
+                rule_name(dec.rule),
                 dec.verdict.as_str(),
                 dec.terms
                     .iter()
@@ -120,14 +119,6 @@ pub fn admin(d: &ThermalDoc) -> Admin<'_> {
             )
         }),
         due_at: d.due_at.as_deref(),
-    }
-}
-
-/// The decision rule's wire name.
-fn rule(dec: &ThermalDecision) -> &'static str {
-    match dec.rule {
-        accelcal_core::decision::Rule::Simple => "simple",
-        accelcal_core::decision::Rule::Guarded => "guarded",
     }
 }
 
@@ -187,9 +178,9 @@ pub fn document<'a>(d: &'a ThermalDoc, c: &Context) -> Document<'a> {
     };
     let conformity = d.decision.as_ref().map(|dec| {
         html! {
-            p { "Decision rule: " (rule(dec)) "; every limited coefficient judged at each set point and across the "
+            p { "Decision rule: " (rule_name(dec.rule)) "; every limited coefficient judged at each set point and across the "
                 "range with its expanded uncertainty there; its worst stated." }
-            (decision_table(dec))
+            (terms_table(dec))
         }
     });
     Document {

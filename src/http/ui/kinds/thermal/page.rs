@@ -8,7 +8,9 @@
 use accelcal_core::thermal::Polynomial;
 use maud::{Markup, html};
 
-use crate::domain::thermal::decision::ThermalDecision;
+use accelcal_core::decision::Rule;
+
+use crate::domain::thermal::decision::{ThermalDecision, ThermalTermDecision};
 use crate::http::ui::badge;
 use crate::http::ui::document::Page;
 use crate::http::ui::format::{Notation, num, unc};
@@ -16,6 +18,8 @@ use crate::http::ui::thermal_result::ThermalDoc;
 
 /// A temperature to 0.01 K, as the page and certificate print it.
 pub fn celsius(t: f64) -> String {
+    // Within half a hundredth of zero, zero (not `-0.00`).
+    let t = if t.abs() < 0.005 { 0.0 } else { t };
     format!("{t:.2}")
 }
 
@@ -56,7 +60,7 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
         sections: html! {
             @if let Some(dec) = &d.decision {
                 h2 { "Decision" }
-                (decision_table(dec))
+                (terms_table(dec))
             }
             h2 { "Coefficients at T_ref" }
             div.table-wrap tabindex="0" role="region" aria-label="Coefficients at T_ref" { table #thermal-at-reference .numbers {
@@ -111,22 +115,27 @@ pub fn polynomials_table<'a>(
     }
 }
 
-/// The decision's table: each limited coefficient's worst judgement, with
-/// where.
-pub fn decision_table(dec: &ThermalDecision) -> Markup {
+/// The decision's table of `rows` (each limited coefficient's or
+/// element's worst judgement, with where) under `rule`; `column` heads
+/// their names (`term`, `element`).
+pub fn decision_table<'a>(
+    rule: Rule,
+    column: &str,
+    rows: impl Iterator<Item = (String, &'a ThermalTermDecision)>,
+) -> Markup {
     html! {
         div.table-wrap tabindex="0" role="region" aria-label="Decision" { table #thermal-decision .numbers {
-            caption { "Each limited coefficient at every set point and across the range ("
-                (format!("{:?}", dec.rule).to_lowercase()) " rule): its worst" }
+            caption { "Each limited " (if column == "term" { "coefficient" } else { column }) " at every set point and across the range ("
+                (rule_name(rule)) " rule): its worst" }
             thead { tr {
-                th scope="col" { "term" } th scope="col" { "verdict" } th scope="col" { "at, °C" }
+                th scope="col" { (column) } th scope="col" { "verdict" } th scope="col" { "at, °C" }
                 th scope="col" { "value" } th scope="col" { "U" } th scope="col" { "k" }
                 th scope="col" { "min" } th scope="col" { "max" }
             } }
             tbody {
-                @for (t, j) in dec.terms.iter() {
+                @for (t, j) in rows {
                     tr {
-                        th scope="row" { (t.to_string()) }
+                        th scope="row" { (t) }
                         td { (badge(j.worst.verdict.as_str(), j.worst.verdict.as_str())) }
                         td.num { (celsius(j.worst.temperature_c)) }
                         td.num { (num(j.worst.value)) }
@@ -139,6 +148,23 @@ pub fn decision_table(dec: &ThermalDecision) -> Markup {
             }
         } }
     }
+}
+
+/// A decision rule's wire name.
+pub fn rule_name(rule: Rule) -> &'static str {
+    match rule {
+        Rule::Simple => "simple",
+        Rule::Guarded => "guarded",
+    }
+}
+
+/// The single axis's decision's table ([`decision_table`]).
+pub fn terms_table(dec: &ThermalDecision) -> Markup {
+    decision_table(
+        dec.rule,
+        "term",
+        dec.terms.iter().map(|(t, j)| (t.to_string(), j)),
+    )
 }
 
 /// The set points' table: each set point's fused coefficients with their

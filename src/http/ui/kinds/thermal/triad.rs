@@ -4,15 +4,20 @@
 //! model (PX4's and ArduPilot's thermal parameters, a C header, the JSON)
 //! to download; its certificate and DCC list every polynomial's `a_d` as
 //! a single axis's model does ([`super::polynomials`]), `b`'s in the
-//! outputs' unit per K^d and `S`'s per g per K^d.
+//! outputs' unit per K^d and `S`'s per g per K^d, at the sensor type's
+//! coverage, with the type's decision element by element, the standards
+//! and the thermometer's term.
 
-use accelcal_core::coverage::Coverage;
 use maud::{Markup, html};
 
-use super::page::{celsius, polynomials_table};
+use super::page::{celsius, decision_table, polynomials_table, rule_name};
 use super::polynomials;
+use crate::domain::thermal::decision::TriadThermalDecision;
+use crate::http::ui::badge;
 use crate::http::ui::certificate::{Context, PAPER, standards};
-use crate::http::ui::document::{Admin, Column, DccText, Document, Page, Printed, Quantity};
+use crate::http::ui::document::{
+    Admin, Column, DccText, Document, Judged, Page, Printed, Quantity,
+};
 use crate::http::ui::format::{Notation, num, unc};
 use crate::http::ui::kinds::triad::meaning;
 use crate::http::ui::stored::when;
@@ -27,8 +32,8 @@ const EXPORTS: [(&str, &str); 4] = [
     ("json", "JSON"),
 ];
 
-/// Every element's `a_d`: `b` first, then `S` by rows, at 95.45 % (a
-/// triad's model is not judged by a sensor type yet).
+/// Every element's `a_d`: `b` first, then `S` by rows, at the model's
+/// coverage.
 pub fn quantities(d: &ThermalTriadDoc) -> Vec<Quantity> {
     let each = d.thermal.polynomials().map(|(name, p)| {
         let (matrix, m, k) = element(&name);
@@ -38,7 +43,7 @@ pub fn quantities(d: &ThermalTriadDoc) -> Vec<Quantity> {
         };
         (name, meaning(matrix, m, k), unit, p)
     });
-    polynomials(each, Coverage::default())
+    polynomials(each, d.coverage)
 }
 
 /// `("b", m, m)` of `b_x`, `("S", m, k)` of `S_xy`.
@@ -88,7 +93,18 @@ fn facts(d: &ThermalTriadDoc) -> Markup {
         div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
         div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
         div { dt { "Set points" } dd { (d.thermal.set_points.len()) " (runs within " (d.thermal.tolerance_k) " K), " (d.runs) " runs" } }
+        @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
+        @if let Some(u) = d.thermal.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every element read at a temperature" } } }
     }
+}
+
+/// The decision's table, element by element.
+fn elements_table(dec: &TriadThermalDecision) -> Markup {
+    decision_table(
+        dec.rule,
+        "element",
+        dec.elements.iter().map(|(name, j)| (name.clone(), j)),
+    )
 }
 
 /// `d` as its page shows it.
@@ -99,7 +115,9 @@ pub fn page(d: &ThermalTriadDoc) -> Page<'_> {
         sensor_id: &d.sensor_id,
         title: "Triad temperature model",
         noun: "triad temperature model",
-        verdict: None,
+        verdict: Some(
+            html! { @if let Some(dec) = &d.decision { (badge(dec.verdict.as_str(), dec.verdict.as_str())) } },
+        ),
         supersedes: d.supersedes.as_ref(),
         performed_at: &d.performed_at,
         station_id: d.station_id.as_deref(),
@@ -117,6 +135,10 @@ pub fn page(d: &ThermalTriadDoc) -> Page<'_> {
         }),
         certified: true,
         sections: html! {
+            @if let Some(dec) = &d.decision {
+                h2 { "Decision" }
+                (elements_table(dec))
+            }
             h2 { "b and S at T_ref" }
             div.table-wrap tabindex="0" role="region" aria-label="b and S at T_ref" { table #thermal-at-reference .numbers {
                 caption { "b in " (d.unit) ", S in " (d.unit) " per g, at " (celsius(d.reference_c)) " °C, with standard uncertainties u" }
@@ -148,7 +170,7 @@ fn fitted(d: &ThermalTriadDoc) -> String {
          chosen by partial F tests at 1 % ({}), its covariance scaled by max(1, χ²/ν) when the \
          set points scatter more than their standard errors say. The model is valid from T_min \
          to T_max only; read at a temperature T, an element's standard uncertainty is \
-         √(vᵀ C v), v_d = (T − T_ref)^d. Compensation applies T(T) = S(T)⁻¹.",
+         √(vᵀ C v), v_d = (T − T_ref)^d{}. Compensation applies T(T) = S(T)⁻¹.",
         m.set_points.len(),
         celsius(d.range_c[0]),
         celsius(d.range_c[1]),
@@ -156,6 +178,12 @@ fn fitted(d: &ThermalTriadDoc) -> String {
         m.tolerance_k,
         celsius(d.reference_c),
         m.selection,
+        match m.thermometer_std_c {
+            Some(u) => format!(
+                ", combined with the thermometer's u_T = {u} K times the slope |de/dT| there"
+            ),
+            None => String::new(),
+        }
     )
 }
 
@@ -185,9 +213,17 @@ pub fn document<'a>(d: &'a ThermalTriadDoc, c: &Context) -> Document<'a> {
             item_received_at: None,
             item_condition: None,
             supersedes: d.supersedes.as_ref(),
-            standards: &[],
-            judged: None,
-            due_at: None,
+            standards: &d.standards,
+            judged: d.decision.as_ref().map(|dec| {
+                Judged::of(
+                    rule_name(dec.rule),
+                    dec.verdict.as_str(),
+                    dec.elements
+                        .values()
+                        .map(|t| (t.worst.verdict.as_str(), t.worst.value, t.min, t.max)),
+                )
+            }),
+            due_at: d.due_at.as_deref(),
         },
         running: format!("{} (triad temperature model)", d.sensor_id),
         quantities: quantities(d),
@@ -202,9 +238,16 @@ pub fn document<'a>(d: &'a ThermalTriadDoc, c: &Context) -> Document<'a> {
                 p { "At the set points, each calibrated and fused on its own (standard errors; temperatures as read):" }
                 (set_points_table(d))
             },
-            conformity: None,
+            conformity: d.decision.as_ref().map(|dec| {
+                html! {
+                    p { "Decision rule: " (rule_name(dec.rule)) "; each axis's limited terms are elements of b and "
+                        "S (k0 is b_m; ki, kp, ko row m of S), each judged at every set point and across the "
+                        "range with its expanded uncertainty there; its worst stated." }
+                    (elements_table(dec))
+                }
+            }),
             as_found: None,
-            before_traceability: standards(&[]),
+            before_traceability: standards(&d.standards),
             computed_by: None,
         },
         dcc: DccText {
