@@ -384,3 +384,25 @@ pub fn celsius() -> ObjectBuilder {
         .minimum(Some(*range.start()))
         .maximum(Some(*range.end()))
 }
+
+/// A run's `temperature_c`: the run's, or one per position (a chamber that
+/// drifts; the run's is their mean) — a single axis's run and a triad's
+/// alike.
+pub fn run_temperature() -> utoipa::openapi::RefOr<utoipa::openapi::schema::Schema> {
+    use utoipa::openapi::schema::{AnyOfBuilder, ArrayBuilder, Schema, SchemaType};
+    utoipa::openapi::RefOr::T(Schema::AnyOf(
+        AnyOfBuilder::new()
+            .description(Some(
+                "The run's temperature, °C, or one per position (a chamber that drifts; the \
+                 run's is their mean); give it for every run or none.",
+            ))
+            .item(celsius().schema_type(SchemaType::from_iter([Type::Number, Type::Null])))
+            .item(
+                ArrayBuilder::new()
+                    .items(celsius())
+                    .min_items(Some(1))
+                    .max_items(Some(super::limits::MAX_POSITIONS)),
+            )
+            .build(),
+    ))
+}

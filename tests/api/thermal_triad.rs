@@ -296,3 +296,75 @@ async fn refusals_name_what_to_fix() {
     .await;
     assert_eq!(p["parameter"], "degree", "{p}");
 }
+
+/// A chamber that drifts during a run: each run's `temperature_c` one per
+/// position gives the model of the same runs each at its positions' mean
+/// (computed here), to the last bit, fitted and stored; a run drifting more
+/// than the tolerance, a wrong count and an implausible reading are
+/// refused where they are.
+#[tokio::test]
+async fn a_drifting_chamber_gives_each_position_its_temperature() {
+    let app = TestApp::spawn(Sqlite).await;
+    let steady_at = body(&CHAMBER);
+    let (mut drifting, mut steady) = (steady_at.clone(), steady_at.clone());
+    let drift = [-0.1, -0.06, -0.02, 0.03, 0.07, 0.12];
+    for j in 0..drifting["runs"].as_array().unwrap().len() {
+        let t = f(&steady_at["runs"][j]["temperature_c"]);
+        let each: Vec<f64> = drift.iter().map(|d| t + d).collect();
+        steady["runs"][j]["temperature_c"] = json!(each.iter().sum::<f64>() / 6.0);
+        drifting["runs"][j]["temperature_c"] = json!(each);
+    }
+    let fit = |b: Value| {
+        let app = &app;
+        async move {
+            let res = app.post("/v1/identify/thermal/triad", ADMIN, &b).await;
+            assert_eq!(res.status(), StatusCode::OK);
+            res.json::<Value>().await.unwrap()
+        }
+    };
+    let (got, want) = (fit(drifting.clone()).await, fit(steady).await);
+    assert_eq!(got, want);
+    assert_ne!(
+        got["set_points"][0]["temperature_c"],
+        fit(steady_at).await["set_points"][0]["temperature_c"],
+        "the means, not the runs' nominal temperatures"
+    );
+    let res = app
+        .post("/v1/calibrations/thermal/triad", ADMIN, &drifting)
+        .await;
+    assert_eq!(res.status(), StatusCode::CREATED);
+    assert_eq!(res.json::<Value>().await.unwrap()["thermal"], got);
+
+    let refused = |b: Value| {
+        let app = &app;
+        async move {
+            problem(
+                app.post("/v1/identify/thermal/triad", ADMIN, &b).await,
+                StatusCode::UNPROCESSABLE_ENTITY,
+            )
+            .await
+        }
+    };
+    let mut far = drifting.clone();
+    far["runs"][3]["temperature_c"][5] = json!(f(&far["runs"][3]["temperature_c"][0]) + 0.7);
+    let p = refused(far).await;
+    assert_eq!(pointers(&p), ["/runs/3/temperature_c"], "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("drifted"), "{p}");
+    let mut five = drifting.clone();
+    five["runs"][0]["temperature_c"] = json!([20.0, 20.1, 20.2, 20.3, 20.4]);
+    let p = refused(five).await;
+    assert_eq!(pointers(&p), ["/runs/0/temperature_c"], "{p}");
+    assert!(
+        p["detail"]
+            .as_str()
+            .unwrap()
+            .contains("one per position (6)")
+    );
+    let mut hot = drifting.clone();
+    hot["runs"][1]["temperature_c"][2] = json!(500.0);
+    assert_eq!(pointers(&refused(hot).await), ["/runs/1/temperature_c/2"]);
+    let mut words = drifting;
+    words["runs"][0]["temperature_c"] = json!("warm");
+    let p = refused(words).await;
+    assert_eq!(pointers(&p), ["/runs/0/temperature_c"], "{p}");
+}

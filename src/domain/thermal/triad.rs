@@ -17,7 +17,7 @@ use serde::{Deserialize, Serialize};
 use super::super::field::Invalid;
 use super::super::triad::{Form, TriadSubmission};
 use super::at::read;
-use super::{ThermalParams, fitted, grouped, list, round, selection};
+use super::{ThermalParams, fitted, grouped, held, list, round, selection};
 
 /// One set point of a triad, calibrated and fused.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -91,6 +91,7 @@ pub fn triad_model(
         batches,
         second_order,
         temperatures_c,
+        position_temperatures_c,
     } = &sub.form
     else {
         return Err(Invalid::one(
@@ -105,6 +106,7 @@ pub fn triad_model(
             "second-order terms are not modelled over temperature: omit it",
         ));
     }
+    held(position_temperatures_c, tolerance_k)?;
     let (groups, at, options) = grouped(temperatures_c.as_deref(), tolerance_k, options)?;
     let mut set_points = Vec::with_capacity(groups.len());
     for g in groups {

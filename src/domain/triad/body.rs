@@ -145,11 +145,54 @@ pub enum NamedSet {
 pub struct TriadRunBody {
     /// Per position, its samples of `(u_x, u_y, u_z)`.
     pub samples: Vec<Vec<[f64; 3]>>,
-    /// The temperature the run was made at, °C (−100 to 200): for every
+    /// The temperature the run was made at, °C (−100 to 200), or one per
+    /// position (a chamber that drifts: the run's is their mean): for every
     /// run or for none; used by `POST /v1/identify/thermal/triad`, which
     /// groups the runs into set points by it.
     #[serde(default)]
-    pub temperature_c: Option<f64>,
+    #[schema(schema_with = crate::domain::schema::run_temperature)]
+    pub temperature_c: Option<RunTemperature>,
+}
+
+/// A run's `temperature_c`: the run's, or one per position.
+#[derive(Debug, Clone, PartialEq)]
+pub enum RunTemperature {
+    /// The run's, °C.
+    One(f64),
+    /// One per position, °C.
+    Each(Vec<f64>),
+}
+
+impl<'de> Deserialize<'de> for RunTemperature {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Visitor;
+        impl<'de> serde::de::Visitor<'de> for Visitor {
+            type Value = RunTemperature;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("the run's temperature in °C, or an array of one per position")
+            }
+            fn visit_f64<E>(self, v: f64) -> Result<Self::Value, E> {
+                Ok(RunTemperature::One(v))
+            }
+            fn visit_i64<E>(self, v: i64) -> Result<Self::Value, E> {
+                Ok(RunTemperature::One(v as f64))
+            }
+            fn visit_u64<E>(self, v: u64) -> Result<Self::Value, E> {
+                Ok(RunTemperature::One(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<Self::Value, A::Error> {
+                let mut each = Vec::new();
+                while let Some(t) = seq.next_element::<f64>()? {
+                    each.push(t);
+                }
+                Ok(RunTemperature::Each(each))
+            }
+        }
+        d.deserialize_any(Visitor)
+    }
 }
 
 /// A continuous recording. Its static intervals count against the same
@@ -238,8 +281,10 @@ pub enum Form {
         /// Each axis with its `kii`.
         second_order: bool,
         /// Each run's temperature, °C, when the runs give them (all or
-        /// none).
+        /// none): given per position, their mean.
         temperatures_c: Option<Vec<f64>>,
+        /// Per run, its positions' temperatures when given per position.
+        position_temperatures_c: Vec<Option<Vec<f64>>>,
     },
     /// The static positions' mean outputs.
     Unknown {

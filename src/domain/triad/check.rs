@@ -363,7 +363,8 @@ impl TriadBody {
                 "must be between 1 and the number of runs",
             );
         }
-        let temperatures_c = temperatures(&runs, errors);
+        let (temperatures_c, position_temperatures_c) =
+            temperatures(&runs, positions.len(), errors);
         Some(Form::Known {
             positions,
             runs: runs
@@ -373,38 +374,68 @@ impl TriadBody {
             batches,
             second_order: self.second_order.unwrap_or(false),
             temperatures_c,
+            position_temperatures_c,
         })
     }
 }
 
 /// The runs' temperatures: every run's, or none; each a plausible
-/// temperature ([`super::super::limits::TEMPERATURE_C`]).
-fn temperatures(runs: &[TriadRunBody], errors: &mut Errors) -> Option<Vec<f64>> {
+/// temperature ([`super::super::limits::TEMPERATURE_C`]), or one per
+/// position (of `positions`), the run's their mean. With them, per run, its
+/// positions' temperatures when given so.
+fn temperatures(
+    runs: &[TriadRunBody],
+    positions: usize,
+    errors: &mut Errors,
+) -> (Option<Vec<f64>>, Vec<Option<Vec<f64>>>) {
     let all = Loc::Root.key("runs");
     let given = runs.iter().filter(|r| r.temperature_c.is_some()).count();
     if given == 0 {
-        return None;
+        return (None, Vec::new());
     }
     let range = super::super::limits::TEMPERATURE_C;
+    let plausible = |t: f64| range.contains(&t);
+    let why = format!(
+        "must be a temperature from {} to {} °C",
+        range.start(),
+        range.end()
+    );
     let mut out = Vec::with_capacity(runs.len());
+    let mut each = Vec::with_capacity(runs.len());
     for (j, r) in runs.iter().enumerate() {
         let run = all.index(j);
         let at = run.key("temperature_c");
-        match r.temperature_c {
+        match &r.temperature_c {
             None => errors.add(
                 at,
                 "is missing: give `temperature_c` for every run or for none",
             ),
-            Some(t) if !range.contains(&t) => errors.add(
+            Some(RunTemperature::One(t)) if !plausible(*t) => errors.add(at, why.as_str()),
+            Some(RunTemperature::One(t)) => {
+                out.push(*t);
+                each.push(None);
+            }
+            Some(RunTemperature::Each(ts)) if ts.len() != positions => errors.add(
                 at,
                 format!(
-                    "must be a temperature from {} to {} °C",
-                    range.start(),
-                    range.end()
+                    "must be the run's temperature or one per position ({positions}), not {}",
+                    ts.len()
                 ),
             ),
-            Some(t) => out.push(t),
+            Some(RunTemperature::Each(ts)) => {
+                let wrong: Vec<usize> = (0..ts.len()).filter(|&i| !plausible(ts[i])).collect();
+                for &i in &wrong {
+                    errors.add(at.index(i), why.as_str());
+                }
+                if wrong.is_empty() {
+                    out.push(ts.iter().sum::<f64>() / ts.len() as f64);
+                    each.push(Some(ts.clone()));
+                }
+            }
         }
     }
-    (out.len() == runs.len()).then_some(out)
+    if out.len() != runs.len() {
+        return (None, Vec::new());
+    }
+    (Some(out), each)
 }

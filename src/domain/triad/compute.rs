@@ -77,6 +77,7 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             batches,
             second_order,
             temperatures_c,
+            ..
         } => {
             if temperatures_c.is_some() {
                 return Err(problem(

@@ -97,12 +97,7 @@ marker_schema!(
 marker_schema!(
     /// One run's readings.
     RunInSchema => closed(ObjectBuilder::new())
-        .property("temperature_c", RefOr::T(Schema::AnyOf(AnyOfBuilder::new()
-            .description(Some("The run's temperature, °C, or one per position (a chamber that \
-                drifts; the run's is their mean); give it for every run or none."))
-            .item(crate::domain::schema::celsius().schema_type(SchemaType::from_iter([Type::Number, Type::Null])))
-            .item(array(crate::domain::schema::celsius()).min_items(Some(1)).max_items(Some(MAX_POSITIONS)))
-            .build())))
+        .property("temperature_c", crate::domain::schema::run_temperature())
         .property(
             "readings",
             array(reference("ReadingIn"))

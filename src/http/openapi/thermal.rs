@@ -111,11 +111,18 @@ marker_schema!(
             .property("b_std_errors", triple(of_type(Type::Number).into()))
             .property("S", triple(triple(of_type(Type::Number).into()).into()))
             .property("S_std_errors", triple(triple(of_type(Type::Number).into()).into()))
+            .property("axes_dof", triple(ObjectBuilder::new()
+                .description(Some("One axis's fused degrees of freedom by single-axis term (k0 of \
+                    b_m; ki, kp, ko of row m of S); an infinite ν left out."))
+                .additional_properties(Some(of_type(Type::Number).minimum(Some(0.0)))).into()))
             .required("temperature_c").required("runs").required("batches")
             .required("b").required("b_std_errors").required("S").required("S_std_errors")))
         .property("fitted_with", fitted_with())
         .property("b", polynomials())
         .property("S", triple(polynomials().into()))
+        .property("thermometer_std_c", of_type(Type::Number).minimum(Some(0.0))
+            .description(Some("The named thermometer's standard uncertainty, K: an element read \
+                at a temperature adds u_T · |de/dT| to its budget. Absent without one.")))
         .required("sensor_id").required("unit").required("tolerance_k").required("selection")
         .required("set_points").required("b").required("S")
         .build()
