@@ -42,6 +42,24 @@ pub(crate) fn standard(kind: &str, extra: Value) -> Value {
     s
 }
 
+/// The stand `DH-1` and the thermometer `TH-1`, read to `u_t` K,
+/// recorded (each calibrated 200 days ago).
+pub(crate) async fn stand_and_thermometer(app: &TestApp, u_t: f64) {
+    for (id, s) in [
+        (
+            "DH-1",
+            standard("tumble_stand", json!({"angle_std_arcsec": 2.0})),
+        ),
+        (
+            "TH-1",
+            standard("thermometer", json!({"temperature_std_c": u_t})),
+        ),
+    ] {
+        let res = app.put(&format!("/v1/standards/{id}"), ADMIN, &s).await;
+        assert_eq!(res.status(), StatusCode::CREATED);
+    }
+}
+
 /// `(c(t), √(vᵀ C v), c′(t))` of the polynomial `p` (a stored model's
 /// JSON): the slope `Σ d a_d x^(d−1)` by hand.
 pub(crate) fn read(p: &Value, t: f64) -> (f64, f64, f64) {
@@ -72,19 +90,7 @@ async fn a_models_thermometer_is_in_its_budget_and_its_nonconformity_holds_it(
     #[values(Sqlite, Postgres)] engine: Engine,
 ) {
     let mut app = TestApp::spawn(engine).await;
-    for (id, s) in [
-        (
-            "DH-1",
-            standard("tumble_stand", json!({"angle_std_arcsec": 2.0})),
-        ),
-        (
-            "TH-1",
-            standard("thermometer", json!({"temperature_std_c": U_T})),
-        ),
-    ] {
-        let res = app.put(&format!("/v1/standards/{id}"), ADMIN, &s).await;
-        assert_eq!(res.status(), StatusCode::CREATED);
-    }
+    stand_and_thermometer(&app, U_T).await;
     let with = stored(
         &app,
         "MEMS-TH",

@@ -18,7 +18,7 @@ use accelcal::domain::timestamp::Timestamp;
 use accelcal_testkit::Engine::{Postgres, Sqlite};
 use accelcal_testkit::*;
 
-use crate::thermal_standards::{DAY, ago, read, standard};
+use crate::thermal_standards::{DAY, ago, read, stand_and_thermometer, standard};
 use crate::thermal_stored::guarded;
 use crate::thermal_triad::{body, f};
 
@@ -40,19 +40,7 @@ async fn a_typed_triads_model_is_judged_element_by_element_with_its_thermometer(
     #[values(Sqlite, Postgres)] engine: Engine,
 ) {
     let app = TestApp::spawn(engine).await;
-    for (id, s) in [
-        (
-            "DH-1",
-            standard("tumble_stand", json!({"angle_std_arcsec": 2.0})),
-        ),
-        (
-            "TH-1",
-            standard("thermometer", json!({"temperature_std_c": U_T})),
-        ),
-    ] {
-        let res = app.put(&format!("/v1/standards/{id}"), ADMIN, &s).await;
-        assert_eq!(res.status(), StatusCode::CREATED);
-    }
+    stand_and_thermometer(&app, U_T).await;
     // b_x rises to 0.122 m/s² at 60 °C (past 0.09), S_zz to 9.909 m/s² per
     // g (past 9.9); the rest stay well inside.
     let limits = json!({"k0": {"min": -0.2, "max": 0.09}, "ki": {"min": 9.7, "max": 9.9},

@@ -29,6 +29,7 @@ use accelcal_core::coverage::Coverage;
 use accelcal_core::thermal::Polynomial;
 use maud::html;
 
+use crate::domain::thermal::decision::ThermalTermDecision;
 use crate::http::ui::certificate::{Context, PAPER, standards};
 use crate::http::ui::document::{Admin, Column, DccText, Document, Judged, Printed, Quantity};
 use crate::http::ui::format::term_unit;
@@ -109,17 +110,27 @@ pub fn admin(d: &ThermalDoc) -> Admin<'_> {
         item_condition: None,
         supersedes: d.supersedes.as_ref(),
         standards: &d.standards,
-        judged: d.decision.as_ref().map(|dec| {
-            Judged::of(
-                rule_name(dec.rule),
-                dec.verdict.as_str(),
-                dec.terms
-                    .iter()
-                    .map(|(_, t)| (t.worst.verdict.as_str(), t.worst.value, t.min, t.max)),
-            )
-        }),
+        judged: d
+            .decision
+            .as_ref()
+            .map(|dec| judged(dec.rule, dec.verdict, dec.terms.iter().map(|(_, t)| t))),
         due_at: d.due_at.as_deref(),
     }
+}
+
+/// The statement of conformity of a model judged by `rule` to `verdict`
+/// over `terms` (a single axis's coefficients or a triad's elements):
+/// each by its worst judgement.
+pub fn judged<'a>(
+    rule: accelcal_core::decision::Rule,
+    verdict: accelcal_core::decision::Verdict,
+    terms: impl Iterator<Item = &'a ThermalTermDecision>,
+) -> Judged<'static> {
+    Judged::of(
+        rule_name(rule),
+        verdict.as_str(),
+        terms.map(|t| (t.worst.verdict.as_str(), t.worst.value, t.min, t.max)),
+    )
 }
 
 /// What the fit did, in words: set points, weights, degree and inflation.

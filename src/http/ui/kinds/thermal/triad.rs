@@ -15,9 +15,7 @@ use super::polynomials;
 use crate::domain::thermal::decision::TriadThermalDecision;
 use crate::http::ui::badge;
 use crate::http::ui::certificate::{Context, PAPER, standards};
-use crate::http::ui::document::{
-    Admin, Column, DccText, Document, Judged, Page, Printed, Quantity,
-};
+use crate::http::ui::document::{Admin, Column, DccText, Document, Page, Printed, Quantity};
 use crate::http::ui::format::{Notation, num, unc};
 use crate::http::ui::kinds::triad::meaning;
 use crate::http::ui::stored::when;
@@ -214,15 +212,10 @@ pub fn document<'a>(d: &'a ThermalTriadDoc, c: &Context) -> Document<'a> {
             item_condition: None,
             supersedes: d.supersedes.as_ref(),
             standards: &d.standards,
-            judged: d.decision.as_ref().map(|dec| {
-                Judged::of(
-                    rule_name(dec.rule),
-                    dec.verdict.as_str(),
-                    dec.elements
-                        .values()
-                        .map(|t| (t.worst.verdict.as_str(), t.worst.value, t.min, t.max)),
-                )
-            }),
+            judged: d
+                .decision
+                .as_ref()
+                .map(|dec| super::judged(dec.rule, dec.verdict, dec.elements.values())),
             due_at: d.due_at.as_deref(),
         },
         running: format!("{} (triad temperature model)", d.sensor_id),
