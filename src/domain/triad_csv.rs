@@ -155,6 +155,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         runs: None,
         batches: None,
         static_positions: None,
+        static_temperatures_c: None,
         recording: None,
     };
     let allowed: &[&str] = if columns == RECORDING {

@@ -39,7 +39,7 @@ pub fn planted_with(t: f64, scale_tc: f64) -> ([f64; 3], [[f64; 3]; 3]) {
 }
 
 /// A deterministic deviate in (−1, 1) for `k`.
-fn jitter(k: u64) -> f64 {
+pub(crate) fn jitter(k: u64) -> f64 {
     let x = k.wrapping_mul(0x9e37_79b9_7f4a_7c15).rotate_left(23) ^ 0x2545_f491_4f6c_dd1d;
     (x % 2_000_001) as f64 / 1_000_000.0 - 1.0
 }
@@ -262,13 +262,14 @@ async fn refusals_name_what_to_fix() {
         detail.contains("add a set point at or below 14 °C or at or above 29.99 °C"),
         "{p}"
     );
-    // Unknown orientations, second-order terms: not modelled.
+    // Static positions without their temperatures; second-order terms:
+    // not modelled.
     let p = refused(
         json!({"unit": "m/s2", "static_positions": vec![vec![[0.0, 0.0, 9.8]]; 9]}),
         thermal,
     )
     .await;
-    assert_eq!(pointer(&p), "/orientations", "{p}");
+    assert_eq!(pointer(&p), "/static_temperatures_c", "{p}");
     let mut b = body(&CHAMBER);
     b["second_order"] = json!(true);
     assert_eq!(pointer(&refused(b, thermal).await), "/second_order");

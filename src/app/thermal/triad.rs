@@ -31,7 +31,6 @@ use crate::domain::standards::UsedStandard;
 use crate::domain::thermal::decision::{TriadThermalDecision, decide_triad_model};
 use crate::domain::thermal::{Fit, TriadThermalModel, triad_model};
 use crate::domain::timestamp::Timestamp;
-use crate::domain::triad::KNOWN_ORIENTATIONS;
 use crate::store::{NewCalibration, TriadElements};
 
 /// A stored triad's temperature model's result document (`POST
@@ -56,7 +55,8 @@ pub struct StoredThermalTriad {
     pub supersedes: Option<Supersedes>,
     /// The outputs' unit.
     pub unit: String,
-    /// The runs submitted.
+    /// The runs submitted (the static positions, of a model from the
+    /// gravity magnitude).
     pub runs: usize,
     /// `T_ref`, °C: where `b`, `S` and `T` hold.
     pub reference_c: f64,
@@ -104,7 +104,7 @@ pub fn elements_at(model: &TriadThermalModel, temperature_c: f64) -> Option<Tria
     let triad = accelcal_core::triad::Triad::linear(at.b, at.s);
     let t = crate::domain::triad::invert(&triad)?;
     Some(TriadElements {
-        method: KNOWN_ORIENTATIONS.to_owned(),
+        method: model.method.clone(),
         b: at.b,
         b_std_errors: Some(at.b_std_errors),
         s: at.s,

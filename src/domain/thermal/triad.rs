@@ -10,14 +10,24 @@
 //! has its own degree.
 
 use accelcal_core::TermMap;
+use accelcal_core::gravity_fit::{self, MIN_POSITIONS};
 use accelcal_core::thermal::{Options, Point, Polynomial};
 use accelcal_core::triad::{AXES, TriadRun, TriadTest};
 use serde::{Deserialize, Serialize};
 
 use super::super::field::Invalid;
-use super::super::triad::{Form, TriadSubmission};
+use super::super::triad::{
+    FIXED_BY_CONVENTION, Form, GRAVITY_MAGNITUDE, KNOWN_ORIENTATIONS, Slot, TriadSubmission,
+    row_terms,
+};
 use super::at::read;
 use super::{ThermalParams, fitted, grouped, held, list, round, selection};
+
+/// `known_orientations`: what a model stored before the method was
+/// stated used.
+fn known_orientations() -> String {
+    KNOWN_ORIENTATIONS.to_owned()
+}
 
 /// One set point of a triad, calibrated and fused.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -54,6 +64,13 @@ pub struct TriadThermalModel {
     pub sensor_id: Option<String>,
     /// The outputs' unit.
     pub unit: String,
+    /// How each set point was calibrated: `known_orientations` (runs at
+    /// known orientations), or `gravity_magnitude` (static positions, the
+    /// frame fixed by the sensor's x axis and xy-plane: `S_xy`, `S_xz`,
+    /// `S_yz` are zero by convention, not measured, and their polynomials
+    /// exactly zero).
+    #[serde(default = "known_orientations")]
+    pub method: String,
     /// The tolerance the runs were grouped with, K.
     pub tolerance_k: f64,
     /// How each degree was chosen (`backward`, `forward`), or `fixed`.
@@ -78,40 +95,116 @@ pub struct TriadThermalModel {
     pub thermometer_std_c: Option<f64>,
 }
 
-/// The temperature model of the triad `sub` (module doc), its runs
-/// grouped within `tolerance_k` and each polynomial fitted with `options`.
+/// The temperature model of the triad `sub` (module doc), its runs (or
+/// static positions) grouped within `tolerance_k` and each polynomial
+/// fitted with `options`.
 pub fn triad_model(
     sub: &TriadSubmission,
     tolerance_k: f64,
     options: &Options,
 ) -> Result<TriadThermalModel, Invalid> {
-    let Form::Known {
-        positions,
-        runs,
-        batches,
-        second_order,
-        temperatures_c,
-        position_temperatures_c,
-    } = &sub.form
-    else {
-        return Err(Invalid::one(
-            "/orientations",
-            "is required: a triad's temperature model is identified from known orientations \
-             (`orientations` and `runs`, each run with its `temperature_c`)",
-        ));
+    let (method, set_points, at, options) = match &sub.form {
+        Form::Known {
+            positions,
+            runs,
+            batches,
+            second_order,
+            temperatures_c,
+            position_temperatures_c,
+        } => {
+            if *second_order {
+                return Err(Invalid::one(
+                    "/second_order",
+                    "second-order terms are not modelled over temperature: omit it",
+                ));
+            }
+            held(position_temperatures_c, tolerance_k)?;
+            let (groups, at, options) = grouped(temperatures_c.as_deref(), tolerance_k, options)?;
+            let set_points = known(positions, runs, *batches, groups)?;
+            (KNOWN_ORIENTATIONS, set_points, at, options)
+        }
+        Form::Unknown {
+            means,
+            temperatures_c,
+        } => {
+            let Some(temperatures_c) = temperatures_c else {
+                return Err(Invalid::one(
+                    "/static_temperatures_c",
+                    "is required: a triad's temperature model from static positions needs each \
+                     position's temperature",
+                ));
+            };
+            let (groups, at, options) = grouped(Some(temperatures_c), tolerance_k, options)?;
+            (GRAVITY_MAGNITUDE, unknown(means, groups)?, at, options)
+        }
+        Form::Recording { .. } => {
+            return Err(Invalid::one(
+                "/recording",
+                "a recording is not modelled over temperature: give its static positions \
+                 (`static_positions`) with each one's temperature (`static_temperatures_c`), \
+                 or known orientations with each run's `temperature_c`",
+            ));
+        }
     };
-    if *second_order {
-        return Err(Invalid::one(
-            "/second_order",
-            "second-order terms are not modelled over temperature: omit it",
-        ));
+    let fit = |name: String, element: &dyn Fn(&TriadSetPoint) -> (f64, f64)| {
+        let points: Vec<Point> = set_points
+            .iter()
+            .map(|s| {
+                let (value, std_uncertainty) = element(s);
+                Point {
+                    temperature_c: s.temperature_c,
+                    value,
+                    std_uncertainty,
+                }
+            })
+            .collect();
+        fitted(&name, &points, &options, &at)
+    };
+    let mut b = Vec::with_capacity(3);
+    let mut s = Vec::with_capacity(9);
+    let by_convention = method == GRAVITY_MAGNITUDE;
+    for (m, row) in AXES.iter().enumerate() {
+        b.push(fit(format!("b_{row}"), &|p| (p.b[m], p.b_std_errors[m]))?);
+        for (n, column) in AXES.iter().enumerate() {
+            if by_convention && FIXED_BY_CONVENTION.contains(&(m, n)) {
+                s.push(zero(&set_points, &at));
+                continue;
+            }
+            s.push(fit(format!("S_{row}{column}"), &|p| {
+                (p.s[m][n], p.s_std_errors[m][n])
+            })?);
+        }
     }
-    held(position_temperatures_c, tolerance_k)?;
-    let (groups, at, options) = grouped(temperatures_c.as_deref(), tolerance_k, options)?;
+    let mut s = s.into_iter();
+    let mut row = || -> [Polynomial; 3] { std::array::from_fn(|_| s.next().expect("nine")) };
+    let s = [row(), row(), row()];
+    Ok(TriadThermalModel {
+        sensor_id: sub.sensor_id.clone(),
+        unit: sub.unit.clone(),
+        method: method.to_owned(),
+        tolerance_k,
+        selection: selection(&options),
+        fitted_with: ThermalParams::default(),
+        set_points,
+        b: b.try_into().expect("three"),
+        s,
+        thermometer_std_c: None,
+    })
+}
+
+/// Each set point of `groups` (runs at known `positions`) calibrated and
+/// fused as a triad is, with `batches` (fewer where a set point has fewer
+/// than two runs a batch).
+fn known(
+    positions: &[[f64; 3]],
+    runs: &[TriadRun],
+    batches: usize,
+    groups: Vec<accelcal_core::thermal::SetPoint>,
+) -> Result<Vec<TriadSetPoint>, Invalid> {
     let mut set_points = Vec::with_capacity(groups.len());
     for g in groups {
         let of_group: Vec<TriadRun> = g.runs.iter().map(|&j| runs[j].clone()).collect();
-        let used = (*batches).min((of_group.len() / 2).max(1));
+        let used = batches.min((of_group.len() / 2).max(1));
         let cal = TriadTest::new(positions, &of_group)
             .and_then(|t| t.calibrate(used))
             .map_err(|e| {
@@ -145,44 +238,88 @@ pub fn triad_model(
             })),
         });
     }
-    let fit = |name: String, element: &dyn Fn(&TriadSetPoint) -> (f64, f64)| {
-        let points: Vec<Point> = set_points
-            .iter()
-            .map(|s| {
-                let (value, std_uncertainty) = element(s);
-                Point {
-                    temperature_c: s.temperature_c,
-                    value,
-                    std_uncertainty,
-                }
-            })
-            .collect();
-        fitted(&name, &points, &options, &at)
-    };
-    let mut b = Vec::with_capacity(3);
-    let mut s = Vec::with_capacity(9);
-    for (m, row) in AXES.iter().enumerate() {
-        b.push(fit(format!("b_{row}"), &|p| (p.b[m], p.b_std_errors[m]))?);
-        for (n, column) in AXES.iter().enumerate() {
-            s.push(fit(format!("S_{row}{column}"), &|p| {
-                (p.s[m][n], p.s_std_errors[m][n])
-            })?);
+    Ok(set_points)
+}
+
+/// Each set point of `groups` (static positions whose mean outputs are
+/// `means`) fitted from the gravity magnitude on its own, as
+/// `POST /v1/identify/triad` fits its positions alone: at least
+/// [`MIN_POSITIONS`]` + 1` positions each, so that every element has a
+/// standard error to weight its polynomial with; every element's degrees of
+/// freedom the fit's `n − 9`.
+fn unknown(
+    means: &[[f64; 3]],
+    groups: Vec<accelcal_core::thermal::SetPoint>,
+) -> Result<Vec<TriadSetPoint>, Invalid> {
+    let mut set_points = Vec::with_capacity(groups.len());
+    for g in groups {
+        let at = format!("/static_positions/{}", g.runs[0]);
+        let here = || format!("the set point at {} °C", round(g.temperature_c));
+        if g.runs.len() <= MIN_POSITIONS {
+            return Err(Invalid::one(
+                at,
+                format!(
+                    "{} holds {} static positions (positions {}): at least {} are needed for \
+                     b and S with standard errors at one temperature",
+                    here(),
+                    g.runs.len(),
+                    list(&g.runs),
+                    MIN_POSITIONS + 1
+                ),
+            ));
         }
+        let of_group: Vec<[f64; 3]> = g.runs.iter().map(|&j| means[j]).collect();
+        let f = gravity_fit::fit(&of_group)
+            .map_err(|e| Invalid::one(at.clone(), format!("{}: {e}", here())))?;
+        let (Some(b_std), Some(s_std)) = (f.bias_std, f.s_std) else {
+            return Err(Invalid::one(at, format!("{}: no standard errors", here())));
+        };
+        let dof = f.degrees_of_freedom as f64;
+        let axis_dof = |m: usize| {
+            TermMap(
+                row_terms(m)
+                    .into_iter()
+                    .filter(|(_, slot)| match slot {
+                        Slot::B => true,
+                        Slot::S(k) => !FIXED_BY_CONVENTION.contains(&(m, *k)),
+                        Slot::S2 => false,
+                    })
+                    .map(|(t, _)| (t, dof))
+                    .collect(),
+            )
+        };
+        set_points.push(TriadSetPoint {
+            temperature_c: g.temperature_c,
+            runs: g.runs,
+            batches: 1,
+            b: f.bias,
+            b_std_errors: b_std,
+            s: f.s,
+            s_std_errors: s_std,
+            axes_dof: Some(std::array::from_fn(axis_dof)),
+        });
     }
-    let mut s = s.into_iter();
-    let mut row = || -> [Polynomial; 3] { std::array::from_fn(|_| s.next().expect("nine")) };
-    let s = [row(), row(), row()];
-    Ok(TriadThermalModel {
-        sensor_id: sub.sensor_id.clone(),
-        unit: sub.unit.clone(),
-        tolerance_k,
-        selection: selection(&options),
-        fitted_with: ThermalParams::default(),
-        set_points,
-        b: b.try_into().expect("three"),
-        s,
-        thermometer_std_c: None,
-    })
+    Ok(set_points)
+}
+
+/// The polynomial of an element zero by the frame convention of a fit from
+/// the gravity magnitude: `0` of degree 0, exactly, on the set points'
+/// range about `T_ref` (not fitted: it is not measured).
+fn zero(set_points: &[TriadSetPoint], at: &[f64]) -> Polynomial {
+    let lo = set_points.first().map_or(f64::NAN, |s| s.temperature_c);
+    let hi = set_points.last().map_or(f64::NAN, |s| s.temperature_c);
+    Polynomial {
+        reference_c: at.first().copied().unwrap_or(f64::NAN),
+        degree: 0,
+        coefficients: vec![0.0],
+        std_uncertainties: vec![0.0],
+        covariance: vec![vec![0.0]],
+        chi2: 0.0,
+        dof: set_points.len().saturating_sub(1),
+        inflation: 1.0,
+        range_c: [lo, hi],
+        selection: Vec::new(),
+    }
 }
 
 /// A triad's model read at one temperature: every element of `b` and `S`

@@ -60,6 +60,11 @@ pub struct TriadBody {
     /// `(u_x, u_y, u_z)` (at least nine positions).
     #[serde(default)]
     pub static_positions: Option<Vec<Vec<[f64; 3]>>>,
+    /// With `static_positions`: each position's temperature, °C (−100 to
+    /// 200), one per position; used by `POST /v1/identify/thermal/triad`,
+    /// which groups the positions into set points by it.
+    #[serde(default)]
+    pub static_temperatures_c: Option<Vec<f64>>,
     /// Unknown orientations from one continuous recording.
     #[serde(default)]
     pub recording: Option<RecordingBody>,
@@ -290,6 +295,8 @@ pub enum Form {
     Unknown {
         /// Per position, the mean of its samples.
         means: Vec<[f64; 3]>,
+        /// Per position, its temperature, °C, when given.
+        temperatures_c: Option<Vec<f64>>,
     },
     /// A recording.
     Recording {

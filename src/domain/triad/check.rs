@@ -149,6 +149,13 @@ impl TriadBody {
             self.static_positions.is_some(),
             self.recording.is_some(),
         ];
+        if self.static_temperatures_c.is_some() && self.static_positions.is_none() {
+            errors.add(
+                root.key("static_temperatures_c"),
+                "is for `static_positions`, one per position: with `orientations` each run \
+                 gives its `temperature_c`",
+            );
+        }
         if self.second_order == Some(true) && self.orientations.is_none() {
             errors.add(
                 root.key("second_order"),
@@ -227,7 +234,14 @@ impl TriadBody {
                 } else {
                     Vec::new()
                 };
-                Some(Form::Unknown { means })
+                let temperatures_c = self
+                    .static_temperatures_c
+                    .as_deref()
+                    .and_then(|ts| position_temperatures(ts, positions.len(), &mut errors));
+                Some(Form::Unknown {
+                    means,
+                    temperatures_c,
+                })
             }
             [false, false, true] => {
                 let r = self.recording.expect("given");
@@ -438,4 +452,36 @@ fn temperatures(
         return (None, Vec::new());
     }
     (Some(out), each)
+}
+
+/// `static_temperatures_c`: one plausible temperature per static position
+/// (of `positions`), or the errors.
+fn position_temperatures(ts: &[f64], positions: usize, errors: &mut Errors) -> Option<Vec<f64>> {
+    let at = Loc::Root.key("static_temperatures_c");
+    if ts.len() != positions {
+        errors.add(
+            at,
+            format!(
+                "must give one temperature per static position ({positions}), not {}",
+                ts.len()
+            ),
+        );
+        return None;
+    }
+    let range = super::super::limits::TEMPERATURE_C;
+    let mut ok = true;
+    for (i, t) in ts.iter().enumerate() {
+        if !range.contains(t) {
+            ok = false;
+            errors.add(
+                at.index(i),
+                format!(
+                    "must be a temperature from {} to {} °C",
+                    range.start(),
+                    range.end()
+                ),
+            );
+        }
+    }
+    ok.then(|| ts.to_vec())
 }

@@ -169,7 +169,15 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             r.axes = Some(axes);
             Ok(r)
         }
-        Form::Unknown { means } => {
+        Form::Unknown {
+            temperatures_c: Some(_),
+            ..
+        } => Err(problem(
+            Loc::Root.key("static_temperatures_c"),
+            "positions at several temperatures make a temperature model: POST \
+             /v1/identify/thermal/triad; a triad calibrated at one temperature takes none",
+        )),
+        Form::Unknown { means, .. } => {
             let f = gravity_fit::fit(means)
                 .map_err(|e| fit_problem(Loc::Root.key("static_positions"), &e))?;
             let mut r = unknown(base, f, None, &sub);

@@ -101,11 +101,17 @@ marker_schema!(
         .property("sensor_id", ObjectBuilder::new().schema_type(
             utoipa::openapi::schema::SchemaType::from_iter([Type::String, Type::Null])))
         .property("unit", of_type(Type::String))
+        .property("method", of_type(Type::String)
+            .enum_values(Some(["known_orientations", "gravity_magnitude"]))
+            .description(Some("How each set point was calibrated: runs at known orientations, or \
+                static positions fitted from the gravity magnitude (S_xy, S_xz, S_yz zero by the \
+                frame convention, their polynomials exactly zero).")))
         .property("tolerance_k", of_type(Type::Number).minimum(Some(0.0)))
         .property("selection", of_type(Type::String).enum_values(Some(["backward", "forward", "fixed"])))
         .property("set_points", ArrayBuilder::new().items(ObjectBuilder::new()
             .property("temperature_c", of_type(Type::Number))
-            .property("runs", ArrayBuilder::new().items(of_type(Type::Integer).minimum(Some(0.0))))
+            .property("runs", ArrayBuilder::new().items(of_type(Type::Integer).minimum(Some(0.0)))
+                .description(Some("Its runs, or its static positions (indices).")))
             .property("batches", of_type(Type::Integer).minimum(Some(1.0)))
             .property("b", triple(of_type(Type::Number).into()))
             .property("b_std_errors", triple(of_type(Type::Number).into()))

@@ -10,7 +10,9 @@
 //! judged exactly as a single axis's model is ([`decide_model`]: every
 //! limited term at every set point and across the range, its worst), and
 //! each judgement named by the element it is (`b_x`, `S_xy`). The model's
-//! verdict is the worst of its elements'.
+//! verdict is the worst of its elements'. Of a model from the gravity
+//! magnitude, `S_xy`, `S_xz`, `S_yz` are zero by the frame convention and
+//! are not judged.
 
 use std::collections::BTreeMap;
 
@@ -21,7 +23,7 @@ use serde::{Deserialize, Serialize};
 
 use super::super::{SetPointResult, ThermalModel, ThermalParams, TriadThermalModel};
 use super::{ThermalTermDecision, decide_model};
-use crate::domain::triad::{Slot, element, row_terms};
+use crate::domain::triad::{FIXED_BY_CONVENTION, GRAVITY_MAGNITUDE, Slot, element, row_terms};
 
 /// A triad's temperature model judged.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -42,6 +44,14 @@ fn slots(m: usize) -> impl Iterator<Item = (Term, Slot)> {
     row_terms(m)
         .into_iter()
         .filter(|(_, slot)| *slot != Slot::S2)
+}
+
+/// Whether axis `m`'s term at `slot` is zero by the frame convention of
+/// a model from the gravity magnitude: not measured, so not judged (as a
+/// triad's at one temperature is not).
+fn by_convention(model: &TriadThermalModel, m: usize, slot: Slot) -> bool {
+    model.method == GRAVITY_MAGNITUDE
+        && matches!(slot, Slot::S(k) if FIXED_BY_CONVENTION.contains(&(m, k)))
 }
 
 /// The element of `b` or `S` at `slot` of axis `m`.
@@ -106,7 +116,16 @@ pub fn decide_triad_model(
     let mut elements = BTreeMap::new();
     let mut verdict = Verdict::Pass;
     for m in 0..3 {
-        let judged = decide_model(&axis_model(model, m), rule, limits, coverage)?;
+        let measured = TermMap(
+            limits
+                .iter()
+                .filter(|(t, _)| {
+                    !slots(m).any(|(term, slot)| term == *t && by_convention(model, m, slot))
+                })
+                .map(|(t, l)| (t, *l))
+                .collect(),
+        );
+        let judged = decide_model(&axis_model(model, m), rule, &measured, coverage)?;
         verdict = verdict.max(judged.verdict);
         for (term, d) in judged.terms.0 {
             if let Some((_, slot)) = slots(m).find(|(t, _)| *t == term) {

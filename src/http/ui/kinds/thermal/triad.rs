@@ -13,6 +13,7 @@ use maud::{Markup, html};
 use super::page::{celsius, decision_table, polynomials_table, rule_name};
 use super::polynomials;
 use crate::domain::thermal::decision::TriadThermalDecision;
+use crate::domain::triad::{FIXED_BY_CONVENTION, GRAVITY_MAGNITUDE};
 use crate::http::ui::badge;
 use crate::http::ui::certificate::{Context, PAPER, standards};
 use crate::http::ui::document::{Admin, Column, DccText, Document, Page, Printed, Quantity};
@@ -41,7 +42,17 @@ pub fn quantities(d: &ThermalTriadDoc) -> Vec<Quantity> {
         };
         (name, meaning(matrix, m, k), unit, p)
     });
-    polynomials(each, d.coverage)
+    let mut out = polynomials(each, d.coverage);
+    if d.thermal.method == GRAVITY_MAGNITUDE {
+        for q in &mut out {
+            let (matrix, m, k) = element(&q.name);
+            if matrix == "S" && FIXED_BY_CONVENTION.contains(&(m, k)) {
+                q.fixed = Some("by the frame convention");
+                (q.std_error, q.expanded, q.covered) = (None, None, None);
+            }
+        }
+    }
+    out
 }
 
 /// `("b", m, m)` of `b_x`, `("S", m, k)` of `S_xy`.
@@ -90,7 +101,7 @@ fn facts(d: &ThermalTriadDoc) -> Markup {
     html! {
         div { dt { "Valid from" } dd { (celsius(d.range_c[0])) " to " (celsius(d.range_c[1])) " °C (the set points' span)" } }
         div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
-        div { dt { "Set points" } dd { (d.thermal.set_points.len()) " (runs within " (d.thermal.tolerance_k) " K), " (d.runs) " runs" } }
+        div { dt { "Set points" } dd { (d.thermal.set_points.len()) " (within " (d.thermal.tolerance_k) " K), " (d.runs) @if d.thermal.method == GRAVITY_MAGNITUDE { " static positions" } @else { " runs" } } }
         @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
         @if let Some(u) = d.thermal.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every element read at a temperature" } } }
     }
@@ -159,21 +170,34 @@ pub fn page(d: &ThermalTriadDoc) -> Page<'_> {
 /// What the fit did, in words.
 fn fitted(d: &ThermalTriadDoc) -> String {
     let m = &d.thermal;
+    let gravity = m.method == GRAVITY_MAGNITUDE;
     format!(
-        "Tumble tests of the triad in known orientations at {} temperature set points from {} \
-         to {} °C ({} runs; runs within {} K of a set point belong to it): each set point \
-         calibrated as a triad is, each axis's row of S and element of b by least squares per \
-         run and batch-estimation fusion. Each element's polynomial about T_ref = {} °C fitted \
+        "{} at {} temperature set points from {} to {} °C ({} {}; within {} K of a set point \
+         belong to it): {}. Each element's polynomial about T_ref = {} °C fitted \
          to the set points' fused values by weighted least squares (weights 1/u²), its degree \
          chosen by partial F tests at 1 % ({}), its covariance scaled by max(1, χ²/ν) when the \
          set points scatter more than their standard errors say. The model is valid from T_min \
          to T_max only; read at a temperature T, an element's standard uncertainty is \
          √(vᵀ C v), v_d = (T − T_ref)^d{}. Compensation applies T(T) = S(T)⁻¹.",
+        if gravity {
+            "Static positions of the triad in unknown orientations"
+        } else {
+            "Tumble tests of the triad in known orientations"
+        },
         m.set_points.len(),
         celsius(d.range_c[0]),
         celsius(d.range_c[1]),
         d.runs,
+        if gravity { "positions" } else { "runs" },
         m.tolerance_k,
+        if gravity {
+            "each set point's b and S found from the gravity magnitude on its own (S \
+             lower-triangular: the sensor's x axis and xy-plane define the frame, so S_xy, S_xz \
+             and S_yz are zero by convention, not measured)"
+        } else {
+            "each set point calibrated as a triad is, each axis's row of S and element of b by \
+             least squares per run and batch-estimation fusion"
+        },
         celsius(d.reference_c),
         m.selection,
         match m.thermometer_std_c {
@@ -257,9 +281,14 @@ pub fn document<'a>(d: &'a ThermalTriadDoc, c: &Context) -> Document<'a> {
                 celsius(d.range_c[0]),
                 celsius(d.range_c[1]),
             ),
-            method_name: "Tumble tests of the triad in known orientations at temperature set \
-                          points, each by least squares per run and batch-estimation fusion; \
-                          each element's polynomial by weighted least squares",
+            method_name: if d.thermal.method == GRAVITY_MAGNITUDE {
+                "Static positions of the triad at temperature set points, each fitted from the \
+                 gravity magnitude; each element's polynomial by weighted least squares"
+            } else {
+                "Tumble tests of the triad in known orientations at temperature set points, \
+                 each by least squares per run and batch-estimation fusion; each element's \
+                 polynomial by weighted least squares"
+            },
             method: fitted(d),
             reference: Some(PAPER),
             temperatures: Some(
