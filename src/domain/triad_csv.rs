@@ -12,6 +12,12 @@
 //! run,g_x,g_y,g_z,u_x,u_y,u_z      known orientations, one sample a row
 //! ```
 //!
+//! Static positions and runs may end with a `temperature_c` column, for a
+//! temperature model: the same on every row of a position (a position's
+//! temperature; refused, naming the line, where it differs within one); a
+//! run whose positions differ gives one per position (a chamber that
+//! drifts), else the run's.
+//!
 //! Static positions and runs are numbered in order of first appearance by
 //! their `position` or `run` value; with known orientations each run's
 //! positions are its distinct gravity vectors in order of first appearance,
@@ -23,13 +29,43 @@ use std::collections::HashMap;
 use super::field::{Errors, Invalid, Loc};
 use super::limits::MAX_TOTAL_SAMPLES;
 use super::triad::{
-    DetectorBody, OrientationsBody, RecordingBody, TriadBody, TriadRunBody, TriadStandBody,
+    DetectorBody, OrientationsBody, RecordingBody, RunTemperature, TriadBody, TriadRunBody,
+    TriadStandBody,
 };
 
 /// The three headers.
 const RECORDING: [&str; 3] = ["u_x", "u_y", "u_z"];
 const STATIC: [&str; 4] = ["position", "u_x", "u_y", "u_z"];
 const KNOWN: [&str; 7] = ["run", "g_x", "g_y", "g_z", "u_x", "u_y", "u_z"];
+/// The column a temperature model's layouts end with.
+const TEMPERATURE: &str = "temperature_c";
+
+/// Whether `columns` are `layout`, with the temperature column (`Some(true)`)
+/// or without (`Some(false)`).
+fn layout(columns: &[&str], layout: &[&str]) -> Option<bool> {
+    match columns.split_last() {
+        _ if columns == layout => Some(false),
+        Some((&last, rest)) if last == TEMPERATURE && rest == layout => Some(true),
+        _ => None,
+    }
+}
+
+/// A position's temperature: the one on its first row, each later row of
+/// it (on `line`, reading `t`) the same, else an error naming the line.
+fn same(kept: &mut Option<f64>, t: f64, line: u64, errors: &mut Errors) {
+    match kept {
+        None => *kept = Some(t),
+        Some(k) if *k == t => {}
+        Some(k) => at_line(
+            errors,
+            line,
+            format!(
+                "`temperature_c` {t} differs from {k} on the position's earlier rows: one \
+                 temperature a position"
+            ),
+        ),
+    }
+}
 
 fn at_line(errors: &mut Errors, line: u64, detail: impl std::fmt::Display) {
     errors.add(Loc::Root, format!("CSV line {line}: {detail}"));
@@ -197,18 +233,27 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             "min_static_s",
             "gravity_rel_std",
         ]
-    } else if columns == STATIC {
+    } else if let Some(with_t) = layout(&columns, &STATIC) {
         let mut order: HashMap<String, usize> = HashMap::new();
         let mut positions: Vec<Vec<[f64; 3]>> = Vec::new();
+        let mut temperatures: Vec<Option<f64>> = Vec::new();
         for (line, f) in &rows {
             let next = order.len();
             let p = *order.entry(f[0].clone()).or_insert(next);
             if p == positions.len() {
                 positions.push(Vec::new());
+                temperatures.push(None);
             }
-            positions[p].push(triple(*line, &f[1..], &mut errors));
+            positions[p].push(triple(*line, &f[1..4], &mut errors));
+            if with_t {
+                let t = value(*line, &f[4], &mut errors);
+                same(&mut temperatures[p], t, *line, &mut errors);
+            }
         }
         body.static_positions = Some(positions);
+        if with_t {
+            body.static_temperatures_c = temperatures.into_iter().collect();
+        }
         body.stand = gravity_only(number("gravity_rel_std", &mut errors));
         &[
             "sensor_id",
@@ -218,8 +263,8 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             "unit",
             "gravity_rel_std",
         ]
-    } else if columns == KNOWN {
-        known(&rows, &mut body, &mut errors);
+    } else if let Some(with_t) = layout(&columns, &KNOWN) {
+        known(&rows, with_t, &mut body, &mut errors);
         body.batches = number("batches", &mut errors).map(|b| b as usize);
         body.second_order = match meta.get("second_order") {
             None => None,
@@ -254,7 +299,8 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             &mut errors,
             header_line,
             "the header must be `u_x,u_y,u_z` (a recording), `position,u_x,u_y,u_z` (static \
-             positions) or `run,g_x,g_y,g_z,u_x,u_y,u_z` (known orientations)",
+             positions) or `run,g_x,g_y,g_z,u_x,u_y,u_z` (known orientations), the last two \
+             optionally ending with `temperature_c`",
         );
         &[]
     };
@@ -274,26 +320,39 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
     errors.finish(|| body)
 }
 
-/// Known orientations: runs by `run`, positions by gravity vector.
-fn known(rows: &[(u64, Vec<String>)], body: &mut TriadBody, errors: &mut Errors) {
+/// Known orientations: runs by `run`, positions by gravity vector; with
+/// `with_t`, each position's temperature from the last column (module doc).
+fn known(rows: &[(u64, Vec<String>)], with_t: bool, body: &mut TriadBody, errors: &mut Errors) {
     let mut run_order: HashMap<String, usize> = HashMap::new();
     // Per run: its positions' vectors in order, and their samples.
     let mut runs: Vec<Visits> = Vec::new();
+    // Per run: each position's temperature.
+    let mut temperatures: Vec<Vec<Option<f64>>> = Vec::new();
     for (line, f) in rows {
         let next = run_order.len();
         let j = *run_order.entry(f[0].clone()).or_insert(next);
         if j == runs.len() {
             runs.push((Vec::new(), Vec::new()));
+            temperatures.push(Vec::new());
         }
         let g = triple(*line, &f[1..4], errors);
         let u = triple(*line, &f[4..7], errors);
         let (gs, samples) = &mut runs[j];
-        match gs.iter().position(|x| *x == g) {
-            Some(p) => samples[p].push(u),
+        let p = match gs.iter().position(|x| *x == g) {
+            Some(p) => {
+                samples[p].push(u);
+                p
+            }
             None => {
                 gs.push(g);
                 samples.push(vec![u]);
+                temperatures[j].push(None);
+                gs.len() - 1
             }
+        };
+        if with_t {
+            let t = value(*line, &f[7], errors);
+            same(&mut temperatures[j][p], t, *line, errors);
         }
     }
     let Some((first, _)) = runs.first() else {
@@ -314,12 +373,24 @@ fn known(rows: &[(u64, Vec<String>)], body: &mut TriadBody, errors: &mut Errors)
     body.orientations = Some(OrientationsBody::Vectors(first.clone()));
     body.runs = Some(
         runs.into_iter()
-            .map(|(_, samples)| TriadRunBody {
+            .zip(temperatures)
+            .map(|((_, samples), ts)| TriadRunBody {
                 samples,
-                temperature_c: None,
+                temperature_c: run_temperature(ts),
             })
             .collect(),
     );
+}
+
+/// A run's temperature from its positions' (none without the column):
+/// the run's when they agree, else one per position.
+fn run_temperature(ts: Vec<Option<f64>>) -> Option<RunTemperature> {
+    let ts: Vec<f64> = ts.into_iter().collect::<Option<_>>()?;
+    match ts.first() {
+        Some(&t) if ts.iter().all(|x| *x == t) => Some(RunTemperature::One(t)),
+        Some(_) => Some(RunTemperature::Each(ts)),
+        None => None,
+    }
 }
 
 #[cfg(test)]
@@ -355,6 +426,29 @@ mod tests {
             vec![vec![[9.7, 0.0, 0.0]], vec![[0.0, 9.9, 0.0]]]
         );
         assert_eq!(kn.batches, Some(1));
+    }
+
+    #[test]
+    fn a_temperature_column_gives_each_position_its_temperature() {
+        let st = read("position,u_x,u_y,u_z,temperature_c\nA,1,0,0,20\nB,0,1,0,40\nA,1.5,0,0,20\n")
+            .unwrap();
+        assert_eq!(st.static_temperatures_c, Some(vec![20.0, 40.0]));
+        let kn = read(
+            "run,g_x,g_y,g_z,u_x,u_y,u_z,temperature_c\n1,1,0,0,9.8,0,0,20\n1,0,1,0,0,9.8,0,20\n\
+             2,1,0,0,9.7,0,0,40\n2,1,0,0,9.7,0,0,40\n2,0,1,0,0,9.9,0,40.5\n",
+        )
+        .unwrap();
+        let runs = kn.runs.unwrap();
+        assert_eq!(runs[0].temperature_c, Some(RunTemperature::One(20.0)));
+        assert_eq!(
+            runs[1].temperature_c,
+            Some(RunTemperature::Each(vec![40.0, 40.5]))
+        );
+        let e = read("position,u_x,u_y,u_z,temperature_c\nA,1,0,0,20\nA,1,0,0,21\n").unwrap_err();
+        assert!(
+            format!("{e:?}").contains("CSV line 3: `temperature_c` 21 differs from 20"),
+            "{e:?}"
+        );
     }
 
     #[test]

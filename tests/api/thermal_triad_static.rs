@@ -298,3 +298,74 @@ async fn static_positions_refusals_name_what_to_fix() {
         "{p}"
     );
 }
+
+/// The CSV layouts with a `temperature_c` column: the static positions'
+/// and the known orientations' (a drifting run one per position) give the
+/// models their JSON gives, to the last bit. Sent here as the CSV text a
+/// station writes of the same body, `{}` formatting every number so that
+/// it reads back the same.
+#[tokio::test]
+async fn csv_with_a_temperature_column_gives_the_json_model() {
+    let app = TestApp::spawn(Sqlite).await;
+    let fit = |ct: &'static str, body: Vec<u8>| {
+        let app = &app;
+        async move {
+            let res = app
+                .client
+                .post(app.url("/v1/identify/thermal/triad"))
+                .bearer_auth(ADMIN)
+                .header("content-type", ct)
+                .body(body)
+                .send()
+                .await
+                .unwrap();
+            let status = res.status();
+            let r: Value = res.json().await.unwrap();
+            assert_eq!(status, StatusCode::OK, "{r}");
+            r
+        }
+    };
+    let json_fit = |b: &Value| fit("application/json", serde_json::to_vec(b).unwrap());
+
+    let b = body(&CHAMBER);
+    let mut csv = String::from("# unit: m/s2\nposition,u_x,u_y,u_z,temperature_c\n");
+    for (p, samples) in b["static_positions"].as_array().unwrap().iter().enumerate() {
+        let t = f(&b["static_temperatures_c"][p]);
+        for u in samples.as_array().unwrap() {
+            let [x, y, z] = [0, 1, 2].map(|k| f(&u[k]));
+            csv.push_str(&format!("P{p},{x},{y},{z},{t}\n"));
+        }
+    }
+    let mut want = json_fit(&b).await;
+    want["sensor_id"] = Value::Null;
+    assert_eq!(fit("text/csv", csv.into_bytes()).await, want);
+
+    let mut known = crate::thermal_triad::body(&CHAMBER);
+    let drift = [-0.1, -0.06, -0.02, 0.03, 0.07, 0.12];
+    let faces: [[f64; 3]; 6] = [
+        [1.0, 0.0, 0.0],
+        [-1.0, 0.0, 0.0],
+        [0.0, 1.0, 0.0],
+        [0.0, -1.0, 0.0],
+        [0.0, 0.0, 1.0],
+        [0.0, 0.0, -1.0],
+    ];
+    let mut csv =
+        String::from("# unit: m/s2\n# batches: 2\nrun,g_x,g_y,g_z,u_x,u_y,u_z,temperature_c\n");
+    for (j, run) in known["runs"].as_array_mut().unwrap().iter_mut().enumerate() {
+        let t = f(&run["temperature_c"]);
+        let each: Vec<f64> = drift.iter().map(|d| t + d).collect();
+        for (p, samples) in run["samples"].as_array().unwrap().iter().enumerate() {
+            let [gx, gy, gz] = faces[p];
+            for u in samples.as_array().unwrap() {
+                let [x, y, z] = [0, 1, 2].map(|k| f(&u[k]));
+                csv.push_str(&format!("{j},{gx},{gy},{gz},{x},{y},{z},{}\n", each[p]));
+            }
+        }
+        run["temperature_c"] = json!(each);
+    }
+    known["orientations"] = json!(faces);
+    let mut want = json_fit(&known).await;
+    want["sensor_id"] = Value::Null;
+    assert_eq!(fit("text/csv", csv.into_bytes()).await, want);
+}
