@@ -12,11 +12,11 @@
 //! run,g_x,g_y,g_z,u_x,u_y,u_z      known orientations, one sample a row
 //! ```
 //!
-//! Static positions and runs may end with a `temperature_c` column, for a
-//! temperature model: the same on every row of a position (a position's
-//! temperature; refused, naming the line, where it differs within one); a
-//! run whose positions differ gives one per position (a chamber that
-//! drifts), else the run's.
+//! Every layout may end with a `temperature_c` column, for a temperature
+//! model: a recording's is each sample's; static positions' and runs' the
+//! same on every row of a position (a position's temperature; refused,
+//! naming the line, where it differs within one), and a run whose positions
+//! differ gives one per position (a chamber that drifts), else the run's.
 //!
 //! Static positions and runs are numbered in order of first appearance by
 //! their `position` or `run` value; with known orientations each run's
@@ -194,11 +194,16 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
         static_temperatures_c: None,
         recording: None,
     };
-    let allowed: &[&str] = if columns == RECORDING {
+    let allowed: &[&str] = if let Some(with_t) = layout(&columns, &RECORDING) {
         let samples = rows
             .iter()
-            .map(|(l, f)| triple(*l, f, &mut errors))
+            .map(|(l, f)| triple(*l, &f[..3], &mut errors))
             .collect();
+        let temperature_c = with_t.then(|| {
+            rows.iter()
+                .map(|(l, f)| value(*l, &f[3], &mut errors))
+                .collect()
+        });
         let detector = DetectorBody {
             still_s: number("still_s", &mut errors),
             window_s: number("window_s", &mut errors),
@@ -212,6 +217,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
                     rate_hz,
                     samples,
                     detector: Some(detector),
+                    temperature_c,
                 })
             }
             None => at_line(
@@ -299,7 +305,7 @@ pub fn read(text: &str) -> Result<TriadBody, Invalid> {
             &mut errors,
             header_line,
             "the header must be `u_x,u_y,u_z` (a recording), `position,u_x,u_y,u_z` (static \
-             positions) or `run,g_x,g_y,g_z,u_x,u_y,u_z` (known orientations), the last two \
+             positions) or `run,g_x,g_y,g_z,u_x,u_y,u_z` (known orientations), each \
              optionally ending with `temperature_c`",
         );
         &[]
@@ -444,6 +450,11 @@ mod tests {
             runs[1].temperature_c,
             Some(RunTemperature::Each(vec![40.0, 40.5]))
         );
+        let rec =
+            read("# rate_hz: 10\nu_x,u_y,u_z,temperature_c\n0,0,9.8,20.5\n0,0,9.7,20.6\n").unwrap();
+        let r = rec.recording.unwrap();
+        assert_eq!(r.temperature_c, Some(vec![20.5, 20.6]));
+        assert_eq!(r.samples[1], [0.0, 0.0, 9.7]);
         let e = read("position,u_x,u_y,u_z,temperature_c\nA,1,0,0,20\nA,1,0,0,21\n").unwrap_err();
         assert!(
             format!("{e:?}").contains("CSV line 3: `temperature_c` 21 differs from 20"),

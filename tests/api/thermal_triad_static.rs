@@ -369,3 +369,129 @@ async fn csv_with_a_temperature_column_gives_the_json_model() {
     want["sensor_id"] = Value::Null;
     assert_eq!(fit("text/csv", csv.into_bytes()).await, want);
 }
+
+/// A continuous recording through the five set points at 25 Hz: each of
+/// the fourteen directions held 4 s (the first 5 s, the detector's still
+/// start), 1.5 s of motion between, every sample with its temperature
+/// (the set point's, within ±0.03 K).
+fn recording() -> Value {
+    let rate = 25.0;
+    let (mut samples, mut temperatures) = (Vec::new(), Vec::new());
+    let dirs = directions();
+    let mut k = 0u64;
+    for (sp, &t_sp) in CHAMBER.iter().enumerate() {
+        for (p, g) in dirs.iter().enumerate() {
+            let t = t_sp + 0.02 * jitter(7_000 + 100 * sp as u64 + p as u64);
+            let hold = if sp == 0 && p == 0 { 5.0 } else { 4.0 };
+            let u = outputs(t, *g);
+            for _ in 0..(hold * rate) as usize {
+                k += 1;
+                samples.push(
+                    (0..3)
+                        .map(|m| u[m] + 2e-4 * jitter(3 * k + m as u64))
+                        .collect::<Vec<f64>>(),
+                );
+                temperatures.push(t + 0.01 * jitter(5 * k + 1));
+            }
+            // Moving on to the next direction (or the next set point's first).
+            let next = outputs(t, dirs[(p + 1) % dirs.len()]);
+            let n = (1.5 * rate) as usize;
+            for i in 0..n {
+                let s = (i + 1) as f64 / (n + 1) as f64;
+                let wave = 3.0 * (std::f64::consts::PI * s).sin();
+                samples.push(
+                    (0..3)
+                        .map(|m| u[m] * (1.0 - s) + next[m] * s + wave)
+                        .collect(),
+                );
+                temperatures.push(t);
+            }
+        }
+    }
+    json!({"sensor_id": "IMU-R", "unit": "m/s2",
+           "recording": {"rate_hz": rate, "samples": samples, "temperature_c": temperatures}})
+}
+
+/// A recording with each sample's temperature: every static interval a
+/// position at its samples' mean temperature, fitted as static positions
+/// are; the planted model recovered; refusals name the recording's
+/// temperatures.
+#[tokio::test]
+async fn a_recording_with_its_temperatures_gives_the_planted_model() {
+    let app = TestApp::spawn(Sqlite).await;
+    let rec = recording();
+    let res = app.post("/v1/identify/thermal/triad", ADMIN, &rec).await;
+    let status = res.status();
+    let r: Value = res.json().await.unwrap();
+    assert_eq!(
+        status,
+        StatusCode::OK,
+        "{}",
+        r.to_string().get(..600).unwrap_or_default()
+    );
+    assert_eq!(r["method"], "gravity_magnitude");
+    let set_points = r["set_points"].as_array().unwrap();
+    assert_eq!(set_points.len(), 5);
+    for (s, sp) in set_points.iter().enumerate() {
+        assert_eq!(sp["runs"].as_array().unwrap().len(), 14, "set point {s}");
+        assert!((f(&sp["temperature_c"]) - CHAMBER[s]).abs() < 0.03);
+    }
+    let (b_ref, s_ref) = planted(20.0);
+    for (pointer, want) in [
+        ("/b/0", b_ref[0]),
+        ("/b/1", b_ref[1]),
+        ("/S/0/0", s_ref[0][0]),
+        ("/S/2/0", s_ref[2][0]),
+        ("/S/2/2", s_ref[2][2]),
+    ] {
+        let p = r.pointer(pointer).unwrap();
+        assert!(
+            (f(&p["coefficients"][0]) - want).abs() < 4.0 * f(&p["std_uncertainties"][0]),
+            "{pointer} at T_ref: {} against {want}",
+            p["coefficients"][0]
+        );
+    }
+    let p = r.pointer("/b/0").unwrap();
+    let (a1, u1) = (f(&p["coefficients"][1]), f(&p["std_uncertainties"][1]));
+    assert!((a1 - 1e-3).abs() < 4.0 * u1, "{a1} ± {u1}");
+    assert_eq!(r["S"][0][1]["coefficients"], json!([0.0]));
+
+    let refused = |b: Value, path: &'static str| {
+        let app = &app;
+        async move {
+            problem(
+                app.post(path, ADMIN, &b).await,
+                StatusCode::UNPROCESSABLE_ENTITY,
+            )
+            .await
+        }
+    };
+    let thermal = "/v1/identify/thermal/triad";
+    let mut none = rec.clone();
+    none["recording"]
+        .as_object_mut()
+        .unwrap()
+        .remove("temperature_c");
+    let p = refused(none, thermal).await;
+    assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
+    let mut short = rec.clone();
+    short["recording"]["temperature_c"]
+        .as_array_mut()
+        .unwrap()
+        .pop();
+    let p = refused(short, thermal).await;
+    assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
+    // The chamber warming by 1 K during the third hold.
+    let mut drifting = rec.clone();
+    let ts = drifting["recording"]["temperature_c"]
+        .as_array_mut()
+        .unwrap();
+    for (i, t) in ts.iter_mut().enumerate().skip(300).take(60) {
+        *t = json!(f(t) + (i - 300) as f64 / 60.0);
+    }
+    let p = refused(drifting, thermal).await;
+    assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
+    assert!(p["detail"].as_str().unwrap().contains("drifted"), "{p}");
+    let p = refused(rec, "/v1/identify/triad").await;
+    assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
+}

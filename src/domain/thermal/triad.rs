@@ -11,14 +11,15 @@
 
 use accelcal_core::TermMap;
 use accelcal_core::gravity_fit::{self, MIN_POSITIONS};
+use accelcal_core::static_intervals::{self, Detector};
 use accelcal_core::thermal::{Options, Point, Polynomial};
 use accelcal_core::triad::{AXES, TriadRun, TriadTest};
 use serde::{Deserialize, Serialize};
 
-use super::super::field::Invalid;
+use super::super::field::{Invalid, Loc};
 use super::super::triad::{
     FIXED_BY_CONVENTION, Form, GRAVITY_MAGNITUDE, KNOWN_ORIENTATIONS, Slot, TriadSubmission,
-    row_terms,
+    detect_problem, row_terms,
 };
 use super::at::read;
 use super::{ThermalParams, fitted, grouped, held, list, round, selection};
@@ -137,13 +138,23 @@ pub fn triad_model(
             let (groups, at, options) = grouped(Some(temperatures_c), tolerance_k, options)?;
             (GRAVITY_MAGNITUDE, unknown(means, groups)?, at, options)
         }
-        Form::Recording { .. } => {
-            return Err(Invalid::one(
-                "/recording",
-                "a recording is not modelled over temperature: give its static positions \
-                 (`static_positions`) with each one's temperature (`static_temperatures_c`), \
-                 or known orientations with each run's `temperature_c`",
-            ));
+        Form::Recording {
+            rate_hz,
+            samples,
+            detector,
+            temperatures_c,
+        } => {
+            let Some(temperatures_c) = temperatures_c else {
+                return Err(Invalid::one(
+                    "/recording/temperature_c",
+                    "is required: a triad's temperature model from a recording needs each \
+                     sample's temperature",
+                ));
+            };
+            let (means, at_interval) =
+                intervals(*rate_hz, samples, detector, temperatures_c, tolerance_k)?;
+            let (groups, at, options) = grouped(Some(&at_interval), tolerance_k, options)?;
+            (GRAVITY_MAGNITUDE, unknown(&means, groups)?, at, options)
         }
     };
     let fit = |name: String, element: &dyn Fn(&TriadSetPoint) -> (f64, f64)| {
@@ -300,6 +311,46 @@ fn unknown(
         });
     }
     Ok(set_points)
+}
+
+/// A recording's static intervals found as a triad's are
+/// ([`static_intervals::detect`]): each used interval's mean outputs, and
+/// its samples' mean temperature — refused where they span more than
+/// `tolerance_k` (a position must hold its set point).
+fn intervals(
+    rate_hz: f64,
+    samples: &[[f64; 3]],
+    detector: &Detector,
+    temperatures_c: &[f64],
+    tolerance_k: f64,
+) -> Result<(Vec<[f64; 3]>, Vec<f64>), Invalid> {
+    let at = Loc::Root.key("recording");
+    let found = static_intervals::detect(rate_hz, samples, detector)
+        .map_err(|e| detect_problem(&at, &e))?;
+    let mut means = Vec::new();
+    let mut temperatures = Vec::new();
+    for i in found.intervals.iter().filter(|i| i.rejected.is_none()) {
+        let ts = &temperatures_c[i.start..i.end];
+        let lo = ts.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = ts.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        if hi - lo > tolerance_k {
+            return Err(Invalid::one(
+                "/recording/temperature_c",
+                format!(
+                    "drifted {:.3} K during the static interval from {:.1} s to {:.1} s ({lo} \
+                     to {hi} °C), more than the set points' tolerance of {tolerance_k} K: hold \
+                     each orientation while the chamber holds its set point (or widen \
+                     tolerance_k)",
+                    hi - lo,
+                    i.start as f64 / rate_hz,
+                    i.end as f64 / rate_hz
+                ),
+            ));
+        }
+        means.push(i.mean);
+        temperatures.push(ts.iter().sum::<f64>() / ts.len() as f64);
+    }
+    Ok((means, temperatures))
 }
 
 /// The polynomial of an element zero by the frame convention of a fit from

@@ -212,6 +212,11 @@ pub struct RecordingBody {
     /// The detector's parameters (each defaulted).
     #[serde(default)]
     pub detector: Option<DetectorBody>,
+    /// Each sample's temperature, °C (−100 to 200), one per sample; used by
+    /// `POST /v1/identify/thermal/triad`: each static interval is a position
+    /// at its samples' mean temperature.
+    #[serde(default)]
+    pub temperature_c: Option<Vec<f64>>,
 }
 
 /// The static-interval detector's parameters.
@@ -306,5 +311,7 @@ pub enum Form {
         samples: Vec<[f64; 3]>,
         /// The detector.
         detector: Detector,
+        /// Each sample's temperature, °C, when given.
+        temperatures_c: Option<Vec<f64>>,
     },
 }

@@ -266,10 +266,14 @@ impl TriadBody {
                 }
                 let detector = r.detector.unwrap_or_default().detector();
                 check_detector(&detector, r.rate_hz, at.key("detector"), &mut errors);
+                let temperatures_c = r.temperature_c.filter(|ts| {
+                    sample_temperatures(ts, r.samples.len(), at.key("temperature_c"), &mut errors)
+                });
                 Some(Form::Recording {
                     rate_hz: r.rate_hz,
                     samples: r.samples,
                     detector,
+                    temperatures_c,
                 })
             }
             _ => {
@@ -484,4 +488,34 @@ fn position_temperatures(ts: &[f64], positions: usize, errors: &mut Errors) -> O
         }
     }
     ok.then(|| ts.to_vec())
+}
+
+/// A recording's `temperature_c`: one plausible temperature per sample (of
+/// `samples`); the first implausible one named, not each of thousands.
+fn sample_temperatures(ts: &[f64], samples: usize, at: Loc<'_>, errors: &mut Errors) -> bool {
+    if ts.len() != samples {
+        errors.add(
+            at,
+            format!(
+                "must give one temperature per sample ({samples}), not {}",
+                ts.len()
+            ),
+        );
+        return false;
+    }
+    let range = super::super::limits::TEMPERATURE_C;
+    match ts.iter().position(|t| !range.contains(t)) {
+        Some(i) => {
+            errors.add(
+                at.index(i),
+                format!(
+                    "must be a temperature from {} to {} °C",
+                    range.start(),
+                    range.end()
+                ),
+            );
+            false
+        }
+        None => true,
+    }
 }

@@ -185,9 +185,18 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             Ok(r)
         }
         Form::Recording {
+            temperatures_c: Some(_),
+            ..
+        } => Err(problem(
+            Loc::Root.key("recording").key("temperature_c"),
+            "a recording at several temperatures makes a temperature model: POST \
+             /v1/identify/thermal/triad; a triad calibrated at one temperature takes none",
+        )),
+        Form::Recording {
             rate_hz,
             samples,
             detector,
+            ..
         } => {
             let at = Loc::Root.key("recording");
             let found = static_intervals::detect(*rate_hz, samples, detector)
@@ -307,7 +316,7 @@ pub(super) fn fit_problem(at: Loc<'_>, e: &GravityFitError) -> Invalid {
     problem(at, e.to_string())
 }
 
-pub(super) fn detect_problem(at: &Loc<'_>, e: &DetectError) -> Invalid {
+pub(crate) fn detect_problem(at: &Loc<'_>, e: &DetectError) -> Invalid {
     match e {
         DetectError::Parameter { name } if *name == "rate_hz" => {
             problem(at.key("rate_hz"), e.to_string())
