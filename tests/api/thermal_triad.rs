@@ -91,6 +91,15 @@ pub fn body_with(set_points: &[f64], scale_tc: f64) -> Value {
            "runs": runs, "batches": 2})
 }
 
+/// `b` posted to `path`, refused with 422: its problem.
+pub(crate) async fn refused(app: &TestApp, b: Value, path: &str) -> Value {
+    problem(
+        app.post(path, ADMIN, &b).await,
+        StatusCode::UNPROCESSABLE_ENTITY,
+    )
+    .await
+}
+
 pub fn f(v: &Value) -> f64 {
     v.as_f64().unwrap()
 }
@@ -217,13 +226,6 @@ async fn five_set_points_give_each_element_its_planted_degree() {
 #[tokio::test]
 async fn refusals_name_what_to_fix() {
     let app = TestApp::spawn(Sqlite).await;
-    let refused = |body: Value, path: &'static str| {
-        let app = &app;
-        async move {
-            let res = app.post(path, ADMIN, &body).await;
-            problem(res, StatusCode::UNPROCESSABLE_ENTITY).await
-        }
-    };
     let thermal = "/v1/identify/thermal/triad";
     let pointer = |p: &Value| p["errors"][0]["pointer"].as_str().unwrap().to_owned();
 
@@ -233,12 +235,12 @@ async fn refusals_name_what_to_fix() {
         .as_object_mut()
         .unwrap()
         .remove("temperature_c");
-    let p = refused(b, thermal).await;
+    let p = refused(&app, b, thermal).await;
     assert_eq!(pointer(&p), "/runs/3/temperature_c", "{p}");
     // A temperature no instrument reads.
     let mut b = body(&CHAMBER);
     b["runs"][0]["temperature_c"] = json!(300.0);
-    let p = refused(b, thermal).await;
+    let p = refused(&app, b, thermal).await;
     assert_eq!(pointer(&p), "/runs/0/temperature_c", "{p}");
     assert!(
         p["detail"].as_str().unwrap().contains("-100 to 200 °C"),
@@ -249,14 +251,14 @@ async fn refusals_name_what_to_fix() {
     for run in b["runs"].as_array_mut().unwrap() {
         run.as_object_mut().unwrap().remove("temperature_c");
     }
-    let p = refused(b, thermal).await;
+    let p = refused(&app, b, thermal).await;
     assert_eq!(pointer(&p), "/runs/0/temperature_c", "{p}");
     // One set point: one more to add; a 4 K span: where to add one.
-    let p = refused(body(&[20.0]), thermal).await;
+    let p = refused(&app, body(&[20.0]), thermal).await;
     assert_eq!(pointer(&p), "/runs", "{p}");
     let detail = p["detail"].as_str().unwrap();
     assert!(detail.contains("add 1 more"), "{p}");
-    let p = refused(body(&[20.0, 22.0, 24.0]), thermal).await;
+    let p = refused(&app, body(&[20.0, 22.0, 24.0]), thermal).await;
     let detail = p["detail"].as_str().unwrap();
     assert!(
         detail.contains("add a set point at or below 14 °C or at or above 29.99 °C"),
@@ -265,6 +267,7 @@ async fn refusals_name_what_to_fix() {
     // Static positions without their temperatures; second-order terms:
     // not modelled.
     let p = refused(
+        &app,
         json!({"unit": "m/s2", "static_positions": vec![vec![[0.0, 0.0, 9.8]]; 9]}),
         thermal,
     )
@@ -272,10 +275,10 @@ async fn refusals_name_what_to_fix() {
     assert_eq!(pointer(&p), "/static_temperatures_c", "{p}");
     let mut b = body(&CHAMBER);
     b["second_order"] = json!(true);
-    assert_eq!(pointer(&refused(b, thermal).await), "/second_order");
+    assert_eq!(pointer(&refused(&app, b, thermal).await), "/second_order");
     // Runs at several temperatures sent to the plain triad calibration:
     // pointed here rather than the temperatures ignored.
-    let p = refused(body(&CHAMBER), "/v1/identify/triad").await;
+    let p = refused(&app, body(&CHAMBER), "/v1/identify/triad").await;
     assert_eq!(pointer(&p), "/runs/0/temperature_c", "{p}");
     assert!(
         p["detail"]
@@ -336,24 +339,14 @@ async fn a_drifting_chamber_gives_each_position_its_temperature() {
     assert_eq!(res.status(), StatusCode::CREATED);
     assert_eq!(res.json::<Value>().await.unwrap()["thermal"], got);
 
-    let refused = |b: Value| {
-        let app = &app;
-        async move {
-            problem(
-                app.post("/v1/identify/thermal/triad", ADMIN, &b).await,
-                StatusCode::UNPROCESSABLE_ENTITY,
-            )
-            .await
-        }
-    };
     let mut far = drifting.clone();
     far["runs"][3]["temperature_c"][5] = json!(f(&far["runs"][3]["temperature_c"][0]) + 0.7);
-    let p = refused(far).await;
+    let p = refused(&app, far, "/v1/identify/thermal/triad").await;
     assert_eq!(pointers(&p), ["/runs/3/temperature_c"], "{p}");
     assert!(p["detail"].as_str().unwrap().contains("drifted"), "{p}");
     let mut five = drifting.clone();
     five["runs"][0]["temperature_c"] = json!([20.0, 20.1, 20.2, 20.3, 20.4]);
-    let p = refused(five).await;
+    let p = refused(&app, five, "/v1/identify/thermal/triad").await;
     assert_eq!(pointers(&p), ["/runs/0/temperature_c"], "{p}");
     assert!(
         p["detail"]
@@ -363,9 +356,12 @@ async fn a_drifting_chamber_gives_each_position_its_temperature() {
     );
     let mut hot = drifting.clone();
     hot["runs"][1]["temperature_c"][2] = json!(500.0);
-    assert_eq!(pointers(&refused(hot).await), ["/runs/1/temperature_c/2"]);
+    assert_eq!(
+        pointers(&refused(&app, hot, "/v1/identify/thermal/triad").await),
+        ["/runs/1/temperature_c/2"]
+    );
     let mut words = drifting;
     words["runs"][0]["temperature_c"] = json!("warm");
-    let p = refused(words).await;
+    let p = refused(&app, words, "/v1/identify/thermal/triad").await;
     assert_eq!(pointers(&p), ["/runs/0/temperature_c"], "{p}");
 }

@@ -16,7 +16,7 @@ use accelcal_testkit::Engine::Sqlite;
 use accelcal_testkit::*;
 
 use crate::thermal::is_the_weighted_fit;
-use crate::thermal_triad::{f, jitter};
+use crate::thermal_triad::{f, jitter, refused};
 
 const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
 
@@ -240,16 +240,6 @@ async fn static_positions_at_five_set_points_give_the_planted_model() {
 async fn static_positions_refusals_name_what_to_fix() {
     let app = TestApp::spawn(Sqlite).await;
     let thermal = "/v1/identify/thermal/triad";
-    let refused = |b: Value, path: &'static str| {
-        let app = &app;
-        async move {
-            problem(
-                app.post(path, ADMIN, &b).await,
-                StatusCode::UNPROCESSABLE_ENTITY,
-            )
-            .await
-        }
-    };
     let b = body(&CHAMBER);
     // A set point of nine positions: no standard errors to weight with.
     let mut nine = b.clone();
@@ -258,20 +248,20 @@ async fn static_positions_refusals_name_what_to_fix() {
     nine["static_positions"] = json!([first, rest].concat());
     let ts = nine["static_temperatures_c"].as_array().unwrap().clone();
     nine["static_temperatures_c"] = json!([&ts[..9], &ts[14..]].concat());
-    let p = refused(nine, thermal).await;
+    let p = refused(&app, nine, thermal).await;
     assert_eq!(pointers(&p), ["/static_positions/0"], "{p}");
     assert!(p["detail"].as_str().unwrap().contains("at least 10"), "{p}");
     // A count other than the positions', an implausible one.
     let mut short = b.clone();
     short["static_temperatures_c"].as_array_mut().unwrap().pop();
     assert_eq!(
-        pointers(&refused(short, thermal).await),
+        pointers(&refused(&app, short, thermal).await),
         ["/static_temperatures_c"]
     );
     let mut hot = b.clone();
     hot["static_temperatures_c"][3] = json!(500.0);
     assert_eq!(
-        pointers(&refused(hot, thermal).await),
+        pointers(&refused(&app, hot, thermal).await),
         ["/static_temperatures_c/3"]
     );
     // None given to the model; given to a triad at one temperature.
@@ -279,9 +269,9 @@ async fn static_positions_refusals_name_what_to_fix() {
     none.as_object_mut()
         .unwrap()
         .remove("static_temperatures_c");
-    let p = refused(none, thermal).await;
+    let p = refused(&app, none, thermal).await;
     assert_eq!(pointers(&p), ["/static_temperatures_c"], "{p}");
-    let p = refused(b.clone(), "/v1/identify/triad").await;
+    let p = refused(&app, b.clone(), "/v1/identify/triad").await;
     assert_eq!(pointers(&p), ["/static_temperatures_c"], "{p}");
     assert!(
         p["detail"]
@@ -292,7 +282,7 @@ async fn static_positions_refusals_name_what_to_fix() {
     // With known orientations each run gives its own.
     let mut known = crate::thermal_triad::body(&CHAMBER);
     known["static_temperatures_c"] = json!([20.0]);
-    let p = refused(known, thermal).await;
+    let p = refused(&app, known, thermal).await;
     assert!(
         pointers(&p).contains(&"/static_temperatures_c".to_owned()),
         "{p}"
@@ -456,30 +446,20 @@ async fn a_recording_with_its_temperatures_gives_the_planted_model() {
     assert!((a1 - 1e-3).abs() < 4.0 * u1, "{a1} ± {u1}");
     assert_eq!(r["S"][0][1]["coefficients"], json!([0.0]));
 
-    let refused = |b: Value, path: &'static str| {
-        let app = &app;
-        async move {
-            problem(
-                app.post(path, ADMIN, &b).await,
-                StatusCode::UNPROCESSABLE_ENTITY,
-            )
-            .await
-        }
-    };
     let thermal = "/v1/identify/thermal/triad";
     let mut none = rec.clone();
     none["recording"]
         .as_object_mut()
         .unwrap()
         .remove("temperature_c");
-    let p = refused(none, thermal).await;
+    let p = refused(&app, none, thermal).await;
     assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
     let mut short = rec.clone();
     short["recording"]["temperature_c"]
         .as_array_mut()
         .unwrap()
         .pop();
-    let p = refused(short, thermal).await;
+    let p = refused(&app, short, thermal).await;
     assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
     // The chamber warming by 1 K during the third hold.
     let mut drifting = rec.clone();
@@ -489,9 +469,9 @@ async fn a_recording_with_its_temperatures_gives_the_planted_model() {
     for (i, t) in ts.iter_mut().enumerate().skip(300).take(60) {
         *t = json!(f(t) + (i - 300) as f64 / 60.0);
     }
-    let p = refused(drifting, thermal).await;
+    let p = refused(&app, drifting, thermal).await;
     assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
     assert!(p["detail"].as_str().unwrap().contains("drifted"), "{p}");
-    let p = refused(rec, "/v1/identify/triad").await;
+    let p = refused(&app, rec, "/v1/identify/triad").await;
     assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
 }

@@ -129,10 +129,10 @@ pub fn triad_model(
             temperatures_c,
         } => {
             let Some(temperatures_c) = temperatures_c else {
-                return Err(Invalid::one(
+                return Err(required(
                     "/static_temperatures_c",
-                    "is required: a triad's temperature model from static positions needs each \
-                     position's temperature",
+                    "static positions",
+                    "position",
                 ));
             };
             let (groups, at, options) = grouped(Some(temperatures_c), tolerance_k, options)?;
@@ -145,10 +145,10 @@ pub fn triad_model(
             temperatures_c,
         } => {
             let Some(temperatures_c) = temperatures_c else {
-                return Err(Invalid::one(
+                return Err(required(
                     "/recording/temperature_c",
-                    "is required: a triad's temperature model from a recording needs each \
-                     sample's temperature",
+                    "a recording",
+                    "sample",
                 ));
             };
             let (means, at_interval) =
@@ -201,6 +201,18 @@ pub fn triad_model(
         s,
         thermometer_std_c: None,
     })
+}
+
+/// The refusal of a model from `what` (static positions, a recording)
+/// without the temperatures at `pointer`, one per `each`.
+fn required(pointer: &str, what: &str, each: &str) -> Invalid {
+    Invalid::one(
+        pointer,
+        format!(
+            "is required: a triad's temperature model from {what} needs each {each}'s \
+             temperature"
+        ),
+    )
 }
 
 /// Each set point of `groups` (runs at known `positions`) calibrated and

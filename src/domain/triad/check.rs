@@ -234,10 +234,10 @@ impl TriadBody {
                 } else {
                     Vec::new()
                 };
-                let temperatures_c = self
-                    .static_temperatures_c
-                    .as_deref()
-                    .and_then(|ts| position_temperatures(ts, positions.len(), &mut errors));
+                let temperatures_c = self.static_temperatures_c.filter(|ts| {
+                    let at = root.key("static_temperatures_c");
+                    one_each(ts, positions.len(), "static position", at, &mut errors)
+                });
                 Some(Form::Unknown {
                     means,
                     temperatures_c,
@@ -267,7 +267,8 @@ impl TriadBody {
                 let detector = r.detector.unwrap_or_default().detector();
                 check_detector(&detector, r.rate_hz, at.key("detector"), &mut errors);
                 let temperatures_c = r.temperature_c.filter(|ts| {
-                    sample_temperatures(ts, r.samples.len(), at.key("temperature_c"), &mut errors)
+                    let at = at.key("temperature_c");
+                    one_each(ts, r.samples.len(), "sample", at, &mut errors)
                 });
                 Some(Form::Recording {
                     rate_hz: r.rate_hz,
@@ -458,46 +459,15 @@ fn temperatures(
     (Some(out), each)
 }
 
-/// `static_temperatures_c`: one plausible temperature per static position
-/// (of `positions`), or the errors.
-fn position_temperatures(ts: &[f64], positions: usize, errors: &mut Errors) -> Option<Vec<f64>> {
-    let at = Loc::Root.key("static_temperatures_c");
-    if ts.len() != positions {
+/// Temperatures given one per `noun` (`static position`, `sample`) of `n`
+/// (`static_temperatures_c`, a recording's `temperature_c`), each
+/// plausible; the first implausible one named, not each of thousands.
+fn one_each(ts: &[f64], n: usize, noun: &str, at: Loc<'_>, errors: &mut Errors) -> bool {
+    if ts.len() != n {
         errors.add(
             at,
             format!(
-                "must give one temperature per static position ({positions}), not {}",
-                ts.len()
-            ),
-        );
-        return None;
-    }
-    let range = super::super::limits::TEMPERATURE_C;
-    let mut ok = true;
-    for (i, t) in ts.iter().enumerate() {
-        if !range.contains(t) {
-            ok = false;
-            errors.add(
-                at.index(i),
-                format!(
-                    "must be a temperature from {} to {} °C",
-                    range.start(),
-                    range.end()
-                ),
-            );
-        }
-    }
-    ok.then(|| ts.to_vec())
-}
-
-/// A recording's `temperature_c`: one plausible temperature per sample (of
-/// `samples`); the first implausible one named, not each of thousands.
-fn sample_temperatures(ts: &[f64], samples: usize, at: Loc<'_>, errors: &mut Errors) -> bool {
-    if ts.len() != samples {
-        errors.add(
-            at,
-            format!(
-                "must give one temperature per sample ({samples}), not {}",
+                "must give one temperature per {noun} ({n}), not {}",
                 ts.len()
             ),
         );
