@@ -44,9 +44,9 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
             div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
             div { dt { "Degrees" } dd { (m.selection) } }
             @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
-            @if !d.from_calibrations.is_empty() {
+            @if !d.kind.from_calibrations.is_empty() {
                 div { dt { "Fitted from" } dd {
-                    @for (i, c) in d.from_calibrations.iter().enumerate() {
+                    @for (i, c) in d.kind.from_calibrations.iter().enumerate() {
                         @if i > 0 { ", " }
                         a href={"/ui/calibrations/" (c)} { code { (c.to_string().get(..8).unwrap_or_default()) } }
                     }
@@ -67,9 +67,9 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
                 caption { "c(T_ref) = a_0, in " (d.unit) " (per g for the scale terms), with standard uncertainty u (the thermometer's term included, when one was named)" }
                 thead { tr { th scope="col" { "term" } th scope="col" { "c(T_ref)" } th scope="col" { "u" } } }
                 tbody {
-                    @for (t, c) in d.coefficients.iter() {
+                    @for (t, c) in d.kind.coefficients.iter() {
                         tr { th scope="row" { (t.to_string()) } td.num { (num(*c)) }
-                            td.num { (d.std_errors.get(t).map_or("—".into(), |u| unc(*u))) } }
+                            td.num { (d.kind.std_errors.get(t).map_or("—".into(), |u| unc(*u))) } }
                     }
                 }
             } }

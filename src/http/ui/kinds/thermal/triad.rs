@@ -153,7 +153,7 @@ pub fn page(d: &ThermalTriadDoc) -> Page<'_> {
                 caption { "b in " (d.unit) ", S in " (d.unit) " per g, at " (celsius(d.reference_c)) " °C, with standard uncertainties u" }
                 thead { tr { th scope="col" { "element" } th scope="col" { "value" } th scope="col" { "u" } } }
                 tbody {
-                    @for e in d.elements.elements().iter().filter(|e| e.name.starts_with('b') || e.name.starts_with("S_")) {
+                    @for e in d.kind.elements.elements().iter().filter(|e| e.name.starts_with('b') || e.name.starts_with("S_")) {
                         tr { th scope="row" { (e.name) } td.num { (num(e.value)) }
                             td.num { (e.std_error.map_or("—".into(), unc)) } }
                     }
