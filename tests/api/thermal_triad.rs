@@ -91,6 +91,32 @@ pub fn body_with(set_points: &[f64], scale_tc: f64) -> Value {
            "runs": runs, "batches": 2})
 }
 
+/// Element `m` of `b` (`n` none) or `(m, n)` of `S` of the model `r` is
+/// the weighted fit of its set points' values (the normal equations,
+/// [`is_the_weighted_fit`]) and holds `at_tref` at `T_ref` within four
+/// standard uncertainties.
+pub(crate) fn fits_its_set_points(r: &Value, m: usize, n: Option<usize>, at_tref: f64) {
+    let set_points = r["set_points"].as_array().unwrap();
+    let t: Vec<f64> = set_points.iter().map(|s| f(&s["temperature_c"])).collect();
+    let (pointer, values, errors) = match n {
+        None => (format!("/b/{m}"), "b", "b_std_errors"),
+        Some(k) => (format!("/S/{m}/{k}"), "S", "S_std_errors"),
+    };
+    let of = |sp: &Value, key: &str| match n {
+        None => f(&sp[key][m]),
+        Some(k) => f(&sp[key][m][k]),
+    };
+    let c: Vec<f64> = set_points.iter().map(|sp| of(sp, values)).collect();
+    let u: Vec<f64> = set_points.iter().map(|sp| of(sp, errors)).collect();
+    let p = r.pointer(&pointer).unwrap();
+    is_the_weighted_fit(p, &t, &c, &u, &pointer);
+    assert!(
+        (f(&p["coefficients"][0]) - at_tref).abs() < 4.0 * f(&p["std_uncertainties"][0]),
+        "{pointer} at T_ref: {} against {at_tref}",
+        p["coefficients"][0]
+    );
+}
+
 /// `b` posted to `path`, refused with 422: its problem.
 pub(crate) async fn refused(app: &TestApp, b: Value, path: &str) -> Value {
     problem(
@@ -154,7 +180,6 @@ async fn five_set_points_give_each_element_its_planted_degree() {
     // the degree its own partial F tests give: on five set points the test
     // has at most three degrees of freedom below, and calls a constant
     // linear when the linear fit's χ² is small by chance.
-    let t: Vec<f64> = set_points.iter().map(|s| f(&s["temperature_c"])).collect();
     let b_degrees = [2, 1, 0];
     let (b_ref, s_ref) = planted(20.0);
     let mut elements = Vec::new();
@@ -183,17 +208,7 @@ async fn five_set_points_give_each_element_its_planted_degree() {
         let degree = chosen;
         let tref = f(&p["reference_c"]);
         assert_eq!(tref, 20.0);
-        let of = |sp: &Value, key: &str| match n {
-            None => f(&sp[key][m]),
-            Some(n) => f(&sp[key][m][n]),
-        };
-        let (values, errors) = match n {
-            None => ("b", "b_std_errors"),
-            Some(_) => ("S", "S_std_errors"),
-        };
-        let c: Vec<f64> = set_points.iter().map(|sp| of(sp, values)).collect();
-        let u: Vec<f64> = set_points.iter().map(|sp| of(sp, errors)).collect();
-        is_the_weighted_fit(p, &t, &c, &u, &pointer);
+        fits_its_set_points(&r, m, n, at_tref);
         assert_eq!(p["range_c"][0], set_points[0]["temperature_c"]);
         assert_eq!(p["range_c"][1], set_points[4]["temperature_c"]);
         // The planted value at T_ref within four standard uncertainties,
@@ -206,11 +221,6 @@ async fn five_set_points_give_each_element_its_planted_degree() {
                 );
             }
         }
-        assert!(
-            (f(&p["coefficients"][0]) - at_tref).abs() < 4.0 * f(&p["std_uncertainties"][0]),
-            "{pointer} at T_ref: {} against {at_tref}",
-            p["coefficients"][0]
-        );
     }
     // The planted slopes of b_x and S_zz.
     let slope = |pointer: &str| {
