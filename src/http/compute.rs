@@ -112,12 +112,17 @@ pub async fn identify_thermal(
     operation_id = "identifyThermalTriad",
     summary = "A triad's b and S over temperature from runs at several temperatures, not stored.",
     description = "A triad body with known `orientations` and `runs`, each run with its \
-        `temperature_c`. The runs are grouped into set points as for a single axis, each set \
+        `temperature_c` (or one per position); or `static_positions` with \
+        `static_temperatures_c`, or a `recording` with each sample's `temperature_c` (each set \
+        point fitted from the gravity magnitude; S_xy, S_xz, S_yz zero by convention). The runs \
+        are grouped into set points as for a single axis, each set \
         point calibrated and fused as a triad is, and every element of b and S given its \
         polynomial e(T) = Σ a_d (T − T_ref)^d, fitted by weighted least squares on the set \
         points' fused elements (weights 1/se², covariance inflated by max(1, χ²/ν)), its degree \
         chosen by backward elimination at 1 % unless `degree` is given. Too few set points, too \
-        small a span or an ill-conditioned design are refused with what to add.",
+        small a span or an ill-conditioned design are refused with what to add. Standards \
+        named are resolved (a thermometer's uncertainty enters the elements); a sensor type \
+        judges a model when it is stored, and is refused here.",
     params(crate::domain::thermal::ThermalParams, ThermalExportQuery),
     request_body(content((crate::domain::triad::TriadBody = "application/json"))),
     responses(

@@ -30,15 +30,18 @@ use crate::domain::auth::{Principal, Role};
     operation_id = "submitThermalTriad",
     summary = "Fit a triad's b and S over temperature and store the model.",
     description = "The body of `POST /v1/identify/thermal/triad` (known `orientations`, every \
-        run with its `temperature_c`) with `sensor_id`, and the same fit parameters. Stored as \
+        run with its `temperature_c`; or static positions or a recording with their \
+        temperatures) with `sensor_id`, and the same fit parameters. Stored as \
         one calibration of the triad whose elements (`elements`: b, S, T = S⁻¹) are the model \
         at `T_ref`: history, stability and the coefficients without a temperature serve them; \
         `GET /v1/sensors/{sensor_id}/coefficients?temperature_c=` and `/compensate` with \
         `temperature_c` evaluate the model within its range, and \
         `GET /v1/calibrations/{id}/export` answers its thermal parameters (PX4's `TC_A0_*`, \
-        ArduPilot's `INS_TCAL1_*`, a C header, the model). Not yet: a sensor type's decision \
-        and reference standards (refused, and a typed sensor's model with them), and its \
-        certificate (409 `wrong-kind`).",
+        ArduPilot's `INS_TCAL1_*`, a C header, the model). The sensor type in force (named, \
+        or the triad's) judges every limited element at every set point and across the range \
+        (`decision`); the standards named are resolved and recorded, a thermometer's \
+        uncertainty entering every element read at a temperature; the certificate and DCC are \
+        issued at approval as for any calibration.",
     params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
     request_body(content((crate::domain::triad::TriadBody = "application/json"), (String = "text/csv"))),
     responses(
