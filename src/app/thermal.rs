@@ -46,7 +46,7 @@ use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Media, Submission, evaluate, performed_when};
 use crate::domain::thermal::combine::FromCalibrations;
 use crate::domain::thermal::decision::{ThermalDecision, decide_model};
-use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model, triad_model};
+use crate::domain::thermal::{Fit, ThermalModel, TriadThermalModel, model};
 use crate::domain::timestamp::Timestamp;
 use crate::store::NewCalibration;
 
@@ -277,20 +277,31 @@ pub(super) fn thermometer(used: &[UsedStandard]) -> Option<f64> {
         .reduce(f64::max)
 }
 
-/// The temperature model of the triad `upload` fitted with `fit` (its
-/// parameters kept in it), the standards it names resolved — a
-/// thermometer's uncertainty enters its elements — as for a single axis;
-/// a sensor type is refused rather than ignored: a model is judged when
-/// it is stored.
+/// The temperature model of the triad `upload` for `principal` fitted
+/// with `fit` (its parameters kept in it), the standards it names
+/// resolved — a thermometer's uncertainty enters its elements — as for a
+/// single axis; or of the stored triads a JSON body names
+/// ([`triad::named`]). A sensor type is refused rather than ignored: a
+/// model is judged when it is stored.
 pub async fn identify_triad(
     lab: &Lab,
+    principal: &Principal,
     upload: Upload,
     fit: Fit,
 ) -> Result<TriadThermalModel, Error> {
     let now = Timestamp::now();
-    let (mut model, named, performed_at) = lab
+    // A body sent whole is fitted on the compute pool and only the model
+    // and the standards named leave it (the submission freed where it was
+    // made, as a single axis's).
+    let whole = lab
         .compute_for(upload.bytes.len(), move || {
-            let sub = super::triad::read(&upload)?;
+            let sub = match super::triad::read(&upload) {
+                Ok(sub) => sub,
+                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
+                    return Ok(Err(upload.bytes));
+                }
+                Err(refused) => return Err(refused),
+            };
             if sub.sensor_type.is_some() {
                 return Err(Error::invalid(
                     Loc::Root.key("sensor_type"),
@@ -303,20 +314,29 @@ pub async fn identify_triad(
                 Some(t) => performed_when(t, now)
                     .map_err(|why| Error::invalid(Loc::Root.key("performed_at"), why))?,
             };
-            let mut model = triad_model(&sub, fit.tolerance_k, &fit.options)?;
-            model.fitted_with = fit.params;
-            Ok::<_, Error>((model, sub.standards, performed_at))
+            let (sub, model) = triad::fitted(sub, fit)?;
+            Ok::<_, Error>(Ok((model, sub.standards, performed_at)))
         })
         .await??;
-    if !named.is_empty() {
-        let roles: Vec<(&str, Option<String>)> = named
-            .into_iter()
-            .map(|(role, id)| (role, Some(id)))
-            .collect();
-        let used = super::standards::resolve(lab, &roles, performed_at).await?;
-        model.thermometer_std_c = thermometer(&used.used);
+    match whole {
+        Ok((mut model, named, performed_at)) => {
+            if !named.is_empty() {
+                let roles: Vec<(&str, Option<String>)> = named
+                    .into_iter()
+                    .map(|(role, id)| (role, Some(id)))
+                    .collect();
+                let used = super::standards::resolve(lab, &roles, performed_at).await?;
+                model.thermometer_std_c = thermometer(&used.used);
+            }
+            Ok(model)
+        }
+        Err(json) => {
+            let read = triad::named(lab, principal, &json, fit).await?;
+            let mut model = read.thermal;
+            model.thermometer_std_c = thermometer(read.named.as_deref().unwrap_or_default());
+            Ok(model)
+        }
     }
-    Ok(model)
 }
 
 /// `upload` assessed as a temperature model fitted with `fit`, to be

@@ -21,6 +21,7 @@
 use accelcal_core::gravity_budget::{self, GravityBudget};
 use accelcal_core::gravity_fit::{self, GravityFit, GravityFitError, MIN_POSITIONS};
 use accelcal_core::static_intervals::{self, DetectError, Detection, Detector, Rejection};
+use accelcal_core::thermal::TOLERANCE_K;
 use accelcal_core::triad::{AXES, Triad, TriadError, TriadRun, TriadTest, six_faces};
 use std::collections::BTreeMap;
 

@@ -122,9 +122,11 @@ pub async fn identify_thermal(
         chosen by backward elimination at 1 % unless `degree` is given. Too few set points, too \
         small a span or an ill-conditioned design are refused with what to add. Standards \
         named are resolved (a thermometer's uncertainty enters the elements); a sensor type \
-        judges a model when it is stored, and is refused here.",
+        judges a model when it is stored, and is refused here. Or name two to 64 stored \
+        triad calibrations of the sensor, each at one temperature (`{sensor_id, \
+        calibrations}`): their stored bodies make one.",
     params(crate::domain::thermal::ThermalParams, ThermalExportQuery),
-    request_body(content((crate::domain::triad::TriadBody = "application/json"))),
+    request_body(content((super::openapi::TriadThermalBodySchema = "application/json"))),
     responses(
         (status = 200, description = "The set points and each element's polynomial; with \
             `export`, the file asked for.",
@@ -155,7 +157,7 @@ pub async fn identify_thermal_triad(
     let fit = params
         .checked()
         .map_err(|b| Problem::bad_parameter(b.name, b.detail))?;
-    let model = thermal::identify_triad(&state.lab, body, fit).await?;
+    let model = thermal::identify_triad(&state.lab, &principal, body, fit).await?;
     let Some(format) = format else {
         return Ok(Json(model).into_response());
     };

@@ -41,9 +41,12 @@ use crate::domain::auth::{Principal, Role};
         or the triad's) judges every limited element at every set point and across the range \
         (`decision`); the standards named are resolved and recorded, a thermometer's \
         uncertainty entering every element read at a temperature; the certificate and DCC are \
-        issued at approval as for any calibration.",
+        issued at approval as for any calibration. Or name two to 64 stored triad \
+        calibrations of the sensor, each at one temperature (`{sensor_id, calibrations}`): \
+        their stored bodies make one, fitted as one sent whole, and the model lists them \
+        (`from_calibrations`).",
     params(super::openapi::IdempotencyKeyHeader, crate::domain::thermal::ThermalParams),
-    request_body(content((crate::domain::triad::TriadBody = "application/json"), (String = "text/csv"))),
+    request_body(content((super::openapi::TriadThermalBodySchema = "application/json"), (String = "text/csv"))),
     responses(
         (status = 201, description = "Stored (or, for a retried Idempotency-Key, stored before).",
             body = crate::app::thermal::triad::StoredThermalTriad,

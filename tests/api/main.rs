@@ -44,6 +44,7 @@ mod thermal_export;
 mod thermal_standards;
 mod thermal_stored;
 mod thermal_triad;
+mod thermal_triad_combined;
 mod thermal_triad_judged;
 mod thermal_triad_static;
 mod thermal_triad_stored;

@@ -287,9 +287,16 @@ async fn refusals_name_what_to_fix() {
     b["second_order"] = json!(true);
     assert_eq!(pointer(&refused(&app, b, thermal).await), "/second_order");
     // Runs at several temperatures sent to the plain triad calibration:
-    // pointed here rather than the temperatures ignored.
-    let p = refused(&app, body(&CHAMBER), "/v1/identify/triad").await;
-    assert_eq!(pointer(&p), "/runs/0/temperature_c", "{p}");
+    // pointed here rather than the temperatures ignored, at the reading
+    // farthest from their mean (35 °C): the hottest, one of the ten runs at
+    // 60 °C (runs 20 to 29).
+    let whole = body(&[20.0, 25.0, 60.0]);
+    let temperature = |j: usize| f(&whole["runs"][j]["temperature_c"]);
+    let hottest = (20..30)
+        .max_by(|&a, &b| temperature(a).total_cmp(&temperature(b)))
+        .unwrap();
+    let p = refused(&app, whole, "/v1/identify/triad").await;
+    assert_eq!(pointer(&p), format!("/runs/{hottest}/temperature_c"), "{p}");
     assert!(
         p["detail"]
             .as_str()

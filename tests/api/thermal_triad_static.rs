@@ -17,13 +17,13 @@ use accelcal_testkit::*;
 
 use crate::thermal_triad::{f, fits_its_set_points, jitter, refused};
 
-const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
+pub(crate) const CHAMBER: [f64; 5] = [-20.0, 0.0, 20.0, 40.0, 60.0];
 
 /// The planted triad at `t` °C in the frame a fit from the gravity
 /// magnitude uses (the sensor's x axis and xy-plane: `S` lower-triangular):
 /// `b_x`, `b_y` and the scale factors linear in temperature, the rest
 /// constant.
-fn planted(t: f64) -> ([f64; 3], [[f64; 3]; 3]) {
+pub(crate) fn planted(t: f64) -> ([f64; 3], [[f64; 3]; 3]) {
     let dt = t - 20.0;
     let b = [0.05 + 1e-3 * dt, -0.03 + 5e-4 * dt, 0.02];
     let s = [
@@ -63,7 +63,7 @@ fn outputs(t: f64, g: [f64; 3]) -> [f64; 3] {
 
 /// Each direction held still at each of `set_points` (within ±0.02 K),
 /// three samples each, noise 2e-4 m/s².
-fn body(set_points: &[f64]) -> Value {
+pub(crate) fn body(set_points: &[f64]) -> Value {
     let (mut positions, mut temperatures) = (Vec::new(), Vec::new());
     for (sp, &t) in set_points.iter().enumerate() {
         for (p, g) in directions().into_iter().enumerate() {
@@ -253,8 +253,15 @@ async fn static_positions_refusals_name_what_to_fix() {
         .remove("static_temperatures_c");
     let p = refused(&app, none, thermal).await;
     assert_eq!(pointers(&p), ["/static_temperatures_c"], "{p}");
+    // Given to a triad at one temperature: refused at the reading farthest
+    // from their mean.
+    let odd = farthest(b["static_temperatures_c"].as_array().unwrap());
     let p = refused(&app, b.clone(), "/v1/identify/triad").await;
-    assert_eq!(pointers(&p), ["/static_temperatures_c"], "{p}");
+    assert_eq!(
+        pointers(&p),
+        [format!("/static_temperatures_c/{odd}")],
+        "{p}"
+    );
     assert!(
         p["detail"]
             .as_str()
@@ -347,11 +354,16 @@ async fn csv_with_a_temperature_column_gives_the_json_model() {
 /// start), 1.5 s of motion between, every sample with its temperature
 /// (the set point's, within ±0.03 K).
 fn recording() -> Value {
+    recording_of(&CHAMBER)
+}
+
+/// [`recording`] through `set_points`.
+pub(crate) fn recording_of(set_points: &[f64]) -> Value {
     let rate = 25.0;
     let (mut samples, mut temperatures) = (Vec::new(), Vec::new());
     let dirs = directions();
     let mut k = 0u64;
-    for (sp, &t_sp) in CHAMBER.iter().enumerate() {
+    for (sp, &t_sp) in set_points.iter().enumerate() {
         for (p, g) in dirs.iter().enumerate() {
             let t = t_sp + 0.02 * jitter(7_000 + 100 * sp as u64 + p as u64);
             let hold = if sp == 0 && p == 0 { 5.0 } else { 4.0 };
@@ -454,6 +466,20 @@ async fn a_recording_with_its_temperatures_gives_the_planted_model() {
     let p = refused(&app, drifting, thermal).await;
     assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
     assert!(p["detail"].as_str().unwrap().contains("drifted"), "{p}");
+    let odd = farthest(rec["recording"]["temperature_c"].as_array().unwrap());
     let p = refused(&app, rec, "/v1/identify/triad").await;
-    assert_eq!(pointers(&p), ["/recording/temperature_c"], "{p}");
+    assert_eq!(
+        pointers(&p),
+        [format!("/recording/temperature_c/{odd}")],
+        "{p}"
+    );
+}
+
+/// The index of the reading farthest from the readings' mean.
+fn farthest(readings: &[Value]) -> usize {
+    let t: Vec<f64> = readings.iter().map(f).collect();
+    let mean = t.iter().sum::<f64>() / t.len() as f64;
+    (0..t.len())
+        .max_by(|&a, &b| (t[a] - mean).abs().total_cmp(&(t[b] - mean).abs()))
+        .unwrap()
 }

@@ -21,16 +21,19 @@ use uuid::Uuid;
 use super::super::standards::Resolved;
 use super::super::triad::{Preamble, preamble};
 use super::super::{Assessed, Error, Lab, Upload};
-use super::thermometer;
+use super::{combined, thermometer};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
 use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::standards::UsedStandard;
+use crate::domain::submission::Media;
+use crate::domain::thermal::combine::FromCalibrations;
 use crate::domain::thermal::decision::{TriadThermalDecision, decide_triad_model};
 use crate::domain::thermal::{Fit, TriadThermalModel, triad_model};
 use crate::domain::timestamp::Timestamp;
+use crate::domain::triad::TriadSubmission;
 use crate::store::{NewCalibration, TriadElements};
 
 /// A stored triad's temperature model's result document (`POST
@@ -90,10 +93,82 @@ pub struct StoredThermalTriad {
     #[serde(skip_serializing_if = "Vec::is_empty")]
     #[schema(value_type = Vec<Object>)]
     pub held_by: Vec<HeldBy>,
+    /// The stored triad calibrations it was fitted from, in the order
+    /// named (absent for runs sent whole).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub from_calibrations: Vec<Uuid>,
     /// The model: the set points and every element's polynomial (with the
     /// thermometer's standard uncertainty, when one was named).
     #[schema(value_type = Object)]
     pub thermal: TriadThermalModel,
+}
+
+/// A triad model's body read and fitted: the submission fitted, the
+/// standards its named calibrations used (`None` for a body sent whole,
+/// whose standards are named in it), their ids and the model.
+pub(super) struct Read {
+    pub sub: TriadSubmission,
+    pub named: Option<Vec<UsedStandard>>,
+    pub from: Vec<Uuid>,
+    pub thermal: TriadThermalModel,
+}
+
+/// `upload` read for `principal` and fitted with `fit` (its parameters
+/// kept in the model): a triad body sent whole, read and fitted in one
+/// pass on the compute pool; or a JSON body naming stored triads
+/// ([`named`]).
+async fn read(lab: &Lab, principal: &Principal, upload: Upload, fit: Fit) -> Result<Read, Error> {
+    let first = lab
+        .compute_for(
+            upload.bytes.len(),
+            move || match super::super::triad::read(&upload) {
+                Ok(sub) => fitted(sub, fit).map(Ok),
+                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
+                    Ok(Err(upload.bytes))
+                }
+                Err(refused) => Err(refused),
+            },
+        )
+        .await??;
+    match first {
+        Ok((sub, thermal)) => Ok(Read {
+            sub,
+            named: None,
+            from: Vec::new(),
+            thermal,
+        }),
+        Err(json) => named(lab, principal, &json, fit).await,
+    }
+}
+
+/// The JSON body `json` naming stored triads, read for `principal`
+/// ([`combined::read_triads`]) and fitted with `fit` on the compute pool.
+pub(super) async fn named(
+    lab: &Lab,
+    principal: &Principal,
+    json: &[u8],
+    fit: Fit,
+) -> Result<Read, Error> {
+    let (sub, standards, _, from) = combined::read_triads(lab, principal, json).await?;
+    let (sub, thermal) = lab
+        .compute_for(json.len(), move || fitted(sub, fit))
+        .await??;
+    Ok(Read {
+        sub,
+        named: Some(standards),
+        from,
+        thermal,
+    })
+}
+
+/// `sub`'s model fitted with `fit`, its parameters kept in it.
+pub(super) fn fitted(
+    sub: TriadSubmission,
+    fit: Fit,
+) -> Result<(TriadSubmission, TriadThermalModel), Error> {
+    let mut thermal = triad_model(&sub, fit.tolerance_k, &fit.options)?;
+    thermal.fitted_with = fit.params;
+    Ok((sub, thermal))
 }
 
 /// The elements of `model` at `temperature_c` as a triad's are stored:
@@ -131,20 +206,18 @@ pub async fn assess(
     fit: Fit,
 ) -> Result<Assessed, Error> {
     let (submission, content_type) = (upload.bytes.clone(), upload.content_type.clone());
-    let (mut sub, mut thermal) = lab
-        .compute_for(upload.bytes.len(), move || {
-            let sub = super::super::triad::read(&upload)?;
-            let mut thermal = triad_model(&sub, fit.tolerance_k, &fit.options)?;
-            thermal.fitted_with = fit.params;
-            Ok::<_, Error>((sub, thermal))
-        })
-        .await??;
+    let Read {
+        mut sub,
+        named,
+        from,
+        mut thermal,
+    } = read(lab, principal, upload, fit).await?;
     let Preamble {
         sensor_id,
         station_id,
         performed_at,
         subject,
-        used,
+        mut used,
         held_by,
     } = preamble(
         lab,
@@ -154,6 +227,9 @@ pub async fn assess(
         "to store a triad's model (POST /v1/identify/thermal/triad fits one without)",
     )
     .await?;
+    if let Some(named) = named {
+        used = named;
+    }
     thermal.thermometer_std_c = thermometer(&used);
     let sensor_type = subject.sensor_type;
     let decision = match &sensor_type {
@@ -190,6 +266,7 @@ pub async fn assess(
         coverage: crate::domain::sensor_types::coverage(sensor_type.as_ref()),
         standards: used,
         held_by,
+        from_calibrations: from,
         thermal,
     };
     let result = Bytes::from(serde_json::to_vec(&view).map_err(|err| {

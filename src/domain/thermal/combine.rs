@@ -12,7 +12,8 @@
 //! is performed when the last of them was; its fusion batches are the
 //! fewest any of them used; the standards any of them used are all the
 //! model's (a nonconformity of one holds it), and of several thermometers
-//! the largest `temperature_std_c` is budgeted.
+//! the largest `temperature_std_c` is budgeted. A triad's model from
+//! stored triads is combined alike ([`triad`]).
 
 use serde::Deserialize;
 use uuid::Uuid;
@@ -23,19 +24,24 @@ use super::super::standards::UsedStandard;
 use super::super::submission::Submission;
 use super::super::text::{Chars, check_str};
 
+mod triad;
+pub use triad::{TriadConstituent, combine_triads};
+
 /// The most calibrations one model is fitted from.
 pub const MAX_CALIBRATIONS: usize = 64;
 
 /// A body naming stored calibrations (`POST /v1/calibrations/thermal`,
-/// `POST /v1/identify/thermal`).
+/// `POST /v1/identify/thermal`, and the triad routes beside them).
 #[derive(Debug, Clone, Deserialize, utoipa::ToSchema)]
 #[serde(deny_unknown_fields)]
 pub struct FromCalibrations {
     /// The sensor.
     #[schema(value_type = crate::domain::schema::Identifier)]
     pub sensor_id: String,
-    /// Its stored single-axis calibrations, by id: two to 64, each
-    /// tumbled at its own temperature.
+    /// Its stored calibrations, by id (single-axis ones for
+    /// `/v1/calibrations/thermal`, triads for
+    /// `/v1/calibrations/thermal/triad`): two to 64, each tumbled at its
+    /// own temperature.
     #[schema(schema_with = ids)]
     pub calibrations: Vec<String>,
     /// The station, if any.
@@ -138,7 +144,6 @@ pub fn combine(
     let mut runs = Vec::new();
     let mut temperatures = Vec::new();
     let mut per_position: Vec<Option<Vec<f64>>> = Vec::new();
-    let mut standards: Vec<UsedStandard> = Vec::new();
     for (i, p) in parts.iter().enumerate() {
         let s = &p.submission;
         let id = p.id;
@@ -179,15 +184,6 @@ pub fn combine(
         } else {
             per_position.extend_from_slice(&s.position_temperatures_c);
         }
-        for u in &p.standards {
-            let known = standards.iter().any(|k| {
-                (&k.role, &k.standard_id, &k.certificate.number)
-                    == (&u.role, &u.standard_id, &u.certificate.number)
-            });
-            if !known {
-                standards.push(u.clone());
-            }
-        }
     }
     errors.finish(|| ())?;
     let test = accelcal_core::TumbleTest::new(
@@ -219,7 +215,7 @@ pub fn combine(
         standards: None,
         item_received_at: None,
         item_condition: None,
-        standards_used: standards,
+        standards_used: union(parts.iter().map(|p| p.standards.as_slice())),
         held_by: Vec::new(),
         temperatures_c: Some(temperatures),
         position_temperatures_c: if per_position.iter().any(Option::is_some) {
@@ -229,6 +225,22 @@ pub fn combine(
         },
         test,
     })
+}
+
+/// The standards of `each` calibration, each (role, standard,
+/// certificate) once, in the order first used.
+pub(super) fn union<'a>(each: impl Iterator<Item = &'a [UsedStandard]>) -> Vec<UsedStandard> {
+    let mut standards: Vec<UsedStandard> = Vec::new();
+    for u in each.flatten() {
+        let known = standards.iter().any(|k| {
+            (&k.role, &k.standard_id, &k.certificate.number)
+                == (&u.role, &u.standard_id, &u.certificate.number)
+        });
+        if !known {
+            standards.push(u.clone());
+        }
+    }
+    standards
 }
 
 /// A model's terms, as a body lists them (`k0, ki, kp`).

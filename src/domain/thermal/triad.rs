@@ -329,7 +329,7 @@ fn unknown(
 /// ([`static_intervals::detect`]): each used interval's mean outputs, and
 /// its samples' mean temperature — refused where they span more than
 /// `tolerance_k` (a position must hold its set point).
-fn intervals(
+pub(super) fn intervals(
     rate_hz: f64,
     samples: &[[f64; 3]],
     detector: &Detector,

@@ -33,11 +33,13 @@ pub(super) fn problem(at: Loc<'_>, detail: impl Into<String>) -> Invalid {
 
 /// Computes a checked submission.
 pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
+    let temperature_c = one_temperature(&sub.form)?;
     let base = |method, b, s: [[f64; 3]; 3], t| TriadResult {
         kind: "triad",
         method,
         sensor_id: sub.sensor_id.clone(),
         unit: sub.unit.clone(),
+        temperature_c,
         model: MODEL,
         compensation: COMPENSATION,
         b,
@@ -76,17 +78,8 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             runs,
             batches,
             second_order,
-            temperatures_c,
             ..
         } => {
-            if temperatures_c.is_some() {
-                return Err(problem(
-                    Loc::Root.key("runs").index(0).key("temperature_c"),
-                    "runs at several temperatures make a temperature model: POST \
-                     /v1/identify/thermal/triad; a triad calibrated at one temperature \
-                     takes none",
-                ));
-            }
             let test = TriadTest::with_order(positions, runs, *second_order)
                 .map_err(|e| axis_problem(&e))?;
             let cal = test.calibrate(*batches).map_err(|e| axis_problem(&e))?;
@@ -169,14 +162,6 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             r.axes = Some(axes);
             Ok(r)
         }
-        Form::Unknown {
-            temperatures_c: Some(_),
-            ..
-        } => Err(problem(
-            Loc::Root.key("static_temperatures_c"),
-            "positions at several temperatures make a temperature model: POST \
-             /v1/identify/thermal/triad; a triad calibrated at one temperature takes none",
-        )),
         Form::Unknown { means, .. } => {
             let f = gravity_fit::fit(means)
                 .map_err(|e| fit_problem(Loc::Root.key("static_positions"), &e))?;
@@ -184,14 +169,6 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             r.means = means.clone();
             Ok(r)
         }
-        Form::Recording {
-            temperatures_c: Some(_),
-            ..
-        } => Err(problem(
-            Loc::Root.key("recording").key("temperature_c"),
-            "a recording at several temperatures makes a temperature model: POST \
-             /v1/identify/thermal/triad; a triad calibrated at one temperature takes none",
-        )),
         Form::Recording {
             rate_hz,
             samples,
@@ -237,6 +214,83 @@ pub fn compute(sub: TriadSubmission) -> Result<TriadResult, Invalid> {
             Ok(r)
         }
     }
+}
+
+/// The one temperature a triad was calibrated at, °C, when `form` gives
+/// temperatures: the mean of the runs' (each the mean of its positions'
+/// when given per position), of the static positions' or of the
+/// recording's samples'. Every reading must lie within
+/// [`TOLERANCE_K`] of the coolest — one set point, as a temperature model
+/// groups them ([`accelcal_core::thermal::set_points`]); otherwise the
+/// reading farther from their mean (the hottest or the coolest) is
+/// refused where it is, pointing to the temperature model's routes.
+pub(super) fn one_temperature(form: &Form) -> Result<Option<f64>, Invalid> {
+    let (readings, averaged, at): (Vec<(usize, f64)>, &[f64], &str) = match form {
+        Form::Known {
+            temperatures_c: Some(t),
+            position_temperatures_c,
+            ..
+        } => {
+            let readings = t
+                .iter()
+                .enumerate()
+                .flat_map(|(j, &mean)| {
+                    match position_temperatures_c.get(j).and_then(Option::as_ref) {
+                        Some(each) => each.iter().map(|&x| (j, x)).collect(),
+                        None => vec![(j, mean)],
+                    }
+                })
+                .collect();
+            (readings, t, "/runs")
+        }
+        Form::Unknown {
+            temperatures_c: Some(t),
+            ..
+        } => (
+            t.iter().copied().enumerate().collect(),
+            t,
+            "/static_temperatures_c",
+        ),
+        Form::Recording {
+            temperatures_c: Some(t),
+            ..
+        } => (
+            t.iter().copied().enumerate().collect(),
+            t,
+            "/recording/temperature_c",
+        ),
+        _ => return Ok(None),
+    };
+    let by = |a: &&(usize, f64), b: &&(usize, f64)| a.1.total_cmp(&b.1);
+    if let (Some(coolest), Some(hottest)) = (readings.iter().min_by(by), readings.iter().max_by(by))
+        && hottest.1 - coolest.1 > TOLERANCE_K
+    {
+        // The reading farther from the readings' mean is the odd one out.
+        let mean = readings.iter().map(|r| r.1).sum::<f64>() / readings.len() as f64;
+        let odd = if hottest.1 - mean >= mean - coolest.1 {
+            hottest
+        } else {
+            coolest
+        };
+        let at = match form {
+            Form::Known { .. } => format!("{at}/{}/temperature_c", odd.0),
+            _ => format!("{at}/{}", odd.0),
+        };
+        return Err(Invalid::one(
+            at,
+            format!(
+                "{} °C: the readings span {:.3} K ({} to {} °C), and a triad calibrated at one \
+                 temperature is held within {TOLERANCE_K} K; readings at several temperatures \
+                 make a temperature model (POST /v1/identify/thermal/triad fits one, POST \
+                 /v1/calibrations/thermal/triad stores it)",
+                odd.1,
+                hottest.1 - coolest.1,
+                coolest.1,
+                hottest.1
+            ),
+        ));
+    }
+    Ok(Some(averaged.iter().sum::<f64>() / averaged.len() as f64))
 }
 
 /// The result of a fit from the gravity magnitude, with its uncertainty

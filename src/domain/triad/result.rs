@@ -192,6 +192,13 @@ pub struct TriadResult {
     pub sensor_id: Option<String>,
     /// The outputs' unit.
     pub unit: String,
+    /// The temperature it was calibrated at, °C, when the body gives
+    /// temperatures: the mean of the runs' (of the static positions', of
+    /// the recording's samples'), which all lie within 0.5 K of one
+    /// another. What a temperature model combined from stored triads
+    /// groups them by.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub temperature_c: Option<f64>,
     /// `u = b + S g`.
     pub model: &'static str,
     /// How to compensate.

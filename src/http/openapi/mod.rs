@@ -64,7 +64,7 @@ impl Modify for Bearer {
             CalibrationPageSchema, AuditPageSchema, crate::domain::audit::AuditEntry, super::problem::ProblemBody, crate::domain::field::FieldError,
             TermBudgetSchema, UncertaintySchema, TermDecisionSchema, DecisionSchema, AsFoundSchema,
             SensitivitySchema, QualitySchema, StandOutSchema, TermStabilitySchema,
-            PolynomialSchema, ThermalModelSchema, TriadThermalModelSchema, ThermalBodySchema,
+            PolynomialSchema, ThermalModelSchema, TriadThermalModelSchema, ThermalBodySchema, TriadThermalBodySchema,
             crate::domain::thermal::combine::FromCalibrations,
             crate::domain::standards::UsedStandard, crate::domain::review::Supersedes,
             crate::domain::schema::RuleSchema, crate::domain::schema::VerdictSchema,

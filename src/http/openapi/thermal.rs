@@ -146,3 +146,16 @@ marker_schema!(
         .item(reference("FromCalibrations"))
         .build()))
 );
+
+marker_schema!(
+    /// A triad's temperature model's JSON body: a triad body whose runs,
+    /// static positions or recording carry their temperatures, or stored
+    /// triad calibrations named by id.
+    TriadThermalBodySchema => RefOr::T(Schema::OneOf(OneOfBuilder::new()
+        .description(Some("A triad body whose runs (static positions, recording samples) \
+            carry their temperatures, or a body naming two to 64 stored triad calibrations of \
+            the sensor, each tumbled at one temperature (`calibrations`: their ids)."))
+        .item(reference("TriadBody"))
+        .item(reference("FromCalibrations"))
+        .build()))
+);

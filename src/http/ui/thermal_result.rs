@@ -58,6 +58,10 @@ pub struct ModelDoc<M, D, X> {
     pub standards: Vec<UsedStandard>,
     /// The model.
     pub thermal: M,
+    /// The stored calibrations it was fitted from (none for runs sent
+    /// whole).
+    #[serde(default)]
+    pub from_calibrations: Vec<uuid::Uuid>,
     /// What only this kind states.
     #[serde(flatten)]
     pub kind: X,
@@ -70,10 +74,6 @@ pub struct SingleAxis {
     pub coefficients: TermMap<f64>,
     /// Their standard uncertainties.
     pub std_errors: TermMap<f64>,
-    /// The stored calibrations it was fitted from (none for runs sent
-    /// whole).
-    #[serde(default)]
-    pub from_calibrations: Vec<uuid::Uuid>,
 }
 
 /// What only a triad's model states.

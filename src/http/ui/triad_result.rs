@@ -22,6 +22,9 @@ pub struct TriadDoc {
     pub method: String,
     /// The outputs' unit.
     pub unit: String,
+    /// The temperature it was calibrated at, °C, when given.
+    #[serde(default)]
+    pub temperature_c: Option<f64>,
     /// `b`.
     pub b: [f64; 3],
     /// Its standard errors.

@@ -16,6 +16,22 @@ use crate::http::ui::document::Page;
 use crate::http::ui::format::{Notation, num, unc};
 use crate::http::ui::thermal_result::ThermalDoc;
 
+/// The facts' line naming the stored calibrations a model was fitted
+/// from, each linked (nothing for runs sent whole).
+pub fn fitted_from(ids: &[uuid::Uuid]) -> Markup {
+    html! {
+        @if !ids.is_empty() {
+            div { dt { "Fitted from" } dd {
+                @for (i, c) in ids.iter().enumerate() {
+                    @if i > 0 { ", " }
+                    a href={"/ui/calibrations/" (c)} { code { (c.to_string().get(..8).unwrap_or_default()) } }
+                }
+                " (stored calibrations, each at its own temperature)"
+            } }
+        }
+    }
+}
+
 /// A temperature to 0.01 K, as the page and certificate print it.
 pub fn celsius(t: f64) -> String {
     // Within half a hundredth of zero, zero (not `-0.00`).
@@ -44,15 +60,7 @@ pub fn page(d: &ThermalDoc) -> Page<'_> {
             div { dt { "Set points" } dd { (m.set_points.len()) " (runs within " (m.tolerance_k) " K), " (d.runs) " runs" } }
             div { dt { "Degrees" } dd { (m.selection) } }
             @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
-            @if !d.kind.from_calibrations.is_empty() {
-                div { dt { "Fitted from" } dd {
-                    @for (i, c) in d.kind.from_calibrations.iter().enumerate() {
-                        @if i > 0 { ", " }
-                        a href={"/ui/calibrations/" (c)} { code { (c.to_string().get(..8).unwrap_or_default()) } }
-                    }
-                    " (stored calibrations, one per set point)"
-                } }
-            }
+            (fitted_from(&d.from_calibrations))
             @if let Some(u) = m.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every coefficient read at a temperature" } } }
         },
         downloads: None,

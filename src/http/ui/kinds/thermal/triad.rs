@@ -10,7 +10,7 @@
 
 use maud::{Markup, html};
 
-use super::page::{celsius, decision_table, polynomials_table, rule_name};
+use super::page::{celsius, decision_table, fitted_from, polynomials_table, rule_name};
 use super::polynomials;
 use crate::domain::thermal::decision::TriadThermalDecision;
 use crate::domain::triad::{FIXED_BY_CONVENTION, GRAVITY_MAGNITUDE};
@@ -103,6 +103,7 @@ fn facts(d: &ThermalTriadDoc) -> Markup {
         div { dt { "Reference T_ref" } dd { (celsius(d.reference_c)) " °C" } }
         div { dt { "Set points" } dd { (d.thermal.set_points.len()) " (within " (d.thermal.tolerance_k) " K), " (d.runs) @if d.thermal.method == GRAVITY_MAGNITUDE { " static positions" } @else { " runs" } } }
         @if let Some(t) = &d.sensor_type { div { dt { "Sensor type" } dd { (t) } } }
+        (fitted_from(&d.from_calibrations))
         @if let Some(u) = d.thermal.thermometer_std_c { div { dt { "Thermometer" } dd { "u_T = " (u) " K, in every element read at a temperature" } } }
     }
 }

@@ -98,6 +98,7 @@ pub fn page(d: &TriadDoc) -> Page<'_> {
                 @else { "unknown orientations: b and T from the gravity magnitude (Levenberg–Marquardt)" }
             } }
             div { dt { "Unit" } dd { (d.unit) " (b); " (d.unit) " per g (S)" } }
+            @if let Some(t) = d.temperature_c { div { dt { "Temperature" } dd { (crate::http::ui::kinds::thermal::page::celsius(t)) " °C (the readings' mean, all within 0.5 K)" } } }
             @for u in &d.standards {
                 div { dt { "Standard (" (u.role) ")" } dd {
                     (u.standard_id) ", " (u.description) ": certificate " (u.certificate.number)
