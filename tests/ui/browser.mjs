@@ -360,6 +360,33 @@ try {
   assert.equal(header.status(), 200);
   assert.match(await header.text(), /ACCELCAL_B_POLY/);
   ok('triad temperature model: the page shows every element\'s polynomial and its type\'s decision as stored and offers the model\'s firmware files');
+  // The same chamber campaign stored as five triads, one per set point,
+  // then a model named from them.
+  const campaign = JSON.parse(fs.readFileSync('examples/thermal-triad.json'));
+  const setPoints = [...new Set(campaign.runs.map((r) => Math.round(r.temperature_c)))];
+  const triadIds = [];
+  for (const t of setPoints) {
+    const runs = campaign.runs.filter((r) => Math.round(r.temperature_c) === t);
+    const stored = await must(201, api('POST', '/v1/calibrations/triad', {
+      body: JSON.stringify({ ...campaign, sensor_id: 'IMU-TC-5', runs }),
+    }), `triad at ${t} °C`);
+    triadIds.push(stored.id);
+  }
+  const named = await must(201, api('POST', '/v1/calibrations/thermal/triad', {
+    body: JSON.stringify({ sensor_id: 'IMU-TC-5', calibrations: triadIds }),
+  }), 'triad temperature model from stored triads');
+  assert.deepEqual(named.thermal.b, (await must(200, api('POST', '/v1/identify/thermal/triad', {
+    body: JSON.stringify({ ...campaign, sensor_id: 'IMU-TC-5' }),
+  }), 'the campaign sent whole')).b, 'the same polynomials as the campaign sent whole');
+  await page.goto(`/ui/calibrations/${named.id}`);
+  const linked = await page.$$eval('dd a[href^="/ui/calibrations/"]', (as) => as.map((a) => a.getAttribute('href')));
+  assert.deepEqual(linked, triadIds.map((id) => `/ui/calibrations/${id}`), 'the model links the triads it was fitted from');
+  await Promise.all([page.waitForNavigation(), page.click(`a[href="/ui/calibrations/${triadIds[0]}"]`)]);
+  const shown = (await page.textContent('main')).match(/Temperature\s*(-?\d+\.\d\d) °C/);
+  assert.ok(shown, 'the triad states its temperature');
+  const first = campaign.runs.filter((r) => Math.round(r.temperature_c) === setPoints[0]);
+  close(Number(shown[1]), first.reduce((a, r) => a + r.temperature_c, 0) / first.length, 1e-3, 'the triad\'s temperature: its runs\' mean');
+  ok('triad temperature model from five stored triads: the polynomials of the campaign sent whole; the page links each triad, whose page states its temperature');
 
   // ---------------------------------- accessibility and screenshots
   const pages = {
@@ -374,6 +401,8 @@ try {
     thermalCertificate: `/ui/calibrations/${thermal.id}/certificate`,
     thermalTriad: `/ui/calibrations/${thermalTriad.id}`,
     thermalTriadCertificate: `/ui/calibrations/${thermalTriad.id}/certificate`,
+    thermalTriadNamed: `/ui/calibrations/${named.id}`,
+    triadAtOneTemperature: `/ui/calibrations/${triadIds[0]}`,
   };
   const variants = {
     light: { viewport: { width: 1280, height: 900 }, colorScheme: 'light' },

@@ -61,8 +61,9 @@ pub struct TriadBody {
     #[serde(default)]
     pub static_positions: Option<Vec<Vec<[f64; 3]>>>,
     /// With `static_positions`: each position's temperature, °C (−100 to
-    /// 200), one per position; used by `POST /v1/identify/thermal/triad`,
-    /// which groups the positions into set points by it.
+    /// 200), one per position; `POST /v1/identify/thermal/triad` groups
+    /// the positions into set points by it, a triad at one temperature
+    /// takes their mean (all within 0.5 K) as its `temperature_c`.
     #[serde(default)]
     pub static_temperatures_c: Option<Vec<f64>>,
     /// Unknown orientations from one continuous recording.
@@ -152,8 +153,9 @@ pub struct TriadRunBody {
     pub samples: Vec<Vec<[f64; 3]>>,
     /// The temperature the run was made at, °C (−100 to 200), or one per
     /// position (a chamber that drifts: the run's is their mean): for every
-    /// run or for none; used by `POST /v1/identify/thermal/triad`, which
-    /// groups the runs into set points by it.
+    /// run or for none; `POST /v1/identify/thermal/triad` groups the runs
+    /// into set points by it, a triad at one temperature takes the runs'
+    /// mean (every reading within 0.5 K) as its `temperature_c`.
     #[serde(default)]
     #[schema(schema_with = crate::domain::schema::run_temperature)]
     pub temperature_c: Option<RunTemperature>,
@@ -212,9 +214,10 @@ pub struct RecordingBody {
     /// The detector's parameters (each defaulted).
     #[serde(default)]
     pub detector: Option<DetectorBody>,
-    /// Each sample's temperature, °C (−100 to 200), one per sample; used by
-    /// `POST /v1/identify/thermal/triad`: each static interval is a position
-    /// at its samples' mean temperature.
+    /// Each sample's temperature, °C (−100 to 200), one per sample: for
+    /// `POST /v1/identify/thermal/triad` each static interval is a position
+    /// at its samples' mean temperature; a triad at one temperature takes
+    /// their mean (all within 0.5 K) as its `temperature_c`.
     #[serde(default)]
     pub temperature_c: Option<Vec<f64>>,
 }

@@ -17,14 +17,18 @@ use crate::http::ui::format::{Notation, num, unc};
 use crate::http::ui::thermal_result::ThermalDoc;
 
 /// The facts' line naming the stored calibrations a model was fitted
-/// from, each linked (nothing for runs sent whole).
+/// from, each linked by the last eight digits of its id (nothing for runs
+/// sent whole).
 pub fn fitted_from(ids: &[uuid::Uuid]) -> Markup {
     html! {
         @if !ids.is_empty() {
             div { dt { "Fitted from" } dd {
                 @for (i, c) in ids.iter().enumerate() {
                     @if i > 0 { ", " }
-                    a href={"/ui/calibrations/" (c)} { code { (c.to_string().get(..8).unwrap_or_default()) } }
+                    // A UUIDv7 begins with its time: ids stored within a
+                    // minute share their first eight digits, not their last.
+                    @let id = c.to_string();
+                    a href={"/ui/calibrations/" (id)} title=(id) { code { "…" (id.get(id.len() - 8..).unwrap_or_default()) } }
                 }
                 " (stored calibrations, each at its own temperature)"
             } }
