@@ -310,10 +310,17 @@ impl TestApp {
 
     /// Submits and expects 201; returns the result.
     pub async fn submit(&self, token: &str, body: &Value) -> Value {
-        let res = self.post("/v1/calibrations", token, body).await;
-        let status = res.status();
+        self.expect(StatusCode::CREATED, "/v1/calibrations", token, body)
+            .await
+    }
+
+    /// POSTs `body` to `path`, expects `status` (else fails showing the
+    /// answer's first 600 characters); returns the answer.
+    pub async fn expect(&self, status: StatusCode, path: &str, token: &str, body: &Value) -> Value {
+        let res = self.post(path, token, body).await;
+        let got = res.status();
         let text = res.text().await.unwrap();
-        assert_eq!(status, StatusCode::CREATED, "{text}");
+        assert_eq!(got, status, "{path}: {}", text.get(..600).unwrap_or(&text));
         serde_json::from_str(&text).unwrap()
     }
 

@@ -64,33 +64,43 @@ async fn a_model_from_stored_calibrations_is_the_model_of_their_runs(
     let stored: Value = res.json().await.unwrap();
     crate::conforms_to("StoredThermal", &stored);
     assert_eq!(stored["thermal"], whole_model);
-    assert_eq!(stored["from_calibrations"], json!(ids));
     assert_eq!(stored["runs"], 40);
-    // Performed when the last of them was (a day ago).
+    keeps_where_it_came_from(&app, &stored, &named, &ids, &whole_model).await;
+}
+
+/// The stored model `model` fitted from the calibrations `ids`, which the
+/// body `named` named, keeps them: it lists them, is performed when the
+/// last of them was, stores the body sent, fits `whole_model` again from
+/// them on reprocessing (returned) and links each from its page.
+pub(crate) async fn keeps_where_it_came_from(
+    app: &TestApp,
+    model: &Value,
+    named: &Value,
+    ids: &[String],
+    whole_model: &Value,
+) -> Value {
+    assert_eq!(model["from_calibrations"], json!(ids));
     let last = app
-        .get_json(&format!("/v1/calibrations/{}", ids[4]), ADMIN)
+        .get_json(&format!("/v1/calibrations/{}", ids[ids.len() - 1]), ADMIN)
         .await;
-    assert_eq!(stored["performed_at"], last["performed_at"]);
-    // The body stored is the one sent; reprocessing reads the calibrations
-    // again and fits the same model.
-    let id = stored["id"].as_str().unwrap();
+    assert_eq!(model["performed_at"], last["performed_at"]);
+    let id = model["id"].as_str().unwrap();
     let res = app
         .get(&format!("/v1/calibrations/{id}/submission"), ADMIN)
         .await;
-    assert_eq!(res.json::<Value>().await.unwrap(), named);
-    let again = crate::thermal_stored::reprocessed(&app, id).await;
-    assert_eq!(again["thermal"], whole_model);
-    // The page names where the model came from.
-    let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
-    let html = crate::ui::page(&app, &format!("/ui/calibrations/{id}"), &session)
+    assert_eq!(&res.json::<Value>().await.unwrap(), named);
+    let again = crate::thermal_stored::reprocessed(app, id).await;
+    assert_eq!(&again["thermal"], whole_model);
+    let (session, _) = crate::ui::sign_in(app, ADMIN).await;
+    let html = crate::ui::page(app, &format!("/ui/calibrations/{id}"), &session)
         .await
         .text()
         .await
         .unwrap();
-    assert!(
-        html.contains(&format!("/ui/calibrations/{}", ids[0])),
-        "links its calibrations"
-    );
+    for c in ids {
+        assert!(html.contains(&format!("/ui/calibrations/{c}")), "links {c}");
+    }
+    again
 }
 
 #[tokio::test]

@@ -33,30 +33,15 @@ fn of(mut b: Value, sensor: &str, days: i64) -> Value {
 
 /// `b` stored as a triad at one temperature: its id and result.
 async fn stored(app: &TestApp, b: &Value) -> (String, Value) {
-    let res = app.post("/v1/calibrations/triad", ADMIN, b).await;
-    let status = res.status();
-    let r: Value = res.json().await.unwrap();
-    assert_eq!(
-        status,
-        StatusCode::CREATED,
-        "{}",
-        &r.to_string()[..300.min(r.to_string().len())]
-    );
+    let r = app
+        .expect(StatusCode::CREATED, "/v1/calibrations/triad", ADMIN, b)
+        .await;
     (r["id"].as_str().unwrap().to_owned(), r)
 }
 
 /// The model `b` makes at `path`, answered 200.
 async fn fitted(app: &TestApp, path: &str, b: &Value) -> Value {
-    let res = app.post(path, ADMIN, b).await;
-    let status = res.status();
-    let r: Value = res.json().await.unwrap();
-    assert_eq!(
-        status,
-        StatusCode::OK,
-        "{}",
-        &r.to_string()[..300.min(r.to_string().len())]
-    );
-    r
+    app.expect(StatusCode::OK, path, ADMIN, b).await
 }
 
 #[rstest]
@@ -91,59 +76,41 @@ async fn a_model_from_stored_triads_is_the_model_of_their_runs(
     assert_eq!(combined, whole_model);
     assert_eq!(combined["set_points"].as_array().unwrap().len(), 5);
 
-    let res = app
-        .post("/v1/calibrations/thermal/triad", ADMIN, &named)
+    let model = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/calibrations/thermal/triad",
+            ADMIN,
+            &named,
+        )
         .await;
-    assert_eq!(res.status(), StatusCode::CREATED);
-    let model: Value = res.json().await.unwrap();
     crate::conforms_to("StoredThermalTriad", &model);
     assert_eq!(model["thermal"], whole_model);
-    assert_eq!(model["from_calibrations"], json!(ids));
     assert_eq!(model["runs"], 50);
-    // Performed when the last of them was (a day ago).
-    let last = app
-        .get_json(&format!("/v1/calibrations/{}", ids[4]), ADMIN)
-        .await;
-    assert_eq!(model["performed_at"], last["performed_at"]);
-    // The body stored is the one sent; reprocessing reads the triads again
-    // and fits the same model.
-    let id = model["id"].as_str().unwrap();
-    let res = app
-        .get(&format!("/v1/calibrations/{id}/submission"), ADMIN)
-        .await;
-    assert_eq!(res.json::<Value>().await.unwrap(), named);
-    let again = crate::thermal_stored::reprocessed(&app, id).await;
-    assert_eq!(again["thermal"], whole_model);
-    // The model's page links the triads; a triad's page states its
-    // temperature.
+    let again =
+        crate::thermal_combined::keeps_where_it_came_from(&app, &model, &named, &ids, &whole_model)
+            .await;
+    // A triad's page states its temperature.
     let (session, _) = crate::ui::sign_in(&app, ADMIN).await;
-    let page = |path: String| {
-        let (app, session) = (&app, &session);
-        async move {
-            crate::ui::page(app, &path, session)
-                .await
-                .text()
-                .await
-                .unwrap()
-        }
-    };
-    let html = page(format!("/ui/calibrations/{id}")).await;
-    for c in &ids {
-        assert!(html.contains(&format!("/ui/calibrations/{c}")), "links {c}");
-    }
-    let html = page(format!("/ui/calibrations/{}", ids[0])).await;
+    let html = crate::ui::page(&app, &format!("/ui/calibrations/{}", ids[0]), &session)
+        .await
+        .text()
+        .await
+        .unwrap();
     assert!(
         html.contains("the readings' mean, all within 0.5 K"),
         "states its temperature"
     );
-    // The model compensates at a temperature as the model sent whole does.
-    let stored_whole = {
-        let mut w = whole.clone();
-        w["sensor_id"] = json!("IMU-W");
-        let res = app.post("/v1/calibrations/thermal/triad", ADMIN, &w).await;
-        assert_eq!(res.status(), StatusCode::CREATED);
-        res.json::<Value>().await.unwrap()
-    };
+    // Its elements at T_ref are those of the model sent whole and stored.
+    whole["sensor_id"] = json!("IMU-W");
+    let stored_whole = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/calibrations/thermal/triad",
+            ADMIN,
+            &whole,
+        )
+        .await;
     assert_eq!(stored_whole["elements"], again["elements"]);
 }
 
@@ -253,16 +220,17 @@ async fn triads_that_cannot_make_a_model_are_refused_by_name() {
     )
     .await
     .0;
-    let model = {
-        let mut w = body(&CHAMBER);
-        w["sensor_id"] = json!("IMU-R");
-        let res = app.post("/v1/calibrations/thermal/triad", ADMIN, &w).await;
-        assert_eq!(res.status(), StatusCode::CREATED);
-        res.json::<Value>().await.unwrap()["id"]
-            .as_str()
-            .unwrap()
-            .to_owned()
-    };
+    let model = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/calibrations/thermal/triad",
+            ADMIN,
+            &of(body(&CHAMBER), "IMU-R", 1),
+        )
+        .await["id"]
+        .as_str()
+        .unwrap()
+        .to_owned();
     let single = app
         .submit(ADMIN, &{
             let mut b = crate::thermal::body(&[20.0]);
@@ -399,4 +367,59 @@ async fn a_triad_at_one_temperature_is_held_within_the_tolerance() {
     rec["recording"]["temperature_c"][300] = json!(19.0);
     let p = refused(&app, rec, path).await;
     assert_eq!(pointers(&p), ["/recording/temperature_c/300"], "{p}");
+}
+
+/// Triads held under review by a nonconformity of the thermometer they
+/// used are refused by name: a model fitted from them would not be held.
+/// Approved again, they make one, which records the thermometer.
+#[tokio::test]
+async fn triads_held_under_review_are_refused_until_approved_again() {
+    use crate::thermal_standards::{DAY, ago, stand_and_thermometer};
+    let app = TestApp::spawn(Sqlite).await;
+    stand_and_thermometer(&app, 0.2).await;
+    let mut ids = Vec::new();
+    for (s, &t) in CHAMBER.iter().enumerate() {
+        let mut b = body(&[t]);
+        b["sensor_id"] = json!("IMU-N");
+        b["performed_at"] = json!(ago((40 - s as i64) * DAY));
+        b["standards"] = json!({"thermometer": "TH-1"});
+        ids.push(stored(&app, &b).await.0);
+    }
+    let nc = json!({"found_at": ago(DAY), "last_known_good_at": ago(100 * DAY),
+        "reason": "Reads 0.8 K high below 0 °C."});
+    app.expect(
+        StatusCode::CREATED,
+        "/v1/standards/TH-1/nonconformity",
+        ADMIN,
+        &nc,
+    )
+    .await;
+    let named = json!({"sensor_id": "IMU-N", "calibrations": ids});
+    let p = refused(&app, named.clone(), "/v1/calibrations/thermal/triad").await;
+    assert_eq!(pointers(&p), ["/calibrations/0"], "{p}");
+    assert!(p.to_string().contains("is under review"), "{p}");
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    for id in &ids {
+        app.expect(
+            StatusCode::OK,
+            &format!("/v1/calibrations/{id}/review"),
+            &rita,
+            &json!({"decision": "approve", "comment": "below 0 °C corrected by the lab"}),
+        )
+        .await;
+    }
+    let model = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/calibrations/thermal/triad",
+            ADMIN,
+            &named,
+        )
+        .await;
+    assert_eq!(
+        model["standards"][0]["standard_id"], "TH-1",
+        "{}",
+        model["standards"]
+    );
+    assert_eq!(model["thermal"]["thermometer_std_c"], 0.2);
 }

@@ -1,7 +1,9 @@
 //! A temperature model's body naming stored calibrations, read (issue 45
 //! item 1): each named calibration looked up — of the sensor named, of the
 //! kind the model is fitted to (single axes, or triads at one
-//! temperature), in a state that counts — and its stored submission read
+//! temperature), in a state that counts and not held under review by a
+//! standard's nonconformity (the model would not be) — and its stored
+//! submission read
 //! again on the compute pool, performed when it was; together they make
 //! one submission ([`combine`], [`combine_triads`]), to which the model is
 //! fitted as to one sent whole. Each refusal names the calibration
@@ -14,7 +16,7 @@ use super::super::subject::station;
 use super::super::{Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
-use crate::domain::review::Basis;
+use crate::domain::review::{Basis, State};
 use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Submission, evaluate};
 use crate::domain::text::echo;
@@ -84,9 +86,16 @@ async fn lookup(
         }
         if !c.state.counts(Basis::NotRejected) {
             return Err(refuse(format!(
-                "calibration {id} is {}: only calibrations that count (submitted, under review \
-                 or approved) make a model; name what replaced it",
+                "calibration {id} is {}: only calibrations that count (submitted or approved) \
+                 make a model; name what replaced it",
                 c.state.as_str()
+            )));
+        }
+        if c.state == State::UnderReview {
+            return Err(refuse(format!(
+                "calibration {id} is under review: a nonconformity of a standard it used holds \
+                 it, and a model fitted from it would not be held; a reviewer approves it again \
+                 (or withdraws it) first"
             )));
         }
         let Some(s) = lab.store.submission(id).await? else {
