@@ -166,16 +166,28 @@ pub const NONCONFORMITY_COLUMNS: &str = "id, standard_id, found_at, last_known_g
 
 /// The calibrations performed with the standard `$1` within `$2..=$3`
 /// (`?1`… in SQLite), oldest first, with their states: the one query of
-/// both engines but for how each reads a result's `standards` array
-/// (`standards`: a condition on `c.result` naming the standard `$1`).
-pub fn made_with_sql(standards: &str, p: [&str; 3]) -> String {
+/// both engines but for how each reads a result's JSON (`standards`: a
+/// condition on `c.result` naming the standard `$1`; `fitted_from`: one
+/// that `c.result`'s `from_calibrations` names an id of the CTE `made`).
+///
+/// With them, the temperature models fitted from any of them: a model is
+/// performed when its last constituent was and uses the union of their
+/// standards, so a window that ends before the last constituent would
+/// miss it, though its coefficients come from a calibration made in it. A
+/// model is of its constituents' sensor and performed no earlier than any
+/// of them, so it is looked for among those sensors' temperature models
+/// from the window's start (by `calibrations_by_sensor_time`).
+pub fn made_with_sql(standards: &str, fitted_from: &str, p: [&str; 3]) -> String {
+    let (from, to) = (p[1], p[2]);
     format!(
-        "SELECT c.id, c.sensor_id, c.performed_at, {} AS state FROM calibrations c \
-         WHERE c.performed_at >= {} AND c.performed_at <= {} AND {standards} \
+        "WITH made AS MATERIALIZED (SELECT c.id, c.sensor_id FROM calibrations c \
+           WHERE c.performed_at >= {from} AND c.performed_at <= {to} AND {standards}) \
+         SELECT c.id, c.sensor_id, c.performed_at, {} AS state FROM calibrations c \
+         WHERE c.id IN (SELECT id FROM made) \
+           OR (c.sensor_id IN (SELECT sensor_id FROM made) AND c.performed_at >= {from} \
+               AND c.thermal IS NOT NULL AND {fitted_from}) \
          ORDER BY c.performed_at, c.id",
         state_sql!(),
-        p[1],
-        p[2],
     )
 }
 

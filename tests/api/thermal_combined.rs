@@ -103,6 +103,104 @@ pub(crate) async fn keeps_where_it_came_from(
     again
 }
 
+/// A nonconformity found after a model was fitted holds the model when it
+/// holds a calibration the model was fitted from, though its window ends
+/// before the model was performed (when its last calibration was, made
+/// with another thermometer): the trace follows `from_calibrations`. A
+/// model fitted only from calibrations it does not hold is left.
+#[rstest]
+#[tokio::test]
+async fn a_nonconformity_found_later_holds_the_models_fitted_from_what_it_holds(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    crate::thermal_standards::stand_and_thermometer(&app, 0.2).await;
+    let th2 = crate::thermal_standards::standard("thermometer", json!({"temperature_std_c": 0.1}));
+    let res = app.put("/v1/standards/TH-2", ADMIN, &th2).await;
+    assert_eq!(
+        res.status(),
+        StatusCode::CREATED,
+        "{}",
+        res.text().await.unwrap()
+    );
+    // MEMS-H: the two coolest set points with TH-1 (50 and 40 days ago),
+    // the rest with TH-2 (30, 20, 10 days ago); MEMS-K: all with TH-2.
+    let mut models = Vec::new();
+    let mut held_constituents = Vec::new();
+    for sensor in ["MEMS-H", "MEMS-K"] {
+        let mut ids = Vec::new();
+        for (s, &t) in CHAMBER.iter().enumerate() {
+            let mut b = at(sensor, t, 50 - 10 * s as i64);
+            let th = if sensor == "MEMS-H" && s < 2 {
+                "TH-1"
+            } else {
+                "TH-2"
+            };
+            b["standards"] = json!({"stand": "DH-1", "thermometer": th});
+            ids.push(
+                app.submit(ADMIN, &b).await["id"]
+                    .as_str()
+                    .unwrap()
+                    .to_owned(),
+            );
+        }
+        if sensor == "MEMS-H" {
+            held_constituents = ids[..2].to_vec();
+        }
+        let named = json!({"sensor_id": sensor, "calibrations": ids});
+        let model = app
+            .expect(
+                StatusCode::CREATED,
+                "/v1/calibrations/thermal",
+                ADMIN,
+                &named,
+            )
+            .await;
+        let used = model["standards"].as_array().unwrap().len();
+        assert_eq!(used, if sensor == "MEMS-H" { 3 } else { 2 });
+        models.push(model["id"].as_str().unwrap().to_owned());
+    }
+    // TH-1 found reading high 35 days ago: its window ends before MEMS-H's
+    // third calibration, and before its model was performed (10 days ago).
+    let nc = json!({"found_at": ago(35), "last_known_good_at": ago(100),
+        "reason": "Reads 0.8 K high below 0 °C."});
+    let traced = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/standards/TH-1/nonconformity",
+            ADMIN,
+            &nc,
+        )
+        .await;
+    let mut listed: Vec<(String, String)> = traced["calibrations"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            let id = c["calibration_id"].as_str().unwrap().to_owned();
+            (id, c["state"].as_str().unwrap().to_owned())
+        })
+        .collect();
+    listed.sort();
+    let mut expected: Vec<(String, String)> = held_constituents
+        .iter()
+        .chain(&models[..1])
+        .map(|id| (id.clone(), "under_review".to_owned()))
+        .collect();
+    expected.sort();
+    assert_eq!(listed, expected);
+    let state = |id: String| {
+        let app = &app;
+        async move {
+            app.get_json(&format!("/v1/calibrations/{id}/signatures"), ADMIN)
+                .await["state"]
+                .clone()
+        }
+    };
+    assert_eq!(state(models[0].clone()).await, "under_review");
+    assert_eq!(state(models[1].clone()).await, "submitted");
+}
+
 #[tokio::test]
 async fn calibrations_that_cannot_make_a_model_are_refused_by_name() {
     let app = TestApp::spawn(Sqlite).await;

@@ -284,7 +284,8 @@ async fn insert_concerned(
     Ok(())
 }
 
-/// The calibrations made with standard `standard_id` within `from..=to`.
+/// The calibrations made with standard `standard_id` within `from..=to`,
+/// and the temperature models fitted from them ([`made_with_sql`]).
 async fn made_with_in(
     client: &impl GenericClient,
     standard_id: &str,
@@ -294,6 +295,8 @@ async fn made_with_in(
     let sql = made_with_sql(
         "EXISTS (SELECT 1 FROM json_array_elements(c.result::json -> 'standards') s \
          WHERE s.value ->> 'standard_id' = $1)",
+        "EXISTS (SELECT 1 FROM json_array_elements_text(c.result::json -> 'from_calibrations') f \
+         WHERE f.value::uuid IN (SELECT id FROM made))",
         ["$1", "$2", "$3"],
     );
     client

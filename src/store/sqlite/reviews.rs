@@ -235,7 +235,8 @@ fn insert_concerned(
     Ok(())
 }
 
-/// The calibrations made with standard `standard_id` within `from..=to`.
+/// The calibrations made with standard `standard_id` within `from..=to`,
+/// and the temperature models fitted from them ([`made_with_sql`]).
 fn made_with_in(
     conn: &Connection,
     standard_id: &str,
@@ -245,6 +246,8 @@ fn made_with_in(
     let sql = made_with_sql(
         "EXISTS (SELECT 1 FROM json_each(c.result, '$.standards') s \
          WHERE json_extract(s.value, '$.standard_id') = ?1)",
+        "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f \
+         WHERE f.value IN (SELECT id FROM made))",
         ["?1", "?2", "?3"],
     );
     rows::all(
