@@ -65,7 +65,25 @@ fn sha256(bytes: &[u8]) -> String {
 /// rather than parsed back in ([`with_effect`]): this is every
 /// submission's entry.
 pub fn stored(n: &NewCalibration, by: Actor, effect: Effect) -> Event {
-    let mut change = object(json!({
+    submitted(n).event(by, effect)
+}
+
+/// A calibration's `calibration.submitted` entry before it is stored:
+/// everything of it but the actor and the effect, which only the store's
+/// transaction knows. Built by the request ([`submitted`]), so that the
+/// digests — most of the entry's cost — are computed beside the other
+/// requests rather than by the one writer, and on PostgreSQL not while the
+/// writer holds its sensors' rows.
+#[derive(Debug, Clone)]
+pub struct Submitted {
+    at: Timestamp,
+    id: Uuid,
+    change: Map<String, Value>,
+}
+
+/// The entry of storing `n` ([`stored`]), its digests computed.
+pub fn submitted(n: &NewCalibration) -> Submitted {
+    let change = object(json!({
             "sensor_id": n.sensor_id,
             "station_id": n.station_id,
             "performed_at": n.performed_at.to_string(),
@@ -76,14 +94,26 @@ pub fn stored(n: &NewCalibration, by: Actor, effect: Effect) -> Event {
             "sensor_type": n.sensor_type,
             "assigns_type": n.assigns_type,
     }));
-    change.insert("coefficients".into(), effect.to_value());
-    Event::new(
-        n.received_at,
-        by,
-        "calibration.submitted",
-        audit::calibration(n.id),
+    Submitted {
+        at: n.received_at,
+        id: n.id,
         change,
-    )
+    }
+}
+
+impl Submitted {
+    /// The entry, by `by`, with what storing it did (`effect`).
+    pub fn event(&self, by: Actor, effect: Effect) -> Event {
+        let mut change = self.change.clone();
+        change.insert("coefficients".into(), effect.to_value());
+        Event::new(
+            self.at,
+            by,
+            "calibration.submitted",
+            audit::calibration(self.id),
+            change,
+        )
+    }
 }
 
 /// `calibration.{approve, reject, withdraw, supersede, confirm}`: a

@@ -3,12 +3,15 @@
 //! by the [`seal`](super::seal)er shortly after the commit; every read of
 //! the trail seals first.
 
+use std::collections::HashMap;
+
 use async_trait::async_trait;
 use deadpool_postgres::{GenericClient, Transaction};
 use serde_json::{Map, Value};
 use time::OffsetDateTime;
 
 use super::PostgresStore;
+use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
 use super::seal;
@@ -88,23 +91,47 @@ pub async fn submitter(client: &impl GenericClient, token_id: &str) -> Result<Ac
 /// ([`crate::domain::events::Effect::stored`]).
 pub async fn stored(
     client: &impl GenericClient,
-    stored: &[(&crate::store::NewCalibration, bool)],
+    stored: &[(&Row, bool)],
 ) -> Result<Vec<Event>, StoreError> {
-    let mut actors: std::collections::HashMap<&str, Actor> = std::collections::HashMap::new();
-    let mut events = Vec::with_capacity(stored.len());
-    for &(n, latest) in stored {
-        let by = match actors.get(n.submitted_by.as_str()) {
-            Some(a) => a.clone(),
-            None => {
-                let a = submitter(client, &n.submitted_by).await?;
-                actors.insert(&n.submitted_by, a.clone());
-                a
-            }
-        };
-        let effect = crate::domain::events::Effect::stored(n.id, latest);
-        events.push(audit::stored(n, by, effect));
+    let rows: Vec<&Row> = stored.iter().map(|(r, _)| *r).collect();
+    let actors = submitters(client, &rows).await?;
+    entries(&actors, stored)
+}
+
+/// The actors of the submitters of `rows`, each looked up once: asked
+/// before a batch takes its sensors' rows, so that no round trip for them
+/// is made while it holds them.
+pub async fn submitters<'a>(
+    client: &impl GenericClient,
+    rows: &[&'a Row],
+) -> Result<HashMap<&'a str, Actor>, StoreError> {
+    let mut actors = HashMap::new();
+    for r in rows {
+        let by = r.new_calibration().submitted_by.as_str();
+        if !actors.contains_key(by) {
+            actors.insert(by, submitter(client, by).await?);
+        }
     }
-    Ok(events)
+    Ok(actors)
+}
+
+/// The `calibration.submitted` events of `stored`, by the `actors` of
+/// [`submitters`]: built from each row's prepared entry, with no I/O.
+pub fn entries(
+    actors: &HashMap<&str, Actor>,
+    stored: &[(&Row, bool)],
+) -> Result<Vec<Event>, StoreError> {
+    stored
+        .iter()
+        .map(|&(r, latest)| {
+            let n = r.new_calibration();
+            let by = actors.get(n.submitted_by.as_str()).ok_or_else(|| {
+                StoreError::corrupt("audit", "a submitter was not looked up before its entry")
+            })?;
+            let effect = crate::domain::events::Effect::stored(n.id, latest);
+            Ok(r.entry().event(by.clone(), effect))
+        })
+        .collect()
 }
 
 #[async_trait]

@@ -10,13 +10,17 @@
 //! 1. the idempotency keys of the batch, looked at under their row locks
 //!    (`FOR UPDATE`) in one `SELECT`; a key already completed is the answer
 //!    of its write ([`Stored::Existing`]), which writes nothing;
-//! 2. the calibrations still to write, inserted from arrays (`unnest`);
+//! 2. the calibrations still to write, inserted from arrays (`unnest`),
+//!    their submitters' tokens read first;
 //! 3. their keys completed, guarded as one at a time is
 //!    (`… WHERE idempotency_keys.calibration_id IS NULL`);
 //! 4. one upsert of every sensor the batch wrote, each with the batch's
 //!    calibrations of it aggregated in SQL ([`UPSERT_SENSORS`]) and merged
 //!    into its row by [`SENSOR_MERGE`], answering the rows;
-//! 5. their `calibration.submitted` entries appended to the audit trail.
+//! 5. their `calibration.submitted` entries appended to the audit trail,
+//!    built from what each request prepared ([`crate::store::audit::Submitted`]):
+//!    between the upsert, which holds the sensors' rows against other
+//!    replicas' batches, and the commit there is one statement and no digest.
 //!
 //! What is stored is what the writes one after the other would have stored:
 //! a sensor's summary is `count`, the least `performed_at`, the latest
@@ -39,8 +43,7 @@ use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
 use crate::store::{
-    IdempotencyKey, NEWEST_FIRST, NewCalibration, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError,
-    Stored,
+    IdempotencyKey, NEWEST_FIRST, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError, Stored,
 };
 
 /// What writing a batch inside an open transaction came to.
@@ -144,8 +147,11 @@ pub async fn write(
         return Ok(Outcome::Stored(answers.collect(), None));
     }
 
-    // 2. The calibrations.
+    // 2. The calibrations; their submitters looked up first, so that
+    // nothing but the audit entries' insert and the commit follows the
+    // sensors' upsert (which holds their rows against other replicas).
     let rows: Vec<&Row> = to_write.iter().map(|(r, _)| *r).collect();
+    let actors = super::audit::submitters(tx, &rows).await?;
     insert_calibrations(tx, &rows).await?;
 
     // 3. Their keys, completed only where no one completed them meanwhile.
@@ -164,17 +170,16 @@ pub async fn write(
     // A calibration is served once stored when it is its sensor's latest as
     // the batch leaves the row: no reader sees the rows between the batch's
     // writes, which commit as one.
-    let written: Vec<(&NewCalibration, bool)> = rows
+    let written: Vec<(&Row, bool)> = rows
         .iter()
         .map(|r| {
-            let n = r.new_calibration();
             let latest = merged
                 .get(r.sensor_id())
-                .is_some_and(|s| s.latest_calibration_id == n.id);
-            (n, latest)
+                .is_some_and(|s| s.latest_calibration_id == r.new_calibration().id);
+            (*r, latest)
         })
         .collect();
-    super::audit::append(tx, super::audit::stored(tx, &written).await?).await?;
+    super::audit::append(tx, super::audit::entries(&actors, &written)?).await?;
     let answers = batch
         .iter()
         .zip(answers)

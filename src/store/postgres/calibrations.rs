@@ -62,6 +62,7 @@ pub struct Row {
     triad: Option<String>,
     thermal: Option<String>,
     runs: i32,
+    entry: crate::store::audit::Submitted,
 }
 
 impl Row {
@@ -77,6 +78,7 @@ impl Row {
             triad: n.triad.as_ref().map(json).transpose()?,
             thermal: n.thermal_json()?,
             runs: i32::try_from(n.runs).map_err(|e| StoreError::Refused(e.to_string()))?,
+            entry: crate::store::audit::submitted(&n),
             n,
         })
     }
@@ -89,6 +91,11 @@ impl Row {
     /// The calibration.
     pub fn new_calibration(&self) -> &NewCalibration {
         &self.n
+    }
+
+    /// Its `calibration.submitted` entry, but for actor and effect.
+    pub fn entry(&self) -> &crate::store::audit::Submitted {
+        &self.entry
     }
 
     /// The model's terms, as JSON.
@@ -284,7 +291,7 @@ pub async fn insert(
     match write(&tx, row, key).await? {
         Written::New(sensor) => {
             let latest = sensor.latest_calibration_id == row.n.id;
-            let mut events = super::audit::stored(&tx, &[(&row.n, latest)]).await?;
+            let mut events = super::audit::stored(&tx, &[(row, latest)]).await?;
             events.extend(super::holds::place(&tx, &row.n, &[], latest).await?);
             super::audit::append(&tx, events).await?;
             tx.commit().await.map_err(map)?;

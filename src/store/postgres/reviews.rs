@@ -194,7 +194,7 @@ async fn sign(
     };
     let effect = Effect::signed(id, state, s.state, (latest_before, latest_after), approved);
     let mut events = match replacement {
-        Some(r) => super::audit::stored(tx, &[(r.new_calibration(), replacement_latest)]).await?,
+        Some(r) => super::audit::stored(tx, &[(r, replacement_latest)]).await?,
         None => Vec::new(),
     };
     events.extend(held);

@@ -105,6 +105,7 @@ pub(super) fn insert(
     n: NewCalibration,
     key: Option<IdempotencyKey>,
     inherited: &[crate::domain::nonconformity::Nonconformity],
+    entry: &crate::store::audit::Submitted,
 ) -> Result<(Stored, Option<SensorRow>), StoreError> {
     n.check()?;
     let id = n.id.to_string();
@@ -187,7 +188,7 @@ pub(super) fn insert(
         .as_ref()
         .is_some_and(|r| r.latest_calibration_id == n.id);
     let effect = crate::domain::events::Effect::stored(n.id, latest);
-    super::audit::append(tx, crate::store::audit::stored(&n, by, effect))?;
+    super::audit::append(tx, entry.event(by, effect))?;
     super::holds::place(tx, &n, inherited, latest)?;
     Ok((Stored::New, row))
 }
@@ -226,9 +227,12 @@ impl Calibrations for SqliteStore {
         // One naming standards may be stored held: its sensor's entry is
         // dropped rather than kept as submitted.
         let may_hold = !n.standards.is_empty();
+        // Its audit entry's digests here, beside the other requests, not in
+        // the one writer.
+        let entry = crate::store::audit::submitted(&n);
         let write = async move {
             this.write("insert_calibration", move |conn| {
-                let stored = insert(conn, n, key, &[])?;
+                let stored = insert(conn, n, key, &[], &entry)?;
                 let keep = stored.0 == Stored::New;
                 Ok((stored, keep))
             })

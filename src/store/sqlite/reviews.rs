@@ -88,7 +88,8 @@ fn sign(
         } else {
             Vec::new()
         };
-        match super::calibrations::insert(conn, n, None, &inherited)? {
+        let entry = crate::store::audit::submitted(&n);
+        match super::calibrations::insert(conn, n, None, &inherited, &entry)? {
             (Stored::New, _) => {}
             (Stored::Existing(_), _) => {
                 return Err(StoreError::corrupt(
