@@ -152,15 +152,9 @@ async fn read(
     let who = principal.clone();
     let first = lab
         .compute_for(size, move || {
-            // Runs sent whole are read first; only a body they are not is
-            // looked at for `calibrations` (a second parse costs a fit
-            // route a sixth of its throughput).
-            let e = match evaluate(upload.media, &upload.bytes, received_at) {
-                Ok(e) => e,
-                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
-                    return Ok(First::Named(upload.bytes));
-                }
-                Err(refused) => return Err(refused.into()),
+            let e = match body(upload, |u| evaluate(u.media, &u.bytes, received_at))? {
+                Body::Whole(e) => e,
+                Body::Named(bytes) => return Ok(First::Named(bytes)),
             };
             let station_id = station(&who, e.submission.station_id.as_deref())?;
             let thermal = model(&e.submission, &fit)?;
@@ -236,12 +230,9 @@ pub async fn identify(
     // CPU); a body naming calibrations is read as [`read`] reads it.
     let whole = lab
         .compute_for(upload.bytes.len(), move || {
-            let e = match evaluate(upload.media, &upload.bytes, now) {
-                Ok(e) => e,
-                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
-                    return Ok(Err(upload.bytes));
-                }
-                Err(refused) => return Err(refused.into()),
+            let e = match body(upload, |u| evaluate(u.media, &u.bytes, now))? {
+                Body::Whole(e) => e,
+                Body::Named(bytes) => return Ok(Err(bytes)),
             };
             station(&who, e.submission.station_id.as_deref())?;
             if e.submission.sensor_type.is_some() {
@@ -265,6 +256,30 @@ pub async fn identify(
             thermal.thermometer_std_c = thermometer(&sub.standards_used);
             Ok(thermal)
         }
+    }
+}
+
+/// A temperature model's body: runs (or a triad's readings) sent whole,
+/// or a JSON body naming stored calibrations, by its bytes.
+enum Body<T> {
+    Whole(T),
+    Named(Bytes),
+}
+
+/// `upload` read by `whole` (on the compute pool's thread); only a body
+/// that is not one is looked at for `calibrations` — a second parse of
+/// every body would cost a fit route a sixth of its throughput — and
+/// otherwise refused as `whole` refused it.
+fn body<T, E: Into<Error>>(
+    upload: Upload,
+    whole: impl FnOnce(&Upload) -> Result<T, E>,
+) -> Result<Body<T>, Error> {
+    match whole(&upload) {
+        Ok(t) => Ok(Body::Whole(t)),
+        Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
+            Ok(Body::Named(upload.bytes))
+        }
+        Err(refused) => Err(refused.into()),
     }
 }
 
@@ -295,12 +310,9 @@ pub async fn identify_triad(
     // made, as a single axis's).
     let whole = lab
         .compute_for(upload.bytes.len(), move || {
-            let sub = match super::triad::read(&upload) {
-                Ok(sub) => sub,
-                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
-                    return Ok(Err(upload.bytes));
-                }
-                Err(refused) => return Err(refused),
+            let sub = match body(upload, super::triad::read)? {
+                Body::Whole(sub) => sub,
+                Body::Named(bytes) => return Ok(Err(bytes)),
             };
             if sub.sensor_type.is_some() {
                 return Err(Error::invalid(

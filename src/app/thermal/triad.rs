@@ -28,8 +28,6 @@ use crate::domain::nonconformity::HeldBy;
 use crate::domain::review::Supersedes;
 use crate::domain::sensor_types::SensorType;
 use crate::domain::standards::UsedStandard;
-use crate::domain::submission::Media;
-use crate::domain::thermal::combine::FromCalibrations;
 use crate::domain::thermal::decision::{TriadThermalDecision, decide_triad_model};
 use crate::domain::thermal::{Fit, TriadThermalModel, triad_model};
 use crate::domain::timestamp::Timestamp;
@@ -119,16 +117,12 @@ pub(super) struct Read {
 /// ([`named`]).
 async fn read(lab: &Lab, principal: &Principal, upload: Upload, fit: Fit) -> Result<Read, Error> {
     let first = lab
-        .compute_for(
-            upload.bytes.len(),
-            move || match super::super::triad::read(&upload) {
-                Ok(sub) => fitted(sub, fit).map(Ok),
-                Err(_) if upload.media == Media::Json && FromCalibrations::named(&upload.bytes) => {
-                    Ok(Err(upload.bytes))
-                }
-                Err(refused) => Err(refused),
-            },
-        )
+        .compute_for(upload.bytes.len(), move || {
+            match super::body(upload, super::super::triad::read)? {
+                super::Body::Whole(sub) => fitted(sub, fit).map(Ok),
+                super::Body::Named(bytes) => Ok(Err(bytes)),
+            }
+        })
         .await??;
     match first {
         Ok((sub, thermal)) => Ok(Read {
