@@ -176,18 +176,24 @@ pub const NONCONFORMITY_COLUMNS: &str = "id, standard_id, found_at, last_known_g
 /// miss it, though its coefficients come from a calibration made in it. A
 /// model is of its constituents' sensor and performed no earlier than any
 /// of them, so it is looked for among those sensors' temperature models
-/// from the window's start (by `calibrations_by_sensor_time`).
+/// from the window's start, by `calibrations_by_sensor_time` (a second
+/// branch of a `UNION`: one condition `OR`ed into the first would scan
+/// every calibration a second time).
 pub fn made_with_sql(standards: &str, fitted_from: &str, p: [&str; 3]) -> String {
     let (from, to) = (p[1], p[2]);
+    let columns = format!(
+        "c.id, c.sensor_id, c.performed_at, {} AS state",
+        state_sql!()
+    );
     format!(
         "WITH made AS MATERIALIZED (SELECT c.id, c.sensor_id FROM calibrations c \
            WHERE c.performed_at >= {from} AND c.performed_at <= {to} AND {standards}) \
-         SELECT c.id, c.sensor_id, c.performed_at, {} AS state FROM calibrations c \
-         WHERE c.id IN (SELECT id FROM made) \
-           OR (c.sensor_id IN (SELECT sensor_id FROM made) AND c.performed_at >= {from} \
-               AND c.thermal IS NOT NULL AND {fitted_from}) \
-         ORDER BY c.performed_at, c.id",
-        state_sql!(),
+         SELECT {columns} FROM calibrations c WHERE c.id IN (SELECT id FROM made) \
+         UNION \
+         SELECT {columns} FROM calibrations c \
+           JOIN (SELECT DISTINCT sensor_id FROM made) m ON c.sensor_id = m.sensor_id \
+         WHERE c.performed_at >= {from} AND c.thermal IS NOT NULL AND {fitted_from} \
+         ORDER BY performed_at, id"
     )
 }
 
