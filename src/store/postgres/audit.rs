@@ -11,13 +11,13 @@ use serde_json::{Map, Value};
 use time::OffsetDateTime;
 
 use super::PostgresStore;
-use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
 use super::seal;
 use crate::domain::audit::{Actor, Entry, Event};
 use crate::domain::timestamp::Timestamp;
-use crate::store::{Audit, AuditQuery, StoreError, audit};
+use crate::store::audit::Submitted;
+use crate::store::{Audit, AuditQuery, NewCalibration, StoreError, audit};
 
 const COLUMNS: &str = "seq, at, token_id, role, holder, action, object, change, prev, hash";
 
@@ -86,50 +86,54 @@ pub async fn submitter(client: &impl GenericClient, token_id: &str) -> Result<Ac
     Ok(audit::submitter(token_id, found))
 }
 
+/// A calibration stored, its prepared entry, and whether it became its
+/// sensor's latest ([`crate::domain::events::Effect::stored`]).
+pub type Written<'a> = (&'a NewCalibration, &'a Submitted, bool);
+
 /// The `calibration.submitted` events of `stored`, in order, each actor
-/// looked up once; each with whether it became its sensor's latest
-/// ([`crate::domain::events::Effect::stored`]).
+/// looked up once.
 pub async fn stored(
     client: &impl GenericClient,
-    stored: &[(&Row, bool)],
+    stored: &[Written<'_>],
 ) -> Result<Vec<Event>, StoreError> {
-    let rows: Vec<&Row> = stored.iter().map(|(r, _)| *r).collect();
-    let actors = submitters(client, &rows).await?;
+    let by: Vec<&str> = stored
+        .iter()
+        .map(|(n, _, _)| n.submitted_by.as_str())
+        .collect();
+    let actors = submitters(client, &by).await?;
     entries(&actors, stored)
 }
 
-/// The actors of the submitters of `rows`, each looked up once: asked
-/// before a batch takes its sensors' rows, so that no round trip for them
-/// is made while it holds them.
+/// The actors of the submitters (token ids) `by`, each looked up once:
+/// asked before a batch takes its sensors' rows, so that no round trip
+/// for them is made while it holds them.
 pub async fn submitters<'a>(
     client: &impl GenericClient,
-    rows: &[&'a Row],
+    by: &[&'a str],
 ) -> Result<HashMap<&'a str, Actor>, StoreError> {
     let mut actors = HashMap::new();
-    for r in rows {
-        let by = r.new_calibration().submitted_by.as_str();
-        if !actors.contains_key(by) {
-            actors.insert(by, submitter(client, by).await?);
+    for &token_id in by {
+        if !actors.contains_key(token_id) {
+            actors.insert(token_id, submitter(client, token_id).await?);
         }
     }
     Ok(actors)
 }
 
 /// The `calibration.submitted` events of `stored`, by the `actors` of
-/// [`submitters`]: built from each row's prepared entry, with no I/O.
+/// [`submitters`]: built from each prepared entry, with no I/O.
 pub fn entries(
     actors: &HashMap<&str, Actor>,
-    stored: &[(&Row, bool)],
+    stored: &[Written<'_>],
 ) -> Result<Vec<Event>, StoreError> {
     stored
         .iter()
-        .map(|&(r, latest)| {
-            let n = r.new_calibration();
+        .map(|&(n, entry, latest)| {
             let by = actors.get(n.submitted_by.as_str()).ok_or_else(|| {
                 StoreError::corrupt("audit", "a submitter was not looked up before its entry")
             })?;
             let effect = crate::domain::events::Effect::stored(n.id, latest);
-            Ok(r.entry().event(by.clone(), effect))
+            Ok(entry.event(by.clone(), effect))
         })
         .collect()
 }

@@ -151,7 +151,11 @@ pub async fn write(
     // nothing but the audit entries' insert and the commit follows the
     // sensors' upsert (which holds their rows against other replicas).
     let rows: Vec<&Row> = to_write.iter().map(|(r, _)| *r).collect();
-    let actors = super::audit::submitters(tx, &rows).await?;
+    let by: Vec<&str> = rows
+        .iter()
+        .map(|r| r.new_calibration().submitted_by.as_str())
+        .collect();
+    let actors = super::audit::submitters(tx, &by).await?;
     insert_calibrations(tx, &rows).await?;
 
     // 3. Their keys, completed only where no one completed them meanwhile.
@@ -170,13 +174,14 @@ pub async fn write(
     // A calibration is served once stored when it is its sensor's latest as
     // the batch leaves the row: no reader sees the rows between the batch's
     // writes, which commit as one.
-    let written: Vec<(&Row, bool)> = rows
+    let written: Vec<super::audit::Written> = rows
         .iter()
         .map(|r| {
+            let n = r.new_calibration();
             let latest = merged
                 .get(r.sensor_id())
-                .is_some_and(|s| s.latest_calibration_id == r.new_calibration().id);
-            (*r, latest)
+                .is_some_and(|s| s.latest_calibration_id == n.id);
+            (n, r.entry(), latest)
         })
         .collect();
     super::audit::append(tx, super::audit::entries(&actors, &written)?).await?;

@@ -291,7 +291,7 @@ pub async fn insert(
     match write(&tx, row, key).await? {
         Written::New(sensor) => {
             let latest = sensor.latest_calibration_id == row.n.id;
-            let mut events = super::audit::stored(&tx, &[(row, latest)]).await?;
+            let mut events = super::audit::stored(&tx, &[(&row.n, &row.entry, latest)]).await?;
             events.extend(super::holds::place(&tx, &row.n, &[], latest).await?);
             super::audit::append(&tx, events).await?;
             tx.commit().await.map_err(map)?;

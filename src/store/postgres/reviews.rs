@@ -194,7 +194,10 @@ async fn sign(
     };
     let effect = Effect::signed(id, state, s.state, (latest_before, latest_after), approved);
     let mut events = match replacement {
-        Some(r) => super::audit::stored(tx, &[(r, replacement_latest)]).await?,
+        Some(r) => {
+            let written = (r.new_calibration(), r.entry(), replacement_latest);
+            super::audit::stored(tx, &[written]).await?
+        }
         None => Vec::new(),
     };
     events.extend(held);
