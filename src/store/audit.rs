@@ -55,19 +55,6 @@ fn sha256(bytes: &[u8]) -> String {
     hex::encode(Sha256::digest(bytes))
 }
 
-/// `calibration.submitted`: a calibration stored, by the token that
-/// submitted it, at its reception; the change names its sensor, the SHA-256
-/// of its submission and of its result document — so that the trail also
-/// vouches for the stored bytes — the SHA-256 of its served columns
-/// (`row_sha256`, [`super::verify`]), its media type, and the sensor type
-/// in force and whether it became the sensor's; and what storing it did
-/// to the coefficients served (`effect`), put in the change as it is built
-/// rather than parsed back in ([`with_effect`]): this is every
-/// submission's entry.
-pub fn stored(n: &NewCalibration, by: Actor, effect: Effect) -> Event {
-    submitted(n).event(by, effect)
-}
-
 /// A calibration's `calibration.submitted` entry before it is stored:
 /// everything of it but the actor and the effect, which only the store's
 /// transaction knows. Built by the request ([`submitted`]), so that the
@@ -81,7 +68,15 @@ pub struct Submitted {
     change: Map<String, Value>,
 }
 
-/// The entry of storing `n` ([`stored`]), its digests computed.
+/// `calibration.submitted`: a calibration stored, by the token that
+/// submitted it, at its reception; the change names its sensor, the SHA-256
+/// of its submission and of its result document — so that the trail also
+/// vouches for the stored bytes — the SHA-256 of its served columns
+/// (`row_sha256`, [`super::verify`]), its media type, and the sensor type
+/// in force and whether it became the sensor's; and what storing it did
+/// to the coefficients served (the effect, given to
+/// [`Submitted::event`]), put in the change as it is built rather than
+/// parsed back in ([`with_effect`]): this is every submission's entry.
 pub fn submitted(n: &NewCalibration) -> Submitted {
     let change = object(json!({
             "sensor_id": n.sensor_id,
