@@ -442,6 +442,18 @@ pub enum Refusal {
          was done (re-measured, …)"
     )]
     Disposition,
+    /// A temperature model that counts was fitted from the calibration
+    /// (its `from_calibrations`): rejecting, withdrawing or superseding the
+    /// calibration would leave the model's coefficients standing on a
+    /// measurement that no longer counts.
+    #[error(
+        "temperature model {model} was fitted from this calibration and still counts: reject \
+         or withdraw the model first, then fit it again from the calibrations that stand"
+    )]
+    FittedInto {
+        /// The model.
+        model: uuid::Uuid,
+    },
     /// The calibration's state does not allow the act.
     #[error("the calibration is {}: only a {from} calibration can be {}", .state.as_str(), .target_past)]
     State {

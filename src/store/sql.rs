@@ -197,6 +197,22 @@ pub fn made_with_sql(standards: &str, fitted_from: &str, p: [&str; 3]) -> String
     )
 }
 
+/// A temperature model of sensor `p[0]` that counts, performed no earlier
+/// than `p[1]`, fitted from calibration `p[2]` (`fitted`: the engine's
+/// condition that `c.result`'s `from_calibrations` names `p[2]`): what a
+/// calibration that stops counting would leave standing on it. By
+/// `calibrations_by_sensor_time` from the calibration's own time (a model
+/// is performed when its last constituent was).
+pub fn fitted_into_sql(fitted: &str, p: [&str; 3]) -> String {
+    format!(
+        "SELECT c.id FROM calibrations c WHERE c.sensor_id = {} AND c.performed_at >= {} \
+         AND c.thermal IS NOT NULL AND {fitted} AND {} LIMIT 1",
+        p[0],
+        p[1],
+        counts(Basis::NotRejected),
+    )
+}
+
 /// Who submitted each calibration that calibration `p` replaces (directly,
 /// or through earlier supersessions), nearest first: `submitted_by` — the
 /// last row is the measurement's author

@@ -201,6 +201,91 @@ async fn a_nonconformity_found_later_holds_the_models_fitted_from_what_it_holds(
     assert_eq!(state(models[1].clone()).await, "submitted");
 }
 
+/// A calibration a temperature model was fitted from cannot stop counting
+/// while the model counts: rejecting, withdrawing or superseding it is a
+/// 409 naming the model (which would stand on a measurement that no
+/// longer counts), and nothing is signed; once the model is withdrawn the
+/// calibration can be rejected. Holding it under review is not refused.
+#[rstest]
+#[tokio::test]
+async fn a_calibration_a_model_was_fitted_from_stops_counting_only_after_the_model(
+    #[values(Sqlite, Postgres)] engine: Engine,
+) {
+    let app = TestApp::spawn(engine).await;
+    let rita = app.held_token("reviewer", "Rita Reviewer", None).await;
+    let mut ids = Vec::new();
+    for (s, &t) in CHAMBER.iter().enumerate() {
+        let b = at("MEMS-R", t, 5 - s as i64);
+        ids.push(
+            app.submit(ADMIN, &b).await["id"]
+                .as_str()
+                .unwrap()
+                .to_owned(),
+        );
+    }
+    let named = json!({"sensor_id": "MEMS-R", "calibrations": ids});
+    let model = app
+        .expect(
+            StatusCode::CREATED,
+            "/v1/calibrations/thermal",
+            ADMIN,
+            &named,
+        )
+        .await;
+    let model = model["id"].as_str().unwrap().to_owned();
+    let signatures = |id: String| {
+        let app = &app;
+        async move {
+            app.get_json(&format!("/v1/calibrations/{id}/signatures"), ADMIN)
+                .await
+        }
+    };
+    let c = &ids[2];
+    let mut replacement = at("MEMS-R", CHAMBER[2], 5 - 2);
+    replacement["station_id"] = json!("CHAMBER-2");
+    for (path, token, body) in [
+        (
+            format!("/v1/calibrations/{c}/review"),
+            &rita,
+            json!({"decision": "reject", "comment": "chamber door left open"}),
+        ),
+        (
+            format!("/v1/calibrations/{c}/withdraw"),
+            &rita,
+            json!({"reason": "wrong sensor"}),
+        ),
+        (
+            format!("/v1/calibrations/{c}/supersede?reason=station%20id"),
+            &rita,
+            replacement,
+        ),
+    ] {
+        let res = app.post(&path, token, &body).await;
+        assert_eq!(res.status(), StatusCode::CONFLICT, "{path}");
+        let p: Value = res.json().await.unwrap();
+        assert!(p["detail"].as_str().unwrap().contains(&model), "{p}");
+    }
+    let s = signatures(ids[2].clone()).await;
+    assert_eq!(s["state"], "submitted", "{s}");
+    assert_eq!(s["signatures"].as_array().unwrap().len(), 0, "{s}");
+    // The model withdrawn, the calibration can be rejected.
+    app.expect(
+        StatusCode::OK,
+        &format!("/v1/calibrations/{model}/withdraw"),
+        &rita,
+        &json!({"reason": "refitted without the 20 °C point"}),
+    )
+    .await;
+    app.expect(
+        StatusCode::OK,
+        &format!("/v1/calibrations/{c}/review"),
+        &rita,
+        &json!({"decision": "reject", "comment": "chamber door left open"}),
+    )
+    .await;
+    assert_eq!(signatures(ids[2].clone()).await["state"], "rejected");
+}
+
 #[tokio::test]
 async fn calibrations_that_cannot_make_a_model_are_refused_by_name() {
     let app = TestApp::spawn(Sqlite).await;

@@ -422,4 +422,16 @@ async fn triads_held_under_review_are_refused_until_approved_again() {
         model["standards"]
     );
     assert_eq!(model["thermal"]["thermometer_std_c"], 0.2);
+    // None of them can stop counting while the model counts.
+    let res = app
+        .post(
+            &format!("/v1/calibrations/{}/withdraw", ids[4]),
+            &rita,
+            &json!({"reason": "wrong sensor"}),
+        )
+        .await;
+    assert_eq!(res.status(), StatusCode::CONFLICT);
+    let p: Value = res.json().await.unwrap();
+    let id = model["id"].as_str().unwrap();
+    assert!(p["detail"].as_str().unwrap().contains(id), "{p}");
 }

@@ -16,13 +16,13 @@ use super::signatures::SIGNATURE_COLUMNS;
 use crate::domain::audit::{Actor, Event};
 use crate::domain::events::Effect;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
-use crate::domain::review::{Act, Signature, State, Submitter};
+use crate::domain::review::{Act, Basis, Refusal, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::audit::with_effect;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError,
-    chain_end_sql, changes_the_sensor, earlier_submitters_sql, latest_approved_id_sql,
-    made_with_sql, sensor_forget, sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, fitted_into_sql,
+    latest_approved_id_sql, made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// The holder of the token `token_id` (a submission's `submitted_by`), if
@@ -69,7 +69,7 @@ async fn sign(
     let row = tx
         .query_one(
             concat!(
-                "SELECT c.sensor_id, c.submitted_by, c.received_at, ",
+                "SELECT c.sensor_id, c.submitted_by, c.received_at, c.performed_at, ",
                 crate::state_sql!(),
                 " AS state, (SELECT coalesce(max(s.seq), 0) FROM signatures s \
                  WHERE s.calibration_id = c.id) AS last FROM calibrations c WHERE c.id = $1"
@@ -106,6 +106,20 @@ async fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), Vec::new())),
     };
+    if state.counts(Basis::NotRejected) && !s.state.counts(Basis::NotRejected) {
+        let performed_at: time::OffsetDateTime = rows::get(&row, "performed_at")?;
+        let fitted = "EXISTS (SELECT 1 FROM json_array_elements_text(\
+                      c.result::json -> 'from_calibrations') f WHERE f.value::uuid = $3)";
+        let sql = fitted_into_sql(fitted, ["$1", "$2", "$3"]);
+        let found = tx
+            .query_opt(&sql, &[&sensor_id, &performed_at, &id])
+            .await
+            .map_err(map)?;
+        if let Some(model) = found {
+            let model = rows::get(&model, "id")?;
+            return Ok((Signed::Refused(Refusal::FittedInto { model }), Vec::new()));
+        }
+    }
     let mut held = Vec::new();
     let mut replacement_latest = false;
     if let Some(r) = replacement {

@@ -12,13 +12,13 @@ use super::signatures::{SIGNATURE_COLUMNS, insert};
 use crate::domain::audit::Actor;
 use crate::domain::events::Effect;
 use crate::domain::nonconformity::{Affected, Nonconformity, Replacement, Traced};
-use crate::domain::review::{Act, Signature, State, Submitter};
+use crate::domain::review::{Act, Basis, Refusal, Signature, State, Submitter};
 use crate::domain::timestamp::Timestamp;
 use crate::store::audit::with_effect;
 use crate::store::{
     IssuedCertificate, MadeWith, NewCalibration, Render, Reviews, Signed, StoreError, Stored,
-    chain_end_sql, changes_the_sensor, earlier_submitters_sql, latest_approved_id_sql,
-    made_with_sql, sensor_forget, sensor_recompute,
+    chain_end_sql, changes_the_sensor, earlier_submitters_sql, fitted_into_sql,
+    latest_approved_id_sql, made_with_sql, sensor_forget, sensor_recompute,
 };
 
 /// Records `act` on calibration `id` inside the writer's transaction —
@@ -34,7 +34,7 @@ fn sign(
     let found = rows::first(
         conn,
         concat!(
-            "SELECT c.sensor_id, c.submitted_by, c.received_at, ",
+            "SELECT c.sensor_id, c.submitted_by, c.received_at, c.performed_at, ",
             crate::state_sql!(),
             " AS state, (SELECT coalesce(max(s.seq), 0) FROM signatures s \
              WHERE s.calibration_id = c.id) AS last FROM calibrations c WHERE c.id = ?1"
@@ -48,12 +48,14 @@ fn sign(
                     .map_err(super::errors::map)?,
                 r.get::<_, String>("received_at")
                     .map_err(super::errors::map)?,
+                r.get::<_, String>("performed_at")
+                    .map_err(super::errors::map)?,
                 rows::state(r)?,
                 r.get::<_, i64>("last").map_err(super::errors::map)?,
             ))
         },
     )?;
-    let Some((sensor_id, submitted_by, received_at, state, last)) = found else {
+    let Some((sensor_id, submitted_by, received_at, performed_at, state, last)) = found else {
         return Ok((Signed::NotFound, false));
     };
     let holder = holder_of(conn, &submitted_by)?;
@@ -79,6 +81,19 @@ fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), false)),
     };
+    if state.counts(Basis::NotRejected) && !signature.state.counts(Basis::NotRejected) {
+        let fitted = "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f \
+                      WHERE f.value = ?3)";
+        let model = rows::first(
+            conn,
+            &fitted_into_sql(fitted, ["?1", "?2", "?3"]),
+            params![sensor_id, performed_at, id.to_string()],
+            |r| rows::uuid(r, "id"),
+        )?;
+        if let Some(model) = model {
+            return Ok((Signed::Refused(Refusal::FittedInto { model }), false));
+        }
+    }
     let recompute = changes_the_sensor(state, signature.state, replacement.is_some());
     if let Some(n) = replacement {
         // A correction of a held calibration is held too, under the same
