@@ -29,6 +29,24 @@ fn at(sensor: &str, t: f64, days: i64) -> Value {
     b
 }
 
+/// The model of `sensor` fitted from the stored calibrations `ids`, stored.
+async fn fitted_from(app: &TestApp, sensor: &str, ids: &[String]) -> Value {
+    let named = json!({"sensor_id": sensor, "calibrations": ids});
+    app.expect(
+        StatusCode::CREATED,
+        "/v1/calibrations/thermal",
+        ADMIN,
+        &named,
+    )
+    .await
+}
+
+/// Calibration `id`'s record of signatures, with its state.
+async fn signatures(app: &TestApp, id: &str) -> Value {
+    app.get_json(&format!("/v1/calibrations/{id}/signatures"), ADMIN)
+        .await
+}
+
 #[rstest]
 #[tokio::test]
 async fn a_model_from_stored_calibrations_is_the_model_of_their_runs(
@@ -147,15 +165,7 @@ async fn a_nonconformity_found_later_holds_the_models_fitted_from_what_it_holds(
         if sensor == "MEMS-H" {
             held_constituents = ids[..2].to_vec();
         }
-        let named = json!({"sensor_id": sensor, "calibrations": ids});
-        let model = app
-            .expect(
-                StatusCode::CREATED,
-                "/v1/calibrations/thermal",
-                ADMIN,
-                &named,
-            )
-            .await;
+        let model = fitted_from(&app, sensor, &ids).await;
         let used = model["standards"].as_array().unwrap().len();
         assert_eq!(used, if sensor == "MEMS-H" { 3 } else { 2 });
         models.push(model["id"].as_str().unwrap().to_owned());
@@ -189,16 +199,8 @@ async fn a_nonconformity_found_later_holds_the_models_fitted_from_what_it_holds(
         .collect();
     expected.sort();
     assert_eq!(listed, expected);
-    let state = |id: String| {
-        let app = &app;
-        async move {
-            app.get_json(&format!("/v1/calibrations/{id}/signatures"), ADMIN)
-                .await["state"]
-                .clone()
-        }
-    };
-    assert_eq!(state(models[0].clone()).await, "under_review");
-    assert_eq!(state(models[1].clone()).await, "submitted");
+    assert_eq!(signatures(&app, &models[0]).await["state"], "under_review");
+    assert_eq!(signatures(&app, &models[1]).await["state"], "submitted");
 }
 
 /// A calibration a temperature model was fitted from cannot stop counting
@@ -223,23 +225,8 @@ async fn a_calibration_a_model_was_fitted_from_stops_counting_only_after_the_mod
                 .to_owned(),
         );
     }
-    let named = json!({"sensor_id": "MEMS-R", "calibrations": ids});
-    let model = app
-        .expect(
-            StatusCode::CREATED,
-            "/v1/calibrations/thermal",
-            ADMIN,
-            &named,
-        )
-        .await;
+    let model = fitted_from(&app, "MEMS-R", &ids).await;
     let model = model["id"].as_str().unwrap().to_owned();
-    let signatures = |id: String| {
-        let app = &app;
-        async move {
-            app.get_json(&format!("/v1/calibrations/{id}/signatures"), ADMIN)
-                .await
-        }
-    };
     let c = &ids[2];
     let mut replacement = at("MEMS-R", CHAMBER[2], 5 - 2);
     replacement["station_id"] = json!("CHAMBER-2");
@@ -265,7 +252,7 @@ async fn a_calibration_a_model_was_fitted_from_stops_counting_only_after_the_mod
         let p: Value = res.json().await.unwrap();
         assert!(p["detail"].as_str().unwrap().contains(&model), "{p}");
     }
-    let s = signatures(ids[2].clone()).await;
+    let s = signatures(&app, c).await;
     assert_eq!(s["state"], "submitted", "{s}");
     assert_eq!(s["signatures"].as_array().unwrap().len(), 0, "{s}");
     // The model withdrawn, the calibration can be rejected.
@@ -283,7 +270,7 @@ async fn a_calibration_a_model_was_fitted_from_stops_counting_only_after_the_mod
         &json!({"decision": "reject", "comment": "chamber door left open"}),
     )
     .await;
-    assert_eq!(signatures(ids[2].clone()).await["state"], "rejected");
+    assert_eq!(signatures(&app, c).await["state"], "rejected");
 }
 
 #[tokio::test]
