@@ -46,6 +46,28 @@ impl KeyGuard {
     fn done(mut self) {
         self.key = None;
     }
+
+    /// Releases the key before the act answers its error, so that the
+    /// client's corrected retry with the same key finds it free (released
+    /// on drop, by a task of its own, the retry could come first and be
+    /// refused as a key reused with another body).
+    async fn release(mut self) {
+        if let Some(k) = self.key.take()
+            && let Err(e) = self.store.release_key(k).await
+        {
+            tracing::warn!(error = %e.chain(), "could not release an idempotency key; its lease will expire");
+        }
+    }
+}
+
+/// `result` answered after `guard`'s key is released, if it is an error.
+async fn or_release<T>(result: Result<T, Error>, guard: &mut Option<KeyGuard>) -> Result<T, Error> {
+    if result.is_err()
+        && let Some(g) = guard.take()
+    {
+        g.release().await;
+    }
+    result
 }
 
 impl Drop for KeyGuard {
@@ -104,7 +126,7 @@ async fn store(
     lab: &Lab,
     rec: NewCalibration,
     key: Option<IdempotencyKey>,
-    guard: Option<KeyGuard>,
+    mut guard: Option<KeyGuard>,
 ) -> Result<Submitted, Error> {
     let (id, sensor_id, verdict, result) = (
         rec.id,
@@ -118,7 +140,12 @@ async fn store(
         (None, Some(_), _) => "thermal",
         (None, None, _) => "single-axis",
     };
-    let stored = lab.store.insert_calibration(rec, key).await?;
+    let stored = lab
+        .store
+        .insert_calibration(rec, key)
+        .await
+        .map_err(Error::from);
+    let stored = or_release(stored, &mut guard).await?;
     if let Some(g) = guard {
         g.done();
     }
@@ -147,7 +174,7 @@ pub async fn submit(
     key: Option<IdempotencyKey>,
     kind: Kind,
 ) -> Result<Submitted, Error> {
-    let guard = match &key {
+    let mut guard = match &key {
         None => None,
         Some(k) => match claim(lab, k).await? {
             Ok(guard) => Some(guard),
@@ -157,7 +184,8 @@ pub async fn submit(
     let (id, received_at) = (Uuid::now_v7(), Timestamp::now());
     let assessed = kind
         .assess(lab, principal, upload, received_at, id, None)
-        .await?;
+        .await;
+    let assessed = or_release(assessed, &mut guard).await?;
     let Some(rec) = assessed.record else {
         return Err(Error::Internal);
     };
