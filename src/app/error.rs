@@ -61,7 +61,10 @@ impl Error {
 
 impl From<StoreError> for Error {
     fn from(e: StoreError) -> Self {
-        Error::Store(e)
+        match e {
+            StoreError::Conflict(why) => Error::State(why),
+            e => Error::Store(e),
+        }
     }
 }
 

@@ -134,6 +134,7 @@ pub async fn assess(
             thermal: None,
             thermal_triad: None,
             standards: Resolved::uses(&e.submission.standards_used),
+            fitted_from: Vec::new(),
         });
         Ok(Assessed {
             sensor_id: e.submission.sensor_id.clone(),

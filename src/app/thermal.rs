@@ -441,6 +441,7 @@ pub async fn assess(
         expanded: None,
         triad: None,
         standards: Resolved::uses(&view.standards),
+        fitted_from: view.from_calibrations.clone(),
         thermal: Some(view.thermal),
         thermal_triad: None,
     };

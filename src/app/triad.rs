@@ -352,6 +352,7 @@ pub async fn assess(
         thermal: None,
         thermal_triad: None,
         standards: uses,
+        fitted_from: Vec::new(),
     };
     let view = StoredTriad {
         id,

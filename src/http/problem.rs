@@ -426,6 +426,7 @@ impl From<StoreError> for Problem {
                     1,
                 )
             }
+            StoreError::Conflict(why) => Problem::new(Kind::StateConflict, why),
             _ => {
                 tracing::error!(error = %e.chain(), "storage fault");
                 Problem::internal()
@@ -519,5 +520,19 @@ mod tests {
             res.headers()[header::CONTENT_TYPE],
             "application/problem+json"
         );
+    }
+
+    #[test]
+    fn a_record_made_from_what_changed_is_a_409_whichever_layer_maps_it() {
+        let why = "temperature model m was not stored: calibration c is rejected";
+        for p in [
+            Problem::from(StoreError::Conflict(why.into())),
+            Problem::from(crate::app::Error::from(StoreError::Conflict(why.into()))),
+        ] {
+            let doc: serde_json::Value = serde_json::from_slice(&p.to_json(None)).unwrap();
+            assert_eq!(p.response(None).status(), StatusCode::CONFLICT);
+            assert_eq!(doc["type"], "urn:accelcal:problem:state-conflict");
+            assert_eq!(doc["detail"], why);
+        }
     }
 }

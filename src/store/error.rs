@@ -32,6 +32,13 @@ pub enum StoreError {
     /// A record the store refuses to write (a non-finite number).
     #[error("refused to store the record: {0}")]
     Refused(String),
+    /// What the record was made from changed before it was stored: a
+    /// calibration a temperature model was fitted from stopped counting
+    /// (rejected, withdrawn, superseded or held) while the model was
+    /// fitted. The client's input was right when it was read: answered
+    /// 409 with this message, which names the calibration.
+    #[error("{0}")]
+    Conflict(String),
 }
 
 impl StoreError {

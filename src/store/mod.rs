@@ -17,6 +17,7 @@ pub mod cache;
 pub mod conditional;
 pub mod copy;
 mod error;
+pub(crate) mod fitted;
 pub mod issued;
 pub mod postgres;
 mod records;
@@ -543,7 +544,8 @@ pub trait Idempotency: Send + Sync + 'static {
 /// Records one storage operation's latency in
 /// `accelcal_storage_operation_duration_seconds{operation, outcome}`, the
 /// outcome being `ok`, `unavailable` (the database), `constraint`, `corrupt`,
-/// `refused` or `overloaded` (the write queue was full). Every engine calls it.
+/// `refused`, `overloaded` (the write queue was full) or `conflict` (what a
+/// record was made from changed before it was stored). Every engine calls it.
 pub fn observe<T>(
     operation: &'static str,
     started: std::time::Instant,
@@ -556,6 +558,7 @@ pub fn observe<T>(
         Err(StoreError::Corrupt { .. }) => "corrupt",
         Err(StoreError::Refused(_)) => "refused",
         Err(StoreError::Overloaded(_)) => "overloaded",
+        Err(StoreError::Conflict(_)) => "conflict",
     };
     metrics::histogram!(
         "accelcal_storage_operation_duration_seconds",

@@ -75,6 +75,12 @@ pub struct NewCalibration {
     /// ([`crate::domain::nonconformity::bearing`]). Not a column: the
     /// result document names them; empty for a record copied or exported.
     pub standards: Vec<StandardUse>,
+    /// The stored calibrations a temperature model was fitted from (its
+    /// `from_calibrations`; empty for every other record): what the store
+    /// checks still count, under their row locks, in the transaction that
+    /// stores it ([`crate::domain::thermal::combine::unusable`]). Not a
+    /// column: the result document names them.
+    pub fitted_from: Vec<Uuid>,
 }
 
 /// A reference standard as a calibration used it, for the store's judgement
@@ -88,6 +94,14 @@ pub struct StandardUse {
 }
 
 impl NewCalibration {
+    /// Whether this record is stored in a transaction of its own rather
+    /// than in a group-committed batch: one naming standards may be stored
+    /// held, and one fitted from stored calibrations locks and checks them
+    /// ([`super::fitted`]) — each before anything else of its transaction.
+    pub fn stored_alone(&self) -> bool {
+        !self.standards.is_empty() || !self.fitted_from.is_empty()
+    }
+
     /// The nonconformities that hold this record when it is stored: those
     /// of `found` (its standards' nonconformities) inside whose window it
     /// was performed or whose standard is out of service for it, and those

@@ -66,6 +66,7 @@ pub async fn store_by_an_older_method(
                 thermal: None,
                 thermal_triad: None,
                 standards: Vec::new(),
+                fitted_from: Vec::new(),
             },
             None,
         )

@@ -1389,6 +1389,7 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
                 thermal: None,
                 thermal_triad: None,
                 standards: Vec::new(),
+                fitted_from: Vec::new(),
             },
             None,
         )

@@ -1124,6 +1124,7 @@ async fn conformance(s: Arc<dyn Store>) {
     types_and_statuses(s.as_ref()).await;
     series_and_previous(s.as_ref()).await;
     reviews(s.as_ref()).await;
+    super::fitted::constituents(s.as_ref()).await;
     search(s.as_ref()).await;
     sessions(s.as_ref()).await;
     super::audit::trail(s.as_ref()).await;

@@ -10,6 +10,8 @@
 //! * [`replicas`]: several handles or replicas on one database;
 //! * [`group_commit`]: PostgreSQL's batches, held and released
 //!   deterministically;
+//! * [`fitted`]: a temperature model's constituents checked where it is
+//!   stored;
 //! * [`webhooks`]: endpoints' leases, settles and redelivery (in the
 //!   conformance suite), and two replicas claiming at once.
 
@@ -19,6 +21,7 @@ mod audit;
 mod cache;
 mod conformance;
 mod engines;
+mod fitted;
 mod group_commit;
 mod replicas;
 mod webhooks;
@@ -72,6 +75,7 @@ fn calibration(sensor: &str, performed_at: &str) -> NewCalibration {
         thermal: None,
         thermal_triad: None,
         standards: Vec::new(),
+        fitted_from: Vec::new(),
     }
 }
 

@@ -16,12 +16,11 @@ use super::super::subject::station;
 use super::super::{Error, Lab, Upload};
 use crate::domain::auth::Principal;
 use crate::domain::field::Loc;
-use crate::domain::review::{Basis, State};
 use crate::domain::standards::UsedStandard;
 use crate::domain::submission::{Submission, evaluate};
 use crate::domain::text::echo;
 use crate::domain::thermal::combine::{
-    Constituent, FromCalibrations, TriadConstituent, combine, combine_triads,
+    Constituent, FromCalibrations, TriadConstituent, combine, combine_triads, unusable,
 };
 use crate::domain::timestamp::Timestamp;
 use crate::domain::triad::TriadSubmission;
@@ -84,19 +83,8 @@ async fn lookup(
             };
             return Err(refuse(format!("calibration {id} is {what}: {kind}")));
         }
-        if !c.state.counts(Basis::NotRejected) {
-            return Err(refuse(format!(
-                "calibration {id} is {}: only calibrations that count (submitted or approved) \
-                 make a model; name what replaced it",
-                c.state.as_str()
-            )));
-        }
-        if c.state == State::UnderReview {
-            return Err(refuse(format!(
-                "calibration {id} is under review: a nonconformity of a standard it used holds \
-                 it, and a model fitted from it would not be held; a reviewer approves it again \
-                 (or withdraws it) first"
-            )));
+        if let Some(why) = unusable(id, c.state) {
+            return Err(refuse(why));
         }
         let Some(s) = lab.store.submission(id).await? else {
             tracing::error!(calibration_id = %id, "a stored calibration has no submission");

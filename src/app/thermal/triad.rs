@@ -289,6 +289,7 @@ pub async fn assess(
         due_at,
         expanded: None,
         standards: Resolved::uses(&view.standards),
+        fitted_from: view.from_calibrations.clone(),
         triad: Some(view.elements),
         thermal: None,
         thermal_triad: Some(view.thermal),

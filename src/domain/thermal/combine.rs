@@ -20,6 +20,7 @@ use uuid::Uuid;
 
 use super::super::field::{Errors, Invalid, Loc};
 use super::super::limits::MAX_ID_CHARS;
+use super::super::review::{Basis, State};
 use super::super::standards::UsedStandard;
 use super::super::submission::Submission;
 use super::super::text::{Chars, check_str};
@@ -121,6 +122,29 @@ impl FromCalibrations {
         }
         errors.finish(|| ids)
     }
+}
+
+/// Why calibration `id`, in `state`, cannot make a model, if it cannot:
+/// only calibrations that count (submitted or approved) do, and not one
+/// held under review by a standard's nonconformity (the model would not be
+/// held). The one rule of the model's request, which reads the
+/// calibrations, and of the store, which checks them again in the
+/// transaction that stores the model (a reviewer may act in between).
+pub fn unusable(id: Uuid, state: State) -> Option<String> {
+    if !state.counts(Basis::NotRejected) {
+        return Some(format!(
+            "calibration {id} is {}: only calibrations that count (submitted or approved) \
+             make a model; name what replaced it",
+            state.as_str()
+        ));
+    }
+    (state == State::UnderReview).then(|| {
+        format!(
+            "calibration {id} is under review: a nonconformity of a standard it used holds \
+             it, and a model fitted from it would not be held; a reviewer approves it again \
+             (or withdraws it) first"
+        )
+    })
 }
 
 /// The submission `parts` make together for sensor `sensor_id` and

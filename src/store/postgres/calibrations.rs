@@ -182,6 +182,7 @@ pub async fn write(
             return Ok(Written::Existing(existing));
         }
     }
+    super::fitted::check(tx, n).await?;
     let performed_at = n.performed_at.datetime();
     let verdict = n.verdict.map(|v| v.as_str());
     let due_at = n.due_at.map(|t| t.datetime());
@@ -371,8 +372,10 @@ impl Calibrations for PostgresStore {
         let out = match row {
             // One naming standards may be stored held: in a transaction of
             // its own that locks them first ([`super::holds`]), its
-            // sensor's cached entry dropped rather than kept as submitted.
-            Ok(row) if !row.new_calibration().standards.is_empty() => {
+            // sensor's cached entry dropped rather than kept as submitted;
+            // so is a model fitted from stored calibrations, which locks
+            // them ([`super::fitted`]).
+            Ok(row) if row.new_calibration().stored_alone() => {
                 let sensor = [row.sensor_id().to_owned()];
                 let this = self.clone();
                 let write = async move {

@@ -51,6 +51,7 @@ pub mod connect;
 mod customers;
 mod definitions;
 mod errors;
+mod fitted;
 mod holds;
 mod idempotency;
 pub mod listen;

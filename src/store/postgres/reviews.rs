@@ -106,6 +106,12 @@ async fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), Vec::new())),
     };
+    // A replacement fitted from the calibration it supersedes would count
+    // on one that does not.
+    if let Some(r) = replacement.filter(|r| r.new_calibration().fitted_from.contains(&id)) {
+        let model = r.new_calibration().id;
+        return Ok((Signed::Refused(Refusal::FittedInto { model }), Vec::new()));
+    }
     if state.counts(Basis::NotRejected) && !s.state.counts(Basis::NotRejected) {
         let performed_at: time::OffsetDateTime = rows::get(&row, "performed_at")?;
         let fitted = "EXISTS (SELECT 1 FROM json_array_elements_text(\

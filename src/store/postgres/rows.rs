@@ -133,6 +133,7 @@ pub fn record(row: &Row) -> Result<NewCalibration, StoreError> {
         thermal: s.thermal,
         thermal_triad: s.thermal_triad,
         standards: Vec::new(),
+        fitted_from: Vec::new(),
     })
 }
 

@@ -131,6 +131,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         thermal: c.thermal.clone(),
         thermal_triad: c.thermal_triad.clone(),
         standards: Vec::new(),
+        fitted_from: Vec::new(),
     };
     assert_eq!(CalibrationSummary::from(&n), c);
     n.check().unwrap();
@@ -223,6 +224,7 @@ fn a_triads_numbers_are_named_and_must_be_finite() {
             thermal: None,
             thermal_triad: None,
             standards: Vec::new(),
+            fitted_from: Vec::new(),
         }
     };
     record(e.clone()).check().unwrap();

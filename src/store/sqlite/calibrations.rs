@@ -170,6 +170,7 @@ pub(super) fn insert(
             return Ok((Stored::Existing(existing), None));
         }
     }
+    super::fitted::check(tx, &n)?;
     let row = rows::first(
         tx,
         &UPSERT_SENSOR,

@@ -16,6 +16,7 @@ mod certificates;
 mod customers;
 mod definitions;
 mod errors;
+mod fitted;
 mod holder;
 mod holds;
 mod idempotency;

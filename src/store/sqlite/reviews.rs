@@ -81,6 +81,12 @@ fn sign(
         Ok(s) => s,
         Err(refusal) => return Ok((Signed::Refused(refusal), false)),
     };
+    // A replacement fitted from the calibration it supersedes would count
+    // on one that does not.
+    if let Some(model) = replacement.as_ref().filter(|n| n.fitted_from.contains(&id)) {
+        let model = model.id;
+        return Ok((Signed::Refused(Refusal::FittedInto { model }), false));
+    }
     if state.counts(Basis::NotRejected) && !signature.state.counts(Basis::NotRejected) {
         let fitted = "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f \
                       WHERE f.value = ?3)";

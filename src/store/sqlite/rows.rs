@@ -160,6 +160,7 @@ pub fn record(row: &Row<'_>) -> Result<crate::store::NewCalibration, StoreError>
         thermal: s.thermal,
         thermal_triad: s.thermal_triad,
         standards: Vec::new(),
+        fitted_from: Vec::new(),
     })
 }
 
