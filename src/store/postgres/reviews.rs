@@ -114,9 +114,7 @@ async fn sign(
     }
     if state.counts(Basis::NotRejected) && !s.state.counts(Basis::NotRejected) {
         let performed_at: time::OffsetDateTime = rows::get(&row, "performed_at")?;
-        let fitted = "EXISTS (SELECT 1 FROM json_array_elements_text(\
-                      c.result::json -> 'from_calibrations') f WHERE f.value::uuid = $3)";
-        let sql = fitted_into_sql(fitted, ["$1", "$2", "$3"]);
+        let sql = fitted_into_sql(&fitted_from("= $3"), ["$1", "$2", "$3"]);
         let found = tx
             .query_opt(&sql, &[&sensor_id, &performed_at, &id])
             .await
@@ -307,6 +305,15 @@ async fn insert_concerned(
     Ok(())
 }
 
+/// The condition that `c.result`'s `from_calibrations` names an id
+/// `rhs` matches (`= $3`, `IN (…)`).
+fn fitted_from(rhs: &str) -> String {
+    format!(
+        "EXISTS (SELECT 1 FROM json_array_elements_text(c.result::json -> 'from_calibrations') f \
+         WHERE f.value::uuid {rhs})"
+    )
+}
+
 /// The calibrations made with standard `standard_id` within `from..=to`,
 /// and the temperature models fitted from them ([`made_with_sql`]).
 async fn made_with_in(
@@ -318,8 +325,7 @@ async fn made_with_in(
     let sql = made_with_sql(
         "EXISTS (SELECT 1 FROM json_array_elements(c.result::json -> 'standards') s \
          WHERE s.value ->> 'standard_id' = $1)",
-        "EXISTS (SELECT 1 FROM json_array_elements_text(c.result::json -> 'from_calibrations') f \
-         WHERE f.value::uuid IN (SELECT id FROM made))",
+        &fitted_from("IN (SELECT id FROM made)"),
         ["$1", "$2", "$3"],
     );
     client

@@ -88,11 +88,9 @@ fn sign(
         return Ok((Signed::Refused(Refusal::FittedInto { model }), false));
     }
     if state.counts(Basis::NotRejected) && !signature.state.counts(Basis::NotRejected) {
-        let fitted = "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f \
-                      WHERE f.value = ?3)";
         let model = rows::first(
             conn,
-            &fitted_into_sql(fitted, ["?1", "?2", "?3"]),
+            &fitted_into_sql(&fitted_from("= ?3"), ["?1", "?2", "?3"]),
             params![sensor_id, performed_at, id.to_string()],
             |r| rows::uuid(r, "id"),
         )?;
@@ -257,6 +255,14 @@ fn insert_concerned(
     Ok(())
 }
 
+/// The condition that `c.result`'s `from_calibrations` names an id
+/// `rhs` matches (`= ?3`, `IN (…)`).
+fn fitted_from(rhs: &str) -> String {
+    format!(
+        "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f WHERE f.value {rhs})"
+    )
+}
+
 /// The calibrations made with standard `standard_id` within `from..=to`,
 /// and the temperature models fitted from them ([`made_with_sql`]).
 fn made_with_in(
@@ -268,8 +274,7 @@ fn made_with_in(
     let sql = made_with_sql(
         "EXISTS (SELECT 1 FROM json_each(c.result, '$.standards') s \
          WHERE json_extract(s.value, '$.standard_id') = ?1)",
-        "EXISTS (SELECT 1 FROM json_each(c.result, '$.from_calibrations') f \
-         WHERE f.value IN (SELECT id FROM made))",
+        &fitted_from("IN (SELECT id FROM made)"),
         ["?1", "?2", "?3"],
     );
     rows::all(
