@@ -57,17 +57,56 @@ impl Kind {
         id: Uuid,
         supersedes: Option<Supersedes>,
     ) -> Result<Assessed, Error> {
+        // Each kind's future is boxed: held inline, every submission's
+        // would be as large as the largest kind's (a triad's, 15 KB) and
+        // copied whole into each future that awaits it (BENCHMARKS.md
+        // "Futures and records copied").
         match self {
             Kind::SingleAxis => {
-                single_axis::assess(lab, principal, upload, received_at, Some(id), supersedes).await
+                Box::pin(single_axis::assess(
+                    lab,
+                    principal,
+                    upload,
+                    received_at,
+                    Some(id),
+                    supersedes,
+                ))
+                .await
             }
-            Kind::Triad => triad::assess(lab, principal, upload, received_at, id, supersedes).await,
+            Kind::Triad => {
+                Box::pin(triad::assess(
+                    lab,
+                    principal,
+                    upload,
+                    received_at,
+                    id,
+                    supersedes,
+                ))
+                .await
+            }
             Kind::Thermal(fit) => {
-                thermal::assess(lab, principal, upload, received_at, id, supersedes, fit).await
+                Box::pin(thermal::assess(
+                    lab,
+                    principal,
+                    upload,
+                    received_at,
+                    id,
+                    supersedes,
+                    fit,
+                ))
+                .await
             }
             Kind::ThermalTriad(fit) => {
-                thermal::triad::assess(lab, principal, upload, received_at, id, supersedes, fit)
-                    .await
+                Box::pin(thermal::triad::assess(
+                    lab,
+                    principal,
+                    upload,
+                    received_at,
+                    id,
+                    supersedes,
+                    fit,
+                ))
+                .await
             }
         }
     }

@@ -442,7 +442,7 @@ pub async fn assess(
         triad: None,
         standards: Resolved::uses(&view.standards),
         fitted_from: view.from_calibrations.clone(),
-        thermal: Some(view.thermal),
+        thermal: Some(Box::new(view.thermal)),
         thermal_triad: None,
     };
     Ok(Assessed {

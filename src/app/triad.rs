@@ -348,7 +348,7 @@ pub async fn assess(
         verdict: result.decision.as_ref().map(|d| d.verdict),
         due_at,
         expanded: None,
-        triad: Some(elements(&result)),
+        triad: Some(Box::new(elements(&result))),
         thermal: None,
         thermal_triad: None,
         standards: uses,

@@ -79,7 +79,7 @@ impl Coefficients {
     /// The coefficients of `summary`, judged at `now`, served on `basis`
     /// (which it counts on: it is the sensor's latest on it).
     fn of(summary: CalibrationSummary, now: Timestamp, basis: Basis) -> Self {
-        let temperature = match (&summary.thermal, &summary.thermal_triad) {
+        let temperature = match (summary.thermal.as_deref(), summary.thermal_triad.as_deref()) {
             (Some(m), _) => Some(TemperatureUsed::of(m, Temperatures::One(m.reference_c()))),
             (None, Some(m)) => Some(TemperatureUsed::of(m, Temperatures::One(m.reference_c()))),
             (None, None) => None,
@@ -96,7 +96,7 @@ impl Coefficients {
             unit: summary.unit,
             model: summary.model,
             coefficients: summary.coefficients,
-            triad: summary.triad,
+            triad: summary.triad.map(|t| *t),
             std_errors: summary.std_errors,
             basis,
         }

@@ -60,14 +60,14 @@ pub struct NewCalibration {
     /// calibrations stored before uncertainty budgets, when copied).
     pub expanded: Option<TermMap<f64>>,
     /// A triad's elements (none for a single-axis calibration).
-    pub triad: Option<TriadElements>,
+    pub triad: Option<Box<TriadElements>>,
     /// A single axis's temperature model, when it is one (issue 45): its
     /// `coefficients` are then the model at `T_ref`.
-    pub thermal: Option<ThermalModel>,
+    pub thermal: Option<Box<ThermalModel>>,
     /// A triad's temperature model, when it is one: its `triad` elements
     /// are then the model at `T_ref`. Kept in the same column as a single
     /// axis's ([`NewCalibration::thermal_json`]).
-    pub thermal_triad: Option<TriadThermalModel>,
+    pub thermal_triad: Option<Box<TriadThermalModel>>,
     /// The reference standards the test used, each with the calibration
     /// date of its certificate in force when it was performed: what the
     /// store judges against the standards' nonconformities in the
@@ -155,16 +155,13 @@ impl NewCalibration {
         if let Some((name, v)) = self
             .triad
             .iter()
-            .flat_map(TriadElements::numbers)
+            .flat_map(|t| t.numbers())
             .find(|(_, v)| !v.is_finite())
         {
             return Err(StoreError::Refused(format!("the triad's `{name}` is {v}")));
         }
-        let axis = self.thermal.iter().flat_map(ThermalModel::numbers);
-        let triad = self
-            .thermal_triad
-            .iter()
-            .flat_map(TriadThermalModel::numbers);
+        let axis = self.thermal.iter().flat_map(|m| m.numbers());
+        let triad = self.thermal_triad.iter().flat_map(|m| m.numbers());
         if let Some((name, v)) = axis.chain(triad).find(|(_, v)| !v.is_finite()) {
             return Err(StoreError::Refused(format!(
                 "the temperature model's `{name}` is {v}"
@@ -261,17 +258,17 @@ pub struct CalibrationSummary {
     /// A triad's elements (absent for a single-axis calibration, whose
     /// `coefficients` are its result; a triad's `coefficients` are empty).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub triad: Option<TriadElements>,
+    pub triad: Option<Box<TriadElements>>,
     /// A single axis's temperature model, when it is one (issue 45; its
     /// `coefficients` are the model at `T_ref`): served by the
     /// coefficients at a temperature and the calibration's document, not
     /// in lists.
     #[serde(skip)]
-    pub thermal: Option<ThermalModel>,
+    pub thermal: Option<Box<ThermalModel>>,
     /// A triad's temperature model, when it is one (its `triad` elements
     /// are the model at `T_ref`); likewise not in lists.
     #[serde(skip)]
-    pub thermal_triad: Option<TriadThermalModel>,
+    pub thermal_triad: Option<Box<TriadThermalModel>>,
     /// Where it stands: `submitted`, `approved`, `rejected` or `withdrawn`
     /// (only the first two count).
     pub state: State,

@@ -1385,7 +1385,7 @@ async fn a_triad_is_superseded_by_a_corrected_triad_and_reprocessed(
                 verdict: None,
                 due_at: None,
                 expanded: None,
-                triad: Some(elements),
+                triad: Some(Box::new(elements)),
                 thermal: None,
                 thermal_triad: None,
                 standards: Vec::new(),

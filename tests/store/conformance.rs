@@ -313,16 +313,16 @@ async fn triads_round_trip(s: &dyn Store) {
     c.coefficients = TermMap(vec![]);
     c.std_errors = TermMap(vec![]);
     c.expanded = None;
-    c.triad = Some(elements.clone());
+    c.triad = Some(Box::new(elements.clone()));
     assert_eq!(
         s.insert_calibration(c.clone(), None).await.unwrap(),
         Stored::New
     );
     let summary = s.calibration_summary(c.id).await.unwrap().unwrap();
-    assert_eq!(summary.triad.as_ref(), Some(&elements));
+    assert_eq!(summary.triad.as_deref(), Some(&elements));
     assert!(summary.coefficients.is_empty());
     let latest = s.sensor("TRIAD-1".into(), now()).await.unwrap().unwrap();
-    assert_eq!(latest.latest.triad, Some(elements.clone()));
+    assert_eq!(latest.latest.triad, Some(Box::new(elements.clone())));
     let history = s
         .history(
             "TRIAD-1".into(),
@@ -334,7 +334,7 @@ async fn triads_round_trip(s: &dyn Store) {
         .await
         .unwrap();
     assert_eq!(history.len(), 1);
-    assert_eq!(history[0].triad, Some(elements.clone()));
+    assert_eq!(history[0].triad, Some(Box::new(elements.clone())));
     let mut exported = Vec::new();
     let mut after = None;
     loop {
@@ -344,13 +344,13 @@ async fn triads_round_trip(s: &dyn Store) {
         exported.extend(page);
     }
     let copied = exported.iter().find(|n| n.id == c.id).unwrap();
-    assert_eq!(copied.triad, Some(elements.clone()));
+    assert_eq!(copied.triad, Some(Box::new(elements.clone())));
     let mut bad = calibration("TRIAD-1", "2026-03-01T00:00:00Z");
     bad.coefficients = TermMap(vec![]);
     bad.std_errors = TermMap(vec![]);
     let mut e = elements;
     e.t[1][0] = f64::NAN;
-    bad.triad = Some(e);
+    bad.triad = Some(Box::new(e));
     let err = s.insert_calibration(bad.clone(), None).await.unwrap_err();
     assert!(matches!(err, StoreError::Refused(_)), "{err:?}");
     assert!(s.calibration_summary(bad.id).await.unwrap().is_none());

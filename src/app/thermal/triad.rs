@@ -290,9 +290,9 @@ pub async fn assess(
         expanded: None,
         standards: Resolved::uses(&view.standards),
         fitted_from: view.from_calibrations.clone(),
-        triad: Some(view.elements),
+        triad: Some(Box::new(view.elements)),
         thermal: None,
-        thermal_triad: Some(view.thermal),
+        thermal_triad: Some(Box::new(view.thermal)),
     };
     Ok(Assessed {
         sensor_id,

@@ -44,7 +44,7 @@ pub(super) async fn at_temperature(
     let refused = |detail: String| {
         Problem::new(Kind::Validation, format!("temperature_c {detail}")).naming("temperature_c")
     };
-    if let Some(model) = latest.thermal_triad.clone() {
+    if let Some(model) = latest.thermal_triad.as_deref().cloned() {
         let outside = model.at(t).outside_k;
         if outside > 0.0 && !allow {
             return Err(refused(outside_range(t, outside, &model, latest.id)));
@@ -60,7 +60,7 @@ pub(super) async fn at_temperature(
         c.temperature = Some(TemperatureUsed::of(&model, Temperatures::One(t)));
         return Ok(Json(c).into_response());
     }
-    let Some(model) = latest.thermal.clone() else {
+    let Some(model) = latest.thermal.as_deref().cloned() else {
         return Err(refused(no_model(latest.id)));
     };
     let at = model.at(t);

@@ -102,7 +102,7 @@ fn a_new_calibrations_summary_is_its_fields() {
         due_at: Some(ts("2027-01-01T00:00:00Z")),
         expanded: Some(TermMap(vec![])),
         received_at: ts("2026-01-02T00:00:00Z"),
-        triad: Some(elements()),
+        triad: Some(Box::new(elements())),
         thermal: None,
         thermal_triad: None,
         ..cal(9, "2026-01-01T00:00:00Z")
@@ -199,7 +199,7 @@ fn a_triads_numbers_are_named_and_must_be_finite() {
         ]
     );
     let record = |triad: TriadElements| NewCalibration {
-        triad: Some(triad),
+        triad: Some(Box::new(triad)),
         ..NewCalibration {
             id: Uuid::from_u128(1),
             sensor_id: "S".into(),

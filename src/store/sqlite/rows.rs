@@ -115,9 +115,9 @@ pub fn summary(row: &Row<'_>) -> Result<CalibrationSummary, StoreError> {
         verdict: verdict(row, "verdict")?,
         due_at: optional_timestamp(row, "due_at")?,
         expanded: optional_json::<TermMap<f64>>(row, "expanded")?,
-        triad: optional_json::<crate::store::TriadElements>(row, "triad")?,
-        thermal,
-        thermal_triad,
+        triad: optional_json::<crate::store::TriadElements>(row, "triad")?.map(Box::new),
+        thermal: thermal.map(Box::new),
+        thermal_triad: thermal_triad.map(Box::new),
         state: state(row)?,
     })
 }
