@@ -3,6 +3,8 @@
 //! its own assessment module ([`super::single_axis`], [`super::triad`],
 //! [`super::thermal`]).
 
+use std::pin::Pin;
+
 use uuid::Uuid;
 
 use super::{Assessed, Error, Lab, Upload, single_axis, thermal, triad};
@@ -61,53 +63,25 @@ impl Kind {
         // would be as large as the largest kind's (a triad's, 15 KB) and
         // copied whole into each future that awaits it (BENCHMARKS.md
         // "Futures and records copied").
-        match self {
-            Kind::SingleAxis => {
-                Box::pin(single_axis::assess(
+        let (at, by) = (received_at, supersedes);
+        let assessed: Pin<Box<dyn Future<Output = Result<Assessed, Error>> + Send + '_>> =
+            match self {
+                Kind::SingleAxis => Box::pin(single_axis::assess(
                     lab,
                     principal,
                     upload,
-                    received_at,
+                    at,
                     Some(id),
-                    supersedes,
-                ))
-                .await
-            }
-            Kind::Triad => {
-                Box::pin(triad::assess(
-                    lab,
-                    principal,
-                    upload,
-                    received_at,
-                    id,
-                    supersedes,
-                ))
-                .await
-            }
-            Kind::Thermal(fit) => {
-                Box::pin(thermal::assess(
-                    lab,
-                    principal,
-                    upload,
-                    received_at,
-                    id,
-                    supersedes,
-                    fit,
-                ))
-                .await
-            }
-            Kind::ThermalTriad(fit) => {
-                Box::pin(thermal::triad::assess(
-                    lab,
-                    principal,
-                    upload,
-                    received_at,
-                    id,
-                    supersedes,
-                    fit,
-                ))
-                .await
-            }
-        }
+                    by,
+                )),
+                Kind::Triad => Box::pin(triad::assess(lab, principal, upload, at, id, by)),
+                Kind::Thermal(f) => {
+                    Box::pin(thermal::assess(lab, principal, upload, at, id, by, f))
+                }
+                Kind::ThermalTriad(f) => Box::pin(thermal::triad::assess(
+                    lab, principal, upload, at, id, by, f,
+                )),
+            };
+        assessed.await
     }
 }
