@@ -59,7 +59,10 @@ pub struct NewCalibration {
     /// The expanded uncertainty of every fused coefficient (none only for
     /// calibrations stored before uncertainty budgets, when copied).
     pub expanded: Option<TermMap<f64>>,
-    /// A triad's elements (none for a single-axis calibration).
+    /// A triad's elements (none for a single-axis calibration). This and
+    /// the two models are boxed: inline they made every record 3.3 KB,
+    /// copied whole by each future that holds one (BENCHMARKS.md "Futures
+    /// and records copied"); a single axis allocates nothing for them.
     pub triad: Option<Box<TriadElements>>,
     /// A single axis's temperature model, when it is one (issue 45): its
     /// `coefficients` are then the model at `T_ref`.
