@@ -14,6 +14,9 @@ use crate::domain::thermal::Fit;
 use crate::domain::timestamp::Timestamp;
 use crate::store::CalibrationSummary;
 
+/// A kind's assessment of one submission, boxed ([`Kind::assess`]).
+type Assessing<'a> = Pin<Box<dyn Future<Output = Result<Assessed, Error>> + Send + 'a>>;
+
 /// A kind of calibration.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
@@ -63,25 +66,42 @@ impl Kind {
         // would be as large as the largest kind's (a triad's, 15 KB) and
         // copied whole into each future that awaits it (BENCHMARKS.md
         // "Futures and records copied").
-        let (at, by) = (received_at, supersedes);
-        let assessed: Pin<Box<dyn Future<Output = Result<Assessed, Error>> + Send + '_>> =
-            match self {
-                Kind::SingleAxis => Box::pin(single_axis::assess(
-                    lab,
-                    principal,
-                    upload,
-                    at,
-                    Some(id),
-                    by,
-                )),
-                Kind::Triad => Box::pin(triad::assess(lab, principal, upload, at, id, by)),
-                Kind::Thermal(f) => {
-                    Box::pin(thermal::assess(lab, principal, upload, at, id, by, f))
-                }
-                Kind::ThermalTriad(f) => Box::pin(thermal::triad::assess(
-                    lab, principal, upload, at, id, by, f,
-                )),
-            };
+        let assessed: Assessing<'_> = match self {
+            Kind::SingleAxis => Box::pin(single_axis::assess(
+                lab,
+                principal,
+                upload,
+                received_at,
+                Some(id),
+                supersedes,
+            )),
+            Kind::Triad => Box::pin(triad::assess(
+                lab,
+                principal,
+                upload,
+                received_at,
+                id,
+                supersedes,
+            )),
+            Kind::Thermal(fit) => Box::pin(thermal::assess(
+                lab,
+                principal,
+                upload,
+                received_at,
+                id,
+                supersedes,
+                fit,
+            )),
+            Kind::ThermalTriad(fit) => Box::pin(thermal::triad::assess(
+                lab,
+                principal,
+                upload,
+                received_at,
+                id,
+                supersedes,
+                fit,
+            )),
+        };
         assessed.await
     }
 }
