@@ -84,6 +84,49 @@ async fn calibrations_and_sensors(s: &dyn Store) {
         .await,
         [c.id]
     );
+    // Every combination of the conditions, and pages shorter than what is
+    // there (PostgreSQL's statement fetches a power of two: 3 fetches 4).
+    assert_eq!(
+        all(q(None, Some("2026-02-01T00:00:00Z"), None)).await,
+        [b.id, c.id]
+    );
+    assert_eq!(
+        all(q(None, None, Some("2026-02-01T00:00:00Z"))).await,
+        [c.id, a.id]
+    );
+    assert_eq!(
+        all(q(Some(b.id), Some("2026-01-15T00:00:00Z"), None)).await,
+        [c.id]
+    );
+    assert_eq!(
+        all(q(Some(c.id), None, Some("2026-02-15T00:00:00Z"))).await,
+        [a.id]
+    );
+    assert_eq!(
+        all(q(
+            Some(b.id),
+            Some("2026-01-01T00:00:00Z"),
+            Some("2026-02-01T00:00:00Z")
+        ))
+        .await,
+        [c.id, a.id]
+    );
+    for (limit, want) in [
+        (1, &[b.id][..]),
+        (2, &[b.id, c.id]),
+        (3, &[b.id, c.id, a.id]),
+    ] {
+        let page = HistoryQuery {
+            limit,
+            ..q(None, None, None)
+        };
+        assert_eq!(all(page).await, want, "limit {limit}");
+    }
+    let page = HistoryQuery {
+        limit: 1,
+        ..q(Some(b.id), None, None)
+    };
+    assert_eq!(all(page).await, [c.id]);
     assert_eq!(
         s.calibration_summary(d.id)
             .await

@@ -85,3 +85,104 @@ async fn previous_walks_the_index_on_stale_statistics() {
         }
     }
 }
+
+/// A history page's statement is planned once per connection, however
+/// long the sensor's history: after PostgreSQL's five custom plans, the
+/// generic plan (its index condition on `$1`, not on the sensor's name)
+/// is kept for every combination of conditions. Written with `$n IS NULL
+/// OR …` and `LIMIT $n`, the same page was planned anew at every
+/// execution on a sensor of 13 400 calibrations ([`history_page`]).
+#[tokio::test]
+async fn a_history_page_keeps_its_generic_plan() {
+    let db = TestDb::create().await;
+    PostgresStore::open(&db.url).await.unwrap();
+    let c = db.client().await;
+    c.batch_execute(&format!(
+        "ALTER TABLE calibrations SET (autovacuum_enabled = false); {} \
+         ANALYZE calibrations; ANALYZE signatures;",
+        rows(13_400, "'HOT'", "now()"),
+    ))
+    .await
+    .unwrap();
+    let at = "now() + interval '1 hour'";
+    let newest: Uuid = c
+        .query_one(
+            "SELECT id FROM calibrations ORDER BY performed_at DESC LIMIT 1",
+            &[],
+        )
+        .await
+        .unwrap()
+        .get(0);
+    let before = format!("'{newest}'");
+    for (k, (from, to, cursor)) in [
+        (false, false, false),
+        (true, false, false),
+        (false, true, true),
+        (true, true, true),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let q = HistoryQuery {
+            from: from.then(Timestamp::now),
+            to: to.then(Timestamp::now),
+            before: cursor.then(Uuid::nil),
+            limit: 51,
+        };
+        let select = concat!("SELECT c.id, ", crate::state_sql!(), " AS state");
+        let sql = format!("{select} {}", history_page(&q));
+        assert!(sql.ends_with("LIMIT 64"), "{sql}");
+        let mut args = vec!["'HOT'".to_owned()];
+        if from {
+            args.push("now() - interval '1 day'".into());
+        }
+        if to {
+            args.push(at.into());
+        }
+        if cursor {
+            args.push(before.clone());
+        }
+        let args = args.join(", ");
+        c.batch_execute(&format!("PREPARE h{k} AS {sql}"))
+            .await
+            .unwrap();
+        for _ in 0..6 {
+            c.batch_execute(&format!("EXECUTE h{k}({args})"))
+                .await
+                .unwrap();
+        }
+        let explained = c
+            .simple_query(&format!("EXPLAIN (FORMAT JSON) EXECUTE h{k}({args})"))
+            .await
+            .unwrap()
+            .into_iter()
+            .find_map(|m| match m {
+                SimpleQueryMessage::Row(r) => r.get(0).map(str::to_owned),
+                _ => None,
+            })
+            .unwrap();
+        // The walk of the sensor's index, beside the cursor's look-up.
+        let plan: serde_json::Value = serde_json::from_str(&explained).unwrap();
+        let scan = plan[0]["Plan"]["Plans"]
+            .as_array()
+            .and_then(|p| p.iter().find(|n| n["Parent Relationship"] == "Outer"))
+            .cloned()
+            .unwrap_or_else(|| panic!("{k}: {plan:#}"));
+        assert_eq!(plan[0]["Plan"]["Node Type"], "Limit", "{plan:#}");
+        assert_eq!(scan["Scan Direction"], "Backward", "{k}: {scan:#}");
+        assert_eq!(
+            scan["Index Name"], "calibrations_by_sensor_time",
+            "{k}: {scan:#}"
+        );
+        let cond = scan["Index Cond"].as_str().unwrap_or_default();
+        assert!(cond.contains("$1"), "{k}: a custom plan: {scan:#}");
+    }
+}
+
+#[test]
+fn a_history_page_fetches_a_power_of_two() {
+    assert_eq!(
+        [1, 2, 3, 20, 21, 51, 500, 501].map(fetched),
+        [1, 2, 4, 32, 32, 64, 512, 512]
+    );
+}
