@@ -1,5 +1,6 @@
 //! Tests of [`super`] on a real PostgreSQL.
 
+use super::history::{fetched, history_page};
 use super::*;
 use accelcal_testkit::pg::TestDb;
 use tokio_postgres::SimpleQueryMessage;
@@ -14,6 +15,19 @@ fn rows(n: usize, sensor: &str, start: &str) -> String {
          '[\"k0\"]', 4, '{{\"k0\": 1}}', '{{\"k0\": 1}}', repeat('x', 2000), '\\x00', \
          'application/json', 't' FROM generate_series(1, {n}) g;"
     )
+}
+
+/// `EXPLAIN (FORMAT JSON)` of `statement`, as text.
+async fn explain(c: &tokio_postgres::Client, statement: &str) -> String {
+    c.simple_query(&format!("EXPLAIN (FORMAT JSON) {statement}"))
+        .await
+        .unwrap()
+        .into_iter()
+        .find_map(|m| match m {
+            SimpleQueryMessage::Row(r) => r.get(0).map(str::to_owned),
+            _ => None,
+        })
+        .unwrap()
 }
 
 /// The node under the plan's `Limit`, from `EXPLAIN (FORMAT JSON)`.
@@ -62,16 +76,7 @@ async fn previous_walks_the_index_on_stale_statistics() {
             } else {
                 "'HOT'"
             };
-            let explained = c
-                .simple_query(&format!("EXPLAIN (FORMAT JSON) EXECUTE {name}({args})"))
-                .await
-                .unwrap()
-                .into_iter()
-                .find_map(|m| match m {
-                    SimpleQueryMessage::Row(r) => r.get(0).map(str::to_owned),
-                    _ => None,
-                })
-                .unwrap();
+            let explained = explain(&c, &format!("EXECUTE {name}({args})")).await;
             let scan = under_limit(&explained);
             assert_eq!(
                 scan["Node Type"], "Index Scan",
@@ -151,16 +156,7 @@ async fn a_history_page_keeps_its_generic_plan() {
                 .await
                 .unwrap();
         }
-        let explained = c
-            .simple_query(&format!("EXPLAIN (FORMAT JSON) EXECUTE h{k}({args})"))
-            .await
-            .unwrap()
-            .into_iter()
-            .find_map(|m| match m {
-                SimpleQueryMessage::Row(r) => r.get(0).map(str::to_owned),
-                _ => None,
-            })
-            .unwrap();
+        let explained = explain(&c, &format!("EXECUTE h{k}({args})")).await;
         // The walk of the sensor's index, beside the cursor's look-up.
         let plan: serde_json::Value = serde_json::from_str(&explained).unwrap();
         let scan = plan[0]["Plan"]["Plans"]
