@@ -17,28 +17,25 @@ use crate::store::{HistoryQuery, NEWEST_FIRST, StoreError};
 /// custom plan's page, so once a sensor's history grew PostgreSQL planned
 /// it anew at every execution — 0.05 ms of planning for a 0.03 ms walk of
 /// the index, half of the database's CPU per history page
-/// (BENCHMARKS.md "A faster machine, where PostgreSQL's submission goes, and a history page planned once"). With neither, the
-/// generic plan costs what a custom one does and is kept: at most eighty
-/// statements per connection, each planned once.
+/// (BENCHMARKS.md "A faster machine, where PostgreSQL's submission goes,
+/// and a history page planned once"). With neither, the generic plan costs
+/// what a custom one does and is kept: at most eighty statements per
+/// connection, each planned once.
 pub(super) fn history_page(q: &HistoryQuery) -> String {
+    // Each condition given, around its parameter: the next after `$1`.
+    let conditions = [
+        (q.from.is_some(), "c.performed_at >= ", ""),
+        (q.to.is_some(), "c.performed_at <= ", ""),
+        (
+            q.before.is_some(),
+            "(c.performed_at, c.id) < (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = ",
+            ")",
+        ),
+    ];
     let mut sql = String::from("FROM calibrations c WHERE c.sensor_id = $1");
-    let mut n = 1;
-    let mut param = |sql: &mut String, condition: &str| {
-        n += 1;
-        sql.push_str(&condition.replace("$?", &format!("${n}")));
-    };
-    if q.from.is_some() {
-        param(&mut sql, " AND c.performed_at >= $?");
-    }
-    if q.to.is_some() {
-        param(&mut sql, " AND c.performed_at <= $?");
-    }
-    if q.before.is_some() {
-        param(
-            &mut sql,
-            " AND (c.performed_at, c.id) < \
-             (SELECT b.performed_at, b.id FROM calibrations b WHERE b.id = $?)",
-        );
+    let given = conditions.iter().filter(|(given, _, _)| *given);
+    for (k, (_, head, tail)) in given.enumerate() {
+        sql.push_str(&format!(" AND {head}${}{tail}", k + 2));
     }
     format!("{sql} {NEWEST_FIRST} LIMIT {}", fetched(q.limit))
 }
