@@ -104,7 +104,23 @@ pub fn submitted(n: &NewCalibration) -> Submitted {
     }
 }
 
+/// The action of [`Submitted`]'s entries.
+pub const SUBMITTED: &str = "calibration.submitted";
+
 impl Submitted {
+    /// The change's text before and after its effect, for a writer that
+    /// joins them in SQL, where it learns the effect
+    /// (`crate::store::postgres::batch`): `head + effect + tail` is
+    /// [`Submitted::event`]'s change.
+    pub fn around_effect(&self) -> (&str, &str) {
+        (&self.head, &self.tail)
+    }
+
+    /// When it was received.
+    pub fn at(&self) -> Timestamp {
+        self.at
+    }
+
     /// The entry, by `by`, with what storing it did (`effect`).
     pub fn event(&self, by: Actor, effect: Effect) -> Event {
         let effect = effect.to_value().to_string();
@@ -115,7 +131,7 @@ impl Submitted {
         Event {
             at: self.at,
             actor: by,
-            action: "calibration.submitted".into(),
+            action: SUBMITTED.into(),
             object: audit::calibration(self.id),
             change,
         }

@@ -9,7 +9,7 @@ use super::{calibration, key, pg, until};
 use accelcal::store::Precondition;
 use accelcal::store::prelude::*;
 use accelcal::store::{
-    IdempotencyKey, NewCalibration, Store, StoreError, Stored, postgres::PostgresStore,
+    AuditQuery, IdempotencyKey, NewCalibration, Store, StoreError, Stored, postgres::PostgresStore,
     sqlite::SqliteStore,
 };
 use accelcal_core::decision::Verdict;
@@ -455,6 +455,50 @@ async fn postgres_a_batch_stores_what_one_at_a_time_stores() {
     assert_eq!(f3.latest.id, writes[5].0.id);
     assert_eq!(f3.due_at, Some(super::t("2027-06-09T00:00:00Z")));
     assert_eq!(f3.sensor_type.as_deref(), Some("NAV"));
+    // Each stored calibration's entry says what storing it did as the
+    // batch left its sensor's row — the latest served, the others
+    // nothing — and the rest of its change is what a write alone records.
+    for (i, (c, _)) in writes.iter().enumerate() {
+        if i == 3 {
+            continue;
+        }
+        let q = || AuditQuery {
+            object: Some(format!("calibrations/{}", c.id)),
+            limit: 10,
+            ..AuditQuery::default()
+        };
+        let (batched, alone) = (pg.audit(q()).await.unwrap(), lite.audit(q()).await.unwrap());
+        let ([b], [o]) = (&batched[..], &alone[..]) else {
+            panic!("{i}: {batched:?} {alone:?}");
+        };
+        assert_eq!(
+            (&b.action, &b.actor, b.at),
+            (&o.action, &o.actor, o.at),
+            "{i}"
+        );
+        let latest = pg
+            .sensor(c.sensor_id.clone(), super::now())
+            .await
+            .unwrap()
+            .unwrap()
+            .latest
+            .id;
+        let not_rejected = if latest == c.id {
+            serde_json::json!({"changed": true, "calibration_id": c.id.to_string()})
+        } else {
+            serde_json::json!({"changed": false})
+        };
+        let mut b: serde_json::Value = serde_json::from_str(&b.change).unwrap();
+        let mut o: serde_json::Value = serde_json::from_str(&o.change).unwrap();
+        assert_eq!(
+            b["coefficients"],
+            serde_json::json!({"not_rejected": not_rejected, "approved_only": {"changed": false}}),
+            "{i}"
+        );
+        b["coefficients"].take();
+        o["coefficients"].take();
+        assert_eq!(b, o, "{i}");
+    }
     // The key completed by the batch answers its retry.
     let retry = calibration("F-2", "2026-06-05T00:00:00Z");
     assert_eq!(

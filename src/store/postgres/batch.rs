@@ -15,12 +15,13 @@
 //! 3. their keys completed, guarded as one at a time is
 //!    (`… WHERE idempotency_keys.calibration_id IS NULL`);
 //! 4. one upsert of every sensor the batch wrote, each with the batch's
-//!    calibrations of it aggregated in SQL ([`UPSERT_SENSORS`]) and merged
-//!    into its row by [`SENSOR_MERGE`], answering the rows;
-//! 5. their `calibration.submitted` entries appended to the audit trail,
-//!    built from what each request prepared ([`crate::store::audit::Submitted`]):
-//!    between the upsert, which holds the sensors' rows against other
-//!    replicas' batches, and the commit there is one statement and no digest.
+//!    calibrations of it folded here ([`fold`]) and merged into its row by
+//!    [`SENSOR_MERGE`] ([`UPSERT_SENSORS`]), answering the rows;
+//! 5. in the same statement, their `calibration.submitted` entries appended
+//!    to the audit trail, built from what each request prepared
+//!    ([`crate::store::audit::Submitted`]): between the upsert, which holds
+//!    the sensors' rows against other replicas' batches, and the commit
+//!    there is no round trip and no digest.
 //!
 //! What is stored is what the writes one after the other would have stored:
 //! a sensor's summary is `count`, the least `performed_at`, the latest
@@ -32,7 +33,8 @@
 //! the batch as [`Outcome::Raced`]: the writer rolls it back and stores each
 //! write alone, where those cases are decided one at a time.
 
-use std::collections::{HashMap, HashSet};
+use std::collections::btree_map::Entry;
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::sync::LazyLock;
 
 use deadpool_postgres::Transaction;
@@ -42,9 +44,10 @@ use uuid::Uuid;
 use super::calibrations::Row;
 use super::errors::map;
 use super::rows;
-use crate::store::{
-    IdempotencyKey, NEWEST_FIRST, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError, Stored,
-};
+use crate::domain::audit::Actor;
+use crate::domain::events::Effect;
+use crate::store::audit::SUBMITTED;
+use crate::store::{IdempotencyKey, SENSOR_MERGE, SENSOR_ROW, SensorRow, StoreError, Stored};
 
 /// What writing a batch inside an open transaction came to.
 #[derive(Debug)]
@@ -68,28 +71,36 @@ pub struct Changed {
     pub sensors: Vec<String>,
 }
 
-/// The batch's calibrations (`$1`, in the batch's order, each with the
-/// type it assigns, `$2`) aggregated per sensor — the count, the least
-/// `performed_at`, the latest by [`NEWEST_FIRST`] with its verdict and due
-/// date, the last type assigned — and merged into the sensors' rows, in
-/// sensor order (so that two replicas' batches take the rows' locks in one
-/// order); answers the rows and the connection's backend process.
+/// The batch's calibrations folded per sensor ([`fold`]: `$1`…`$8`, one
+/// element per sensor) merged into the sensors' rows in sensor order (so
+/// that two replicas' batches take the rows' locks in one order), and in
+/// the same statement their `calibration.submitted` entries (`$9`…`$18`,
+/// one per calibration, in the batch's order) appended to `audit_pending`,
+/// each with the effect its sensor's row as merged gives it: `$17`, served,
+/// when it became the latest, `$19`, unchanged, when not. One statement,
+/// so that between taking the rows' locks and the commit there is no round
+/// trip to this process — which, on two shared cores, may be busy with
+/// other requests when the database answers, while another replica's batch
+/// waits for the rows. A `LEFT JOIN`, so that no entry can be dropped;
+/// answers the rows and the connection's backend process.
 static UPSERT_SENSORS: LazyLock<String> = LazyLock::new(|| {
-    let latest = |column: &str| format!("(array_agg(c.{column} {NEWEST_FIRST}))[1]");
     format!(
-        "INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
-         latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
-         SELECT c.sensor_id, count(*), min(c.performed_at), {}, {}, \
-           (array_agg(w.assigned ORDER BY w.position DESC) FILTER (WHERE w.assigned IS NOT NULL))[1], \
-           {}, {} \
-         FROM unnest($1::uuid[], $2::text[]) WITH ORDINALITY AS w(id, assigned, position) \
-         JOIN calibrations c ON c.id = w.id \
-         GROUP BY c.sensor_id ORDER BY c.sensor_id \
-         {SENSOR_MERGE} {SENSOR_ROW}, pg_backend_pid() AS pid",
-        latest("performed_at"),
-        latest("id"),
-        latest("verdict"),
-        latest("due_at"),
+        "WITH s AS (INSERT INTO sensors (sensor_id, calibration_count, first_performed_at, \
+           latest_performed_at, latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
+           SELECT * FROM unnest($1::text[], $2::int8[], $3::timestamptz[], $4::timestamptz[], \
+             $5::uuid[], $6::text[], $7::text[], $8::timestamptz[]) \
+             AS f(sensor_id, calibration_count, first_performed_at, latest_performed_at, \
+               latest_calibration_id, sensor_type, latest_verdict, latest_due_at) \
+           ORDER BY f.sensor_id COLLATE \"C\" \
+           {SENSOR_MERGE} {SENSOR_ROW}), \
+         a AS (INSERT INTO audit_pending (at, token_id, role, holder, action, object, change) \
+           SELECT u.at, u.token_id, u.role, u.holder, $20, u.object, \
+             u.head || CASE WHEN s.latest_calibration_id = u.id THEN u.served ELSE $19 END || u.tail \
+           FROM unnest($9::uuid[], $10::text[], $11::timestamptz[], $12::text[], $13::text[], \
+             $14::text[], $15::text[], $16::text[], $17::text[], $18::text[]) WITH ORDINALITY \
+             AS u(id, sensor_id, at, token_id, role, holder, object, head, served, tail, n) \
+           LEFT JOIN s ON s.sensor_id = u.sensor_id COLLATE \"C\" ORDER BY u.n) \
+         SELECT s.*, pg_backend_pid() AS pid FROM s"
     )
 });
 
@@ -148,8 +159,8 @@ pub async fn write(
     }
 
     // 2. The calibrations; their submitters looked up first, so that
-    // nothing but the audit entries' insert and the commit follows the
-    // sensors' upsert (which holds their rows against other replicas).
+    // nothing but the commit follows the sensors' upsert (which holds
+    // their rows against other replicas, and appends the entries).
     let rows: Vec<&Row> = to_write.iter().map(|(r, _)| *r).collect();
     let by: Vec<&str> = rows
         .iter()
@@ -167,24 +178,12 @@ pub async fn write(
         return Ok(Outcome::Raced);
     }
 
-    // 4. The sensors' summaries.
-    let (pid, merged) = upsert_sensors(tx, &rows).await?;
-
-    // 5. Their entries for the audit trail (pending until sealed: super::seal).
-    // A calibration is served once stored when it is its sensor's latest as
-    // the batch leaves the row: no reader sees the rows between the batch's
-    // writes, which commit as one.
-    let written: Vec<super::audit::Written> = rows
-        .iter()
-        .map(|r| {
-            let n = r.new_calibration();
-            let latest = merged
-                .get(r.sensor_id())
-                .is_some_and(|s| s.latest_calibration_id == n.id);
-            (n, r.entry(), latest)
-        })
-        .collect();
-    super::audit::append(tx, super::audit::entries(&actors, &written)?).await?;
+    // 4 and 5. The sensors' summaries and the entries for the audit trail
+    // (pending until sealed: super::seal), in one statement. A calibration
+    // is served once stored when it is its sensor's latest as the batch
+    // leaves the row: no reader sees the rows between the batch's writes,
+    // which commit as one.
+    let (pid, merged) = upsert_sensors(tx, &rows, &actors).await?;
     let answers = batch
         .iter()
         .zip(answers)
@@ -302,23 +301,110 @@ async fn complete_keys(
         .map_err(map)
 }
 
+/// The batch's calibrations `rows` (in the batch's order) folded per
+/// sensor, in byte order of the sensor ids (PostgreSQL's `COLLATE "C"`):
+/// each sensor's count, its least `performed_at`, its latest calibration
+/// by `(performed_at, id)` ([`crate::store::NEWEST_FIRST`]; a uuid orders by its bytes in
+/// both) with that one's verdict and due date, and the last type a write
+/// assigned — the row the writes would leave for a sensor that had none,
+/// which [`SENSOR_MERGE`] merges into a stored one as it merges one write.
+fn fold(rows: &[&Row]) -> Vec<SensorRow> {
+    let mut by: BTreeMap<&str, SensorRow> = BTreeMap::new();
+    for r in rows {
+        let n = r.new_calibration();
+        let assigned = n.sensor_type.as_deref().filter(|_| n.assigns_type);
+        match by.entry(n.sensor_id.as_str()) {
+            Entry::Vacant(v) => {
+                v.insert(SensorRow {
+                    sensor_id: n.sensor_id.clone(),
+                    calibration_count: 1,
+                    first_performed_at: n.performed_at,
+                    latest_performed_at: n.performed_at,
+                    latest_calibration_id: n.id,
+                    sensor_type: assigned.map(str::to_owned),
+                    latest_verdict: n.verdict,
+                    due_at: n.due_at,
+                });
+            }
+            Entry::Occupied(o) => {
+                let s = o.into_mut();
+                s.calibration_count += 1;
+                s.first_performed_at = s.first_performed_at.min(n.performed_at);
+                if (n.performed_at, n.id) > (s.latest_performed_at, s.latest_calibration_id) {
+                    s.latest_performed_at = n.performed_at;
+                    s.latest_calibration_id = n.id;
+                    s.latest_verdict = n.verdict;
+                    s.due_at = n.due_at;
+                }
+                if let Some(t) = assigned {
+                    s.sensor_type = Some(t.to_owned());
+                }
+            }
+        }
+    }
+    by.into_values().collect()
+}
+
 /// Merges the batch's calibrations `rows` (in the batch's order) into
-/// their sensors' rows ([`UPSERT_SENSORS`]); answers the connection's
-/// backend process id and each sensor's row as it left it.
+/// their sensors' rows and appends their entries, by `actors`
+/// ([`fold`], [`UPSERT_SENSORS`]); answers the connection's backend process
+/// id and each sensor's row as it left it.
 async fn upsert_sensors(
     tx: &Transaction<'_>,
     rows: &[&Row],
+    actors: &HashMap<&str, Actor>,
 ) -> Result<(i32, HashMap<String, SensorRow>), StoreError> {
     let upsert = tx.prepare_cached(&UPSERT_SENSORS).await.map_err(map)?;
-    let ids: Vec<Uuid> = rows.iter().map(|r| r.new_calibration().id).collect();
-    let assigned: Vec<Option<&str>> = rows
+    let folded = fold(rows);
+    let ids: Vec<&str> = folded.iter().map(|s| s.sensor_id.as_str()).collect();
+    let counts: Vec<i64> = folded.iter().map(|s| s.calibration_count as i64).collect();
+    let first: Vec<OffsetDateTime> = folded
         .iter()
-        .map(|r| {
-            let n = r.new_calibration();
-            n.sensor_type.as_deref().filter(|_| n.assigns_type)
-        })
+        .map(|s| s.first_performed_at.datetime())
         .collect();
-    let upserted = tx.query(&upsert, &[&ids, &assigned]).await.map_err(map)?;
+    let latest: Vec<OffsetDateTime> = folded
+        .iter()
+        .map(|s| s.latest_performed_at.datetime())
+        .collect();
+    let latest_ids: Vec<Uuid> = folded.iter().map(|s| s.latest_calibration_id).collect();
+    let types: Vec<Option<&str>> = folded.iter().map(|s| s.sensor_type.as_deref()).collect();
+    let verdicts: Vec<Option<&str>> = folded
+        .iter()
+        .map(|s| s.latest_verdict.map(|v| v.as_str()))
+        .collect();
+    let due: Vec<Option<OffsetDateTime>> = folded
+        .iter()
+        .map(|s| s.due_at.map(|t| t.datetime()))
+        .collect();
+    let e = Entries::of(rows, actors)?;
+    let upserted = tx
+        .query(
+            &upsert,
+            &[
+                &ids,
+                &counts,
+                &first,
+                &latest,
+                &latest_ids,
+                &types,
+                &verdicts,
+                &due,
+                &e.ids,
+                &e.sensors,
+                &e.at,
+                &e.token_ids,
+                &e.roles,
+                &e.holders,
+                &e.objects,
+                &e.heads,
+                &e.served,
+                &e.tails,
+                &e.unchanged,
+                &SUBMITTED,
+            ],
+        )
+        .await
+        .map_err(map)?;
     let pid = match upserted.first() {
         Some(row) => rows::get(row, "pid")?,
         None => {
@@ -333,4 +419,59 @@ async fn upsert_sensors(
         .map(|r| rows::sensor_row(r).map(|s| (s.sensor_id.clone(), s)))
         .collect::<Result<_, _>>()?;
     Ok((pid, merged))
+}
+
+/// The columns of a batch's `calibration.submitted` entries
+/// ([`crate::store::audit::Submitted`]), one element per calibration: its
+/// change as the text around the effect and the effect that serves it, the
+/// effect that changes nothing being one text for all.
+struct Entries<'a> {
+    ids: Vec<Uuid>,
+    sensors: Vec<&'a str>,
+    at: Vec<OffsetDateTime>,
+    token_ids: Vec<&'a str>,
+    roles: Vec<&'a str>,
+    holders: Vec<Option<&'a str>>,
+    objects: Vec<String>,
+    heads: Vec<&'a str>,
+    served: Vec<String>,
+    tails: Vec<&'a str>,
+    unchanged: String,
+}
+
+impl<'a> Entries<'a> {
+    fn of(rows: &[&'a Row], actors: &'a HashMap<&str, Actor>) -> Result<Self, StoreError> {
+        let mut e = Entries {
+            ids: Vec::with_capacity(rows.len()),
+            sensors: Vec::with_capacity(rows.len()),
+            at: Vec::with_capacity(rows.len()),
+            token_ids: Vec::with_capacity(rows.len()),
+            roles: Vec::with_capacity(rows.len()),
+            holders: Vec::with_capacity(rows.len()),
+            objects: Vec::with_capacity(rows.len()),
+            heads: Vec::with_capacity(rows.len()),
+            served: Vec::with_capacity(rows.len()),
+            tails: Vec::with_capacity(rows.len()),
+            unchanged: Effect::stored(Uuid::nil(), false).to_value().to_string(),
+        };
+        for r in rows {
+            let n = r.new_calibration();
+            let by = actors.get(n.submitted_by.as_str()).ok_or_else(|| {
+                StoreError::corrupt("audit", "a submitter was not looked up before its entry")
+            })?;
+            let (head, tail) = r.entry().around_effect();
+            e.ids.push(n.id);
+            e.sensors.push(&n.sensor_id);
+            e.at.push(r.entry().at().datetime());
+            e.token_ids.push(&by.token_id);
+            e.roles.push(&by.role);
+            e.holders.push(by.holder.as_deref());
+            e.objects.push(crate::domain::audit::calibration(n.id));
+            e.heads.push(head);
+            e.served
+                .push(Effect::stored(n.id, true).to_value().to_string());
+            e.tails.push(tail);
+        }
+        Ok(e)
+    }
 }
