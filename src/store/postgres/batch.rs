@@ -304,9 +304,9 @@ async fn complete_keys(
 /// The batch's calibrations `rows` (in the batch's order) folded per
 /// sensor, in byte order of the sensor ids (PostgreSQL's `COLLATE "C"`):
 /// each sensor's count, its least `performed_at`, its latest calibration
-/// by `(performed_at, id)` ([`crate::store::NEWEST_FIRST`]; a uuid orders by its bytes in
-/// both) with that one's verdict and due date, and the last type a write
-/// assigned — the row the writes would leave for a sensor that had none,
+/// by `(performed_at, id)` ([`crate::store::NEWEST_FIRST`]; a uuid orders
+/// by its bytes in both) with that one's verdict and due date, and the last
+/// type a write assigned — the row the writes would leave for a sensor that had none,
 /// which [`SENSOR_MERGE`] merges into a stored one as it merges one write.
 fn fold(rows: &[&Row]) -> Vec<SensorRow> {
     let mut by: BTreeMap<&str, SensorRow> = BTreeMap::new();
