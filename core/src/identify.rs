@@ -8,7 +8,7 @@
 //! min_x ‖A·x − y‖²
 //! ```
 //!
-//! by the singular value decomposition `A = U·Σ·Vᵀ` (faer's, see `svd`;
+//! by the singular value decomposition `A = U·Σ·Vᵀ` ([`crate::svd`];
 //! never the normal equations, whose condition number is the square of
 //! `A`'s):
 //!
@@ -36,6 +36,7 @@ use serde::Serialize;
 use crate::Error;
 use crate::fusion::scaled_norm;
 use crate::position::Gravity;
+use crate::svd::{self, Factors};
 use crate::term::{Model, TermMap};
 
 /// Singular values at or below this fraction of the largest count as zero:
@@ -93,8 +94,8 @@ impl Design {
         } else {
             matrix.clone()
         };
-        let Factors { u, sigma, v } =
-            svd(&padded).ok_or_else(|| rank_deficient(model, m, 0, model.terms().to_vec()))?;
+        let Factors { u, sigma, v } = svd::thin(&padded)
+            .ok_or_else(|| rank_deficient(model, m, 0, model.terms().to_vec()))?;
         let sigma_max = sigma.max();
         let null: Vec<usize> = (0..sigma.len())
             .filter(|&k| counts_as_zero(sigma[k], sigma_max))
@@ -193,12 +194,12 @@ impl Design {
     pub fn widened(&self, x: &[f64]) -> Option<DVector<f64>> {
         let (m, p) = self.matrix.shape();
         assert_eq!(x.len(), m, "one value per position");
-        let wide = faer::Mat::from_fn(m.max(p + 1), p + 1, |r, j| match (r < m, j < p) {
+        let wide = DMatrix::from_fn(m.max(p + 1), p + 1, |r, j| match (r < m, j < p) {
             (false, _) => 0.0,
             (true, true) => self.matrix[(r, j)],
             (true, false) => x[r],
         });
-        let sigma = wide.singular_values().ok()?;
+        let sigma = svd::thin(&wide)?.sigma;
         let max = sigma.iter().copied().fold(0.0, f64::max);
         if sigma.iter().any(|s| counts_as_zero(*s, max)) {
             return None;
@@ -257,28 +258,6 @@ impl Design {
 /// zero ([`RANK_TOLERANCE`]; every one does when `max` is zero).
 fn counts_as_zero(s: f64, max: f64) -> bool {
     s <= RANK_TOLERANCE * max || max == 0.0
-}
-
-/// The factors of a thin SVD `A = U·Σ·Vᵀ`.
-struct Factors {
-    u: DMatrix<f64>,
-    sigma: DVector<f64>,
-    v: DMatrix<f64>,
-}
-
-/// The thin SVD of a matrix with at least as many rows as columns, by faer
-/// (LAPACK-grade; nalgebra 0.35's SVD returns wrong singular values for some
-/// designs, dimforge/nalgebra#1172). `None` if it does not converge.
-fn svd(a: &DMatrix<f64>) -> Option<Factors> {
-    let (m, p) = a.shape();
-    let f = faer::Mat::from_fn(m, p, |r, j| a[(r, j)]);
-    let svd = f.thin_svd().ok()?;
-    let (u, s, v) = (svd.U(), svd.S(), svd.V());
-    Some(Factors {
-        u: DMatrix::from_fn(m, p, |r, k| u[(r, k)]),
-        sigma: DVector::from_fn(p, |k, _| s[k]),
-        v: DMatrix::from_fn(p, p, |j, k| v[(j, k)]),
-    })
 }
 
 fn rank_deficient(model: &Model, positions: usize, rank: usize, terms: Vec<crate::Term>) -> Error {

@@ -57,7 +57,9 @@ mod error;
 /// expanded uncertainty's coverage factor from its effective degrees of
 /// freedom, [`coverage`]; 0.4.0: `noisy_run` judged by the runs' pure
 /// error when every run has replicate samples, [`quality`], and a batch of
-/// equal runs weighted at the consistency floor rather than refused).
+/// equal runs weighted at the consistency floor rather than refused; 0.5.0:
+/// designs factorised by one-sided Jacobi rotations, [`svd`], rather than
+/// by faer's SVD, which can move a result's last digits).
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 pub mod adequacy;
@@ -76,6 +78,7 @@ pub mod position;
 pub mod quality;
 pub mod reading;
 pub mod static_intervals;
+pub mod svd;
 pub mod temperature;
 pub mod term;
 pub mod thermal;
