@@ -306,8 +306,9 @@ async fn complete_keys(
 /// each sensor's count, its least `performed_at`, its latest calibration
 /// by `(performed_at, id)` ([`crate::store::NEWEST_FIRST`]; a uuid orders
 /// by its bytes in both) with that one's verdict and due date, and the last
-/// type a write assigned — the row the writes would leave for a sensor that had none,
-/// which [`SENSOR_MERGE`] merges into a stored one as it merges one write.
+/// type a write assigned — the row the writes would leave for a sensor
+/// that had none, which [`SENSOR_MERGE`] merges into a stored one as it
+/// merges one write.
 fn fold(rows: &[&Row]) -> Vec<SensorRow> {
     let mut by: BTreeMap<&str, SensorRow> = BTreeMap::new();
     for r in rows {
