@@ -1,8 +1,9 @@
 //! The pages' own event stream (`GET /ui/events`, issue 47 item 5), over
-//! real HTTP: it needs a session, carries one sensor's events unnamed (the
-//! pages' script listens to `message`), ends with the session, and the
-//! pages that follow it name it and their script (tests/ui/ checks the
-//! refresh in a real browser).
+//! real HTTP: it needs a session (204 without one, which stops a browser's
+//! reconnecting), carries one sensor's events unnamed (the pages' script
+//! listens to `message`), ends with the session, and the pages that follow
+//! it name it and their script (tests/ui/ checks the refresh in a real
+//! browser).
 
 use std::time::Duration;
 
@@ -51,13 +52,11 @@ async fn the_pages_follow_their_sensors_events(#[values(Sqlite, Postgres)] engin
         .send()
         .await
         .unwrap();
-    assert_eq!(res.status(), StatusCode::SEE_OTHER, "a session first");
-    assert!(
-        res.headers()[LOCATION]
-            .to_str()
-            .unwrap()
-            .starts_with("/ui/login?next=")
-    );
+    // Without a session: 204, which stops a browser's EventSource (the
+    // sign-in form's redirect would be HTML it refuses noisily).
+    assert_eq!(res.status(), StatusCode::NO_CONTENT, "a session first");
+    assert!(res.headers().get(LOCATION).is_none());
+    assert_eq!(res.headers()["cache-control"], "no-store");
 
     let reader = app.token("reader", None).await;
     app.submit(ADMIN, &paper()).await;
@@ -158,6 +157,45 @@ async fn the_pages_follow_their_sensors_events(#[values(Sqlite, Postgres)] engin
     })
     .await;
     assert!(ended.is_ok(), "the signed-out session's stream ended");
+    let reconnect = page(&app, "/ui/events", &session).await;
+    assert_eq!(
+        reconnect.status(),
+        StatusCode::NO_CONTENT,
+        "the browser's reconnection is told to stop"
+    );
+    // A revoked token's stream is refused alike, and leaves the session for
+    // the page, which says why it ended.
+    let doomed: Value = app
+        .post("/v1/tokens", ADMIN, &serde_json::json!({"role": "reader"}))
+        .await
+        .json()
+        .await
+        .unwrap();
+    let (gone, _) = sign_in(&app, doomed["token"].as_str().unwrap()).await;
+    let revoked = app
+        .client
+        .delete(app.url(&format!("/v1/tokens/{}", doomed["id"].as_str().unwrap())))
+        .bearer_auth(ADMIN)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    for _ in 0..2 {
+        let refused = page(&app, "/ui/events?sensor=LIVE-A", &gone).await;
+        assert_eq!(
+            refused.status(),
+            StatusCode::NO_CONTENT,
+            "the session first"
+        );
+    }
+    let res = page(&app, "/ui/sensors", &gone).await;
+    assert_eq!(res.status(), StatusCode::SEE_OTHER);
+    assert!(
+        res.headers()[LOCATION]
+            .to_str()
+            .unwrap()
+            .ends_with("&reason=ended")
+    );
     let (session, _) = sign_in(&app, &reader).await;
 
     // A calibration's page changes only by a reviewer's act on it: no script.

@@ -19,7 +19,7 @@ import path from 'node:path';
 import { chromium } from 'playwright-core';
 
 const BASE = process.env.ACCELCAL_URL;
-const SHORT = process.env.ACCELCAL_SHORT_SESSION_URL; // same database, 1 s sessions
+const SHORT = process.env.ACCELCAL_SHORT_SESSION_URL; // a database of its own, 1 s sessions
 const ADMIN = process.env.ACCELCAL_ADMIN_TOKEN;
 const SHOTS = process.env.SCREENSHOTS ?? 'target/ui-screenshots';
 const CHROMIUM = process.env.CHROMIUM ?? '/usr/bin/chromium';
@@ -499,7 +499,12 @@ try {
   await page.waitForSelector('#fleet tr[data-sensor-id="LIVE-002"]', { timeout: 20000 });
   assert.equal(await page.evaluate(() => window.stillThisPage), true, 'the fleet updated in place');
   await axe(page, 'fleet after a live update');
-  assert.equal((await anonStream()).status, 303, 'the pages\' stream needs a session');
+  // Without a session the pages' stream answers 204, which stops a
+  // browser's EventSource for good (a redirect to the sign-in form would be
+  // HTML, refused with a console error).
+  const refused = await anonStream();
+  assert.equal(refused.status, 204, 'the pages\' stream needs a session');
+  assert.equal(refused.headers.get('cache-control'), 'no-store');
   ok('live: a calibration stored through the API appears on the open sensor page and the fleet without a reload; another sensor\'s event leaves the sensor page alone; the stream needs a session');
 
   // -------------------------------------------------------- refusals
@@ -532,10 +537,15 @@ try {
   await signIn(bp, ADMIN, SHORT);
   assert.match(bp.url(), /\/ui\/sensors$/);
   await new Promise((r) => setTimeout(r, 2500));
+  // The fleet's script stops following the stream once the session has
+  // expired (the server ends the stream within a second; the browser's
+  // reconnection is answered 204), with no error in the console.
+  await bp.waitForSelector('#live-status[data-state=closed]', { state: 'attached', timeout: 20000 });
+  assert.match(await bp.textContent('#live-status'), /^Live updates stopped; reload the page/);
   await bp.goto(`${SHORT}/ui/sensors`);
   assert.match(bp.url(), /\/ui\/login\?.*reason=expired/);
   assert.match(await bp.textContent('[role=alert]'), /expired/);
-  ok('an expired session goes back to sign-in, saying so');
+  ok('an expired session stops the page\'s live updates and goes back to sign-in, saying so');
 
   const doomed = (await must(201, api('POST', '/v1/tokens', { body: JSON.stringify({ role: 'reader' }) }), 'doomed token'));
   const rc = await newContext();
@@ -545,9 +555,10 @@ try {
   // revocation, its own request would have ended the session first).
   await rp.waitForSelector('#live-status[data-state=open]', { state: 'attached' });
   await must(204, api('DELETE', `/v1/tokens/${doomed.id}`), 'revoke');
+  await rp.waitForSelector('#live-status[data-state=closed]', { state: 'attached', timeout: 20000 });
   await rp.goto('/ui/sensors');
   assert.match(rp.url(), /reason=ended/);
-  ok('revoking the token ends its sessions at once');
+  ok('revoking the token ends its sessions at once, and its open page\'s live updates');
 
   await Promise.all([page.waitForNavigation(), page.click('form[action="/ui/logout"] button')]);
   assert.match(page.url(), /\/ui\/login\?reason=signed-out/);

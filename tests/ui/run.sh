@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # accelcal's pages in a real browser, and its metrics through promtool.
 # Starts accelcal (and a second process on a database of its own, one-second
-# sessions, for the expiry check) with metrics on, runs tests/ui/browser.mjs
+# sessions, for the expiry check) with metrics on, both looking at a page
+# stream's session every second (`--events-heartbeat 1`, so that the pages'
+# script is seen to stop once its session ends), runs tests/ui/browser.mjs
 # in Debian's chromium, then checks the scraped metrics with
 # `promtool check metrics`. Needs chromium, node/npm, promtool and pdftotext (.ci/run
 # installs them); screenshots land in target/ui-screenshots/.
@@ -15,12 +17,12 @@ free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",
 PORT=$(free_port); SHORT_PORT=$(free_port); METRICS_PORT=$(free_port)
 export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
 "$BIN" serve --listen 127.0.0.1:$PORT --database "$WORK/accelcal.db" \
-  --metrics-listen 127.0.0.1:$METRICS_PORT --log-format json >"$WORK/server.log" 2>&1 &
+  --metrics-listen 127.0.0.1:$METRICS_PORT --events-heartbeat 1 --log-format json >"$WORK/server.log" 2>&1 &
 PID=$!
 trap 'kill $PID ${SHORT_PID:-} 2>/dev/null; wait 2>/dev/null; rm -rf "$WORK"' EXIT
 for _ in $(seq 100); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && break; sleep 0.1; done
 "$BIN" serve --listen 127.0.0.1:$SHORT_PORT --database "$WORK/short.db" --session-ttl 1 \
-  --log-format json >"$WORK/short.log" 2>&1 &
+  --events-heartbeat 1 --log-format json >"$WORK/short.log" 2>&1 &
 SHORT_PID=$!
 for _ in $(seq 100); do curl -sf http://127.0.0.1:$SHORT_PORT/healthz >/dev/null && break; sleep 0.1; done
 

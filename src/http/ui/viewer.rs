@@ -13,6 +13,7 @@ use crate::domain::auth::{self, Principal};
 use crate::domain::timestamp::Timestamp;
 use crate::http::AppState;
 use crate::http::auth::still_valid;
+use crate::http::problem::Problem;
 
 /// The session cookie.
 pub const SESSION_COOKIE: &str = "accelcal_session";
@@ -29,43 +30,90 @@ pub struct Viewer {
     pub(super) id_hash: [u8; 32],
 }
 
+/// Why a request has no [`Viewer`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Absent {
+    /// No session cookie.
+    NoCookie,
+    /// The cookie names no session (signed out, or ended before).
+    Unknown,
+    /// This session is past its expiry.
+    Expired([u8; 32]),
+    /// This session's token was revoked (or its holder's role changed).
+    Ended([u8; 32]),
+}
+
+impl Absent {
+    /// The sign-in form's `reason`.
+    fn reason(self) -> Option<&'static str> {
+        match self {
+            Absent::NoCookie => None,
+            Absent::Unknown | Absent::Expired(_) => Some("expired"),
+            Absent::Ended(_) => Some("ended"),
+        }
+    }
+
+    /// The dead session to delete, by its hash.
+    fn dead(self) -> Option<[u8; 32]> {
+        match self {
+            Absent::Expired(h) | Absent::Ended(h) => Some(h),
+            Absent::NoCookie | Absent::Unknown => None,
+        }
+    }
+}
+
+/// The viewer of a request with these headers, or why there is none,
+/// changing nothing: the pages' event stream asks this, and leaves a dead
+/// session for the page that next asks to end, with its reason.
+pub async fn look(
+    headers: &HeaderMap,
+    state: &AppState,
+) -> Result<Result<Viewer, Absent>, Problem> {
+    let jar = CookieJar::from_headers(headers);
+    let Some(cookie) = jar.get(SESSION_COOKIE) else {
+        return Ok(Err(Absent::NoCookie));
+    };
+    let id_hash = auth::hash(cookie.value());
+    let Some(s) = state.store.session(id_hash).await? else {
+        return Ok(Err(Absent::Unknown));
+    };
+    if s.expires_at <= Timestamp::now() {
+        return Ok(Err(Absent::Expired(id_hash)));
+    }
+    let Some(principal) = still_valid(state, &s.principal, &s.credential_hash).await? else {
+        return Ok(Err(Absent::Ended(id_hash)));
+    };
+    Ok(Ok(Viewer {
+        principal,
+        csrf: s.csrf,
+        id_hash,
+    }))
+}
+
 impl FromRequestParts<AppState> for Viewer {
     type Rejection = UiError;
 
+    /// [`look`], then a dead session is deleted and the page is the
+    /// sign-in form, saying why, and back.
     async fn from_request_parts(parts: &mut Parts, state: &AppState) -> Result<Self, UiError> {
+        let absent = match look(&parts.headers, state).await? {
+            Ok(viewer) => return Ok(viewer),
+            Err(absent) => absent,
+        };
+        if let Some(id_hash) = absent.dead() {
+            state.store.delete_session(id_hash).await?;
+        }
         // Inside `/ui` the router sees the path without its prefix; the
         // original URI is the page to come back to.
         let uri = parts
             .extensions
             .get::<OriginalUri>()
             .map_or(&parts.uri, |o| &o.0);
-        let next = uri
-            .path_and_query()
-            .map_or(HOME.to_owned(), |p| p.as_str().to_owned());
-        let sign_in = |reason| UiError::SignIn {
-            next: next.clone(),
-            reason,
-        };
-        let jar = CookieJar::from_headers(&parts.headers);
-        let Some(cookie) = jar.get(SESSION_COOKIE) else {
-            return Err(sign_in(None));
-        };
-        let id_hash = auth::hash(cookie.value());
-        let Some(s) = state.store.session(id_hash).await? else {
-            return Err(sign_in(Some("expired")));
-        };
-        if s.expires_at <= Timestamp::now() {
-            state.store.delete_session(id_hash).await?;
-            return Err(sign_in(Some("expired")));
-        }
-        let Some(principal) = still_valid(state, &s.principal, &s.credential_hash).await? else {
-            state.store.delete_session(id_hash).await?;
-            return Err(sign_in(Some("ended")));
-        };
-        Ok(Viewer {
-            principal,
-            csrf: s.csrf,
-            id_hash,
+        Err(UiError::SignIn {
+            next: uri
+                .path_and_query()
+                .map_or(HOME.to_owned(), |p| p.as_str().to_owned()),
+            reason: absent.reason(),
         })
     }
 }

@@ -62,5 +62,15 @@
     try { why = JSON.parse(m.data).type; } catch { why = "an event"; }
     refresh();
   };
-  source.onerror = () => { status.dataset.state = "reconnecting"; };
+  // The browser reconnects by itself after a lost connection; a stream
+  // refused (the session ended: the server answers 204) is closed for good,
+  // and reloading shows the latest or, the session gone, the sign-in form.
+  source.onerror = () => {
+    if (source.readyState === EventSource.CLOSED) {
+      status.dataset.state = "closed";
+      status.textContent = "Live updates stopped; reload the page to see the latest.";
+    } else {
+      status.dataset.state = "reconnecting";
+    }
+  };
 })();
