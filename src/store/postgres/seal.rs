@@ -186,39 +186,20 @@ pub async fn seal_in(tx: &Transaction<'_>) -> Result<(Head, usize), StoreError> 
 }
 
 /// Seals every pending entry committed before this call, in a transaction
-/// of its own on `client`; how many.
+/// of its own on `client`, queueing for the chain's lock ([`lock`]): a
+/// reader of the trail, `audit verify`, shutdown. How many.
 pub async fn seal(client: &mut deadpool_postgres::Object) -> Result<usize, StoreError> {
-    Ok(sealing(client, Lock::Wait).await?.unwrap_or_default())
-}
-
-/// Whether a seal waits for the chain's lock when another holds it.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Lock {
-    /// Queue for it ([`lock`]): a reader of the trail, `audit verify`,
-    /// shutdown.
-    Wait,
-    /// Give up at once ([`try_lock`]): the sealer task, which looks again.
-    Skip,
-}
-
-/// [`seal_in`] in a transaction of its own on `client`, under the chain's
-/// lock taken as `how` says: how many it sealed, or `None` when it skipped
-/// a lock another held.
-async fn sealing(
-    client: &mut deadpool_postgres::Object,
-    how: Lock,
-) -> Result<Option<usize>, StoreError> {
     let tx = client.transaction().await.map_err(map)?;
-    let locked = match how {
-        Lock::Wait => lock(&tx).await.map(|()| true)?,
-        Lock::Skip => try_lock(&tx).await?,
-    };
-    if !locked {
-        return Ok(None);
-    }
-    let (_, sealed) = seal_in(&tx).await?;
+    lock(&tx).await?;
+    sealed(tx).await
+}
+
+/// [`seal_in`] under the chain's lock `tx` holds, then the commit: how many
+/// it sealed.
+async fn sealed(tx: Transaction<'_>) -> Result<usize, StoreError> {
+    let (_, n) = seal_in(&tx).await?;
     tx.commit().await.map_err(map)?;
-    Ok(Some(sealed))
+    Ok(n)
 }
 
 /// Entries committed and not yet sealed.
@@ -344,7 +325,11 @@ async fn once(p: &Pool) -> Result<Option<usize>, StoreError> {
     if !any_pending(&client).await? {
         return Ok(Some(0));
     }
-    sealing(&mut client, Lock::Skip).await
+    let tx = client.transaction().await.map_err(map)?;
+    if !try_lock(&tx).await? {
+        return Ok(None);
+    }
+    sealed(tx).await.map(Some)
 }
 
 /// Whether anything committed is pending (see [`seal_pending`]).
