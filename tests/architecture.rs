@@ -8,8 +8,9 @@
 //! domain ← store ← app ← http ← startup ← cli); no handler module (one
 //! whose functions the routers route) names another; no file outside the
 //! tests is over 600 lines; every module opens with a `//!` saying what it
-//! owns; and `docs/developers.md`'s map lists every module there is and
-//! none that is not.
+//! owns; `docs/developers.md`'s map lists every module there is and none
+//! that is not; and every metric the code names is described (Prometheus's
+//! `# HELP`, which `promtool check metrics` asks for).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
@@ -390,5 +391,30 @@ fn the_map_lists_every_module() {
     assert!(
         gone.is_empty(),
         "the map lists modules there are not: {gone:?}"
+    );
+}
+
+/// The metrics the code records, by the names written in its `counter!`,
+/// `gauge!` and `histogram!` calls, and those `describe_*!` describes.
+fn metrics() -> (BTreeSet<String>, BTreeSet<String>) {
+    let named = Regex::new(r#"(?:^|[^a-z_])(?:counter|gauge|histogram)!\(\s*"([a-z_]+)""#).unwrap();
+    let described = Regex::new(r#"describe_(?:counter|gauge|histogram)!\(\s*"([a-z_]+)""#).unwrap();
+    let (mut used, mut told) = (BTreeSet::new(), BTreeSet::new());
+    for path in modules().values() {
+        let code = code(path);
+        used.extend(named.captures_iter(&code).map(|c| c[1].to_owned()));
+        told.extend(described.captures_iter(&code).map(|c| c[1].to_owned()));
+    }
+    (used, told)
+}
+
+#[test]
+fn every_metric_is_described() {
+    let (used, told) = metrics();
+    assert!(used.len() >= 15, "the metrics' calls are found: {used:?}");
+    let silent: Vec<&String> = used.difference(&told).collect();
+    assert!(
+        silent.is_empty(),
+        "metrics without a description: {silent:?}"
     );
 }

@@ -115,11 +115,15 @@ fn describe() {
     );
     describe_gauge!(
         "accelcal_events_clients",
-        "Clients of GET /v1/events connected to this replica."
+        "Clients of GET /v1/events and of the pages' GET /ui/events connected to this replica."
     );
     describe_counter!(
         "accelcal_events_clients_dropped_total",
-        "Clients of GET /v1/events disconnected for falling more than 1024 events behind."
+        "Clients of GET /v1/events and /ui/events disconnected for falling more than 1024 events behind."
+    );
+    describe_counter!(
+        "accelcal_events_clients_ended_total",
+        "Streams of GET /v1/events and /ui/events ended because their token was revoked or their session ended."
     );
     describe_counter!(
         "accelcal_webhook_attempts_total",

@@ -36,7 +36,7 @@ for metric in accelcal_http_requests_total accelcal_http_request_duration_second
   accelcal_storage_operation_duration_seconds_bucket accelcal_build_info \
   accelcal_storage_write_batch_size_bucket accelcal_sensor_cache_total \
   accelcal_sensor_cache_writes_total accelcal_reviews_total \
-  accelcal_log_lines_dropped_total; do
+  accelcal_log_lines_dropped_total accelcal_events_clients_ended_total; do
   grep -q "^$metric" "$WORK/metrics.txt" || { echo "metrics: $metric missing" >&2; exit 1; }
 done
 echo "metrics: promtool check passed"
