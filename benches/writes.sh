@@ -17,7 +17,8 @@
 #
 # On PostgreSQL, pg_stat_activity is sampled every 50 ms during the write
 # legs: the share of the database's busy backends in each wait event (what
-# writers wait for). Prints Markdown for BENCHMARKS.md; every answer must be
+# writers wait for). The machine's CPU busy over each write leg (/proc/stat)
+# says whether the cores or something else was the limit. Prints Markdown for BENCHMARKS.md; every answer must be
 # a 2xx (wrk's non-2xx count is checked). Measures, never judges.
 # Usage: benches/writes.sh NAME=BIN NAME=BIN ...
 #        (e.g. a5689ea=/tmp/a5689ea head=target/release/accelcal)
@@ -133,6 +134,13 @@ sample_waits() {
     sleep 0.05
   done
 }
+# The machine's CPU counters (/proc/stat: all jiffies, idle + iowait).
+cpu_mark() { awk '/^cpu / { t = 0; for (i = 2; i <= NF; i++) t += $i; print t, $5 + $6 }' /proc/stat; }
+# busy_since MARK → the share of the machine's CPU time busy since MARK, %.
+busy_since() {
+  local t0 i0 t1 i1; read -r t0 i0 <<<"$1"; read -r t1 i1 < <(cpu_mark)
+  awk -v t="$((t1 - t0))" -v i="$((i1 - i0))" 'BEGIN { printf "%.0f", 100 * (t - i) / t }'
+}
 waits_summary() {
   sort "$1" | uniq -c | sort -rn | awk -v total="$(wc -l <"$1")" 'NR <= 4 { printf "%s%s %.0f%%", (NR > 1 ? ", " : ""), $2, 100 * $1 / total }'
 }
@@ -175,7 +183,9 @@ for engine in $ENGINES; do
         OFFSET=$((OFFSET + 1000000))
         : >"$WORK/waits"
         if [ "$engine" = postgres ]; then sample_waits "${database##*/}" "$WORK/waits" & SAMPLER=$!; fi
+        mark=$(cpu_mark)
         r=$(TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p" "$CONNS" "$WORK/submit.lua" /)
+        RES[$engine,$name,$leg,busy,$round]=$(busy_since "$mark")
         if [ "$engine" = postgres ]; then kill $SAMPLER; wait $SAMPLER 2>/dev/null || true; RES[$engine,$name,$leg,waits,$round]=$(waits_summary "$WORK/waits"); fi
         RES[$engine,$name,$leg,$round]=$r
       done
@@ -189,10 +199,12 @@ for engine in $ENGINES; do
           [ $leg = hot ] && { sensors=1; prefix=HOT; } || { sensors=1000; prefix=FLEET-; }
           OFFSET=$((OFFSET + 1000000))
           : >"$WORK/waits"; sample_waits "${database##*/}" "$WORK/waits" & SAMPLER=$!
+          mark=$(cpu_mark)
           (STRIDE=4 FIRST=0 TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r1") &
           w1=$!
           STRIDE=4 FIRST=2 TEMPLATE="$WORK/template.json" SENSORS=$sensors PREFIX=$prefix OFFSET=$OFFSET wrk_leg "$p2" $((CONNS / 2)) "$WORK/submit.lua" / >"$WORK/r2"
           wait $w1
+          RES[$engine,$name,2x-$leg,busy,$round]=$(busy_since "$mark")
           kill $SAMPLER; wait $SAMPLER 2>/dev/null || true
           RES[$engine,$name,2x-$leg,waits,$round]=$(waits_summary "$WORK/waits")
           RES[$engine,$name,2x-$leg,$round]=$(awk '{ s += $1; if ($2 > m) m = $2 } END { printf "%.2f %s", s, m }' "$WORK/r1" "$WORK/r2")
@@ -235,6 +247,14 @@ echo "HOT's calibrations after each round:"
 for engine in $ENGINES; do for name in "${NAMES[@]}"; do
   echo -n "- $engine $name:"; for round in $(seq "$ROUNDS"); do echo -n " ${RES[$engine,$name,history_size,$round]}"; done; echo
 done; done
+echo
+echo "The machine's CPU busy during the write legs (/proc/stat, every process: servers, database, wrk), %, rounds 1…$ROUNDS:"
+for engine in $ENGINES; do
+  legs="hot fleet"; [ "$engine" = postgres ] && legs="hot 2x-hot fleet 2x-fleet"
+  for name in "${NAMES[@]}"; do for leg in $legs; do
+    echo -n "- $engine $name $leg:"; for round in $(seq "$ROUNDS"); do echo -n " ${RES[$engine,$name,$leg,busy,$round]}"; done; echo
+  done; done
+done
 if [[ " $ENGINES " == *" postgres "* ]]; then
   echo
   echo "PostgreSQL's busy backends by wait event during the write legs (last round; CPU = not waiting):"
