@@ -324,6 +324,18 @@ impl TestApp {
         serde_json::from_str(&text).unwrap()
     }
 
+    /// Revokes the token with this id, as the configured admin.
+    pub async fn revoke(&self, token_id: &str) {
+        let res = self
+            .client
+            .delete(self.url(&format!("/v1/tokens/{token_id}")))
+            .bearer_auth(ADMIN)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(res.status(), StatusCode::NO_CONTENT, "revoking {token_id}");
+    }
+
     /// Creates a token with `role` (and station) and returns its secret.
     pub async fn token(&self, role: &str, station: Option<&str>) -> String {
         let mut body = json!({ "role": role });

@@ -340,14 +340,7 @@ async fn a_revoked_tokens_stream_ends(#[values(Sqlite, Postgres)] engine: Engine
     let kept = app.token("reader", None).await;
     let mut ending = Stream::open(&app, doomed["token"].as_str().unwrap(), "", None).await;
     let mut staying = Stream::open(&app, &kept, "", None).await;
-    let revoked = app
-        .client
-        .delete(app.url(&format!("/v1/tokens/{}", doomed["id"].as_str().unwrap())))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    app.revoke(doomed["id"].as_str().unwrap()).await;
     let ended = tokio::time::timeout(Duration::from_secs(10), async {
         while ending.res.chunk().await.unwrap().is_some() {}
     })

@@ -285,14 +285,7 @@ async fn sessions_end_on_expiry_revocation_and_sign_out(
         page(&app2, "/ui/sensors", &s2).await.status(),
         StatusCode::OK
     );
-    let revoked = app2
-        .client
-        .delete(app2.url(&format!("/v1/tokens/{}", created["id"].as_str().unwrap())))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    app2.revoke(created["id"].as_str().unwrap()).await;
     let res = page(&app2, "/ui/sensors", &s2).await;
     assert!(
         res.headers()[LOCATION]

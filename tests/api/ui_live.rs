@@ -172,14 +172,7 @@ async fn the_pages_follow_their_sensors_events(#[values(Sqlite, Postgres)] engin
         .await
         .unwrap();
     let (gone, _) = sign_in(&app, doomed["token"].as_str().unwrap()).await;
-    let revoked = app
-        .client
-        .delete(app.url(&format!("/v1/tokens/{}", doomed["id"].as_str().unwrap())))
-        .bearer_auth(ADMIN)
-        .send()
-        .await
-        .unwrap();
-    assert_eq!(revoked.status(), StatusCode::NO_CONTENT);
+    app.revoke(doomed["id"].as_str().unwrap()).await;
     for _ in 0..2 {
         let refused = page(&app, "/ui/events?sensor=LIVE-A", &gone).await;
         assert_eq!(
