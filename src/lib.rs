@@ -24,6 +24,11 @@
 //! `docs/developers.md` says what a new endpoint, query or stored field
 //! touches.
 
+// The service's documentation is for those who work on it, and links the
+// private items a module's map names (`cargo doc --document-private-items`
+// renders them).
+#![allow(rustdoc::private_intra_doc_links)]
+
 pub mod app;
 pub mod cli;
 pub mod client;

@@ -201,7 +201,7 @@ async fn events(
     Ok(out)
 }
 
-/// Waits until the store says the trail grew ([`Store::trail_grew`]);
+/// Waits until the store says the trail grew ([`Audit::trail_grew`](crate::store::Audit::trail_grew));
 /// forever when it cannot tell, or has closed.
 pub(crate) async fn grown(rx: &mut Option<watch::Receiver<u64>>) {
     if let Some(r) = rx

@@ -11,7 +11,7 @@ use crate::domain::submission::Media;
 use crate::domain::typed;
 
 /// A request body with its media type: the application layer's
-/// [`Upload`], read from the request (its typed readings below).
+/// [`Upload`](crate::app::Upload), read from the request (its typed readings below).
 pub use crate::app::Upload as Body;
 
 /// The media type named by a `Content-Type` value (UTF-8 only).

@@ -145,8 +145,8 @@ pub trait Audit: Send + Sync + 'static {
     /// The last sealed entry's sequence number (0 for an empty trail).
     async fn audit_head(&self) -> Result<i64, StoreError>;
     /// A counter that moves soon after this process's own acts' entries
-    /// have joined the chain — so that a reader of [`sealed_after`]
-    /// (Self::sealed_after) need not wait for its next look; each reader
+    /// have joined the chain — so that a reader of
+    /// [`sealed_after`](Self::sealed_after) need not wait for its next look; each reader
     /// takes its own receiver (every one sees every change); `None` when
     /// the engine cannot tell.
     fn trail_grew(&self) -> Option<tokio::sync::watch::Receiver<u64>> {

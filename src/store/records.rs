@@ -374,7 +374,7 @@ impl MadeWith {
 
     /// [`MadeWith::affected`] from the stored name of the state it was
     /// found in (`state_found`), its state as read being its state now;
-    /// without its replacement (see [`chain_end_sql`]).
+    /// without its replacement (see [`chain_end_sql`](crate::store::sql::chain_end_sql)).
     pub fn found_as(self, stored: &str) -> Result<Affected, StoreError> {
         let found = State::parse(stored)
             .ok_or_else(|| StoreError::corrupt("column `state_found`", stored.to_owned()))?;
@@ -403,7 +403,7 @@ pub enum Signed {
     Refused(Refusal),
 }
 
-/// A sensor's stored row as a write left it ([`SENSOR_ROW`]): its summary
+/// A sensor's stored row as a write left it ([`SENSOR_ROW`](crate::store::sql::SENSOR_ROW)): its summary
 /// but for the latest calibration's, which the row names by id.
 #[derive(Debug, Clone, PartialEq)]
 pub struct SensorRow {
@@ -415,7 +415,7 @@ pub struct SensorRow {
     pub first_performed_at: Timestamp,
     /// The latest `performed_at`.
     pub latest_performed_at: Timestamp,
-    /// The latest calibration, by [`NEWEST_FIRST`].
+    /// The latest calibration, by [`NEWEST_FIRST`](crate::store::sql::NEWEST_FIRST).
     pub latest_calibration_id: Uuid,
     /// The type assigned to it.
     pub sensor_type: Option<String>,

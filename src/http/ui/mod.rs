@@ -12,7 +12,7 @@
 //! * [`certificate`]: the printable certificate (also `GET
 //!   /v1/calibrations/{id}/certificate`); [`dcc`]: the same as a Digital
 //!   Calibration Certificate (XML);
-//! * [`plot`]: the charts; [`format`]: how numbers read; [`result`]: stored
+//! * [`plot`]: the charts; [`format`](mod@format): how numbers read; [`result`]: stored
 //!   result documents read back; [`assets`]: the stylesheet.
 //!
 //! The pages are read-only views over the same store the API serves; every

@@ -15,7 +15,7 @@
 //!   settle the sensor's entry after the database answered and before the
 //!   caller can answer its client: a calibration stored puts in the
 //!   sensor's row as the database's upsert answered it
-//!   ([`SensorRow`](super::SensorRow)); any other end — a failure, an unknown
+//!   ([`SensorRow`]); any other end — a failure, an unknown
 //!   outcome (a failed commit may still have landed), a write racing
 //!   another of the same sensor — drops it. So a station's next
 //!   submission of that sensor finds it cached. A type assigned

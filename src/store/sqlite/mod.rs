@@ -78,7 +78,7 @@ fn room(path: &Path, min: u64) -> Result<(), StoreError> {
     Ok(())
 }
 
-/// A SQLite-backed [`Store`].
+/// A SQLite-backed [`Store`](crate::store::Store).
 #[derive(Clone)]
 pub struct SqliteStore {
     /// Free bytes the disk must keep for readiness ([`MIN_FREE_BYTES`]).
