@@ -3,7 +3,10 @@
 # Starts accelcal (and a second process on a database of its own, one-second
 # sessions, for the expiry check) with metrics on, both looking at a page
 # stream's session every second (`--events-heartbeat 1`, so that the pages'
-# script is seen to stop once its session ends), runs tests/ui/browser.mjs
+# script is seen to stop once its session ends), the first without the
+# clock's status scan during the run (`--status-scan 3600`: the live check
+# counts a sensor page's events, and a scan that found the sensor overdue
+# would add one), runs tests/ui/browser.mjs
 # in Debian's chromium, then checks the scraped metrics with
 # `promtool check metrics`. Needs chromium, node/npm, promtool and pdftotext (.ci/run
 # installs them); screenshots land in target/ui-screenshots/.
@@ -17,7 +20,8 @@ free_port() { python3 -c 'import socket; s=socket.socket(); s.bind(("127.0.0.1",
 PORT=$(free_port); SHORT_PORT=$(free_port); METRICS_PORT=$(free_port)
 export ACCELCAL_ADMIN_TOKEN="$(head -c 32 /dev/urandom | base64)"
 "$BIN" serve --listen 127.0.0.1:$PORT --database "$WORK/accelcal.db" \
-  --metrics-listen 127.0.0.1:$METRICS_PORT --events-heartbeat 1 --log-format json >"$WORK/server.log" 2>&1 &
+  --metrics-listen 127.0.0.1:$METRICS_PORT --events-heartbeat 1 --status-scan 3600 \
+  --log-format json >"$WORK/server.log" 2>&1 &
 PID=$!
 trap 'kill $PID ${SHORT_PID:-} 2>/dev/null; wait 2>/dev/null; rm -rf "$WORK"' EXIT
 for _ in $(seq 100); do curl -sf http://127.0.0.1:$PORT/healthz >/dev/null && break; sleep 0.1; done
