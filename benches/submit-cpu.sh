@@ -10,7 +10,7 @@
 # drifts by tens of per cent between runs of one build).
 # Usage: benches/submit-cpu.sh BIN sqlite|postgres [SENSORS]
 #   PG_URL: a PostgreSQL server with trust auth (postgres://postgres@127.0.0.1:5432).
-#   PERF=FILE: perf record -F 499 --call-graph fp the server in the window.
+#   PERF=FILE: perf record -F 499 --call-graph ${CALLGRAPH:-fp} the server in the window.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=$(realpath "$1"); ENGINE=$2; SENSORS=${3:-1000}
@@ -47,7 +47,7 @@ WRK=$!
 sleep 3
 stored() { curl -s "localhost:$MPORT/metrics" | awk '/^accelcal_submissions_total.*outcome="stored"/ {s += $2} END {print s + 0}'; }
 t0=$(cpu $PID); g0=$(database); n0=$(stored)
-if [ -n "${PERF:-}" ]; then perf record -q -F 499 --call-graph fp -p $PID -o "$PERF" -- sleep 8 >/dev/null 2>&1
+if [ -n "${PERF:-}" ]; then perf record -q -F 499 --call-graph ${CALLGRAPH:-fp} -p $PID -o "$PERF" -- sleep 8 >/dev/null 2>&1
 else sleep 8; fi
 t1=$(cpu $PID); g1=$(database); n1=$(stored)
 wait $WRK

@@ -81,7 +81,7 @@ impl Coverage {
     /// `k` and `p` for a combined uncertainty of `effective_dof` degrees of
     /// freedom (`None`: infinite).
     ///
-    /// Remembered per thread ([`Remembered`]): Student's quantile costs
+    /// Remembered per thread (`Remembered`): Student's quantile costs
     /// 2–6 µs an evaluation (statrs inverts the regularised incomplete beta
     /// function iteratively), a stated factor's probability sixty-four of
     /// them, and every term of every budget asks — while a lab's budgets
@@ -184,7 +184,7 @@ pub fn fused_dof(batches: &[(usize, f64)]) -> f64 {
 const LARGE_DOF: u64 = 1000;
 
 /// `k = t_{(1+p)/2}(ν)`, the normal quantile when `ν` is infinite (`None`).
-/// For `ν` past [`LARGE_DOF`], Fisher's expansion (Abramowitz & Stegun
+/// For `ν` past `LARGE_DOF`, Fisher's expansion (Abramowitz & Stegun
 /// 26.7.5) about the normal quantile `z`:
 ///
 /// ```text

@@ -314,7 +314,7 @@ pub fn spread(directions: &[[f64; 3]]) -> f64 {
 }
 
 /// The spread of the mean outputs themselves, centred and scaled into the
-/// unit ball ([`normalise`]): the spread of a triad whose scale factors are
+/// unit ball (`normalise`): the spread of a triad whose scale factors are
 /// alike, computable without a fit (0 when every output is the same).
 /// Only a fit that failed is judged by it: it tells orientations that do
 /// not span the sphere (a cone of 5°–30° gives 3e-4–5e-3) from outputs

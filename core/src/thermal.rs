@@ -206,7 +206,7 @@ pub enum Selection {
 /// How a coefficient's polynomial is chosen.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct Options {
-    /// `T_ref`, °C; `None`: [`reference`] of the set points.
+    /// `T_ref`, °C; `None`: [`reference`](fn@reference) of the set points.
     pub reference_c: Option<f64>,
     /// The degree; `None`: chosen by `selection`.
     pub degree: Option<usize>,
