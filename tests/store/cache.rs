@@ -164,3 +164,77 @@ async fn postgres_writes_keep_their_sensor_cached() {
     store.close().await;
     other.close().await;
 }
+
+/// Many writes of one sensor at once (a hot sensor: stations submitting
+/// faster than they are stored), in bursts, their `performed_at` out of
+/// order: whichever order they settle in, what the cache serves after each
+/// burst is what the database holds, and the next write alone leaves the
+/// sensor cached.
+async fn a_hot_sensor_is_served_as_stored(
+    store: Arc<dyn Store>,
+    reference: &dyn Store,
+    cache: &SensorCache,
+) {
+    let sensor = "HOT";
+    let at = t("2027-06-01T00:00:00Z");
+    let mut count = 0;
+    for burst in 0..16u32 {
+        let writes: Vec<_> = (0..32u32)
+            .map(|i| {
+                let store = store.clone();
+                // Days scattered over the burst's month, so that writes queued
+                // later are often older than writes queued before them.
+                let day = 1 + (i * 7 + burst) % 28;
+                let performed = format!("2026-{:02}-{day:02}T{:02}:00:00Z", burst % 12 + 1, i % 24);
+                tokio::spawn(async move {
+                    store
+                        .insert_calibration(calibration(sensor, &performed), None)
+                        .await
+                        .unwrap()
+                })
+            })
+            .collect();
+        for w in writes {
+            w.await.unwrap();
+        }
+        count += 32;
+        let cached = store.sensor(sensor.into(), at).await.unwrap().unwrap();
+        let truth = reference.sensor(sensor.into(), at).await.unwrap().unwrap();
+        assert_eq!(
+            cached, truth,
+            "burst {burst}: the cache serves a stale sensor"
+        );
+        assert_eq!(cached.calibration_count, count, "burst {burst}");
+    }
+    store
+        .insert_calibration(calibration(sensor, "2026-12-31T00:00:00Z"), None)
+        .await
+        .unwrap();
+    assert!(
+        cache.contains(sensor),
+        "a write alone after the bursts dropped its sensor"
+    );
+    let cached = store.sensor(sensor.into(), at).await.unwrap().unwrap();
+    assert_eq!(
+        cached,
+        reference.sensor(sensor.into(), at).await.unwrap().unwrap()
+    );
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn sqlite_a_hot_sensor_is_served_as_stored() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner = SqliteStore::open(dir.path().join("hot.db")).unwrap();
+    let store = inner.clone().cached();
+    let cache = store.cache().sensors().clone();
+    a_hot_sensor_is_served_as_stored(Arc::new(store), &inner, &cache).await;
+}
+
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn postgres_a_hot_sensor_is_served_as_stored() {
+    let db = pg::TestDb::create().await;
+    let (store, cache) = cached_replica(&db.url).await;
+    let reference = PostgresStore::open(&db.url).await.unwrap();
+    a_hot_sensor_is_served_as_stored(store.clone(), &reference, &cache).await;
+    store.close().await;
+}

@@ -15,10 +15,12 @@
 //!   settle the sensor's entry after the database answered and before the
 //!   caller can answer its client: a calibration stored puts in the
 //!   sensor's row as the database's upsert answered it
-//!   ([`SensorRow`]); any other end — a failure, an unknown
-//!   outcome (a failed commit may still have landed), a write racing
-//!   another of the same sensor — drops it. So a station's next
-//!   submission of that sensor finds it cached. A type assigned
+//!   ([`SensorRow`]) unless a later state of it is held (writes of one
+//!   sensor in flight at once settle in any order; its calibration count
+//!   orders their rows); any other end — a failure, an unknown outcome (a
+//!   failed commit may still have landed) — drops it. So a station's next
+//!   submission of that sensor finds it cached, and so does every
+//!   submission to a sensor that many requests write at once. A type assigned
 //!   ([`Sensors::assign_sensor_type`](super::Sensors::assign_sensor_type)) drops the entry.
 //! * **A read racing a write** cannot put back what the write replaced:
 //!   every change ticks a clock and stamps the sensor's stripe, and a read

@@ -2,10 +2,11 @@
 //! put what it found into the cache.
 //!
 //! Every change the cache hears of — a drop (a notification from another
-//! replica, a type assigned here, a write whose outcome is unknown), the
-//! end of a write through this process, a reset — ticks one clock
-//! (`epoch`) and stamps the changed sensor's stripe (one of [`STRIPES`],
-//! by a hash of its id) with the new tick. Then:
+//! replica, a type assigned here, a write whose outcome is unknown, an
+//! entry evicted), the end of a write through this process, a reset —
+//! ticks one clock (`epoch`) and stamps the changed sensor's stripe (one of
+//! [`STRIPES`], by a hash of its id) with the new tick; a drop also marks
+//! the stripe dropped at that tick. Then:
 //!
 //! * a **read** that began at tick `e` fills its sensor only if the stripe
 //!   was not stamped after `e`, no reset happened after `e`, and no write
@@ -14,14 +15,29 @@
 //! * a **write** through this process ([`SensorCache::write`]) that
 //!   stored calibration `c` puts in the sensor's row as the database's
 //!   upsert answered it ([`SensorRow`]), with its latest calibration —
-//!   `c`, or the cached summary's latest — only if it was the only write
-//!   of its stripe in flight from start to end and the stripe was not
-//!   stamped meanwhile; in every other case — failed, unknown outcome, a
-//!   latest that is neither, a concurrent write, a drop — the entry is
-//!   dropped and the next read fills it from the database.
+//!   `c`, or the cached summary's latest — if the stripe was not dropped
+//!   and nothing was reset since the write began, and no entry of a
+//!   **later state** is held. Between two drops of a sensor only
+//!   calibrations are added to it (anything else that changes its row —
+//!   a review, a type, another replica's act — is a drop), so its
+//!   `calibration_count` numbers its states: of two writes in flight at
+//!   once, whichever settles last, the entry is the row with the greater
+//!   count, and rows of equal count are one state. A write whose row names
+//!   a latest it does not know (another write's, in the same batch or
+//!   settled later) cannot put it; it leaves a floor ([`Held::AtLeast`])
+//!   that keeps every write of an earlier state from putting its row, and
+//!   that a write of the same state which does know the latest replaces.
+//!   Any other end — failed, unknown outcome, abandoned, or begun before
+//!   a drop (its row may be of the state before the drop's change, whose
+//!   count does not compare) — drops the entry. So after a drop the writes
+//!   in flight at it drop it in turn, and a sensor written without pause
+//!   stays uncached until its writes pause: never stale, only read from
+//!   the database, as every sensor written by requests at once was before.
 //!
 //! Sensors sharing a stripe hold each other back, which costs a read, never
-//! a stale answer.
+//! a stale answer. One hot sensor written by many requests at once stays
+//! cached: its writes keep it current (BENCHMARKS.md, "A hot sensor kept
+//! by its writes").
 
 use std::collections::HashMap;
 use std::hash::{BuildHasher, RandomState};
@@ -38,6 +54,34 @@ pub const CAPACITY: usize = 4096;
 /// 1 − (1 − 1/4096)⁶³ ≈ 1.5 %.
 pub const STRIPES: usize = 4096;
 
+/// What the cache holds of a sensor.
+#[derive(Debug, Clone)]
+enum Held {
+    /// Its summary, as the database last stood as far as this process knows.
+    Known(Arc<SensorSummary>),
+    /// A write stored its sensor's state with this `calibration_count`
+    /// without knowing that state's latest calibration: a miss for reads,
+    /// and a floor for writes (module docs).
+    AtLeast(u64),
+}
+
+impl Held {
+    /// The `calibration_count` of the state held.
+    fn count(&self) -> u64 {
+        match self {
+            Held::Known(s) => s.calibration_count,
+            Held::AtLeast(n) => *n,
+        }
+    }
+
+    fn known(&self) -> Option<&Arc<SensorSummary>> {
+        match self {
+            Held::Known(s) => Some(s),
+            Held::AtLeast(_) => None,
+        }
+    }
+}
+
 /// The cached summaries and what guards them.
 #[derive(Debug)]
 pub struct SensorCache {
@@ -51,13 +95,15 @@ pub struct SensorCache {
 
 #[derive(Debug)]
 struct Entries {
-    map: HashMap<String, Arc<SensorSummary>>,
+    map: HashMap<String, Held>,
     /// The clock: ticked by every change.
     epoch: u64,
     /// The tick of the last reset.
     reset_at: u64,
     /// Per stripe, the tick of its last change.
     changed_at: Box<[u64; STRIPES]>,
+    /// Per stripe, the tick of its last drop.
+    dropped_at: Box<[u64; STRIPES]>,
     /// Per stripe, writes through this process in flight.
     writing: Box<[u32; STRIPES]>,
 }
@@ -68,6 +114,17 @@ impl Entries {
         self.epoch += 1;
         self.changed_at[stripe] = self.epoch;
         self.epoch
+    }
+
+    /// Stamps `stripe` as dropped: no write of it in flight puts its row.
+    fn drop_stripe(&mut self, stripe: usize) {
+        let tick = self.stamp(stripe);
+        self.dropped_at[stripe] = tick;
+    }
+
+    /// Whether `stripe` was neither dropped nor reset after `epoch`.
+    fn undropped_since(&self, stripe: usize, epoch: u64) -> bool {
+        self.reset_at <= epoch && self.dropped_at[stripe] <= epoch
     }
 
     /// Whether nothing of `stripe` changed, and nothing was reset, after `epoch`.
@@ -85,6 +142,7 @@ impl SensorCache {
                 epoch: 0,
                 reset_at: 0,
                 changed_at: Box::new([0; STRIPES]),
+                dropped_at: Box::new([0; STRIPES]),
                 writing: Box::new([0; STRIPES]),
             }),
             live: AtomicBool::new(live),
@@ -107,7 +165,7 @@ impl SensorCache {
     pub fn invalidate(&self, sensor_id: &str) {
         let stripe = self.stripe(sensor_id);
         let mut e = self.lock();
-        e.stamp(stripe);
+        e.drop_stripe(stripe);
         e.map.remove(sensor_id);
     }
 
@@ -131,7 +189,7 @@ impl SensorCache {
         if !self.live.load(Ordering::SeqCst) {
             return None;
         }
-        self.lock().map.get(sensor_id).cloned()
+        self.lock().map.get(sensor_id)?.known().cloned()
     }
 
     /// Keeps what a read that began at `epoch` found, unless its sensor
@@ -145,18 +203,26 @@ impl SensorCache {
         {
             return;
         }
-        self.put(&mut e, Arc::new(summary.clone()));
+        self.put(
+            &mut e,
+            &summary.sensor_id,
+            Held::Known(Arc::new(summary.clone())),
+        );
     }
 
-    /// Inserts `summary`, making room if the cache is full.
-    fn put(&self, e: &mut Entries, summary: Arc<SensorSummary>) {
+    /// Holds `held` for `sensor_id`, making room if the cache is full: the
+    /// sensor evicted is dropped, so that no write in flight of it puts an
+    /// older state in after the floor it may have held.
+    fn put(&self, e: &mut Entries, sensor_id: &str, held: Held) {
         if e.map.len() >= self.capacity
-            && !e.map.contains_key(&summary.sensor_id)
+            && !e.map.contains_key(sensor_id)
             && let Some(victim) = e.map.keys().next().cloned()
         {
             e.map.remove(&victim);
+            let stripe = self.stripe(&victim);
+            e.drop_stripe(stripe);
         }
-        e.map.insert(summary.sensor_id.clone(), summary);
+        e.map.insert(sensor_id.to_owned(), held);
     }
 
     /// A write of `sensor_id` through this process begins: until it is
@@ -182,26 +248,40 @@ impl SensorCache {
         metrics::counter!("accelcal_sensor_cache_writes_total", "outcome" => outcome).increment(1);
     }
 
-    /// [`end`](Self::end)'s work under the lock; whether the entry was
-    /// kept up to date.
+    /// [`end`](Self::end)'s work under the lock; whether the sensor's
+    /// summary is cached after it.
     fn apply(&self, w: &Write<'_>, stored: Option<(CalibrationSummary, SensorRow)>) -> bool {
         let mut e = self.lock();
-        let alone = e.writing[w.stripe] == 1;
         e.writing[w.stripe] -= 1;
-        let unchanged = e.unchanged_since(w.stripe, w.epoch);
-        e.stamp(w.stripe);
-        let cached = e.map.remove(&w.sensor_id);
-        let certain = alone && unchanged && self.live.load(Ordering::SeqCst);
+        let certain = e.undropped_since(w.stripe, w.epoch) && self.live.load(Ordering::SeqCst);
         let Some((c, row)) = stored.filter(|_| certain) else {
+            e.drop_stripe(w.stripe);
+            e.map.remove(&w.sensor_id);
             return false;
         };
-        let candidates = std::iter::once(&c).chain(cached.as_deref().map(|s| &s.latest));
-        match row.summary(candidates) {
+        // Reads that began before this end may not have seen the write.
+        e.stamp(w.stripe);
+        let held = e.map.get(&w.sensor_id).cloned();
+        if held
+            .as_ref()
+            .is_some_and(|h| h.count() > row.calibration_count)
+        {
+            // A later state is held: this row is already out of date.
+            return held.is_some_and(|h| h.known().is_some());
+        }
+        let count = row.calibration_count;
+        let cached = held.as_ref().and_then(Held::known).map(|s| &s.latest);
+        match row.summary(std::iter::once(&c).chain(cached)) {
             Some(s) => {
-                self.put(&mut e, Arc::new(s));
+                self.put(&mut e, &w.sensor_id, Held::Known(Arc::new(s)));
                 true
             }
-            None => false,
+            // Another write of this state knows its latest, or none here
+            // (of a state held, the cached latest is the row's).
+            None => {
+                self.put(&mut e, &w.sensor_id, Held::AtLeast(count));
+                false
+            }
         }
     }
 
@@ -210,7 +290,7 @@ impl SensorCache {
         self.live.load(Ordering::SeqCst)
     }
 
-    /// Sensors cached now.
+    /// Sensors held now (summaries, and floors left by writes).
     pub fn len(&self) -> usize {
         self.lock().map.len()
     }
@@ -220,9 +300,12 @@ impl SensorCache {
         self.len() == 0
     }
 
-    /// Whether `sensor_id` is cached now.
+    /// Whether `sensor_id`'s summary is cached now.
     pub fn contains(&self, sensor_id: &str) -> bool {
-        self.lock().map.contains_key(sensor_id)
+        self.lock()
+            .map
+            .get(sensor_id)
+            .is_some_and(|h| h.known().is_some())
     }
 }
 
@@ -261,229 +344,4 @@ impl Drop for Write<'_> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::domain::timestamp::Timestamp;
-    use uuid::Uuid;
-
-    pub(crate) fn ts(s: &str) -> Timestamp {
-        Timestamp::parse(s).unwrap()
-    }
-
-    fn summary(sensor: &str) -> SensorSummary {
-        SensorSummary::for_test(sensor)
-    }
-
-    /// A calibration of `sensor` performed on `day` of January 2026.
-    fn newer(sensor: &str, id: u128, day: u8) -> CalibrationSummary {
-        CalibrationSummary {
-            performed_at: ts(&format!("2026-01-{day:02}T00:00:00Z")),
-            ..CalibrationSummary::for_test(id, sensor, 0.5, 1.0)
-        }
-    }
-
-    /// What the database answers when `c` is stored after
-    /// [`summary`]`(sensor)`'s one calibration (id 7, performed in 2025).
-    fn row(c: &CalibrationSummary) -> SensorRow {
-        let before = summary(&c.sensor_id);
-        let newest = (c.performed_at, c.id) > (before.latest.performed_at, before.latest.id);
-        let latest = if newest { c } else { &before.latest };
-        SensorRow {
-            sensor_id: c.sensor_id.clone(),
-            calibration_count: 2,
-            first_performed_at: before.first_performed_at.min(c.performed_at),
-            latest_performed_at: latest.performed_at,
-            latest_calibration_id: latest.id,
-            sensor_type: None,
-            latest_verdict: latest.verdict,
-            due_at: latest.due_at,
-        }
-    }
-
-    fn stored(sensor: &str, id: u128, day: u8) -> Option<(CalibrationSummary, SensorRow)> {
-        let c = newer(sensor, id, day);
-        let r = row(&c);
-        Some((c, r))
-    }
-
-    fn filled(c: &SensorCache, sensor: &str) {
-        c.fill(c.begin().unwrap(), &summary(sensor));
-        assert!(c.contains(sensor));
-    }
-
-    #[test]
-    fn a_read_that_raced_a_drop_does_not_fill() {
-        let c = SensorCache::new(8, true);
-        let epoch = c.begin().unwrap();
-        c.invalidate("S");
-        c.fill(epoch, &summary("S"));
-        assert!(c.get("S").is_none(), "a fill from before the drop was kept");
-        filled(&c, "S");
-        c.invalidate("S");
-        assert!(c.get("S").is_none());
-    }
-
-    /// Stripes: a drop of one sensor holds back another sensor's read only
-    /// when the two share a stripe.
-    #[test]
-    fn a_drop_holds_back_reads_of_its_stripe_only() {
-        let c = SensorCache::new(1024, true);
-        let apart = (0..)
-            .map(|i| format!("T{i}"))
-            .find(|t| c.stripe(t) != c.stripe("S"))
-            .unwrap();
-        let together = (0..)
-            .map(|i| format!("U{i}"))
-            .find(|u| c.stripe(u) == c.stripe("S"))
-            .unwrap();
-        let epoch = c.begin().unwrap();
-        c.invalidate("S");
-        c.fill(epoch, &summary(&apart));
-        assert!(
-            c.contains(&apart),
-            "a drop of another stripe held a fill back"
-        );
-        c.fill(epoch, &summary(&together));
-        assert!(!c.contains(&together), "a fill raced a drop of its stripe");
-    }
-
-    #[test]
-    fn a_cache_that_is_not_live_neither_answers_nor_fills() {
-        let c = SensorCache::new(8, true);
-        filled(&c, "S");
-        c.reset(false);
-        assert!(c.is_empty(), "reset empties");
-        assert!(c.begin().is_none());
-        assert!(c.get("S").is_none());
-        c.reset(true);
-        let epoch = c.begin().unwrap();
-        c.reset(false);
-        c.fill(epoch, &summary("S"));
-        assert!(c.is_empty());
-        // Nor does a write bring an entry back.
-        c.reset(true);
-        filled(&c, "S");
-        let w = c.write("S");
-        c.reset(false);
-        w.settle(stored("S", 8, 2));
-        assert!(c.is_empty());
-    }
-
-    #[test]
-    fn the_cache_holds_at_most_its_capacity() {
-        let c = SensorCache::new(3, true);
-        for i in 0..10 {
-            c.fill(c.begin().unwrap(), &summary(&format!("S{i}")));
-            assert!(c.len() <= 3);
-        }
-        assert_eq!(c.len(), 3);
-        assert!(c.get("S9").is_some(), "the newest entry is kept");
-        // Refilling a present sensor evicts nothing.
-        c.fill(c.begin().unwrap(), &summary("S9"));
-        assert_eq!(c.len(), 3);
-    }
-
-    /// A write alone puts in the row the database answered, with the
-    /// calibration it names as latest: the one written, or the one cached.
-    #[test]
-    fn a_write_alone_updates_its_sensor() {
-        let c = SensorCache::new(8, true);
-        filled(&c, "S");
-        let w = c.write("S");
-        let (written, r) = stored("S", 8, 2).unwrap();
-        w.settle(Some((written.clone(), r.clone())));
-        let s = c.get("S").expect("the written sensor stays cached");
-        assert_eq!(s.latest, written);
-        assert_eq!(s.calibration_count, 2);
-        assert_eq!(s.latest_performed_at, written.performed_at);
-
-        // An older calibration: the cached latest stays the latest.
-        let older = CalibrationSummary {
-            performed_at: ts("2020-01-01T00:00:00Z"),
-            ..newer("S", 9, 1)
-        };
-        let mut r = row(&older);
-        r.latest_calibration_id = written.id;
-        r.latest_performed_at = written.performed_at;
-        c.write("S").settle(Some((older.clone(), r)));
-        let s = c.get("S").expect("still cached");
-        assert_eq!(
-            (s.latest.id, s.first_performed_at),
-            (written.id, older.performed_at)
-        );
-
-        // A sensor not cached is put in when the write is its latest.
-        let (fresh, r) = stored("T", 10, 3).unwrap();
-        c.write("T").settle(Some((fresh.clone(), r)));
-        assert_eq!(c.get("T").unwrap().latest, fresh);
-    }
-
-    /// Every other end of a write drops the entry.
-    #[test]
-    fn a_write_that_is_not_alone_or_did_not_store_drops_its_sensor() {
-        let c = SensorCache::new(8, true);
-        let stored = || stored("S", 8, 2);
-        // Nothing stored, or the outcome unknown.
-        filled(&c, "S");
-        c.write("S").settle(None);
-        assert!(!c.contains("S"));
-        // Abandoned.
-        filled(&c, "S");
-        drop(c.write("S"));
-        assert!(!c.contains("S"));
-        // A latest that is neither the write's nor the cached one (a
-        // newer calibration stored meanwhile by another process).
-        filled(&c, "S");
-        let (written, mut r) = stored().unwrap();
-        r.latest_calibration_id = Uuid::from_u128(99);
-        c.write("S").settle(Some((written, r)));
-        assert!(!c.contains("S"));
-        // Dropped meanwhile (another replica's notification).
-        filled(&c, "S");
-        let w = c.write("S");
-        c.invalidate("S");
-        c.fill(c.begin().unwrap(), &summary("S"));
-        w.settle(stored());
-        assert!(!c.contains("S"), "a write updated an entry after a drop");
-        // Two writes of the sensor in flight: neither knows the other's
-        // effect, whichever ends first.
-        for first_ends_first in [true, false] {
-            filled(&c, "S");
-            let (a, b) = (c.write("S"), c.write("S"));
-            let (first, second) = if first_ends_first { (a, b) } else { (b, a) };
-            first.settle(stored());
-            assert!(!c.contains("S"));
-            c.fill(c.begin().unwrap(), &summary("S"));
-            assert!(
-                !c.contains("S"),
-                "a read filled while a write was in flight"
-            );
-            second.settle(stored());
-            assert!(!c.contains("S"));
-        }
-    }
-
-    /// A read that may have seen the write's effect cannot fill while the
-    /// write is in flight, nor replace the write's row after it ended if it
-    /// began before.
-    #[test]
-    fn a_read_racing_a_write_does_not_fill() {
-        let c = SensorCache::new(8, true);
-        let w = c.write("S");
-        let epoch = c.begin().unwrap();
-        c.fill(epoch, &summary("S"));
-        assert!(!c.contains("S"), "filled during a write");
-        w.settle(stored("S", 8, 2));
-        assert_eq!(
-            c.get("S").unwrap().latest.id.as_u128(),
-            8,
-            "the write's row"
-        );
-        c.fill(epoch, &summary("S"));
-        assert_eq!(
-            c.get("S").unwrap().latest.id.as_u128(),
-            8,
-            "filled from before the write's end"
-        );
-    }
-}
+mod tests;
