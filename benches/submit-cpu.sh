@@ -10,7 +10,8 @@
 # drifts by tens of per cent between runs of one build).
 # Usage: benches/submit-cpu.sh BIN sqlite|postgres [SENSORS]
 #   PG_URL: a PostgreSQL server with trust auth (postgres://postgres@127.0.0.1:5432).
-#   PERF=FILE: perf record -F 499 --call-graph ${CALLGRAPH:-fp} the server in the window.
+#   PERF=FILE: perf record -F 499 the server in the window, its call graph by
+#   frame pointers (CALLGRAPH=dwarf,16384 for a build without them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 BIN=$(realpath "$1"); ENGINE=$2; SENSORS=${3:-1000}
